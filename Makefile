@@ -1,0 +1,25 @@
+# hg2prism: `make world1` and `make test` set everything up on a fresh clone.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: world1 world2 test bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+world1: $(STAMP)
+	$(BIN)/hg2prism run models/world1.toml
+
+world2: $(STAMP)
+	$(BIN)/hg2prism run models/world2.toml
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) models/*/ bench/

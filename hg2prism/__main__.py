@@ -1,0 +1,3 @@
+from hg2prism.cli import main
+
+raise SystemExit(main())

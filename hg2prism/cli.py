@@ -1,0 +1,54 @@
+"""Command line: `hg2prism validate|emit|check|run WORLD`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from hg2prism.errors import InputError
+
+
+def _out_dir(world_path: Path, out: str | None) -> Path:
+    return Path(out) if out else world_path.parent / world_path.stem
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="hg2prism", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def add(name: str, help: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help, description=help)
+        p.add_argument("world", help="world file (TOML, see README)")
+        return p
+
+    add("validate", "Check a world file and print a summary; writes nothing.")
+    for name, help in (
+        ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
+        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
+        ("run", "Everything computed for a world (currently: check); writes into OUT."),
+    ):
+        p = add(name, help + " OUT defaults to the folder next to the world file named after it "
+                "(models/world1.toml -> models/world1/).")
+        p.add_argument("--out", metavar="OUT", help="output folder")
+
+    args = parser.parse_args(argv)
+    try:
+        from hg2prism import world as world_mod
+
+        world = world_mod.load_world(args.world)
+        if args.command == "validate":
+            print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
+                  f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
+            return 0
+        from hg2prism import pipeline, report
+
+        out = _out_dir(Path(args.world), args.out)
+        if args.command == "emit":
+            pipeline.emit(world, out)
+        else:
+            print(report.summary(pipeline.check(world, out).results, out))
+        return 0
+    except InputError as err:
+        print(f"hg2prism: error: {err}", file=sys.stderr)
+        return 2

@@ -1,0 +1,222 @@
+"""P2's perceptual games G(x) (SPEC §4), solved in numpy.
+
+G(x) is played on TS x DFA(x): at every step P2 commits to a trap set a2, then P1 answers with a1.
+Values are solved to within 1e-10 (SPEC §10): value iteration from below gives near-optimal
+strategies, then strategy iteration evaluates the strategy pair exactly (a sparse linear solve)
+and certifies the result:
+  * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
+    greedy strategy is at most x (the least fixed point lies below every fixed point), and
+  * x is 0 wherever P2 can keep P1 away from the target forever against P1's strategy; then
+    x is the unique solution of P2's best-response equations, so P1 guarantees at least x.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from hg2prism.automata import DFA
+from hg2prism.dynamics import TransitionSystem
+
+TIE = 1e-6              # P2's tie tolerance between trap sets (SPEC §4)
+# Value iteration only has to get the strategies nearly right: strategy iteration then
+# evaluates them exactly, so it stops early and leaves the precision to the linear solves.
+VI_TOLERANCE = 1e-8
+MAX_SWEEPS = 1_000_000
+
+
+class SolverError(RuntimeError):
+    """A game solver did not reach the required precision."""
+
+
+@dataclass(frozen=True, eq=False)
+class GameSolution:
+    """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
+
+    values: np.ndarray        # [n_ts, n_q]
+    sweeps: int
+    improvements: int
+
+
+@dataclass(frozen=True, eq=False)
+class PerceptualGame:
+    """G(x) for one hypothesis x: what P2 plays and how she models P1 (SPEC §4)."""
+
+    formula: str
+    dfa: DFA
+    values: np.ndarray        # [n_ts, n_q] V_x
+    fresh_q: np.ndarray       # [n_ts] q_x0(v) = delta(iota, L(v))
+    trap_choice: np.ndarray   # [n_ts] pi2_x(v): index of the trap set
+    log_policy: np.ndarray    # [n_ts, n_sets, 4] ln pi1_x(a1 | v, a2), softmax at q_x0(v)
+
+
+class _Game:
+    """Index arithmetic shared by the solver: game state g = s * n_q + q."""
+
+    def __init__(self, ts: TransitionSystem, dfa: DFA) -> None:
+        self.ts, self.dfa = ts, dfa
+        n_q = dfa.n_states
+        label = ts.state_label()
+        succ_q = dfa.delta[:, label[ts.succ]]                         # [n_q, S, 4, A2, 3]
+        self.next = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
+            ts.n_states * n_q, 4, ts.n_sets, 3)
+        self.prob = np.repeat(ts.prob, n_q, axis=0)                  # [G, 4, A2, 3]
+        self.allowed = np.repeat(ts.allowed, n_q, axis=0)            # [G, A2]
+        q_of = np.tile(np.arange(n_q), ts.n_states)
+        s_of = np.repeat(np.arange(ts.n_states), n_q)
+        self.goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
+        self.zero_fixed = (s_of == ts.trapped) | np.isin(q_of, list(dfa.sink))
+        self.free = ~(self.goal | self.zero_fixed)
+        self.size = ts.n_states * n_q
+
+    def q_values(self, v: np.ndarray) -> np.ndarray:
+        """Q[g, a1, a2]; for absorbing g every entry is V(g)."""
+        q = (self.prob * v[self.next]).sum(axis=-1)
+        q[~self.free] = v[~self.free, None, None]
+        return q
+
+    def operator(self, q: np.ndarray) -> np.ndarray:
+        """min over allowed a2 of max over a1."""
+        best = q.max(axis=1)
+        return np.where(self.allowed, best, np.inf).min(axis=1)
+
+    def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
+        """Rank of each state in P1's attractor for reaching the goal with positive probability
+        (P2 picks a2 first); -1 outside. `actions` [G, 4, A2] restricts P1's moves."""
+        rank = np.where(self.goal, 0, -1)
+        positive = self.prob > 0
+        level = 0
+        while True:
+            level += 1
+            inside = rank >= 0
+            reach = (positive & inside[self.next]).any(axis=-1)      # [G, 4, A2]
+            if actions is not None:
+                reach &= actions
+            ok = (reach.any(axis=1) | ~self.allowed).all(axis=1) & self.free & ~inside
+            if not ok.any():
+                return rank
+            rank[ok] = level
+
+
+def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
+    game = _Game(ts, dfa)
+    rank = game.positive_attractor()
+    zero = ~game.goal & (rank < 0)
+    v = game.goal.astype(float)
+    sweeps = 0
+    # Value iteration from below: every iterate is a lower bound of the least fixed point.
+    for sweeps in range(1, MAX_SWEEPS + 1):
+        new = game.operator(game.q_values(v))
+        new[~game.free | zero] = v[~game.free | zero]
+        change = np.abs(new - v).max()
+        v = new
+        if change < VI_TOLERANCE:
+            break
+    else:
+        raise SolverError(f"value iteration did not converge in {MAX_SWEEPS} sweeps")
+    values, improvements = _strategy_iteration(game, v, zero)
+    return GameSolution(values=values.reshape(ts.n_states, dfa.n_states),
+                        sweeps=sweeps, improvements=improvements)
+
+
+def _strategy_iteration(game: _Game, v: np.ndarray, zero: np.ndarray) -> tuple[np.ndarray, int]:
+    n = game.size
+    rows = np.arange(n)
+    p2 = None
+    for iteration in range(1, 200):
+        q = game.q_values(v)                                          # [G, 4, A2]
+        best_a1 = q.max(axis=1)                                       # [G, A2]
+        m = np.where(game.allowed, best_a1, np.inf)
+        greedy = m.argmin(axis=1)
+        if p2 is not None:  # keep the current choice unless another is strictly better
+            keep = m[rows, p2] <= m[rows, greedy] + 1e-14
+            greedy = np.where(keep, p2, greedy)
+        p2 = greedy
+        # P1: among (near-)optimal answers, one that makes progress toward the goal.
+        optimal = q >= best_a1[:, None, :] - 1e-12
+        rank = game.positive_attractor(optimal)
+        lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
+        progress = ((game.prob > 0) & (lower[game.next] < lower[:, None, None, None])).any(-1)
+        score = np.where(optimal & progress, 2, np.where(optimal, 1, 0))
+        p1 = score.argmax(axis=1)                                     # [G, A2]
+        x = _evaluate_pair(game, p1, p2, zero)
+        residual = np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0)
+        if residual <= 1e-11 and _certified(game, p1, x):
+            return x, iteration
+        v = np.maximum(x, v) if residual > 1e-6 else x
+    raise SolverError("strategy iteration did not certify the game values")
+
+
+def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
+    """Exact reach probabilities when P2 plays p2[g] and P1 answers p1[g, a2]."""
+    n = game.size
+    rows = np.arange(n)
+    a1 = p1[rows, p2]
+    nxt = game.next[rows, a1, p2]                                     # [G, 3]
+    prob = game.prob[rows, a1, p2]
+    solve = game.free & ~zero
+    # States that can reach the goal in this chain; the rest have value 0.
+    can = game.goal.copy()
+    while True:
+        grow = solve & ~can & ((prob > 0) & can[nxt]).any(axis=1)
+        if not grow.any():
+            break
+        can |= grow
+    solve &= can
+    x = game.goal.astype(float)
+    idx = np.flatnonzero(solve)
+    if idx.size:
+        pos = np.full(n, -1)
+        pos[idx] = np.arange(idx.size)
+        sub_next, sub_prob = nxt[idx], prob[idx]
+        inner = solve[sub_next] & (sub_prob > 0)
+        r = np.repeat(np.arange(idx.size), 3).reshape(-1, 3)[inner]
+        c = pos[sub_next[inner]]
+        matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
+            (sub_prob[inner], (r, c)), shape=(idx.size, idx.size))
+        rhs = (sub_prob * game.goal[sub_next]).sum(axis=1)
+        x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+    return x
+
+
+def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
+    """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever."""
+    rows = np.arange(game.size)
+    a1_for = p1                                                       # [G, A2]
+    nxt = game.next[rows[:, None], a1_for, np.arange(game.ts.n_sets)[None, :]]   # [G, A2, 3]
+    prob = game.prob[rows[:, None], a1_for, np.arange(game.ts.n_sets)[None, :]]
+    avoid = ~game.goal
+    while True:
+        stays = (((prob == 0) | avoid[nxt]).all(axis=-1) & game.allowed).any(axis=1)
+        new = avoid & (stays | game.zero_fixed)
+        if (new == avoid).all():
+            break
+        avoid = new
+    return bool((x[avoid] <= 1e-12).all())
+
+
+def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:
+    """Solve G(x) and derive P2's trap strategy and her softmax model of P1 (SPEC §4)."""
+    solution = solve_game(ts, dfa)
+    game = _Game(ts, dfa)
+    label = ts.state_label()
+    fresh_q = dfa.delta[dfa.initial, label]                           # [S]
+    flat = solution.values.reshape(-1)
+    g = np.arange(ts.n_states) * dfa.n_states + fresh_q
+    q = game.q_values(flat)[g]                                        # [S, 4, A2]
+    worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
+    tied = worst <= worst.min(axis=1, keepdims=True) + TIE
+    choice = tied.argmax(axis=1)
+    if ts.delay:
+        for s in range(ts.n_states - 1):
+            standing = ts.decode(s)[1]
+            if tied[s, standing]:
+                choice[s] = standing
+    scaled = rationality * q.transpose(0, 2, 1)                       # [S, A2, 4]
+    top = scaled.max(axis=2, keepdims=True)
+    log_policy = scaled - (top + np.log(np.exp(scaled - top).sum(axis=2, keepdims=True)))
+    return PerceptualGame(formula=dfa.formula, dfa=dfa, values=solution.values,
+                          fresh_q=fresh_q, trap_choice=choice, log_policy=log_policy)

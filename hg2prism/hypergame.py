@@ -1,0 +1,232 @@
+"""The hypergame MDP of SPEC §6, rendered as a structured PRISM model.
+
+Storm builds the product of four components, so the number of commands grows with the
+tables, never with the product:
+
+  robot         cell (TRAPPED once caught): P1's moves with slip, and the trap check
+  task          q: P1's task DFA, one step behind (it reads the label of the cell being left)
+  p2_traps      (delay > 0 only) the traps standing and the countdown
+  p2_inference  hyp and the observation window: the sliding-window CUSUM of SPEC §5
+
+Tables (moves, labels, P2's trap choices, log-likelihood ratios) are formulas written as
+balanced decision trees over the state variables, so Storm evaluates each in logarithmic time.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+from dataclasses import dataclass
+from pathlib import Path
+
+import jinja2
+import numpy as np
+
+from hg2prism import __version__
+from hg2prism.automata import DFA
+from hg2prism.dynamics import ACTIONS, TransitionSystem
+from hg2prism.inference import TOLERANCE, InferenceModel
+from hg2prism.games import PerceptualGame
+from hg2prism.world import World
+
+PROPERTY = 'Pmax=? [F "goal"]'
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How hypergame states are encoded in PRISM variables (for decoding Storm's states)."""
+
+    trapped_cell: int
+    slots: int                      # observation slots o1 (oldest) .. o{slots}
+    delay: int
+
+    def slot_variables(self, i: int) -> tuple[str, str]:
+        return f"o{i}_state", f"o{i}_act"
+
+
+@dataclass(frozen=True)
+class PrismModel:
+    text: str
+    properties: str
+    layout: Layout
+    commands: dict[str, int]        # module name -> number of commands
+
+
+def _number(value: float | int) -> str:
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    text = np.format_float_positional(float(value), unique=True, trim="0")
+    return text if "." in text else text + ".0"
+
+
+def lookup(table: np.ndarray, keys: list[tuple[str, int]]) -> str:
+    """An expression for table[k0 - lo0][k1 - lo1]...: a balanced tree of comparisons.
+
+    keys: (expression, lowest value) per table dimension. Equal sub-blocks collapse to a constant.
+    """
+    def node(block: np.ndarray, dim: int, start: int) -> str:
+        first = block.flat[0]
+        if (block == first).all():
+            return _number(first.item())
+        if block.shape[0] == 1:
+            return node(block[0], dim + 1, 0)
+        expr, low = keys[dim]
+        mid = block.shape[0] // 2
+        left = node(block[:mid], dim, start)
+        right = node(block[mid:], dim, start + mid)
+        return f"({expr}<{low + start + mid} ? {left} : {right})"
+
+    return node(np.asarray(table), 0, 0)
+
+
+def _template_source(name: str) -> str:
+    """Templates ship as the package `hg2prism.templates` (the repository's templates/ folder);
+    running from a checkout without installing reads that folder directly."""
+    try:
+        folder = importlib.resources.files("hg2prism.templates")
+    except ModuleNotFoundError:
+        folder = Path(__file__).resolve().parent.parent / "templates"
+    return folder.joinpath(name).read_text()
+
+
+def _environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FunctionLoader(_template_source),
+        undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
+        keep_trailing_newline=True)
+
+
+def render_template(name: str, **context: object) -> str:
+    return _environment().get_template(name).render(**context)
+
+
+def _cell_map(world: World, ts: TransitionSystem) -> list[str]:
+    """The map with each free cell's index, for the header."""
+    width = max(len(str(ts.n_cells - 1)), 2)
+    lines = []
+    for row, text in enumerate(world.grid.rows):
+        y = world.grid.height - 1 - row
+        cells = []
+        for x, char in enumerate(text):
+            index = ts.cell_index.get((x, y))
+            cells.append(("#" * width) if index is None else f"{char}{index:>{width - 1}}"
+                         if width > 2 else f"{char}{index}")
+        lines.append(f"y={y:<3}" + " ".join(cells))
+    return lines
+
+
+def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
+                inference: InferenceModel) -> PrismModel:
+    n_cells, n_sets, n_q = ts.n_cells, ts.n_sets, task.n_states
+    trapped = n_cells
+    cell_key = [("cell", 0)]
+    cells_plus = np.arange(n_cells + 1)
+
+    # Robot dynamics tables.
+    moves = {a: lookup(np.append(ts.move[:, d], trapped), cell_key) for d, a in enumerate(ACTIONS)}
+    label_expr = lookup(np.append(ts.cell_label, 0), cell_key)
+    q_now = lookup(task.delta, [("q", 0), ("label", 0)])
+    accepting = sorted(task.accepting)
+    sink = sorted(task.sink)
+
+    # The TS state as one number (for observations), and P2's trap choice per hypothesis.
+    if ts.delay:
+        ts_state = f"(cell*{n_sets}+traps)*{ts.phases}+countdown"
+        trap_keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
+        shape = (n_cells, n_sets, ts.phases)
+    else:
+        ts_state = "cell"
+        trap_keys = [("cell", 0)]
+        shape = (n_cells,)
+    trap_tables = [lookup(g.trap_choice[:-1].reshape(shape), trap_keys) for g in games]
+
+    # P2's inference: ratio tables and CUSUM formulas.
+    n_x, w = inference.n_hypotheses, inference.window
+    slots = w - 1
+    n_obs_states = ts.n_states - 1
+    ratio_formulas = []      # (name, comment, expression)
+    inference_rules = []     # per (hypothesis, action): switch and best formulas
+    for h in range(n_x):
+        others = [x for x in range(n_x) if x != h]
+        for x in others:
+            ratios = inference.ratios[h, x, :n_obs_states]              # [states, 4]
+            for i in range(1, slots + 1):
+                padded = np.vstack([np.zeros((1, 4)), ratios])           # state -1 = empty slot
+                padded = np.hstack([np.zeros((padded.shape[0], 1)), padded])  # act -1
+                ratio_formulas.append((
+                    f"r_h{h}_x{x}_o{i}",
+                    f"r(x{x} | x{h}) of the move in slot o{i}",
+                    lookup(padded, [(f"o{i}_state", -1), (f"o{i}_act", -1)])))
+            for d, a in enumerate(ACTIONS):
+                ratio_formulas.append((
+                    f"r_h{h}_x{x}_{a}",
+                    f"r(x{x} | x{h}) of moving {a} now",
+                    lookup(ratios[:, d], [("ts_state", 0)])))
+        for a in ACTIONS:
+            scores = {}
+            for x in others:
+                z = "0.0"
+                for term in [f"r_h{h}_x{x}_o{i}" for i in range(1, slots + 1)] + [f"r_h{h}_x{x}_{a}"]:
+                    z = f"max(0.0, {z}+{term})" if z != "0.0" else f"max(0.0, {term})"
+                scores[x] = z
+            inference_rules.append({"h": h, "action": a, "others": others, "scores": scores})
+
+    model_text = render_template(
+        "hypergame.prism.j2",
+        version=__version__, world=world, ts=ts, task=task, games=games, inference=inference,
+        actions=ACTIONS, cell_map=_cell_map(world, ts), trapped=trapped,
+        moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
+        ts_state=ts_state, trap_tables=trap_tables, slots=slots,
+        n_obs_states=n_obs_states, ratio_formulas=ratio_formulas, inference_rules=inference_rules,
+        switch_threshold=_number(inference.threshold - TOLERANCE), tolerance=_number(TOLERANCE),
+        robot_outcomes=_robot_outcomes(ts), start_cell=ts.decode(ts.start_state)[0],
+        start_traps=ts.decode(ts.start_state)[1], slip=_number(world.slip),
+        region_labels=[(name, k) for k, name in enumerate(ts.label_names) if k >= 2],
+        set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(n_sets)],
+        fmt=_number,
+    )
+    properties = render_template("hypergame.props.j2", property=PROPERTY, world=world)
+    commands = _count_commands(model_text)
+    return PrismModel(text=model_text, properties=properties,
+                      layout=Layout(trapped_cell=trapped, slots=slots, delay=ts.delay),
+                      commands=commands)
+
+
+def _robot_outcomes(ts: TransitionSystem) -> list[dict]:
+    """One robot command per (action, trap set): the outcome updates and which cells trap."""
+    perpendicular = {"N": "EW", "E": "NS", "S": "EW", "W": "NS"}
+    commands = []
+    for a in ACTIONS:
+        outcomes = [("1-2*slip", a)]
+        if ts.slip > 0:
+            outcomes += [("slip", p) for p in perpendicular[a]]
+        else:
+            outcomes = [("1", a)]
+        for t in range(ts.n_sets):
+            trap_cells = [ts.candidates[c] for c in ts.trap_sets[t]]
+            commands.append({"action": a, "set": t, "trap_cells": trap_cells, "outcomes": outcomes})
+    return commands
+
+
+def _count_commands(text: str) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    module = None
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("module "):
+            module = stripped.split()[1]
+            counts[module] = 0
+        elif stripped == "endmodule":
+            module = None
+        elif module and stripped.startswith("["):
+            counts[module] += 1
+    return counts
+
+
+def write_model(model: PrismModel, folder: Path) -> tuple[Path, Path]:
+    from hg2prism.outputs import write_text
+
+    prism = folder / "hypergame.prism"
+    props = folder / "hypergame.props"
+    write_text(prism, model.text)
+    write_text(props, model.properties)
+    return prism, props

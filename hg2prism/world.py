@@ -1,0 +1,485 @@
+"""World files (SPEC §1): load a TOML world, validate it, and return an immutable World.
+
+Coordinates: x is the column from the left, y the row from the BOTTOM (both 0-based).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hg2prism.errors import InputError
+
+Cell = tuple[int, int]
+
+# Region letters that Spot reads as temporal operators.
+FORBIDDEN_REGION_LETTERS = frozenset("FGMRUWX")
+
+
+@dataclass(frozen=True)
+class Grid:
+    rows: tuple[str, ...]                 # the map as written, top row first
+    width: int
+    height: int
+    walls: frozenset[Cell]
+    obstacles: frozenset[Cell]
+    regions: tuple[tuple[str, frozenset[Cell]], ...]   # (letter, cells), letters sorted
+    trap_candidates: tuple[Cell, ...]     # map reading order: top row first, left to right
+    start: Cell
+
+    def region_letters(self) -> tuple[str, ...]:
+        return tuple(letter for letter, _ in self.regions)
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    episodes: int = 10000
+    horizon: int = 200
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class DetectionSettings:
+    alpha: float = 0.05
+    epsilon: float = 0.01
+    deviate_after: int = 4
+
+
+@dataclass(frozen=True)
+class World:
+    path: Path
+    name: str
+    description: str
+    grid: Grid
+    slip: float
+    formula: str
+    traps: int
+    delay: int
+    initial_traps: tuple[Cell, ...]       # empty when delay == 0
+    hypotheses: tuple[str, ...]
+    initial_hypothesis: int
+    window: int
+    threshold: float
+    rationality: float
+    simulation: SimulationSettings = field(default_factory=SimulationSettings)
+    detection: DetectionSettings = field(default_factory=DetectionSettings)
+
+    def atomic_propositions(self) -> tuple[str, ...]:
+        """`obs` first, then the region letters of the map in alphabetical order."""
+        return ("obs",) + self.grid.region_letters()
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading and validation
+# ---------------------------------------------------------------------------------------------
+
+MAP_LEGEND = ". # o t @ A-Z"
+
+# Keys allowed in each table: key -> required?
+_TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
+             "adversary": True, "inference": True, "simulation": False, "detection": False}
+_TABLE_KEYS: dict[str, dict[str, bool]] = {
+    "grid": {"map": True},
+    "robot": {"slip": True},
+    "task": {"formula": True},
+    "adversary": {"traps": True, "delay": False, "initial_traps": False, "hypotheses": True,
+                  "initial_hypothesis": False},
+    "inference": {"window": True, "threshold": True, "rationality": True},
+    "simulation": {"episodes": False, "horizon": False, "seed": False},
+    "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
+}
+_MISSING_HINT = {
+    "grid.map": "a multi-line string with the map (legend: " + MAP_LEGEND + ")",
+    "robot.slip": "a number in [0, 0.5)",
+    "task.formula": "a syntactically co-safe LTL formula in Spot syntax",
+    "adversary.traps": "an integer >= 1",
+    "adversary.hypotheses": "a non-empty array of co-safe LTL formulas",
+    "inference.window": "an integer >= 1",
+    "inference.threshold": "a number > 0",
+    "inference.rationality": "a number > 0",
+}
+
+
+def _toml_type(value: object) -> str:
+    import datetime
+
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "float"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, list):
+        return "array"
+    if isinstance(value, dict):
+        return "table"
+    if isinstance(value, (datetime.datetime, datetime.date, datetime.time)):
+        return "date/time"
+    return type(value).__name__
+
+
+def _shown(value: object) -> str:
+    """The TOML type of a value, with the value itself when it is a short scalar."""
+    if isinstance(value, bool):
+        return f"boolean {'true' if value else 'false'}"
+    if isinstance(value, (int, float)):
+        return f"{_toml_type(value)} {value!r}"
+    if isinstance(value, str) and len(value) <= 40:
+        return f"string {value!r}"
+    return _toml_type(value)
+
+
+def _toml_repr(value: object) -> str:
+    """A short one-line rendering of a TOML value as it would be written in the file."""
+    import json
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_repr(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{_key_part(k)} = {_toml_repr(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+def _key_part(name: str) -> str:
+    """A TOML key as it would be written: bare when possible, else quoted (always one line)."""
+    import json
+    import re
+
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+class _Loader:
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.file = str(path)
+
+    def fail(self, key: str, reason: str) -> InputError:
+        return InputError(self.file, key, _one_line(reason))
+
+    # -- reading -----------------------------------------------------------------------------
+
+    def read(self) -> dict:
+        import re
+        import tomllib
+
+        try:
+            data = self.path.read_bytes()
+        except FileNotFoundError:
+            raise self.fail("-", "file not found") from None
+        except IsADirectoryError:
+            raise self.fail("-", "is a directory, expected a world file (TOML)") from None
+        except OSError as err:
+            raise self.fail("-", f"cannot read the file: {err.strerror or err}") from None
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as err:
+            raise self.fail("-", f"not valid TOML: not UTF-8 text (byte {err.start})") from None
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as err:
+            msg = str(err)
+            m = re.search(r"\(at (line \d+, column \d+|end of document)\)\s*$", msg)
+            key = m.group(1) if m else "-"
+            detail = msg[: m.start()].strip() if m else msg
+            raise self.fail(key, f"not valid TOML: {detail}") from None
+
+    # -- typed getters -----------------------------------------------------------------------
+
+    def check_keys(self, table: dict, allowed: dict[str, bool], prefix: str) -> None:
+        for name in table:
+            if name not in allowed:
+                key = f"{prefix}.{_key_part(name)}" if prefix else _key_part(name)
+                what = "table" if isinstance(table[name], dict) else "key"
+                where = f"in [{prefix}]" if prefix else "at the top level"
+                raise self.fail(key, f"unknown {what} {where}; expected one of: "
+                                     + ", ".join(allowed))
+        for name, required in allowed.items():
+            if required and name not in table:
+                key = f"{prefix}.{name}" if prefix else name
+                if not prefix and name in _TABLE_KEYS:
+                    raise self.fail(key, f"missing required table [{name}] (with "
+                                         + ", ".join(k for k, r in _TABLE_KEYS[name].items() if r)
+                                         + ")")
+                raise self.fail(key, "missing required key; expected "
+                                     + _MISSING_HINT.get(key, "a value"))
+
+    def table(self, root: dict, name: str) -> dict:
+        value = root.get(name, {})
+        if not isinstance(value, dict):
+            raise self.fail(name, f"must be a table [{name}], got {_toml_type(value)}")
+        self.check_keys(value, _TABLE_KEYS[name], name)
+        return value
+
+    def string(self, value: object, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {_toml_type(value)}")
+        return value
+
+    def integer(self, value: object, key: str, minimum: int | None = None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"must be an integer, got {_shown(value)}")
+        if minimum is not None and value < minimum:
+            name = key.rsplit(".", 1)[-1]
+            raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
+        return value
+
+    def number(self, value: object, key: str) -> float:
+        import math
+
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"must be a number, got {_shown(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(key, f"must be a finite number, got {value}")
+        return value
+
+    # -- sections ----------------------------------------------------------------------------
+
+    def grid(self, grid_table: dict) -> Grid:
+        key = "grid.map"
+        text = self.string(grid_table["map"], key)
+        text = text.replace("\r\n", "\n")
+        if text.startswith("\n"):
+            text = text[1:]
+        rows = text.split("\n")
+        while rows and rows[-1].strip() == "":
+            rows.pop()
+        if not rows:
+            raise self.fail(key, "the map is empty; expected rows of cells (legend: "
+                                 + MAP_LEGEND + ")")
+        height = len(rows)
+        width = len(rows[0])
+        for i, row in enumerate(rows):
+            if len(row) != width:
+                raise self.fail(key, f"ragged rows: row {i + 1} (from the top) has {len(row)} "
+                                     f"cells but row 1 has {width}; every row must be the same "
+                                     "length")
+        walls: set[Cell] = set()
+        obstacles: set[Cell] = set()
+        regions: dict[str, set[Cell]] = {}
+        candidates: list[Cell] = []
+        starts: list[Cell] = []
+        for i, row in enumerate(rows):
+            y = height - 1 - i
+            for x, ch in enumerate(row):
+                cell = (x, y)
+                if ch == ".":
+                    pass
+                elif ch == "#":
+                    walls.add(cell)
+                elif ch == "o":
+                    obstacles.add(cell)
+                elif ch == "t":
+                    candidates.append(cell)
+                elif ch == "@":
+                    starts.append(cell)
+                elif "A" <= ch <= "Z":
+                    if ch in FORBIDDEN_REGION_LETTERS:
+                        raise self.fail(key, f"region letter {ch} at (x={x}, y={y}) is not "
+                                             "allowed: F, G, M, R, U, W and X are Spot "
+                                             "operators; use another letter")
+                    regions.setdefault(ch, set()).add(cell)
+                else:
+                    raise self.fail(key, f"unknown character {ch!r} at (x={x}, y={y}) "
+                                         f"(row {i + 1}, column {x + 1}); expected one of "
+                                         + MAP_LEGEND)
+        if not starts:
+            raise self.fail(key, "no robot start '@' in the map; expected exactly one")
+        if len(starts) > 1:
+            where = ", ".join(f"({x}, {y})" for x, y in starts)
+            raise self.fail(key, f"{len(starts)} robot starts '@' at {where}; expected exactly one")
+        return Grid(
+            rows=tuple(rows),
+            width=width,
+            height=height,
+            walls=frozenset(walls),
+            obstacles=frozenset(obstacles),
+            regions=tuple((letter, frozenset(cells)) for letter, cells in sorted(regions.items())),
+            trap_candidates=tuple(candidates),
+            start=starts[0],
+        )
+
+    def formula(self, value: object, key: str, grid: Grid):
+        """Check a co-safe LTL formula over obs and the map's region letters; return spot.formula."""
+        import spot
+
+        text = self.string(value, key)
+        if text.strip() == "":
+            raise self.fail(key, "the formula is empty; expected a co-safe LTL formula in Spot "
+                                 "syntax, e.g. \"!obs U A\"")
+        try:
+            parsed = spot.formula(text)
+        except Exception as err:  # Spot raises SyntaxError with a multi-line diagnosis
+            lines = [ln.strip() for ln in str(err).splitlines()]
+            detail = "; ".join(ln for ln in lines
+                               if ln and not ln.startswith(">>>") and set(ln) != {"^"})
+            raise self.fail(key, f"formula {text!r} does not parse in Spot syntax"
+                                 + (f": {detail}" if detail else "")) from None
+        allowed = ("obs",) + grid.region_letters()
+        for ap in sorted(a.ap_name() for a in spot.atomic_prop_collect(parsed)):
+            if ap not in allowed:
+                raise self.fail(key, f"formula {text!r} uses proposition {ap!r}; only obs and "
+                                     "the region letters of the map ("
+                                     + (", ".join(grid.region_letters()) or "none")
+                                     + ") may be used")
+        if not parsed.is_syntactic_guarantee():
+            raise self.fail(key, f"formula {text!r} is not syntactically co-safe (Spot's "
+                                 "is_syntactic_guarantee is false); expected a co-safe formula "
+                                 "such as \"!obs U A\" or \"F A\"")
+        return parsed
+
+    def load(self) -> World:
+        root = self.read()
+        self.check_keys(root, _TOP_KEYS, "")
+
+        name = self.string(root["name"], "name") if "name" in root else self.path.stem
+        if name.strip() == "":
+            raise self.fail("name", "name must not be empty")
+        description = (self.string(root["description"], "description")
+                       if "description" in root else "")
+
+        grid = self.grid(self.table(root, "grid"))
+
+        robot = self.table(root, "robot")
+        slip = self.number(robot["slip"], "robot.slip")
+        if not 0.0 <= slip < 0.5:
+            raise self.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
+
+        task = self.table(root, "task")
+        self.formula(task["formula"], "task.formula", grid)
+        formula = task["formula"]
+
+        adv = self.table(root, "adversary")
+        traps = self.integer(adv["traps"], "adversary.traps", 1)
+        n_cand = len(grid.trap_candidates)
+        if traps > n_cand:
+            raise self.fail("adversary.traps", f"traps = {traps} but the map has only {n_cand} "
+                                               "trap candidate cells 't'; expected traps <= "
+                                               "the number of 't' cells")
+        delay = self.integer(adv.get("delay", 0), "adversary.delay", 0)
+        initial_traps = self.initial_traps(adv, grid, traps, delay)
+
+        hyp_value = adv["hypotheses"]
+        if not isinstance(hyp_value, list):
+            raise self.fail("adversary.hypotheses",
+                            f"must be an array of formulas, got {_toml_type(hyp_value)}")
+        if not hyp_value:
+            raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
+                                                    "co-safe LTL formula")
+        seen: dict[str, int] = {}
+        for i, h in enumerate(hyp_value):
+            key = f"adversary.hypotheses[{i}]"
+            canon = str(self.formula(h, key, grid))
+            if canon in seen:
+                j = seen[canon]
+                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
+                                     f"hypotheses[{j}] ({hyp_value[j]!r}); expected distinct "
+                                     "hypotheses")
+            seen[canon] = i
+        hypotheses = tuple(hyp_value)
+        initial_hypothesis = self.integer(adv.get("initial_hypothesis", 0),
+                                          "adversary.initial_hypothesis")
+        if not 0 <= initial_hypothesis < len(hypotheses):
+            raise self.fail("adversary.initial_hypothesis",
+                            f"initial_hypothesis must be an index into hypotheses "
+                            f"(0..{len(hypotheses) - 1}), got {initial_hypothesis}")
+
+        inf = self.table(root, "inference")
+        window = self.integer(inf["window"], "inference.window", 1)
+        threshold = self.number(inf["threshold"], "inference.threshold")
+        if threshold <= 0:
+            raise self.fail("inference.threshold", f"threshold must be > 0, got {threshold}")
+        rationality = self.number(inf["rationality"], "inference.rationality")
+        if rationality <= 0:
+            raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
+
+        sim = self.table(root, "simulation")
+        d = SimulationSettings()
+        simulation = SimulationSettings(
+            episodes=self.integer(sim.get("episodes", d.episodes), "simulation.episodes", 1),
+            horizon=self.integer(sim.get("horizon", d.horizon), "simulation.horizon", 1),
+            seed=self.integer(sim.get("seed", d.seed), "simulation.seed", 0),
+        )
+
+        det = self.table(root, "detection")
+        dd = DetectionSettings()
+        alpha = self.number(det.get("alpha", dd.alpha), "detection.alpha")
+        if not 0 < alpha < 1:
+            raise self.fail("detection.alpha", f"alpha must be in (0, 1), got {alpha}")
+        epsilon = self.number(det.get("epsilon", dd.epsilon), "detection.epsilon")
+        if not 0 < epsilon < 1:
+            raise self.fail("detection.epsilon", f"epsilon must be in (0, 1), got {epsilon}")
+        deviate_after = self.integer(det.get("deviate_after", dd.deviate_after),
+                                     "detection.deviate_after", 0)
+        detection = DetectionSettings(alpha=alpha, epsilon=epsilon, deviate_after=deviate_after)
+
+        return World(
+            path=self.path,
+            name=name,
+            description=description,
+            grid=grid,
+            slip=slip,
+            formula=formula,
+            traps=traps,
+            delay=delay,
+            initial_traps=initial_traps,
+            hypotheses=hypotheses,
+            initial_hypothesis=initial_hypothesis,
+            window=window,
+            threshold=threshold,
+            rationality=rationality,
+            simulation=simulation,
+            detection=detection,
+        )
+
+    def initial_traps(self, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
+        """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter
+        (and are only checked) when delay > 0. Returns cells sorted by candidate number."""
+        key = "adversary.initial_traps"
+        if "initial_traps" not in adv:
+            if delay > 0:
+                raise self.fail(key, f"initial_traps is required when delay > 0; expected "
+                                     f"{traps} distinct trap candidate cells as [[x, y], ...]")
+            return ()
+        value = adv["initial_traps"]
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be an array of [x, y] cells, got {_toml_type(value)}")
+        cells: list[Cell] = []
+        for i, item in enumerate(value):
+            ikey = f"{key}[{i}]"
+            if (not isinstance(item, list) or len(item) != 2
+                    or any(isinstance(c, bool) or not isinstance(c, int) for c in item)):
+                raise self.fail(ikey, f"each initial trap must be a cell [x, y] of two integers, "
+                                      f"got {_toml_repr(item)}")
+            cells.append((item[0], item[1]))
+        if delay == 0:
+            return ()
+        numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
+        cand_text = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
+        for i, cell in enumerate(cells):
+            if cell not in numbering:
+                raise self.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is not a trap candidate "
+                                               f"'t' cell; candidates are {cand_text}")
+        for i, cell in enumerate(cells):
+            if cell in cells[:i]:
+                raise self.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is repeated; initial "
+                                               "traps must be distinct cells")
+        if len(cells) != traps:
+            raise self.fail(key, f"expected {traps} distinct trap candidate cells (traps = "
+                                 f"{traps}) because delay > 0, got {len(cells)}")
+        return tuple(sorted(cells, key=numbering.__getitem__))
+
+
+def load_world(path: str | Path) -> World:
+    """Read and validate a world file; raise InputError(file, key, reason) on any problem."""
+    return _Loader(Path(path)).load()

@@ -1,0 +1,716 @@
+"""Independent reference implementation of the hg2prism semantics (SPEC sections 1-6).
+
+Written directly from /work/shared/SPEC.md, deliberately without importing anything from
+``hg2prism`` (and without stormpy), so that the test suite can use it to catch bugs in the
+package.  Everything is explicit: the world is read with ``tomllib``, the transition system,
+the perceptual games, the inference machine and the hypergame MDP are explored with
+dictionaries and breadth-first search, and the games/MDP are solved *exactly* (to
+floating-point accuracy) by strategy iteration with exact policy evaluation (sparse linear
+solves).
+
+Conventions (the contract with the package under test):
+
+* cells are ``(x, y)``: x = column from the left, y = row from the bottom, of the map as
+  written (border included);
+* a TS state is ``"trapped"``, ``(x, y)`` when delay == 0, or ``(x, y, T, c)`` when delay > 0
+  with ``T`` the tuple of trap cells in candidate numbering (map reading order);
+* DFA states are Spot's state numbers of
+  ``spot.translate(formula, "deterministic", "complete", "sbacc")``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import tomllib
+from collections import deque
+from dataclasses import dataclass, field
+
+import buddy
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+import spot
+
+TRAPPED = "trapped"
+ACTIONS = ("N", "E", "S", "W")
+DELTA = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
+PERP = {"N": ("E", "W"), "S": ("E", "W"), "E": ("N", "S"), "W": ("N", "S")}
+
+TIE_P2 = 1e-6        # SPEC 4: tie tolerance of P2's strategy
+TOL_CUSUM = 1e-9     # SPEC 5: threshold / argmax tolerance
+SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
+
+
+# --------------------------------------------------------------------------------------
+# exact solver for turn-based reachability games (P2 moves first, then P1, then chance)
+# --------------------------------------------------------------------------------------
+
+def solve_reach_game(state_pairs, pair_rows, row_succ):
+    """Least fixed point of  V(s) = min_{p in pairs(s)} max_{r in rows(p)} sum_t P_r(t) V(t).
+
+    ``state_pairs[s]``: list of pair ids (P2 choices) of non-terminal state s;
+    ``pair_rows[p]``:   list of row ids (P1 choices) of pair p;
+    ``row_succ[r]``:    list of (target, prob), target an int state id, "goal" (value 1) or
+                        "fail" (value 0).
+    Pair ids must be numbered consecutively state by state, row ids pair by pair.
+    An MDP for a maximiser is the special case of one pair per state.
+
+    Method: strategy iteration for the maximiser P1 (switch only on a strict improvement),
+    each P1 strategy evaluated exactly by P2's best response, itself computed by policy
+    iteration for minimum reachability after removing (graph analysis) the states where P2
+    can avoid the goal forever.  At termination the vector is the value of a P1 strategy
+    (so <= the game value) and a fixed point of the game operator (so >= the least fixed
+    point), i.e. the game value.  Returns a numpy vector indexed by state id.
+    """
+    n = len(state_pairs)
+    npairs = len(pair_rows)
+    nrows = len(row_succ)
+    if n == 0:
+        return np.zeros(0)
+    # consecutive numbering (lets us use segment reductions)
+    assert [p for ps in state_pairs for p in ps] == list(range(npairs))
+    assert [r for rs in pair_rows for r in rs] == list(range(nrows))
+    state_start = np.array([ps[0] for ps in state_pairs], dtype=np.int64)
+    pair_start = np.array([rs[0] for rs in pair_rows], dtype=np.int64)
+    pair_state = np.repeat(np.arange(n), [len(ps) for ps in state_pairs])
+
+    # sparse transition matrix to non-terminal states, and the one-step goal probability
+    ri, ci, vals = [], [], []
+    g = np.zeros(nrows)
+    row_targets = []  # non-terminal successors with positive probability (graph searches)
+    for r, succ in enumerate(row_succ):
+        ts = []
+        for t, pr in succ:
+            if pr <= 0:
+                continue
+            if t == "goal":
+                g[r] += pr
+            elif t == "fail":
+                pass
+            else:
+                ri.append(r)
+                ci.append(t)
+                vals.append(pr)
+                ts.append(t)
+        row_targets.append(ts)
+    P = sp.csr_matrix((vals, (ri, ci)), shape=(nrows, n))
+
+    def game_op(x):
+        q = g + P @ x
+        pv = np.maximum.reduceat(q, pair_start)
+        return q, pv, np.minimum.reduceat(pv, state_start)
+
+    # initial P1 strategy: greedy after a few sweeps of plain value iteration (only a
+    # starting point; correctness comes from the strategy iteration below)
+    x = np.zeros(n)
+    for _ in range(50):
+        _, _, x = game_op(x)
+    q, pv, _ = game_op(x)
+    sigma1 = np.array([max(pair_rows[p], key=lambda r: q[r]) for p in range(npairs)],
+                      dtype=np.int64)
+
+    for _outer in range(10000):
+        x = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
+                               state_start)
+        q, pv, _ = game_op(x)
+        better = np.nonzero(pv > q[sigma1] + SWITCH_TOL)[0]
+        if len(better) == 0:
+            break
+        for p in better:
+            sigma1[p] = max(pair_rows[p], key=lambda r: q[r])
+    else:
+        raise RuntimeError("strategy iteration did not converge")
+    # sanity: x is (numerically) a fixed point of the game operator
+    _, _, fx = game_op(x)
+    res = float(np.max(np.abs(fx - x)))
+    if res > 1e-9:
+        raise RuntimeError(f"game solution residual {res}")
+    return x
+
+
+def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
+    """Minimum reachability probability for P2 when P1 plays sigma1 (pair -> row)."""
+    # 1. attractor of the goal: states from which P2 cannot avoid reaching the goal with
+    #    positive probability; outside it (set Z) P2 avoids the goal forever (value 0).
+    preds = [[] for _ in range(n)]
+    for p, r in enumerate(sigma1):
+        for t in row_targets[r]:
+            preds[t].append(p)
+    hit = [False] * len(sigma1)
+    left = [len(ps) for ps in state_pairs]
+    inattr = [False] * n
+    queue = deque()
+
+    def mark(p):
+        if hit[p]:
+            return
+        hit[p] = True
+        s = pair_state[p]
+        left[s] -= 1
+        if left[s] == 0:
+            inattr[s] = True
+            queue.append(s)
+
+    for p, r in enumerate(sigma1):
+        if g[r] > 0:
+            mark(p)
+    while queue:
+        t = queue.popleft()
+        for p in preds[t]:
+            mark(p)
+    # 2. P2's policy: on Z an avoiding pair (value 0); on the rest policy iteration, each
+    #    policy evaluated exactly (the system is non-singular there)
+    tau = np.empty(n, dtype=np.int64)
+    for s in range(n):
+        if inattr[s]:
+            tau[s] = state_pairs[s][0]
+        else:
+            tau[s] = next(p for p in state_pairs[s] if not hit[p])
+    live = np.array([s for s in range(n) if inattr[s]], dtype=np.int64)
+    x = np.zeros(n)
+    if len(live) == 0:
+        return x
+    eye = sp.identity(len(live), format="csc")
+    for _ in range(10000):
+        rows = sigma1[tau[live]]
+        A = P[rows][:, live]
+        sol = np.atleast_1d(spla.spsolve((eye - A).tocsc(), g[rows]))
+        x = np.zeros(n)
+        x[live] = sol
+        qp = (g + P @ x)[sigma1]             # value of each pair under sigma1
+        best = np.minimum.reduceat(qp, state_start)
+        worse = [s for s in live if best[s] < qp[tau[s]] - SWITCH_TOL]
+        if not worse:
+            return x
+        for s in worse:
+            tau[s] = min(state_pairs[s], key=lambda p: qp[p])
+    raise RuntimeError("policy iteration (min) did not converge")
+
+
+# --------------------------------------------------------------------------------------
+# automata
+# --------------------------------------------------------------------------------------
+
+class DFA:
+    def __init__(self, formula: str, labels):
+        self.formula = formula
+        f = spot.formula(formula)
+        if not f.is_syntactic_guarantee():
+            raise ValueError(f"not syntactically co-safe: {formula}")
+        aut = spot.translate(f, "deterministic", "complete", "sbacc")
+        self.aut = aut
+        self.n = aut.num_states()
+        self.init = aut.get_init_state_number()
+        self.acc = {s for s in range(self.n) if any(bool(e.acc) for e in aut.out(s))}
+        aps = [str(a) for a in aut.ap()]
+        # delta[q][label] for label in labels (None or a proposition name)
+        self.delta = {}
+        for q in range(self.n):
+            row = {}
+            for lab in labels:
+                assign = buddy.bddtrue
+                for ap in aps:
+                    var = aut.register_ap(ap)
+                    lit = buddy.bdd_ithvar(var) if ap == lab else buddy.bdd_nithvar(var)
+                    assign = buddy.bdd_and(assign, lit)
+                dsts = [e.dst for e in aut.out(q)
+                        if buddy.bdd_and(e.cond, assign) != buddy.bddfalse]
+                if len(dsts) != 1:
+                    raise RuntimeError(f"DFA of {formula} not deterministic/complete on {lab}")
+                row[lab] = dsts[0]
+            self.delta[q] = row
+        # Sink: states from which no accepting state is reachable (Spot's edges)
+        rev = {q: set() for q in range(self.n)}
+        for q in range(self.n):
+            for e in aut.out(q):
+                rev[e.dst].add(q)
+        good = set(self.acc)
+        stack = list(self.acc)
+        while stack:
+            t = stack.pop()
+            for s in rev[t]:
+                if s not in good:
+                    good.add(s)
+                    stack.append(s)
+        self.sink = set(range(self.n)) - good
+
+    def step(self, q, lab):
+        return self.delta[q][lab]
+
+
+# --------------------------------------------------------------------------------------
+# the reference model
+# --------------------------------------------------------------------------------------
+
+@dataclass
+class Reference:
+    value: float
+    v_lead: float
+    states: int
+    transitions: int
+    world: "World" = field(repr=False, default=None)
+
+    def strategy_value(self, records):
+        return self.world.strategy_value(records)
+
+    def infer(self, hypothesis, window, observation):
+        w = self.world
+        B = tuple((w.norm_ts(v), a) for v, a in window)
+        obs = (w.norm_ts(observation[0]), observation[1])
+        return w.eta((int(hypothesis), B), obs)
+
+    def trap_strategy(self, hypothesis, ts_state):
+        """pi2_x(v) as tuple(sorted(cells)) (plain Python sort of (x, y) pairs)."""
+        w = self.world
+        return tuple(sorted(w.pi2(int(hypothesis), w.norm_ts(ts_state))))
+
+
+class World:
+    def __init__(self, path):
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+        self.doc = doc
+        rows = [ln.rstrip("\r") for ln in doc["grid"]["map"].split("\n")]
+        rows = [ln for ln in rows if ln.strip() != ""]
+        self.rows = rows
+        self.H = len(rows)
+        self.W = len(rows[0])
+        self.slip = float(doc["robot"]["slip"])
+        self.task = doc["task"]["formula"]
+        adv = doc["adversary"]
+        self.ntraps = int(adv["traps"])
+        self.delay = int(adv.get("delay", 0))
+        self.hyps = list(adv["hypotheses"])
+        self.h0 = int(adv.get("initial_hypothesis", 0))
+        inf = doc["inference"]
+        self.window = int(inf["window"])
+        self.threshold = float(inf["threshold"])
+        self.beta = float(inf["rationality"])
+
+        self.cands = []
+        self.start = None
+        self.props = {"obs"}
+        for i, row in enumerate(rows):
+            y = self.H - 1 - i
+            for x, ch in enumerate(row):
+                if ch == "t":
+                    self.cands.append((x, y))
+                elif ch == "@":
+                    self.start = (x, y)
+                elif "A" <= ch <= "Z":
+                    self.props.add(ch)
+        self.cand_index = {c: i for i, c in enumerate(self.cands)}
+        self.sets = [tuple(self.cands[i] for i in comb)
+                     for comb in itertools.combinations(range(len(self.cands)), self.ntraps)]
+        if self.delay > 0:
+            T0 = self.norm_traps(adv.get("initial_traps", []))
+            self.v0 = (self.start[0], self.start[1], T0, 0)
+        else:
+            self.v0 = self.start
+        labels = [None] + sorted(self.props)
+        self.dfa_cache = {}
+        self.task_dfa = self.dfa(self.task, labels)
+        self.hyp_dfas = [self.dfa(h, labels) for h in self.hyps]
+        self._out_cache = {}
+        self._ts_states = self._explore_ts()
+        self._games = {}
+        self._pi2_cache = {}
+        self._logpi_cache = {}
+        self._eta_cache = {}
+
+    # ----- helpers -----
+    def dfa(self, formula, labels):
+        if formula not in self.dfa_cache:
+            self.dfa_cache[formula] = DFA(formula, labels)
+        return self.dfa_cache[formula]
+
+    def char(self, x, y):
+        return self.rows[self.H - 1 - y][x]
+
+    def label(self, v):
+        if v == TRAPPED:
+            return None
+        ch = self.char(v[0], v[1])
+        if ch == "o":
+            return "obs"
+        if "A" <= ch <= "Z":
+            return ch
+        return None
+
+    def norm_traps(self, T):
+        cells = {(int(c[0]), int(c[1])) for c in T}
+        return tuple(sorted(cells, key=lambda c: self.cand_index[c]))
+
+    def norm_ts(self, v):
+        if isinstance(v, str):
+            assert v == TRAPPED
+            return TRAPPED
+        v = tuple(v)
+        if len(v) == 2:
+            return (int(v[0]), int(v[1]))
+        return (int(v[0]), int(v[1]), self.norm_traps(v[2]), int(v[3]))
+
+    # ----- TS (SPEC 2) -----
+    def move(self, cell, d):
+        dx, dy = DELTA[d]
+        nx, ny = cell[0] + dx, cell[1] + dy
+        if 0 <= nx < self.W and 0 <= ny < self.H and self.char(nx, ny) != "#":
+            return (nx, ny)
+        return cell
+
+    def A2(self, v):
+        if self.delay == 0:
+            return self.sets
+        T, c = v[2], v[3]
+        return [T] if c > 0 else self.sets
+
+    def outcomes(self, v, a1, a2):
+        """P(. | v, a1, a2) as a dict (merged, zero-probability outcomes dropped)."""
+        key = (v, a1, a2)
+        res = self._out_cache.get(key)
+        if res is not None:
+            return res
+        cell = (v[0], v[1])
+        res = {}
+        p_main = 1.0 - 2.0 * self.slip
+        for d, p in ((a1, p_main), (PERP[a1][0], self.slip), (PERP[a1][1], self.slip)):
+            if p <= 0:
+                continue
+            c2 = self.move(cell, d)
+            if c2 in a2:
+                s = TRAPPED
+            elif self.delay == 0:
+                s = c2
+            else:
+                T, c = v[2], v[3]
+                s = (c2[0], c2[1], a2, self.delay if a2 != T else max(c - 1, 0))
+            res[s] = res.get(s, 0.0) + p
+        self._out_cache[key] = res
+        return res
+
+    def _explore_ts(self):
+        seen = {self.v0}
+        order = [self.v0]
+        queue = deque([self.v0])
+        while queue:
+            v = queue.popleft()
+            for a2 in self.A2(v):
+                for a1 in ACTIONS:
+                    for s in self.outcomes(v, a1, a2):
+                        if s != TRAPPED and s not in seen:
+                            seen.add(s)
+                            order.append(s)
+                            queue.append(s)
+        return order
+
+    # ----- perceptual games (SPEC 4) -----
+    def game_values(self, formula):
+        """V_x as a dict {(v, q): value} over TS-reachable v (non-trapped) and all q."""
+        if formula in self._games:
+            return self._games[formula]
+        dfa = self.dfa_cache[formula]
+        idx = {}
+        nodes = []
+        for v in self._ts_states:
+            for q in range(dfa.n):
+                if q in dfa.acc or q in dfa.sink:
+                    continue
+                idx[(v, q)] = len(nodes)
+                nodes.append((v, q))
+        state_pairs, pair_rows, row_succ = [], [], []
+        for (v, q) in nodes:
+            ps = []
+            for a2 in self.A2(v):
+                rows = []
+                for a1 in ACTIONS:
+                    succ = []
+                    for v2, pr in self.outcomes(v, a1, a2).items():
+                        if v2 == TRAPPED:
+                            succ.append(("fail", pr))
+                            continue
+                        q2 = dfa.step(q, self.label(v2))
+                        if q2 in dfa.acc:
+                            succ.append(("goal", pr))
+                        elif q2 in dfa.sink:
+                            succ.append(("fail", pr))
+                        else:
+                            succ.append((idx[(v2, q2)], pr))
+                    rows.append(len(row_succ))
+                    row_succ.append(succ)
+                ps.append(len(pair_rows))
+                pair_rows.append(rows)
+            state_pairs.append(ps)
+        x = solve_reach_game(state_pairs, pair_rows, row_succ)
+        vals = {nodes[i]: float(x[i]) for i in range(len(nodes))}
+        self._games[formula] = (dfa, vals)
+        return self._games[formula]
+
+    def V(self, formula, v, q):
+        dfa, vals = self.game_values(formula)
+        if v == TRAPPED:
+            return 0.0
+        if q in dfa.acc:
+            return 1.0
+        if q in dfa.sink:
+            return 0.0
+        return vals[(v, q)]
+
+    def Q(self, formula, v, q, a1, a2):
+        dfa, _ = self.game_values(formula)
+        if q in dfa.acc or q in dfa.sink:
+            return self.V(formula, v, q)
+        tot = 0.0
+        for v2, pr in self.outcomes(v, a1, a2).items():
+            if v2 == TRAPPED:
+                continue
+            tot += pr * self.V(formula, v2, dfa.step(q, self.label(v2)))
+        return tot
+
+    def pi2(self, x, v):
+        """P2's strategy pi2_x(v) (SPEC 4): a trap set (tuple in candidate order)."""
+        key = (x, v)
+        if key in self._pi2_cache:
+            return self._pi2_cache[key]
+        formula = self.hyps[x]
+        dfa, _ = self.game_values(formula)
+        q0 = dfa.step(dfa.init, self.label(v))
+        acts = self.A2(v)
+        if q0 in dfa.acc or q0 in dfa.sink:
+            tied = list(acts)
+        else:
+            m = [max(self.Q(formula, v, q0, a1, a2) for a1 in ACTIONS) for a2 in acts]
+            mn = min(m)
+            tied = [a2 for a2, mv in zip(acts, m) if mv <= mn + TIE_P2]
+        if self.delay > 0 and v[2] in tied:
+            res = v[2]
+        else:
+            res = tied[0]   # self.sets / A2 are already in itertools.combinations order
+        self._pi2_cache[key] = res
+        return res
+
+    def logpi1(self, x, v, a2):
+        """P2's softmax model of P1 under hypothesis x: {a1: ln pi1_x(a1 | v, a2)}."""
+        key = (x, v, a2)
+        if key in self._logpi_cache:
+            return self._logpi_cache[key]
+        formula = self.hyps[x]
+        dfa, _ = self.game_values(formula)
+        q0 = dfa.step(dfa.init, self.label(v))
+        z = [self.beta * self.Q(formula, v, q0, a1, a2) for a1 in ACTIONS]
+        mx = max(z)
+        lse = mx + math.log(sum(math.exp(zi - mx) for zi in z))
+        res = {a1: zi - lse for a1, zi in zip(ACTIONS, z)}
+        self._logpi_cache[key] = res
+        return res
+
+    def r(self, x, xh, v, a1):
+        a2 = self.pi2(xh, v)
+        return self.logpi1(x, v, a2)[a1] - self.logpi1(xh, v, a2)[a1]
+
+    # ----- inference (SPEC 5) -----
+    def eta(self, M, obs):
+        key = (M, obs)
+        if key in self._eta_cache:
+            return self._eta_cache[key]
+        xh, B = M
+        w = self.window
+        Wn = (tuple(B) + (obs,))[-w:]
+        Z = {}
+        for x in range(len(self.hyps)):
+            if x == xh:
+                continue
+            z = 0.0
+            for (vi, ai) in Wn:
+                z = max(0.0, z + self.r(x, xh, vi, ai))
+            Z[x] = z
+        if any(z >= self.threshold - TOL_CUSUM for z in Z.values()):
+            mz = max(Z.values())
+            xs = next(x for x in range(len(self.hyps)) if x != xh and Z[x] >= mz - TOL_CUSUM)
+            res = (xs, ())
+        else:
+            res = (xh, tuple(Wn[-(w - 1):]) if w > 1 else ())
+        self._eta_cache[key] = res
+        return res
+
+    # ----- hypergame MDP (SPEC 6) -----
+    def hyper_successors(self, s, a1):
+        """dict canonical successor -> probability; successors are "goal", "fail" or (v,q,M)."""
+        v, q, M = s
+        dfa = self.task_dfa
+        a2 = self.pi2(M[0], v)
+        M2 = self.eta(M, (v, a1))
+        res = {}
+        for v2, pr in self.outcomes(v, a1, a2).items():
+            if v2 == TRAPPED:
+                t = "fail"
+            else:
+                q2 = dfa.step(q, self.label(v2))
+                if q2 in dfa.acc:
+                    t = "goal"
+                elif q2 in dfa.sink:
+                    t = "fail"
+                else:
+                    t = (v2, q2, M2)
+            res[t] = res.get(t, 0.0) + pr
+        return res
+
+    def classify(self, s):
+        v, q, _ = s
+        if v == TRAPPED:
+            return "fail"
+        if q in self.task_dfa.acc:
+            return "goal"
+        if q in self.task_dfa.sink:
+            return "fail"
+        return s
+
+    def initial(self):
+        dfa = self.task_dfa
+        return self.classify((self.v0, dfa.step(dfa.init, self.label(self.v0)), (self.h0, ())))
+
+    def explore_hypergame(self):
+        s0 = self.initial()
+        seen = {}
+        order = []
+        reached = set()
+        if s0 in ("goal", "fail"):
+            reached.add(s0)
+            return s0, order, seen, {}, reached
+        seen[s0] = 0
+        order.append(s0)
+        trans = {}
+        queue = deque([s0])
+        while queue:
+            s = queue.popleft()
+            for a1 in ACTIONS:
+                succ = self.hyper_successors(s, a1)
+                trans[(s, a1)] = succ
+                for t in succ:
+                    if t in ("goal", "fail"):
+                        reached.add(t)
+                    elif t not in seen:
+                        seen[t] = len(order)
+                        order.append(t)
+                        queue.append(t)
+        return s0, order, seen, trans, reached
+
+    def solve(self):
+        s0, order, idx, trans, reached = self.explore_hypergame()
+        dfa = self.task_dfa
+        # leader game G(phi) at (v0, delta(iota, L(v0)))
+        self.game_values(self.task)
+        v_lead = self.V(self.task, self.v0, dfa.step(dfa.init, self.label(self.v0)))
+        ntrans = sum(len(succ) for succ in trans.values()) + len(reached)
+        nstates = len(order) + len(reached)
+        if s0 in ("goal", "fail"):
+            value = 1.0 if s0 == "goal" else 0.0
+        else:
+            state_pairs, pair_rows, row_succ = [], [], []
+            for i, s in enumerate(order):
+                rows = []
+                for a1 in ACTIONS:
+                    succ = [(t if t in ("goal", "fail") else idx[t], pr)
+                            for t, pr in trans[(s, a1)].items()]
+                    rows.append(len(row_succ))
+                    row_succ.append(succ)
+                state_pairs.append([i])
+                pair_rows.append(rows)
+            x = solve_reach_game(state_pairs, pair_rows, row_succ)
+            value = float(x[0])
+        self._hyper = (s0, order, idx, trans, reached)
+        return Reference(value=value, v_lead=float(v_lead), states=nstates,
+                         transitions=ntrans, world=self)
+
+    # ----- strategy evaluation -----
+    def _rec_ts(self, cell, traps, countdown):
+        if self.delay == 0:
+            return (int(cell[0]), int(cell[1]))
+        return (int(cell[0]), int(cell[1]), self.norm_traps(traps), int(countdown))
+
+    def strategy_value(self, records):
+        table = {}
+        for rec in records:
+            v = self._rec_ts(rec["cell"], rec.get("traps"), rec.get("countdown"))
+            B = tuple((self._rec_ts(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
+                      for o in rec["window"])
+            key = (v, int(rec["q"]), (int(rec["hypothesis"]), B))
+            a = rec["action"]
+            if a not in ACTIONS:
+                raise ValueError(f"bad action {a!r} in record {rec}")
+            if key in table and table[key] != a:
+                raise ValueError(f"conflicting records for state {key}")
+            table[key] = a
+        s0 = self.initial()
+        if s0 in ("goal", "fail"):
+            return 1.0 if s0 == "goal" else 0.0
+        idx = {s0: 0}
+        order = [s0]
+        queue = deque([s0])
+        succs = []
+        while queue:
+            s = queue.popleft()
+            if s not in table:
+                raise KeyError(f"no strategy record for reachable state {s}")
+            succ = self.hyper_successors(s, table[s])
+            for t in succ:
+                if t not in ("goal", "fail") and t not in idx:
+                    idx[t] = len(order)
+                    order.append(t)
+                    queue.append(t)
+        succs = []
+        for s in order:
+            succ = self.hyper_successors(s, table[s])
+            succs.append([(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()])
+        x = _dtmc_reach(succs)
+        return float(x[0])
+
+
+def _dtmc_reach(succs):
+    """Exact P(F goal) in a DTMC: graph search for probability-0 states, then a linear solve."""
+    n = len(succs)
+    preds = [[] for _ in range(n)]
+    can = [False] * n
+    queue = deque()
+    for i, succ in enumerate(succs):
+        for t, pr in succ:
+            if pr <= 0:
+                continue
+            if t == "goal":
+                if not can[i]:
+                    can[i] = True
+                    queue.append(i)
+            elif t != "fail":
+                preds[t].append(i)
+    while queue:
+        t = queue.popleft()
+        for i in preds[t]:
+            if not can[i]:
+                can[i] = True
+                queue.append(i)
+    live = [i for i in range(n) if can[i]]
+    pos = {i: k for k, i in enumerate(live)}
+    x = np.zeros(n)
+    if not live:
+        return x
+    ri, ci, vals = [], [], []
+    b = np.zeros(len(live))
+    for k, i in enumerate(live):
+        ri.append(k)
+        ci.append(k)
+        vals.append(1.0)
+        for t, pr in succs[i]:
+            if t == "goal":
+                b[k] += pr
+            elif t != "fail" and can[t]:
+                ri.append(k)
+                ci.append(pos[t])
+                vals.append(-pr)
+    A = sp.csc_matrix((vals, (ri, ci)), shape=(len(live), len(live)))
+    sol = np.atleast_1d(spla.spsolve(A, b))
+    x[live] = sol
+    return x
+
+
+def solve(path) -> Reference:
+    return World(path).solve()

@@ -1,0 +1,353 @@
+"""World files (SPEC §1): every kind of bad input gives one clear line, exit status 2, no output.
+
+Each bad world is the valid BASE world (models/world1.toml's content, inlined) with one edit.
+The CLI runs as a subprocess, so a traceback reaching the terminal would be seen.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hg2prism.errors import InputError
+from hg2prism.world import load_world
+
+REPO = Path(__file__).resolve().parent.parent
+MODELS = REPO / "models"
+
+BASE = '''name = "world1"
+description = "the paper's world_1 rebuilt from its text"
+
+[grid]
+map = """
+########
+#......#
+#.#A...#
+#t@t..B#
+#...o.##
+#Ctt#.##
+#..#...#
+########
+"""
+
+[robot]
+slip = 0.1
+
+[task]
+formula = "(!obs U A) & (!(B | obs) U C)"
+
+[adversary]
+traps = 1
+delay = 0
+initial_traps = []
+hypotheses = ["!obs U A", "!obs U B", "!obs U C"]
+initial_hypothesis = 0
+
+[inference]
+window = 2
+threshold = 1.5
+rationality = 10.0
+'''
+
+
+MAP_BLOCK = BASE[BASE.index('map = """'):BASE.index('"""\n\n[robot]') + 3]
+
+
+def edit(*pairs: tuple[str, str]) -> str:
+    """BASE with each (old, new) replaced exactly once (old must occur in BASE)."""
+    text = BASE
+    for old, new in pairs:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    return text
+
+
+def append(extra: str) -> str:
+    return BASE + "\n" + extra
+
+
+def _line_of(text: str, line: str) -> int:
+    return text.splitlines().index(line) + 1
+
+
+# (id, world text, expected key, a word of the expected reason)
+CASES = [
+    # --- TOML itself
+    ("invalid-toml", edit(("slip = 0.1", "slip = = 0.1")),
+     f"line {_line_of(BASE, 'slip = 0.1')}, column 8", "TOML"),
+    # --- the map
+    ("map-unknown-character", edit(("#......#", "#..?...#")), "grid.map", "unknown character"),
+    ("map-lowercase-letter", edit(("#......#", "#..a...#")), "grid.map", "unknown character"),
+    ("map-ragged-rows", edit(("#......#", "#.......#")), "grid.map", "ragged"),
+    ("map-empty", edit((MAP_BLOCK, 'map = """\n\n  \n"""')), "grid.map", "empty"),
+    ("map-no-start", edit(("#t@t..B#", "#t.t..B#")), "grid.map", "no robot start"),
+    ("map-two-starts", edit(("#......#", "#...@..#")), "grid.map", "exactly one"),
+    ("map-forbidden-region-letter", edit(("#......#", "#...F..#")), "grid.map", "not allowed"),
+    ("map-not-a-string", edit((MAP_BLOCK, "map = 3")), "grid.map", "string"),
+    # --- robot
+    ("slip-too-large", edit(("slip = 0.1", "slip = 0.5")), "robot.slip", "[0, 0.5)"),
+    ("slip-negative", edit(("slip = 0.1", "slip = -0.1")), "robot.slip", "[0, 0.5)"),
+    ("slip-not-finite", edit(("slip = 0.1", "slip = nan")), "robot.slip", "finite"),
+    ("slip-bad-type-string", edit(("slip = 0.1", 'slip = "0.1"')), "robot.slip", "number"),
+    ("slip-bad-type-bool", edit(("slip = 0.1", "slip = false")), "robot.slip", "number"),
+    # --- task formula
+    ("formula-does-not-parse", edit(('formula = "(!obs U A) &', 'formula = "((!obs U A) &')),
+     "task.formula", "parse"),
+    ("formula-not-co-safe", edit(('formula = "(!obs U A) & (!(B | obs) U C)"',
+                                  'formula = "G !obs & F A"')), "task.formula", "co-safe"),
+    ("formula-unknown-proposition", edit(('formula = "(!obs U A) & (!(B | obs) U C)"',
+                                          'formula = "!obs U D"')), "task.formula", "proposition"),
+    ("formula-empty", edit(('formula = "(!obs U A) & (!(B | obs) U C)"', 'formula = ""')),
+     "task.formula", "empty"),
+    # --- unknown keys / tables, missing keys / tables, table types
+    ("unknown-key-in-table", edit(("slip = 0.1", "slip = 0.1\nspeed = 2")), "robot.speed",
+     "unknown"),
+    ("unknown-top-level-key", edit(('name = "world1"', 'nmae = "world1"')), "nmae", "unknown"),
+    ("unknown-table", append("[extras]\nx = 1\n"), "extras", "unknown"),
+    ("unknown-subtable", append("[inference.extra]\nx = 1\n"), "inference.extra", "unknown"),
+    ("missing-required-key", edit(("window = 2\n", "")), "inference.window", "missing"),
+    ("missing-required-table", edit(('[task]\nformula = "(!obs U A) & (!(B | obs) U C)"\n', "")),
+     "task", "missing"),
+    ("table-not-a-table", edit(("[robot]\nslip = 0.1\n", ""), ('name = "world1"',
+                                                             'name = "world1"\nrobot = 3')),
+     "robot", "table"),
+    # --- name / description
+    ("name-empty", edit(('name = "world1"', 'name = ""')), "name", "empty"),
+    ("name-bad-type", edit(('name = "world1"', "name = 1")), "name", "string"),
+    # --- adversary
+    ("traps-bad-type-bool", edit(("traps = 1", "traps = true")), "adversary.traps", "integer"),
+    ("traps-bad-type-float", edit(("traps = 1", "traps = 1.0")), "adversary.traps", "integer"),
+    ("traps-below-one", edit(("traps = 1", "traps = 0")), "adversary.traps", ">= 1"),
+    ("fewer-candidates-than-traps", edit(("traps = 1", "traps = 5")), "adversary.traps", "only"),
+    ("delay-negative", edit(("delay = 0", "delay = -1")), "adversary.delay", ">= 0"),
+    ("initial-traps-wrong-count", edit(("delay = 0", "delay = 1")),
+     "adversary.initial_traps", "expected"),
+    ("initial-traps-missing", edit(("delay = 0", "delay = 2"), ("initial_traps = []\n", "")),
+     "adversary.initial_traps", "required"),
+    ("initial-traps-not-candidate", edit(("delay = 0", "delay = 1"),
+                                         ("initial_traps = []", "initial_traps = [[2, 4]]")),
+     "adversary.initial_traps[0]", "candidate"),
+    ("initial-traps-repeated", edit(("traps = 1", "traps = 2"), ("delay = 0", "delay = 1"),
+                                    ("initial_traps = []", "initial_traps = [[1, 4], [1, 4]]")),
+     "adversary.initial_traps[1]", "distinct"),
+    ("initial-traps-bad-item", edit(("delay = 0", "delay = 1"),
+                                    ("initial_traps = []", "initial_traps = [[1, true]]")),
+     "adversary.initial_traps[0]", "integers"),
+    ("initial-traps-bad-type", edit(("initial_traps = []", 'initial_traps = "1,4"')),
+     "adversary.initial_traps", "array"),
+    ("hypotheses-empty", edit(('hypotheses = ["!obs U A", "!obs U B", "!obs U C"]',
+                               "hypotheses = []")), "adversary.hypotheses", "empty"),
+    ("hypotheses-repeated", edit(('hypotheses = ["!obs U A", "!obs U B", "!obs U C"]',
+                                  'hypotheses = ["F (A & B)", "!obs U C", "F(B&A)"]')),
+     "adversary.hypotheses[2]", "repeated"),
+    ("hypothesis-not-co-safe", edit(('"!obs U C"]', '"G !obs"]')), "adversary.hypotheses[2]",
+     "co-safe"),
+    ("hypothesis-unknown-proposition", edit(('"!obs U C"]', '"!obs U goal"]')),
+     "adversary.hypotheses[2]", "proposition"),
+    ("hypothesis-not-a-string", edit(('"!obs U C"]', "3]")), "adversary.hypotheses[2]",
+     "string"),
+    ("initial-hypothesis-out-of-range", edit(("initial_hypothesis = 0", "initial_hypothesis = 3")),
+     "adversary.initial_hypothesis", "index"),
+    # --- inference
+    ("window-below-one", edit(("window = 2", "window = 0")), "inference.window", ">= 1"),
+    ("threshold-not-positive", edit(("threshold = 1.5", "threshold = 0")),
+     "inference.threshold", "> 0"),
+    ("threshold-infinite", edit(("threshold = 1.5", "threshold = inf")),
+     "inference.threshold", "finite"),
+    ("rationality-not-positive", edit(("rationality = 10.0", "rationality = -1.0")),
+     "inference.rationality", "> 0"),
+    # --- simulation
+    ("episodes-below-one", append("[simulation]\nepisodes = 0\n"), "simulation.episodes", ">= 1"),
+    ("horizon-below-one", append("[simulation]\nhorizon = 0\n"), "simulation.horizon", ">= 1"),
+    ("seed-not-int", append("[simulation]\nseed = 1.5\n"), "simulation.seed", "integer"),
+    ("seed-negative", append("[simulation]\nseed = -1\n"), "simulation.seed", ">= 0"),
+    # --- detection
+    ("alpha-outside-0-1", append("[detection]\nalpha = 1.0\n"), "detection.alpha", "(0, 1)"),
+    ("epsilon-outside-0-1", append("[detection]\nepsilon = 0\n"), "detection.epsilon", "(0, 1)"),
+    ("deviate-after-negative", append("[detection]\ndeviate_after = -1\n"),
+     "detection.deviate_after", ">= 0"),
+]
+
+
+def run_cli(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    return subprocess.run([sys.executable, "-m", "hg2prism", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=60)
+
+
+def assert_one_error(proc: subprocess.CompletedProcess, file: str, key: str, word: str) -> None:
+    assert proc.returncode == 2, (proc.returncode, proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    line = lines[0]
+    assert line.startswith(f"hg2prism: error: {file}: "), line
+    assert f": {key}: " in line, line
+    assert word in line.split(f": {key}: ", 1)[1], line
+
+
+@pytest.mark.parametrize("text,key,word", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_world(tmp_path: Path, text: str, key: str, word: str) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    out = tmp_path / "out"
+    proc = run_cli(["run", str(bad), "--out", str(out)], tmp_path)
+    assert_one_error(proc, str(bad), key, word)
+    assert not out.exists() or not any(out.iterdir())
+    # the default output folder (next to the world file) is not created either
+    assert not (tmp_path / "bad").exists()
+
+    proc = run_cli(["validate", str(bad)], tmp_path)
+    assert_one_error(proc, str(bad), key, word)
+    assert proc.stdout == ""
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert (err.value.file, err.value.key) == (str(bad), key)
+    assert word in err.value.reason and "\n" not in err.value.reason
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    proc = run_cli(["run", "nope.toml", "--out", str(out)], tmp_path)
+    assert_one_error(proc, "nope.toml", "-", "not found")
+    assert not out.exists()
+
+
+def test_not_utf8(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_bytes(BASE.encode() + b'\nx = "\xff"\n')
+    proc = run_cli(["validate", str(bad)], tmp_path)
+    assert_one_error(proc, str(bad), "-", "TOML")
+
+
+def test_every_case_is_distinct() -> None:
+    assert len({c[0] for c in CASES}) == len(CASES)
+    assert len({c[1] for c in CASES}) == len(CASES)
+
+
+# --------------------------------------------------------------------------------------------
+# Valid worlds
+# --------------------------------------------------------------------------------------------
+
+def test_base_is_valid(tmp_path: Path) -> None:
+    good = tmp_path / "good.toml"
+    good.write_text(BASE)
+    proc = run_cli(["validate", str(good)], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+
+
+def test_world1_loads() -> None:
+    w = load_world(MODELS / "world1.toml")
+    # Derived by hand from the map (8 rows, so the top row is y = 7 and the last row y = 0):
+    #   y=7 ########
+    #   y=6 #......#
+    #   y=5 #.#A...#     A at (3, 5); wall at (2, 5)
+    #   y=4 #t@t..B#     start (2, 4); candidates (1, 4), (3, 4); B at (6, 4)
+    #   y=3 #...o.##     obstacle (4, 3)
+    #   y=2 #Ctt#.##     C at (1, 2); candidates (2, 2), (3, 2)
+    #   y=1 #..#...#
+    #   y=0 ########
+    assert w.name == "world1"
+    assert (w.grid.width, w.grid.height) == (8, 8)
+    assert w.grid.start == (2, 4)
+    assert w.grid.trap_candidates == ((1, 4), (3, 4), (2, 2), (3, 2))
+    assert w.grid.regions == (("A", frozenset({(3, 5)})), ("B", frozenset({(6, 4)})),
+                              ("C", frozenset({(1, 2)})))
+    assert w.grid.obstacles == frozenset({(4, 3)})
+    assert (2, 5) in w.grid.walls and (0, 0) in w.grid.walls and (7, 7) in w.grid.walls
+    assert (3, 1) in w.grid.walls and (6, 3) in w.grid.walls and (4, 2) in w.grid.walls
+    assert len(w.grid.walls) == 8 + 8 + 6 * 2 + 1 + 1 + 2 + 1  # borders, (2,5), (6,3), (4,2) (6,2), (3,1)
+    assert w.grid.rows[0] == "########" and w.grid.rows[3] == "#t@t..B#"
+    assert w.atomic_propositions() == ("obs", "A", "B", "C")
+    assert w.formula == "(!obs U A) & (!(B | obs) U C)"
+    assert w.hypotheses == ("!obs U A", "!obs U B", "!obs U C")
+    assert (w.slip, w.traps, w.delay, w.initial_traps, w.initial_hypothesis) == (0.1, 1, 0, (), 0)
+    assert (w.window, w.threshold, w.rationality) == (2, 1.5, 10.0)
+    assert (w.simulation.episodes, w.simulation.horizon, w.simulation.seed) == (10000, 200, 0)
+    assert (w.detection.alpha, w.detection.epsilon, w.detection.deviate_after) == (0.05, 0.01, 4)
+
+
+def test_world2_loads() -> None:
+    w = load_world(MODELS / "world2.toml")
+    # Derived by hand from the map:
+    #   y=7 ########
+    #   y=6 ##.....#
+    #   y=5 #.t.BA##     candidate (2, 5); B at (4, 5); A at (5, 5)
+    #   y=4 #o@....#     obstacle (1, 4); start (2, 4)
+    #   y=3 #..t.t.#     candidates (3, 3), (5, 3)
+    #   y=2 #o.oC..#     obstacles (1, 2), (3, 2); C at (4, 2)
+    #   y=1 #.....##
+    #   y=0 ########
+    assert w.grid.start == (2, 4)
+    assert w.grid.trap_candidates == ((2, 5), (3, 3), (5, 3))
+    assert w.grid.regions == (("A", frozenset({(5, 5)})), ("B", frozenset({(4, 5)})),
+                              ("C", frozenset({(4, 2)})))
+    assert w.grid.obstacles == frozenset({(1, 4), (1, 2), (3, 2)})
+    # delay = 0: the listed initial_traps are ignored
+    assert w.delay == 0 and w.initial_traps == ()
+
+
+def test_world2_with_delay_keeps_initial_traps(tmp_path: Path) -> None:
+    text = (MODELS / "world2.toml").read_text().replace("delay = 0", "delay = 2")
+    path = tmp_path / "w2k2.toml"
+    path.write_text(text)
+    w = load_world(path)
+    assert w.delay == 2 and w.initial_traps == ((2, 5),)
+
+
+def test_initial_traps_sorted_by_candidate_number(tmp_path: Path) -> None:
+    path = tmp_path / "w.toml"
+    path.write_text(edit(("traps = 1", "traps = 2"), ("delay = 0", "delay = 1"),
+                         ("initial_traps = []", "initial_traps = [[3, 2], [1, 4]]")))
+    assert load_world(path).initial_traps == ((1, 4), (3, 2))
+
+
+def test_no_obstacle_and_defaults(tmp_path: Path) -> None:
+    # no 'o' in the map (obs is false everywhere but may still appear in formulas), no optional
+    # keys, ints where floats are expected, one hypothesis
+    text = '''
+[grid]
+map = """
+#####
+#@tA#
+#####
+"""
+[robot]
+slip = 0
+[task]
+formula = "!obs U A"
+[adversary]
+traps = 1
+hypotheses = ["F A"]
+[inference]
+window = 1
+threshold = 2
+rationality = 1
+'''
+    path = tmp_path / "plain.toml"
+    path.write_text(text)
+    w = load_world(path)
+    assert w.name == "plain" and w.description == ""
+    assert w.grid.obstacles == frozenset()
+    assert w.grid.start == (1, 1) and w.grid.trap_candidates == ((2, 1),)
+    assert w.grid.regions == (("A", frozenset({(3, 1)})),)
+    assert (w.slip, w.threshold, w.rationality) == (0.0, 2.0, 1.0)
+    assert isinstance(w.threshold, float) and isinstance(w.slip, float)
+    assert (w.delay, w.initial_traps, w.initial_hypothesis) == (0, (), 0)
+    assert w.simulation.episodes == 10000 and w.detection.deviate_after == 4
+
+
+def test_optional_tables(tmp_path: Path) -> None:
+    path = tmp_path / "w.toml"
+    path.write_text(append("[simulation]\nepisodes = 5\nhorizon = 7\nseed = 3\n"
+                           "[detection]\nalpha = 0.1\nepsilon = 0.2\ndeviate_after = 0\n"))
+    w = load_world(path)
+    assert (w.simulation.episodes, w.simulation.horizon, w.simulation.seed) == (5, 7, 3)
+    assert (w.detection.alpha, w.detection.epsilon, w.detection.deviate_after) == (0.1, 0.2, 0)
