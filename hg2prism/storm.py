@@ -38,6 +38,7 @@ class CheckedModel:
     value: float
     values: np.ndarray             # value of every Storm state
     choices: np.ndarray            # scheduler: local choice index of every Storm state
+    scheduler: object              # stormpy scheduler (for the DTMC it induces)
     timings: dict[str, float]      # parse, build, check
 
 
@@ -66,7 +67,15 @@ def check(prism_path: Path, prop: str) -> CheckedModel:
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
     return CheckedModel(model=model, value=float(values[initial]), values=values,
-                        choices=choices, timings=timings)
+                        choices=choices, scheduler=scheduler, timings=timings)
+
+
+def induced_probability(checked: CheckedModel, prop: str = 'P=? [F "goal"]') -> float:
+    """A property of the DTMC that the exported scheduler induces, checked by Storm."""
+    dtmc = checked.model.apply_scheduler(checked.scheduler, True)
+    formula = stormpy.parse_properties(prop)[0]
+    result = stormpy.model_checking(dtmc, formula, environment=sound_environment())
+    return float(result.get_value_vector()[dtmc.initial_states[0]])
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,11 +26,11 @@ import tomllib
 from collections import deque
 from dataclasses import dataclass, field
 
-import buddy
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import spot
+from spot import buddy
 
 TRAPPED = "trapped"
 ACTIONS = ("N", "E", "S", "W")
@@ -46,7 +46,7 @@ SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
 # exact solver for turn-based reachability games (P2 moves first, then P1, then chance)
 # --------------------------------------------------------------------------------------
 
-def solve_reach_game(state_pairs, pair_rows, row_succ):
+def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     """Least fixed point of  V(s) = min_{p in pairs(s)} max_{r in rows(p)} sum_t P_r(t) V(t).
 
     ``state_pairs[s]``: list of pair ids (P2 choices) of non-terminal state s;
@@ -61,13 +61,14 @@ def solve_reach_game(state_pairs, pair_rows, row_succ):
     iteration for minimum reachability after removing (graph analysis) the states where P2
     can avoid the goal forever.  At termination the vector is the value of a P1 strategy
     (so <= the game value) and a fixed point of the game operator (so >= the least fixed
-    point), i.e. the game value.  Returns a numpy vector indexed by state id.
+    point), i.e. the game value.  Returns a numpy vector indexed by state id (and, with
+    ``return_strategy``, P1's optimal choice: an array pair id -> row id).
     """
     n = len(state_pairs)
     npairs = len(pair_rows)
     nrows = len(row_succ)
     if n == 0:
-        return np.zeros(0)
+        return (np.zeros(0), np.zeros(0, dtype=np.int64)) if return_strategy else np.zeros(0)
     # consecutive numbering (lets us use segment reductions)
     assert [p for ps in state_pairs for p in ps] == list(range(npairs))
     assert [r for rs in pair_rows for r in rs] == list(range(nrows))
@@ -126,7 +127,7 @@ def solve_reach_game(state_pairs, pair_rows, row_succ):
     res = float(np.max(np.abs(fx - x)))
     if res > 1e-9:
         raise RuntimeError(f"game solution residual {res}")
-    return x
+    return (x, sigma1) if return_strategy else x
 
 
 def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
@@ -253,6 +254,10 @@ class Reference:
 
     def strategy_value(self, records):
         return self.world.strategy_value(records)
+
+    def optimal_records(self):
+        """An optimal strategy of the reference, in the exported record format."""
+        return self.world.optimal_records()
 
     def infer(self, hypothesis, window, observation):
         w = self.world
@@ -596,6 +601,7 @@ class World:
         return s0, order, seen, trans, reached
 
     def solve(self):
+        self._policy = {}
         s0, order, idx, trans, reached = self.explore_hypergame()
         dfa = self.task_dfa
         # leader game G(phi) at (v0, delta(iota, L(v0)))
@@ -616,13 +622,30 @@ class World:
                     row_succ.append(succ)
                 state_pairs.append([i])
                 pair_rows.append(rows)
-            x = solve_reach_game(state_pairs, pair_rows, row_succ)
+            x, sigma1 = solve_reach_game(state_pairs, pair_rows, row_succ,
+                                         return_strategy=True)
             value = float(x[0])
+            self._policy = {s: ACTIONS[sigma1[i] - pair_rows[i][0]] for i, s in enumerate(order)}
         self._hyper = (s0, order, idx, trans, reached)
         return Reference(value=value, v_lead=float(v_lead), states=nstates,
                          transitions=ntrans, world=self)
 
     # ----- strategy evaluation -----
+    def _ts_record(self, v):
+        if self.delay == 0:
+            return {"cell": [v[0], v[1]], "traps": None, "countdown": None}
+        return {"cell": [v[0], v[1]], "traps": [list(c) for c in v[2]], "countdown": v[3]}
+
+    def optimal_records(self):
+        recs = []
+        for (v, q, (xh, B)), a in self._policy.items():
+            rec = self._ts_record(v)
+            rec.update(q=q, hypothesis=xh,
+                       window=[dict(self._ts_record(vi), action=ai) for vi, ai in B],
+                       action=a)
+            recs.append(rec)
+        return recs
+
     def _rec_ts(self, cell, traps, countdown):
         if self.delay == 0:
             return (int(cell[0]), int(cell[1]))

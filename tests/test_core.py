@@ -1,0 +1,190 @@
+"""The core pipeline against an independent explicit solver (tests/reference.py), on world1 and
+a seeded family of small generated worlds (tests/worldgen.py)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import reference
+import worldgen
+from conftest import MODELS
+from hg2prism import pipeline, storm
+from hg2prism.dynamics import ACTIONS
+from hg2prism.inference import Memory
+from hg2prism.world import load_world
+
+FAMILY = dict(worldgen.world_family())
+CASES = ["world1"] + sorted(FAMILY)
+TOL = 1e-6
+
+
+@functools.cache
+def world_path(name: str, folder: str) -> Path:
+    if name == "world1":
+        return MODELS / "world1.toml"
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(FAMILY[name])
+    return path
+
+
+@functools.cache
+def run(name: str, folder: str) -> tuple[pipeline.CheckResult, reference.Reference]:
+    path = world_path(name, folder)
+    result = pipeline.check(load_world(path), Path(folder) / name)
+    return result, reference.solve(path)
+
+
+@pytest.fixture(params=CASES)
+def case(request: pytest.FixtureRequest, world_dir: Path):
+    return run(request.param, str(world_dir))
+
+
+def test_family_covers_the_required_variety() -> None:
+    worlds = [load_world_text(text) for text in FAMILY.values()]
+    assert len(worlds) >= 30
+    assert {w["adversary"].get("delay", 0) > 0 for w in worlds} == {True, False}
+    assert {w["adversary"]["traps"] for w in worlds} >= {1, 2}
+    assert {w["inference"]["window"] for w in worlds} >= {1, 2, 3}
+    assert {w["robot"]["slip"] == 0 for w in worlds} == {True, False}
+    assert {len(w["adversary"]["hypotheses"]) == 1 for w in worlds} == {True, False}
+
+
+def load_world_text(text: str) -> dict:
+    import tomllib
+    return tomllib.loads(text)
+
+
+def test_deceptive_value_matches_reference(case) -> None:
+    result, ref = case
+    assert result.results["deceptive_value"] == pytest.approx(ref.value, abs=TOL)
+
+
+def test_leader_value_matches_reference_and_bounds_deception(case) -> None:
+    result, ref = case
+    assert result.results["v_lead"] == pytest.approx(ref.v_lead, abs=TOL)
+    assert result.results["v_lead"] <= result.results["deceptive_value"] + TOL
+
+
+def test_canonical_size_matches_reference(case) -> None:
+    result, ref = case
+    assert (result.results["states"], result.results["transitions"]) == (ref.states, ref.transitions)
+
+
+def test_trap_strategy_matches_reference(case) -> None:
+    result, ref = case
+    ts = result.analysis.ts
+    for h, game in enumerate(result.analysis.games):
+        for state in range(ts.n_states - 1):
+            ours = ts.trap_cells(int(game.trap_choice[state]))
+            assert ours == ref.trap_strategy(h, _reference_state(ts, state)), (h, state)
+
+
+def test_exported_strategy_is_optimal(case) -> None:
+    result, ref = case
+    value = result.results["deceptive_value"]
+    # The DTMC Storm's scheduler induces, checked by Storm ...
+    assert storm.induced_probability(result.checked) == pytest.approx(value, abs=TOL)
+    # ... and the exported JSON strategy, evaluated by the independent solver.
+    assert ref.strategy_value(result.records) == pytest.approx(value, abs=TOL)
+
+
+def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
+    """Every transition Storm built moves P2's memory exactly as inference.update does."""
+    result, _ = case
+    decoded, inference, ts = result.decoded, result.analysis.inference, result.analysis.ts
+    moves = storm.transitions(result.checked.model)
+    checked = 0
+    for choice in range(len(moves.source)):
+        s = int(moves.source[choice])
+        if decoded.goal[s] or decoded.fail[s]:
+            continue
+        memory = _memory(decoded, s)
+        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        expected = inference.update(memory, (state, int(moves.action[choice])))
+        for t in moves.target[moves.row_start[choice]:moves.row_start[choice + 1]]:
+            assert _memory(decoded, int(t)) == expected
+            checked += 1
+    assert checked > 0
+
+
+def test_python_inference_matches_reference(case) -> None:
+    """inference.update against the reference's eta on every memory Storm reached."""
+    result, ref = case
+    decoded, inference, ts = result.decoded, result.analysis.inference, result.analysis.ts
+    seen = set()
+    for s in range(len(decoded.cell)):
+        if decoded.goal[s] or decoded.fail[s]:
+            continue
+        memory = _memory(decoded, s)
+        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        for a in range(4):
+            if (memory, state, a) in seen:
+                continue
+            seen.add((memory, state, a))
+            ours = inference.update(memory, (state, a))
+            theirs = ref.infer(memory.hypothesis, _reference_window(ts, memory.window),
+                               (_reference_state(ts, state), ACTIONS[a]))
+            assert (ours.hypothesis, _reference_window(ts, ours.window)) == theirs
+
+
+def _memory(decoded: storm.DecodedStates, s: int) -> Memory:
+    return Memory(int(decoded.hypothesis[s]),
+                  tuple((int(v), int(a)) for v, a in decoded.window[s] if v >= 0))
+
+
+def _reference_state(ts, state: int):
+    if state == ts.trapped:
+        return "trapped"
+    cell, traps, countdown = ts.decode(state)
+    if ts.delay == 0:
+        return ts.cells[cell]
+    return (*ts.cells[cell], ts.trap_cells(traps), countdown)
+
+
+def _reference_window(ts, window) -> tuple:
+    return tuple((_reference_state(ts, v), ACTIONS[a]) for v, a in window)
+
+
+def test_single_hypothesis_equal_to_a_one_step_task_gives_v_lead(world_dir: Path) -> None:
+    """SPEC §7: X = {phi}, phi = "!obs U A": deceptive value equals V_lead."""
+    world = load_world(MODELS / "world1.toml")
+    for window in (1, 2):
+        single = dataclasses.replace(world, formula="!obs U A", hypotheses=("!obs U A",),
+                                     initial_hypothesis=0, window=window)
+        result = pipeline.check(single, world_dir / f"single_w{window}")
+        assert result.results["deceptive_value"] == pytest.approx(result.results["v_lead"], abs=TOL)
+        assert 0 < result.results["v_lead"] < 1
+
+
+def test_command_count_does_not_grow_with_the_product(world_dir: Path) -> None:
+    world = load_world(MODELS / "world1.toml")
+    variants = {
+        "w1": dataclasses.replace(world, window=1),
+        "w3": dataclasses.replace(world, window=3),
+        "x2": dataclasses.replace(world, hypotheses=world.hypotheses[:2]),
+        "x5": dataclasses.replace(world, hypotheses=world.hypotheses + ("F A", "!obs U (A & X C)")),
+    }
+    counts = {}
+    for name, variant in variants.items():
+        model = pipeline.emit(variant, world_dir / f"cmd_{name}")
+        counts[name] = model.commands
+    assert len({c["robot"] for c in counts.values()}) == 1
+    assert len({c["task"] for c in counts.values()}) == 1
+    # The inference module grows with the hypotheses (a table), not with the window.
+    assert counts["w1"]["p2_inference"] == counts["w3"]["p2_inference"]
+    model = pipeline.emit(world, world_dir / "cmd_world1")
+    assert sum(model.commands.values()) < 100
+    assert len(model.text) < 200_000
+
+
+def test_storm_builds_more_states_with_longer_windows(world_dir: Path) -> None:
+    """The product grows with the window while the command count above does not."""
+    world = load_world(MODELS / "world1.toml")
+    sizes = [pipeline.check(dataclasses.replace(world, window=w), world_dir / f"size_w{w}")
+             .results["states"] for w in (1, 2, 3)]
+    assert sizes[0] < sizes[1] < sizes[2]

