@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hg2prism.errors import InputError
+from hg2prism.errors import InputError, SolverError, StormError
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -52,3 +52,10 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
+    except SolverError as err:
+        print(f"hg2prism: error: {args.world}: games: {err}", file=sys.stderr)
+        return 1
+    except StormError as err:
+        print(f"hg2prism: error: {args.world}: storm: {str(err).strip().splitlines()[0]}",
+              file=sys.stderr)
+        return 1

@@ -17,18 +17,21 @@ available action carries no information and is left out of every count):
   maximum-likelihood estimate from *all* counted steps so far, re-evaluated at every step, i.e.
   ``ln L1 = sum_{(s~, a) seen} #(s~, a) ln(#(s~, a) / #(s~))``;
 * ``G = 2 (ln L1 - ln L0)`` (>= 0: phat maximises the likelihood over policies of s~, p0 is one);
-* ``df`` = number of distinct ``(s~, a)`` pairs seen. This is the paper's choice. It exceeds
+* ``df`` = number of distinct ``(s~, a2)`` pairs seen. This is the paper's choice. It exceeds
   the number of free parameters of the unrestricted model (a state with k distinct observed
   actions has k - 1 free probabilities, and under H0 nothing is estimated), so the chi-square
   quantile used is larger than the asymptotically correct one and the test is
-  **conservative**: its false-alarm rate is below ``alpha`` in the asymptotic regime.
+  **conservative**: for data actually drawn from ``p0``, its asymptotic false-alarm rate is
+  below ``alpha``. (A P2 that plays the prediction deterministically is not a sample from
+  ``p0``; see the caveat below.)
 * No test while ``df = 0``; H0 is rejected at the first step n with
   ``G > chi2.ppf(1 - alpha, df)``.
 
 Caveat (a property of this statistic, not a bug): when P2 follows the prediction exactly,
 ``phat = 1`` on every seen pair, so ``ln L1 = 0`` and ``G = -2 N ln(1 - epsilon)`` after N
 counted steps, which grows linearly in N while ``df`` stays the number k of distinct states
-visited. Since ``chi2.ppf(1 - alpha, k) > k``, no false alarm is possible unless the states are
+visited. Since ``chi2.ppf(1 - alpha, k) > k`` (for alpha < 0.317, i.e. any usual level), no
+false alarm is possible unless the states are
 revisited on average more than ``1 / (-2 ln(1 - epsilon))`` times; it happens exactly when
 ``N > chi2.ppf(1 - alpha, k) / (-2 ln(1 - epsilon))``. With a single repeated state
 (k = 1, the easiest case): epsilon = 0.1, alpha = 0.05 rejects at the 19th counted visit;

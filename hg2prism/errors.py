@@ -11,3 +11,11 @@ class InputError(Exception):
         self.file = file
         self.key = key
         self.reason = reason
+
+
+class SolverError(RuntimeError):
+    """A numerical solver did not reach the precision SPEC §10 requires."""
+
+
+class StormError(RuntimeError):
+    """Storm refused or failed on a generated model."""

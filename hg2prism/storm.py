@@ -6,6 +6,9 @@ one canonical state (v, q, M) of SPEC §6; `canonical_states` maps each to its c
 
 from __future__ import annotations
 
+import json
+import tarfile
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +17,7 @@ import numpy as np
 import stormpy
 import stormpy.environments as environments
 from stormpy import developer
+from stormpy.core._io import export_to_umb
 
 from hg2prism.automata import DFA
 from hg2prism.dynamics import ACTIONS, TransitionSystem
@@ -123,11 +127,10 @@ def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA
 
 
 def _label_mask(model: object, label: str) -> np.ndarray:
-    states = model.labeling.get_states(label)
-    return np.array([states.get(i) for i in range(model.nr_states)], dtype=bool)
+    return read_structure(model).labels[label]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Transitions:
     """Every choice of Storm's model: source state, action index (-1 unlabelled), successors."""
 
@@ -136,31 +139,58 @@ class Transitions:
     row_start: np.ndarray      # successors of choice i: target[row_start[i]:row_start[i+1]]
     target: np.ndarray
     probability: np.ndarray
+    labels: dict[str, np.ndarray]   # state labels as boolean masks
+
+
+_STRUCTURES: dict[int, Transitions] = {}
+
+
+def read_structure(model: object) -> Transitions:
+    """Storm's transition structure as numpy arrays.
+
+    stormpy offers no array view of the sparse matrix, and walking it entry by entry from
+    Python costs seconds per million transitions, so the model goes through Storm's binary
+    UMB export (flat little-endian arrays in a tar file) once and is read back with numpy.
+    """
+    key = id(model)
+    if key in _STRUCTURES and _STRUCTURES[key].source.size == model.nr_choices:
+        return _STRUCTURES[key]
+    options = developer.storage.UmbExportOptions()
+    options.compression = type(options.compression).NO_COMPRESSION
+    with tempfile.TemporaryDirectory(prefix="hg2prism-umb-") as folder:
+        archive = Path(folder) / "model.umb"
+        export_to_umb(model, str(archive), options=options)
+        with tarfile.open(archive) as tar:
+            def array(name: str, dtype: type) -> np.ndarray:
+                return np.frombuffer(tar.extractfile(name).read(), dtype=dtype)
+
+            state_choices = array("state-to-choices.bin", np.uint64).astype(np.int64)
+            row_start = array("choice-to-branches.bin", np.uint64).astype(np.int64)
+            target = array("branch-to-target.bin", np.uint64).astype(np.int64)
+            probability = array("branch-to-probability.bin", np.float64).copy()
+            action_ids = array("actions/choices/values.bin", np.uint32).astype(np.int64)
+            offsets = array("actions/choices/string-mapping.bin", np.uint64).astype(np.int64)
+            text = tar.extractfile("actions/choices/strings.bin").read().decode()
+            names = [text[offsets[i]:offsets[i + 1]] for i in range(len(offsets) - 1)]
+            index = json.loads(tar.extractfile("index.json").read())
+            labels = {}
+            for key_name, ap in index.get("annotations", {}).get("aps", {}).items():
+                label = ap.get("alias", key_name)
+                member = f"annotations/aps/{key_name}/states/values.bin"
+                bits = np.unpackbits(array(member, np.uint8), bitorder="little")
+                labels[label] = bits[:model.nr_states].astype(bool)
+    action_index = np.array([ACTIONS.index(n) if n in ACTIONS else -1 for n in names])
+    structure = Transitions(
+        source=np.repeat(np.arange(model.nr_states), np.diff(state_choices)),
+        action=action_index[action_ids], row_start=row_start, target=target,
+        probability=probability, labels=labels)
+    _STRUCTURES.clear()
+    _STRUCTURES[key] = structure
+    return structure
 
 
 def transitions(model: object) -> Transitions:
-    matrix = model.transition_matrix
-    labeling = model.choice_labeling
-    action_of = {a: i for i, a in enumerate(ACTIONS)}
-    n_choices = model.nr_choices
-    source = np.empty(n_choices, dtype=np.int64)
-    action = np.full(n_choices, -1, dtype=np.int64)
-    row_start = np.zeros(n_choices + 1, dtype=np.int64)
-    targets, probabilities = [], []
-    for s in range(model.nr_states):
-        first, last = matrix.get_row_group_start(s), matrix.get_row_group_end(s)
-        source[first:last] = s
-        for row in range(first, last):
-            labels = labeling.get_labels_of_choice(row)
-            if labels:
-                action[row] = action_of[next(iter(labels))]
-            entries = [(e.column, e.value) for e in matrix.get_row(row)]
-            targets.extend(c for c, _ in entries)
-            probabilities.extend(p for _, p in entries)
-            row_start[row + 1] = len(targets)
-    return Transitions(source=source, action=action, row_start=row_start,
-                       target=np.asarray(targets, dtype=np.int64),
-                       probability=np.asarray(probabilities))
+    return read_structure(model)
 
 
 def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int]:

@@ -52,12 +52,14 @@ def _connected(grid, W, H, start):
 
 
 def make_world(seed, *, delay=None, traps=None, window=None, slip=None, nhyp=None,
-               size=None, ncand=None, nregions=None, task=None, hyps=None, name=None):
+               size=None, ncand=None, nregions=None, task=None, hyps=None, name=None,
+               compact=False):
     """One valid world; every parameter left as None is drawn from ``random.Random(seed)``.
 
     ``size`` = (interior width, interior height); ``task``/``hyps`` are templates (index
     into TASKS / HYPS) or literal formulas over the letters A.. (then the letters are used
-    as written and forced to exist in the map)."""
+    as written and forced to exist in the map).  ``compact`` shrinks the grid further for
+    the largest combinations (window 3 with delay > 0)."""
     rng = random.Random(seed)
     if delay is None:
         delay = rng.choice([0, 0, 1, 2])
@@ -72,7 +74,9 @@ def make_world(seed, *, delay=None, traps=None, window=None, slip=None, nhyp=Non
     # keep the hypergame small: the product grows with window, delay, traps and |X|
     budget = (window - 1) + delay + (traps - 1) + (1 if nhyp >= 3 else 0)
     if size is None:
-        if budget >= 4:
+        if compact and window >= 3 and delay > 0:
+            size = rng.choice([(3, 3), (4, 3), (3, 4)]) if nhyp <= 2 and traps == 1 else (3, 3)
+        elif budget >= 4:
             size = rng.choice([(3, 3), (4, 3), (3, 4)])
         elif budget >= 2:
             size = rng.choice([(3, 3), (4, 3), (3, 4), (4, 4)])
@@ -212,13 +216,59 @@ def make_world(seed, *, delay=None, traps=None, window=None, slip=None, nhyp=Non
 
 def random_world(seed: int) -> str:
     """TOML text of one small valid random world."""
-    return make_world(seed)
+    return make_world(seed, compact=True)
 
 
 # The family: (name, seed, parameters).  Seeds were chosen (with tests/reference.py) so
 # that most worlds have a deceptive value strictly between 0 and 1 and several allow more
 # than one hypothesis change; every world stays well below 30,000 canonical states.
 FAMILY = [
+    ('fam00_d0_l1_w1_x2', 1000, {'delay': 0, 'traps': 1, 'window': 1, 'nhyp': 2}),
+    ('fam01_d1_l1_w1_x3', 2000, {'delay': 1, 'traps': 1, 'window': 1, 'nhyp': 3}),
+    ('fam02_d2_l1_w1_x4', 3001, {'delay': 2, 'traps': 1, 'window': 1, 'nhyp': 4}),
+    ('fam03_d0_l1_w2_x1', 4000, {'delay': 0, 'traps': 1, 'window': 2, 'nhyp': 1}),
+    ('fam04_d1_l1_w2_x2', 5000, {'delay': 1, 'traps': 1, 'window': 2, 'nhyp': 2}),
+    ('fam05_d2_l1_w2_x3', 6002, {'delay': 2, 'traps': 1, 'window': 2, 'nhyp': 3, 'slip': 0.0}),
+    ('fam06_d0_l1_w3_x2', 7000, {'delay': 0, 'traps': 1, 'window': 3, 'nhyp': 2}),
+    ('fam07_d1_l1_w3_x4', 8000, {'delay': 1, 'traps': 1, 'window': 3, 'nhyp': 4}),
+    ('fam08_d2_l1_w3_x3', 9004, {'delay': 2, 'traps': 1, 'window': 3, 'nhyp': 3}),
+    ('fam09_d0_l2_w1_x3', 10023, {'delay': 0, 'traps': 2, 'window': 1, 'nhyp': 3}),
+    ('fam10_d1_l2_w1_x2', 11002, {'delay': 1, 'traps': 2, 'window': 1, 'nhyp': 2}),
+    ('fam11_d2_l2_w1_x1', 12000, {'delay': 2, 'traps': 2, 'window': 1, 'nhyp': 1, 'slip': 0.0}),
+    ('fam12_d0_l2_w2_x4', 13001, {'delay': 0, 'traps': 2, 'window': 2, 'nhyp': 4}),
+    ('fam13_d1_l2_w2_x2', 14003, {'delay': 1, 'traps': 2, 'window': 2, 'nhyp': 2}),
+    ('fam14_d2_l2_w2_x3', 15007, {'delay': 2, 'traps': 2, 'window': 2, 'nhyp': 3}),
+    ('fam15_d0_l2_w3_x2', 16002, {'delay': 0, 'traps': 2, 'window': 3, 'nhyp': 2}),
+    ('fam16_d1_l2_w3_x3', 17001, {'delay': 1, 'traps': 2, 'window': 3, 'nhyp': 3}),
+    ('fam17_d2_l2_w3_x4', 18001, {'delay': 2, 'traps': 2, 'window': 3, 'nhyp': 4, 'slip': 0.0}),
+    ('fam18_d0_l1_w1_x3', 19005, {'delay': 0, 'traps': 1, 'window': 1, 'nhyp': 3}),
+    ('fam19_d1_l1_w1_x2', 20009, {'delay': 1, 'traps': 1, 'window': 1, 'nhyp': 2}),
+    ('fam20_d2_l1_w1_x3', 21010, {'delay': 2, 'traps': 1, 'window': 1, 'nhyp': 3}),
+    ('fam21_d0_l1_w2_x4', 22012, {'delay': 0, 'traps': 1, 'window': 2, 'nhyp': 4}),
+    ('fam22_d1_l1_w2_x3', 23006, {'delay': 1, 'traps': 1, 'window': 2, 'nhyp': 3}),
+    ('fam23_d2_l1_w2_x2', 24001, {'delay': 2, 'traps': 1, 'window': 2, 'nhyp': 2}),
+    ('fam24_d0_l1_w3_x3', 25000, {'delay': 0, 'traps': 1, 'window': 3, 'nhyp': 3, 'slip': 0.0}),
+    ('fam25_d1_l1_w3_x2', 26001, {'delay': 1, 'traps': 1, 'window': 3, 'nhyp': 2}),
+    ('fam26_d2_l1_w3_x2', 27008, {'delay': 2, 'traps': 1, 'window': 3, 'nhyp': 2}),
+    ('fam27_d0_l2_w1_x2', 28000, {'delay': 0, 'traps': 2, 'window': 1, 'nhyp': 2}),
+    ('fam28_d1_l2_w1_x4', 29001, {'delay': 1, 'traps': 2, 'window': 1, 'nhyp': 4}),
+    ('fam29_d2_l2_w1_x3', 30010, {'delay': 2, 'traps': 2, 'window': 1, 'nhyp': 3}),
+    ('fam30_d0_l2_w2_x2', 31005, {'delay': 0, 'traps': 2, 'window': 2, 'nhyp': 2}),
+    ('fam31_d1_l2_w2_x3', 32010, {'delay': 1, 'traps': 2, 'window': 2, 'nhyp': 3, 'slip': 0.0}),
+    ('fam32_d2_l2_w2_x2', 33017, {'delay': 2, 'traps': 2, 'window': 2, 'nhyp': 2}),
+    ('fam33_d0_l2_w3_x3', 34011, {'delay': 0, 'traps': 2, 'window': 3, 'nhyp': 3}),
+    ('fam34_d1_l2_w3_x2', 35007, {'delay': 1, 'traps': 2, 'window': 3, 'nhyp': 2}),
+    ('fam35_d2_l2_w3_x2', 36014, {'delay': 2, 'traps': 2, 'window': 3, 'nhyp': 2}),
+    ('fam36_eq_d0_w2', 37001, {'delay': 0, 'traps': 1, 'window': 2, 'slip': 0.1, 'task': '!obs U A', 'hyps': ['!obs U A']}),
+    ('fam37_eq_d1_w1', 38003, {'delay': 1, 'traps': 1, 'window': 1, 'slip': 0.1, 'task': '!obs U A', 'hyps': ['!obs U A']}),
+    ('fam38_eq_d2_w2', 39001, {'delay': 2, 'traps': 1, 'window': 2, 'slip': 0.05, 'task': '!obs U A', 'hyps': ['!obs U A']}),
+    ('fam39_eq_d0_w3', 40004, {'delay': 0, 'traps': 1, 'window': 3, 'slip': 0.2, 'task': '!obs U A', 'hyps': ['!obs U A']}),
+    ('fam40_tx_d0_l1_w2', 41005, {'delay': 0, 'traps': 1, 'window': 2, 'task': '!obs U A', 'hyps': ['!obs U A', '!obs U B', 'F C']}),
+    ('fam41_tx_d1_l1_w2', 42000, {'delay': 1, 'traps': 1, 'window': 2, 'task': '!obs U A', 'hyps': ['!obs U A', '!obs U B', 'F C']}),
+    ('fam42_tx_d0_l2_w3', 43003, {'delay': 0, 'traps': 2, 'window': 3, 'task': '!obs U A', 'hyps': ['!obs U A', '!obs U B', 'F C']}),
+    ('fam43_tx_d0_l1_w3', 44002, {'delay': 0, 'traps': 1, 'window': 3, 'task': '!obs U A', 'hyps': ['!obs U A', '!obs U B', 'F C']}),
+    ('fam44_big_d0_l1_w3_x3', 45004, {'delay': 0, 'traps': 1, 'window': 3, 'nhyp': 3, 'size': (5, 5)}),
+    ('fam45_big_d1_l1_w3_x3', 46000, {'delay': 1, 'traps': 1, 'window': 3, 'nhyp': 3, 'size': (4, 4)}),
 ]
 
 

@@ -1,0 +1,389 @@
+"""Symmetric-information Nash baseline (SPEC §7): the concurrent game on TS x DFA(phi).
+
+Both players know the task phi and move at the same time with mixed strategies. The value is
+the least fixed point of
+
+    V(g) = val(M_g),   M_g[a1][a2] = sum_k prob[g, a1, a2, k] * V(next[g, a1, a2, k])
+
+where `val` is the value of the zero-sum matrix game (P1 maximises over rows, P2 minimises over
+her allowed columns). Value iteration from 0 converges to it from below (SPEC §10: stop when the
+largest change is below 1e-10, fail past 10^6 sweeps).
+
+Every sweep needs one matrix-game value per state, and on world1 value iteration needs about two
+thousand sweeps, so one LP per state and sweep would be far too slow. Each sweep therefore
+  1. finds, for all states at once, the matrices with a pure saddle point
+     (max of row minima == min of column maxima): most states;
+  2. for the others, re-uses the kernel (the square sub-matrix on the supports of both optimal
+     strategies, Shapley-Snow) that solved the state last sweep: the two small linear systems
+     are solved for all such states in one batch and the answer is accepted only if it is
+     certified optimal (see below). Supports rarely change between sweeps;
+  3. only where that fails, solves the LP with HiGHS, then reads the kernel off the LP's
+     supports and polishes the LP solution with it.
+
+Certificate: for mixed strategies x (P1) and y (P2), every value lies in
+[min_j (x^T M)_j, max_i (M y)_i]. A solution is accepted when this gap is at most 1e-12, and the
+lower end is used as the value, so every iterate stays below the least fixed point. HiGHS
+(through scipy) rejects feasibility tolerances below 1e-10, so the kernel polish is what makes
+values exact to 1e-12 rather than the LP tolerance.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.optimize import linprog
+
+from hg2prism.automata import DFA
+from hg2prism.dynamics import TransitionSystem
+from hg2prism.games import SolverError
+
+VI_TOLERANCE = 1e-10        # SPEC §10: concurrent game, largest change per sweep
+MAX_SWEEPS = 1_000_000
+GAP = 1e-12                 # accepted width of a matrix game's certified value interval
+LP_GAP = 1e-9               # an unpolished LP solution must still be this tight, or we fail
+LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
+SHORTFALL_WARNING = 1e-6    # SPEC §7: warn when P1's extracted strategy guarantees less
+SUPPORT = 1e-9              # a probability above this is in a strategy's support
+TIE = 1e-9                  # a pure move this close to the value counts as optimal for P1
+
+
+@dataclass(frozen=True, eq=False)
+class ConcurrentGame:
+    """A concurrent reachability game. goal states have value 1, zero states value 0; both are
+    absorbing (their rows in next/prob are ignored). The others are `free`."""
+
+    next: np.ndarray          # [G, A1, A2, K] successor of each outcome
+    prob: np.ndarray          # [G, A1, A2, K] its probability
+    allowed: np.ndarray       # [G, A2] bool: P2's available actions
+    goal: np.ndarray          # [G] bool
+    zero: np.ndarray          # [G] bool
+
+    def __post_init__(self) -> None:
+        g, a1, a2, k = self.next.shape
+        if self.prob.shape != (g, a1, a2, k) or self.allowed.shape != (g, a2):
+            raise ValueError("next, prob and allowed have inconsistent shapes")
+        if self.goal.shape != (g,) or self.zero.shape != (g,):
+            raise ValueError("goal and zero must have one entry per state")
+        if (self.goal & self.zero).any():
+            raise ValueError("a state cannot be both goal and zero")
+        if not self.allowed.any(axis=1).all():
+            raise ValueError("every state needs an allowed P2 action")
+        if (self.next < 0).any() or (self.next >= g).any() or (self.prob < 0).any():
+            raise ValueError("successors out of range or negative probabilities")
+        total = self.prob.sum(axis=-1)[self.free][:, :, :]
+        if not np.allclose(total[np.broadcast_to(self.allowed[self.free][:, None, :], total.shape)],
+                           1.0, atol=1e-9):
+            raise ValueError("outcome probabilities of a free state do not sum to 1")
+
+    @property
+    def size(self) -> int:
+        return self.next.shape[0]
+
+    @property
+    def free(self) -> np.ndarray:
+        return ~(self.goal | self.zero)
+
+    def matrices(self, v: np.ndarray) -> np.ndarray:
+        """M[g, a1, a2] = expected V after the joint action."""
+        return (self.prob * v[self.next]).sum(axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class NashSolution:
+    values: np.ndarray        # [G] V_NE
+    p1: np.ndarray            # [G, A1] P1's stationary mixed strategy
+    p2: np.ndarray            # [G, A2] P2's, 0 on disallowed actions
+    sweeps: int
+    lp_calls: int             # LPs solved (the rest was saddle points and cached kernels)
+
+
+@dataclass(frozen=True, eq=False)
+class NashBaseline:
+    """The Nash baseline on TS x DFA(phi), arrays indexed [TS state, DFA state, ...]."""
+
+    game: ConcurrentGame
+    solution: NashSolution
+    values: np.ndarray        # [n_ts, n_q] V_NE
+    guaranteed: np.ndarray    # [n_ts, n_q] what P1's extracted strategy guarantees
+    p1: np.ndarray            # [n_ts, n_q, 4]
+    p2: np.ndarray            # [n_ts, n_q, n_sets]
+    initial: tuple[int, int]  # (start_state, delta(iota, L(start cell)))
+    v_ne: float
+    v_ne_p1_guaranteed: float
+    shortfall: float          # v_ne - v_ne_p1_guaranteed
+
+    @property
+    def warn(self) -> bool:
+        """SPEC §7: P1's stationary strategy guarantees noticeably less than V_NE."""
+        return self.shortfall > SHORTFALL_WARNING
+
+
+def concurrent_game(ts: TransitionSystem, dfa: DFA) -> ConcurrentGame:
+    """TS x DFA(phi) with the index convention of games.py: g = s * n_q + q."""
+    n_q = dfa.n_states
+    label = ts.state_label()
+    # The DFA reads the label of the state being entered: q' = delta(q, L(v')).
+    succ_q = dfa.delta[:, label[ts.succ]]                             # [n_q, S, 4, A2, K]
+    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
+        ts.n_states * n_q, *ts.succ.shape[1:])
+    q_of = np.tile(np.arange(n_q), ts.n_states)
+    s_of = np.repeat(np.arange(ts.n_states), n_q)
+    trapped = s_of == ts.trapped                     # tried first: trapped is a failure
+    goal = np.isin(q_of, list(dfa.accepting)) & ~trapped
+    zero = trapped | (np.isin(q_of, list(dfa.sink)) & ~goal)
+    return ConcurrentGame(next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
+                          allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, zero=zero)
+
+
+# ---------------------------------------------------------------------------------------------
+# Matrix games
+
+
+@dataclass
+class _Kernels:
+    """Per state, the kernel (rows, columns) that solved its matrix game last time, or None."""
+
+    rows: list[tuple[int, ...] | None]
+    cols: list[tuple[int, ...] | None]
+    lp_calls: int = 0
+
+
+@dataclass
+class _Solved:
+    """Certified solutions of a batch of matrix games."""
+
+    value: np.ndarray         # [n] lower end of the certified interval
+    x: np.ndarray             # [n, A1]
+    y: np.ndarray             # [n, A2]
+    ok: np.ndarray            # [n] bool: certified
+
+
+def _certify(m: np.ndarray, allowed: np.ndarray, x: np.ndarray, y: np.ndarray,
+             ok: np.ndarray) -> _Solved:
+    """Clean up candidate strategies and keep those whose value interval is within GAP."""
+    ok = ok & (x >= -GAP).all(axis=1) & (y >= -GAP).all(axis=1)
+    x = np.clip(x, 0.0, None)
+    y = np.where(allowed, np.clip(y, 0.0, None), 0.0)
+    sx, sy = x.sum(axis=1, keepdims=True), y.sum(axis=1, keepdims=True)
+    ok &= (sx[:, 0] > 0.5) & (sy[:, 0] > 0.5)
+    x, y = x / np.where(sx > 0, sx, 1.0), y / np.where(sy > 0, sy, 1.0)
+    lower = np.where(allowed, np.einsum("na,nab->nb", x, m), np.inf).min(axis=1)
+    upper = np.einsum("nab,nb->na", m, y).max(axis=1)
+    ok &= upper - lower <= GAP
+    return _Solved(value=lower, x=x, y=y, ok=ok)
+
+
+def _kernel_solve(m: np.ndarray, allowed: np.ndarray, rows: np.ndarray,
+                  cols: np.ndarray) -> _Solved:
+    """Solve every game m[i] on its k x k kernel (rows[i], cols[i]) and certify the result.
+
+    On the kernel both players make the other indifferent:
+        x^T B = v 1, sum x = 1      and      B y = w 1, sum y = 1.
+    """
+    n, k = rows.shape
+    batch = np.arange(n)[:, None, None]
+    b = m[batch, rows[:, :, None], cols[:, None, :]]                   # [n, k, k]
+    x_sys = np.zeros((n, k + 1, k + 1))
+    x_sys[:, :k, :k] = b.transpose(0, 2, 1)
+    x_sys[:, :k, k] = -1.0
+    x_sys[:, k, :k] = 1.0
+    y_sys = x_sys.copy()
+    y_sys[:, :k, :k] = b
+    rhs = np.zeros((n, k + 1))
+    rhs[:, k] = 1.0
+    # A singular system cannot be this kernel; swap in the identity so the batch solve works.
+    # (Near-singular ones are solved: the certificate below rejects inaccurate answers.)
+    regular = ((np.linalg.det(x_sys) != 0) & (np.linalg.det(y_sys) != 0)
+               & allowed[np.arange(n)[:, None], cols].all(axis=1))
+    eye = np.eye(k + 1)
+    x_sys[~regular], y_sys[~regular] = eye, eye
+    xk = np.linalg.solve(x_sys, rhs[..., None])[..., 0]
+    yk = np.linalg.solve(y_sys, rhs[..., None])[..., 0]
+    x = np.zeros(m.shape[:2])
+    y = np.zeros((n, m.shape[2]))
+    x[np.arange(n)[:, None], rows] = xk[:, :k]
+    y[np.arange(n)[:, None], cols] = yk[:, :k]
+    return _certify(m, allowed, x, y, regular)
+
+
+def _lp_solve(m: np.ndarray, allowed: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """One matrix game by LP: max v s.t. x^T M[:, j] >= v for allowed j, x a distribution.
+    P2's optimal strategy is the dual of the column constraints."""
+    n1 = m.shape[0]
+    cols = np.flatnonzero(allowed)
+    c = np.zeros(n1 + 1)
+    c[-1] = -1.0
+    a_ub = np.hstack([-m[:, cols].T, np.ones((cols.size, 1))])
+    a_eq = np.append(np.ones(n1), 0.0)[None]
+    res = linprog(c, A_ub=a_ub, b_ub=np.zeros(cols.size), A_eq=a_eq, b_eq=[1.0],
+                  bounds=[(0, None)] * n1 + [(None, None)], method="highs", options=LP_OPTIONS)
+    if res.status != 0:
+        raise SolverError(f"matrix game LP failed: {res.message}")
+    y = np.zeros(m.shape[1])
+    y[cols] = -res.ineqlin.marginals
+    return -res.fun, res.x[:n1], y
+
+
+def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
+                        kernels: _Kernels) -> _Solved:
+    """Certified values and optimal strategies of the games m[i] (state states[i])."""
+    n, n1, n2 = m.shape
+    value = np.empty(n)
+    x = np.zeros((n, n1))
+    y = np.zeros((n, n2))
+
+    # 1. Pure saddle points, all states at once.
+    masked_min = np.where(allowed[:, None, :], m, np.inf).min(axis=2)   # row minima
+    col_max = np.where(allowed, m.max(axis=1), np.inf)                  # column maxima
+    row, col = masked_min.argmax(axis=1), col_max.argmin(axis=1)
+    lower, upper = masked_min[np.arange(n), row], col_max[np.arange(n), col]
+    done = upper - lower <= GAP
+    value[done] = lower[done]
+    # P1 mixes uniformly over every move that is optimal on its own. Any mixture of them is
+    # optimal too, and unlike a single saddle row (often the first, N) it does not stall
+    # against a wall while another optimal move makes progress.
+    optimal = masked_min >= lower[:, None] - TIE
+    x[done] = optimal[done] / optimal[done].sum(axis=1, keepdims=True)
+    y[done, col[done]] = 1.0
+
+    # 2. Last sweep's kernel, batched by kernel size.
+    todo = np.flatnonzero(~done)
+    by_size: dict[int, list[int]] = {}
+    for i in todo:
+        rows = kernels.rows[states[i]]
+        if rows is not None:
+            by_size.setdefault(len(rows), []).append(i)
+    for members in by_size.values():
+        idx = np.array(members)
+        rows = np.array([kernels.rows[states[i]] for i in idx])
+        cols = np.array([kernels.cols[states[i]] for i in idx])
+        got = _kernel_solve(m[idx], allowed[idx], rows, cols)
+        hit = idx[got.ok]
+        value[hit], x[hit], y[hit] = got.value[got.ok], got.x[got.ok], got.y[got.ok]
+        done[hit] = True
+
+    # 3. LP, then polish with the kernel on the LP's supports.
+    for i in np.flatnonzero(~done):
+        kernels.lp_calls += 1
+        lp_value, lp_x, lp_y = _lp_solve(m[i], allowed[i])
+        rows, cols = np.flatnonzero(lp_x > SUPPORT), np.flatnonzero(lp_y > SUPPORT)
+        if rows.size == cols.size:
+            got = _kernel_solve(m[i:i + 1], allowed[i:i + 1], rows[None], cols[None])
+            if got.ok[0]:
+                value[i], x[i], y[i] = got.value[0], got.x[0], got.y[0]
+                kernels.rows[states[i]], kernels.cols[states[i]] = tuple(rows), tuple(cols)
+                continue
+        # Degenerate supports: keep the LP answer if it is tight enough, without a kernel.
+        kernels.rows[states[i]] = kernels.cols[states[i]] = None
+        got = _certify(m[i:i + 1], allowed[i:i + 1], lp_x[None], lp_y[None], np.ones(1, bool))
+        gap = np.einsum("ab,b->a", m[i], got.y[0]).max() - got.value[0]
+        if gap > LP_GAP:
+            raise SolverError(f"matrix game of state {states[i]}: LP value interval {gap:.2e} wide")
+        value[i], x[i], y[i] = got.value[0], got.x[0], got.y[0]
+    return _Solved(value=value, x=x, y=y, ok=np.ones(n, dtype=bool))
+
+
+# ---------------------------------------------------------------------------------------------
+# The concurrent game
+
+
+def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSolution:
+    """V_NE by value iteration from 0 until the largest change is below `tolerance`, and
+    stationary locally optimal strategies read off the final matrix games.
+    Raises SolverError past MAX_SWEEPS sweeps."""
+    free = np.flatnonzero(game.free)
+    kernels = _Kernels(rows=[None] * game.size, cols=[None] * game.size)
+    v = game.goal.astype(float)
+    allowed = game.allowed[free]
+    for sweeps in range(1, MAX_SWEEPS + 1):
+        solved = _solve_matrix_games(game.matrices(v)[free], allowed, free, kernels)
+        # Certified lower ends are <= val(M), so the iterates stay below the fixed point;
+        # the maximum keeps them monotone despite rounding.
+        new = np.maximum(v[free], solved.value)
+        change = np.abs(new - v[free]).max(initial=0.0)
+        v[free] = new
+        if change < tolerance:
+            break
+    else:
+        raise SolverError(f"Nash value iteration did not converge in {MAX_SWEEPS} sweeps")
+
+    # Strategies from the final matrices. Absorbing states: uniform (their moves do not matter).
+    n1, n2 = game.next.shape[1:3]
+    p1 = np.full((game.size, n1), 1.0 / n1)
+    p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
+    final = _solve_matrix_games(game.matrices(v)[free], allowed, free, kernels)
+    p1[free], p2[free] = final.x, final.y
+    return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
+
+
+def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
+    """[G] reach probability P1 guarantees with the stationary mixed strategy p1: P2 minimises in
+    the MDP where p1 is fixed. Solved exactly: the states where P2 can avoid the goal surely get
+    0; on the rest every stationary P2 strategy reaches goal or those states with probability 1,
+    so policy iteration with exact (sparse linear) evaluation converges to the minimum."""
+    g, n1, n2, k = game.next.shape
+    # Outcomes of (g, a2) with P1 mixing: [G, A2, A1*K].
+    nxt = game.next.transpose(0, 2, 1, 3).reshape(g, n2, n1 * k)
+    weight = (p1[:, :, None, None] * game.prob).transpose(0, 2, 1, 3).reshape(g, n2, n1 * k)
+    positive = weight > 0
+
+    # Greatest fixed point: states from which P2 keeps P1 out of the goal forever.
+    avoid = ~game.goal
+    while True:
+        stays = ((~positive | avoid[nxt]).all(axis=-1) & game.allowed).any(axis=1)
+        new = avoid & (game.zero | stays)
+        if (new == avoid).all():
+            break
+        avoid = new
+    solve = game.free & ~avoid
+
+    rows = np.arange(g)
+    q_of = lambda x: np.where(game.allowed, (weight * x[nxt]).sum(axis=-1), np.inf)  # noqa: E731
+    x = game.goal.astype(float)
+    policy = q_of(x).argmin(axis=1)
+    idx = np.flatnonzero(solve)
+    pos = np.full(g, -1)
+    pos[idx] = np.arange(idx.size)
+    for _ in range(10_000):
+        sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]   # [n, A1*K]
+        inner = solve[sub_next] & (sub_w > 0)
+        r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
+        matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
+            (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
+        rhs = (sub_w * game.goal[sub_next]).sum(axis=1)
+        x = game.goal.astype(float)
+        if idx.size:
+            x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+        q = q_of(x)
+        best = q.argmin(axis=1)
+        # Switch only on a strict improvement, so the iteration cannot cycle on ties.
+        improve = solve & (q[rows, best] < q[rows, policy] - 1e-14)
+        if not improve.any():
+            return x
+        policy = np.where(improve, best, policy)
+    raise SolverError("policy iteration for P1's guaranteed value did not converge")
+
+
+def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
+    """The Nash baseline of SPEC §7 for the task DFA, read at every (s, q) and at the start."""
+    game = concurrent_game(ts, dfa)
+    solution = solve_nash(game)
+    guaranteed = guaranteed_value(game, solution.p1)
+    n_q = dfa.n_states
+    start_cell = ts.decode(ts.start_state)[0]
+    q0 = int(dfa.delta[dfa.initial, ts.cell_label[start_cell]])
+    g0 = ts.start_state * n_q + q0
+    v_ne, v_guaranteed = float(solution.values[g0]), float(guaranteed[g0])
+    return NashBaseline(
+        game=game, solution=solution,
+        values=solution.values.reshape(ts.n_states, n_q),
+        guaranteed=guaranteed.reshape(ts.n_states, n_q),
+        p1=solution.p1.reshape(ts.n_states, n_q, -1),
+        p2=solution.p2.reshape(ts.n_states, n_q, -1),
+        initial=(ts.start_state, q0), v_ne=v_ne, v_ne_p1_guaranteed=v_guaranteed,
+        shortfall=v_ne - v_guaranteed,
+    )

@@ -1,0 +1,659 @@
+"""Online simulation of the interaction on TS (SPEC §8).
+
+Deceptive runs: P1 follows its exported deceptive strategy (the records of strategy.json),
+tracking the hypergame state ``(v, q, M)`` exactly: ``q`` is its task DFA's state after reading
+the current cell's label and ``M`` its model of P2's memory, which evolves by SPEC §5 with
+``a2 = pi2_xh(v)`` (SPEC §9). P2 runs the inference of SPEC §5 on the actual history and plays
+``pi2_xh(v)`` for the hypothesis ``xh`` of her real memory, unless an experiment gives her
+another policy (``p2_policy``) or another inference model (``p2_inference``). The successor is
+sampled from the TS tables for the actions actually played.
+
+Nash runs: both players sample their stationary mixed strategies over the game states
+``g = s * n_q + q`` of TS x DFA(phi) (the convention of ``hg2prism.games``).
+
+An episode ends in goal (``q`` in F and not trapped), in failure (trapped, or ``q`` in Sink) or
+after ``horizon`` transitions (truncated: not completed, reported). The completion rate thus
+estimates ``P(F<=horizon goal)``; it is reported with a Wilson score interval.
+
+Runs are reproducible: every random number comes from ``numpy.random.default_rng(seed)``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import norm
+
+from hg2prism.automata import DFA
+from hg2prism.dynamics import ACTIONS, TransitionSystem
+from hg2prism.inference import InferenceModel, Memory
+
+__all__ = [
+    "FAIL", "GOAL", "TRUNCATED",
+    "StrategyError",
+    "Strategy",
+    "StepRecord",
+    "SimulationSummary",
+    "wilson_interval",
+    "simulate_deceptive",
+    "simulate_nash",
+    "leader_fallback",
+    "model_policy",
+    "deviating_policy",
+]
+
+# Episode outcome codes (SimulationSummary.outcomes).
+FAIL, GOAL, TRUNCATED = 0, 1, 2
+
+# (rng, step number n >= 1, TS state v, the trap set P2's model plays at v, P2's real memory)
+# -> the trap set P2 plays.
+P2Policy = Callable[[np.random.Generator, int, int, int, Memory], int]
+Observer = Callable[["StepRecord"], object]
+
+_RANDOM_BLOCK = 8192
+
+
+class StrategyError(LookupError):
+    """The strategy has no (or an unreadable) record for a hypergame state."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Wilson interval and the summary
+# ---------------------------------------------------------------------------------------------
+
+def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval (no continuity correction) of a binomial proportion.
+
+    With p = successes / n and z = norm.ppf(1 - (1 - confidence) / 2):
+    ``(p + z^2/(2n) -+ z sqrt(p(1-p)/n + z^2/(4n^2))) / (1 + z^2/n)``.
+    """
+    if n < 1:
+        raise ValueError(f"n must be >= 1, got {n}")
+    if not 0 <= successes <= n:
+        raise ValueError(f"successes must lie in 0..{n}, got {successes}")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
+    z = float(norm.ppf(1.0 - (1.0 - confidence) / 2.0))
+    p = successes / n
+    z2 = z * z
+    denominator = 1.0 + z2 / n
+    centre = (p + z2 / (2.0 * n)) / denominator
+    half = z * math.sqrt(p * (1.0 - p) / n + z2 / (4.0 * n * n)) / denominator
+    low, high = centre - half, centre + half
+    # The closed form gives exactly 0 (1) for 0 (n) successes up to rounding.
+    if successes == 0:
+        low = 0.0
+    if successes == n:
+        high = 1.0
+    return max(0.0, low), min(1.0, high)
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationSummary:
+    """Outcome of a batch of episodes.
+
+    ``completed`` episodes reached the goal, ``failed`` ones were trapped or reached a DFA sink,
+    ``truncated`` ones were still running after ``horizon`` transitions (not completed).
+    ``lengths[i]`` is the number of transitions of episode i, ``outcomes[i]`` its outcome code
+    (FAIL = 0, GOAL = 1, TRUNCATED = 2).
+    """
+
+    episodes: int
+    completed: int
+    failed: int
+    truncated: int
+    rate: float                      # completed / episodes
+    ci95: tuple[float, float]        # Wilson score interval of rate
+    horizon: int
+    seed: int
+    seconds: float
+    lengths: np.ndarray = field(repr=False)
+    outcomes: np.ndarray = field(repr=False)
+    off_record_steps: int = 0        # deceptive runs: steps where P1 had no record (fallback)
+
+    def interval(self, confidence: float = 0.95) -> tuple[float, float]:
+        """Wilson score interval of the completion rate at another confidence level."""
+        return wilson_interval(self.completed, self.episodes, confidence)
+
+    @property
+    def mean_length(self) -> float:
+        return float(self.lengths.mean()) if self.episodes else 0.0
+
+    def as_dict(self) -> dict:
+        """JSON-ready fields (without the per-episode arrays)."""
+        return {
+            "episodes": self.episodes, "completed": self.completed, "failed": self.failed,
+            "truncated": self.truncated, "rate": self.rate, "ci95": list(self.ci95),
+            "horizon": self.horizon, "seed": self.seed,
+            "mean_length": self.mean_length,
+            "mean_length_completed": (float(self.lengths[self.outcomes == GOAL].mean())
+                                      if self.completed else None),
+            "off_record_steps": self.off_record_steps,
+            "seconds": round(self.seconds, 4),
+        }
+
+
+def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
+             seconds: float, off_record_steps: int = 0) -> SimulationSummary:
+    episodes = len(outcomes)
+    completed = int((outcomes == GOAL).sum())
+    return SimulationSummary(
+        episodes=episodes, completed=completed, failed=int((outcomes == FAIL).sum()),
+        truncated=int((outcomes == TRUNCATED).sum()), rate=completed / episodes,
+        ci95=wilson_interval(completed, episodes, 0.95), horizon=horizon, seed=seed,
+        seconds=seconds, lengths=lengths, outcomes=outcomes, off_record_steps=off_record_steps)
+
+
+def _check_run(episodes: int, horizon: int) -> None:
+    if int(episodes) < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if int(horizon) < 1:
+        raise ValueError(f"horizon must be >= 1, got {horizon}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Progress bar and random numbers
+# ---------------------------------------------------------------------------------------------
+
+class _Progress:
+    """A text progress bar on stderr, redrawn at most ~20 times."""
+
+    WIDTH = 30
+    UPDATES = 20
+
+    def __init__(self, label: str, total: int, enabled: bool) -> None:
+        self.label, self.total, self.enabled = label, max(int(total), 1), enabled
+        self.next_at = 0
+        self.stream = sys.stderr
+
+    def update(self, done: int) -> None:
+        if not self.enabled or done < self.next_at:
+            return
+        fraction = min(done / self.total, 1.0)
+        filled = int(round(fraction * self.WIDTH))
+        self.stream.write(f"\r{self.label}: [{'#' * filled}{'.' * (self.WIDTH - filled)}] "
+                          f"{fraction:4.0%} {done}/{self.total} episodes")
+        self.stream.flush()
+        step = max(1, -(-self.total // self.UPDATES))
+        self.next_at = (done // step + 1) * step
+
+    def close(self, seconds: float) -> None:
+        if self.enabled:
+            self.next_at = 0
+            self.update(self.total)
+            self.stream.write(f" in {seconds:.2f} s\n")
+            self.stream.flush()
+
+
+class _Uniforms:
+    """Uniform [0, 1) numbers drawn from the generator in blocks (deterministic for a seed)."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self.block: list[float] = []
+        self.pos = 0
+
+    def next(self) -> float:
+        if self.pos >= len(self.block):
+            self.block = self.rng.random(_RANDOM_BLOCK).tolist()
+            self.pos = 0
+        u = self.block[self.pos]
+        self.pos += 1
+        return u
+
+
+# ---------------------------------------------------------------------------------------------
+# P1's strategy
+# ---------------------------------------------------------------------------------------------
+
+def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
+    """The TS state of a record's (or window entry's) cell, traps and countdown."""
+    try:
+        cell = tuple(int(c) for c in record["cell"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise StrategyError(f"{where}: bad or missing 'cell' ({err})") from None
+    if cell not in ts.cell_index:
+        raise StrategyError(f"{where}: cell {list(cell)} is not a free cell of the world")
+    index = ts.cell_index[cell]
+    if ts.delay == 0:
+        return ts.state(index)
+    traps = record.get("traps")
+    countdown = record.get("countdown")
+    if traps is None or countdown is None:
+        raise StrategyError(f"{where}: 'traps' and 'countdown' are required when delay > 0")
+    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
+    try:
+        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
+                               for t in traps))
+        trap_set = ts.trap_sets.index(members)
+    except (KeyError, ValueError, TypeError):
+        raise StrategyError(f"{where}: traps {traps} are not a P2 action of the world") from None
+    countdown = int(countdown)
+    if not 0 <= countdown <= ts.delay:
+        raise StrategyError(f"{where}: countdown {countdown} outside 0..{ts.delay}")
+    return ts.state(index, trap_set, countdown)
+
+
+def _action_index(name: object, where: str) -> int:
+    if name not in ACTIONS:
+        raise StrategyError(f"{where}: action {name!r} is not one of {', '.join(ACTIONS)}")
+    return ACTIONS.index(name)
+
+
+Fallback = Callable[[int, int, Memory], int]
+
+
+class Strategy:
+    """P1's memoryless deterministic strategy on hypergame states ``(ts_state, q, Memory)``.
+
+    The exported records cover the states reachable when P2 behaves as modelled. An experiment
+    in which P2 deviates can lead P1 elsewhere (for instance onto a trap candidate the model
+    would have trapped it on); there `action` raises StrategyError unless a `fallback`
+    ``(ts_state, q, memory) -> action index`` is given (see `leader_fallback`).
+    """
+
+    def __init__(self, table: Mapping[tuple[int, int, Memory], int],
+                 ts: TransitionSystem | None = None, fallback: Fallback | None = None) -> None:
+        self.table = dict(table)
+        self.ts = ts
+        self.fallback = fallback
+
+    def with_fallback(self, fallback: Fallback | None) -> "Strategy":
+        """The same records with another fallback for unrecorded states."""
+        return Strategy(self.table, self.ts, fallback)
+
+    @classmethod
+    def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
+                     fallback: Fallback | None = None) -> "Strategy":
+        """Read the exported records ``{cell, traps, countdown, q, hypothesis, window, action}``."""
+        table: dict[tuple[int, int, Memory], int] = {}
+        for i, record in enumerate(records):
+            where = f"strategy record {i}"
+            v = _record_ts_state(ts, record, where)
+            try:
+                q, hypothesis = int(record["q"]), int(record["hypothesis"])
+                entries = list(record["window"])
+            except (KeyError, TypeError, ValueError) as err:
+                raise StrategyError(f"{where}: bad or missing field ({err})") from None
+            window = tuple((_record_ts_state(ts, entry, f"{where}, window entry {j}"),
+                            _action_index(entry.get("action"), f"{where}, window entry {j}"))
+                           for j, entry in enumerate(entries))
+            action = _action_index(record.get("action"), where)
+            key = (v, q, Memory(hypothesis, window))
+            if table.setdefault(key, action) != action:
+                raise StrategyError(f"{where}: conflicting actions {ACTIONS[table[key]]} and "
+                                    f"{ACTIONS[action]} for the same state")
+        return cls(table, ts, fallback)
+
+    @classmethod
+    def load(cls, path: str | Path, ts: TransitionSystem,
+             fallback: Fallback | None = None) -> "Strategy":
+        """Read a strategy.json file."""
+        with open(path, encoding="utf-8") as handle:
+            return cls.from_records(json.load(handle), ts, fallback)
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.table
+
+    def action(self, ts_state: int, q: int, memory: Memory) -> int:
+        """P1's action index (into dynamics.ACTIONS); for a state without a record the
+        fallback's action, or StrategyError when there is no fallback."""
+        try:
+            return self.table[(ts_state, q, memory)]
+        except KeyError:
+            if self.fallback is not None:
+                return int(self.fallback(ts_state, q, memory))
+            raise StrategyError(
+                f"the strategy has no record for the hypergame state "
+                f"{self.describe(ts_state, q, memory)}") from None
+
+    def describe(self, ts_state: int, q: int, memory: Memory) -> str:
+        if self.ts is None:
+            return f"(ts_state={ts_state}, q={q}, {memory})"
+
+        def where(state: int) -> str:
+            d = self.ts.describe_state(state)
+            text = f"cell {d['cell']}"
+            if d["traps"] is not None:
+                text += f" traps {d['traps']} countdown {d['countdown']}"
+            return text
+
+        window = ", ".join(f"{where(s)} {ACTIONS[a]}" for s, a in memory.window)
+        return f"{where(ts_state)}, q={q}, hypothesis={memory.hypothesis}, window=[{window}]"
+
+
+def leader_fallback(analysis) -> Fallback:
+    """A fallback for states the records do not cover: P1 answers the trap set its model
+    predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of SPEC §7,
+    ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` (first best in N, E, S, W order).
+
+    It is a heuristic for off-model experiments only; simulations report how many steps used it
+    (SimulationSummary.off_record_steps)."""
+    from hg2prism.games import _Game, solve_game
+
+    ts, task = analysis.ts, analysis.task
+    values = solve_game(ts, task).values
+    q_values = _Game(ts, task).q_values(values.reshape(-1))          # [G, 4, A2]
+    n_q = task.n_states
+    trap_choice = [g.trap_choice for g in analysis.games]
+
+    def fallback(ts_state: int, q: int, memory: Memory) -> int:
+        a2 = int(trap_choice[memory.hypothesis][ts_state])
+        return int(np.argmax(q_values[ts_state * n_q + q, :, a2]))
+
+    return fallback
+
+
+# ---------------------------------------------------------------------------------------------
+# Deceptive runs
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One transition of an episode, as passed to the observer.
+
+    ``(ts_state, q, memory)`` is P1's augmented state before the step (``memory`` = P1's model
+    of P2's memory, SPEC §9); ``a2`` the trap set P2 actually played, ``predicted_a2`` the one
+    P1's model predicts (``pi2_xh(v)`` with ``xh = memory.hypothesis``), ``n_a2 = |A2(v)|``.
+    ``p2_memory`` is P2's real memory before the step (equal to ``memory`` unless P2 runs another
+    inference model). ``next_state``/``next_q`` is where the step led (``next_state`` may be
+    ``ts.trapped``). Trap sets are indices into ``ts.trap_sets`` (cells: ``ts.trap_cells(a2)``).
+    """
+
+    episode: int
+    n: int
+    ts_state: int
+    q: int
+    memory: Memory
+    a1: int
+    a2: int
+    predicted_a2: int
+    n_a2: int
+    p2_memory: Memory
+    next_state: int
+    next_q: int
+
+    @property
+    def augmented_state(self) -> tuple[int, int, Memory]:
+        """s~_n = (v_n, q_n, M_n): the key the mismatch detector counts on."""
+        return (self.ts_state, self.q, self.memory)
+
+
+def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int,
+                 memory: Memory) -> int:
+    """P2 as modelled: play pi2_xh(v)."""
+    return predicted
+
+
+def deviating_policy(ts: TransitionSystem, deviate_after: int) -> P2Policy:
+    """SPEC §9's experiment: P2 follows the model for n <= deviate_after, then plays uniformly
+    at random over A2(v)."""
+    allowed = [np.flatnonzero(row) for row in ts.allowed]
+
+    def policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int,
+               memory: Memory) -> int:
+        if n <= deviate_after:
+            return predicted
+        choices = allowed[ts_state]
+        return int(choices[rng.integers(len(choices))])
+
+    return policy
+
+
+class _Chain:
+    """Hypergame states met so far, numbered, with their memoised transitions.
+
+    A node is (v, q, M1, M2): TS state, task DFA state, P1's model memory, P2's real memory.
+    """
+
+    def __init__(self, ts: TransitionSystem, task: DFA, games: list, p1_model: InferenceModel,
+                 p2_model: InferenceModel | None) -> None:
+        self.ts, self.task = ts, task
+        self.p1_model, self.p2_model = p1_model, p2_model
+        self.trap_choice = [[int(a) for a in g.trap_choice] for g in games]
+        self.label = ts.state_label().tolist()
+        self.delta = task.delta.tolist()
+        self.accepting, self.sink = task.accepting, task.sink
+        self.trapped = ts.trapped
+        self.succ, self.prob = ts.succ, ts.prob
+        self.index: dict[tuple, int] = {}
+        self.nodes: list[tuple[int, int, Memory, Memory]] = []
+        self.status: list[int] = []      # -1 running, GOAL, FAIL
+        self.a1: list[int] = []          # -1 until first visited
+        self.moves: dict[tuple[int, int], tuple[list[float], list[int]]] = {}
+        self.updates: dict[tuple[int, Memory, tuple[int, int]], Memory] = {}
+
+    def node(self, v: int, q: int, m1: Memory, m2: Memory) -> int:
+        key = (v, q, m1, m2)
+        i = self.index.get(key)
+        if i is None:
+            i = len(self.nodes)
+            self.index[key] = i
+            self.nodes.append(key)
+            if v == self.trapped:
+                status = FAIL
+            elif q in self.accepting:
+                status = GOAL
+            elif q in self.sink:
+                status = FAIL
+            else:
+                status = -1
+            self.status.append(status)
+            self.a1.append(-1)
+        return i
+
+    def update(self, which: int, model: InferenceModel, memory: Memory,
+               observation: tuple[int, int]) -> Memory:
+        key = (which, memory, observation)
+        new = self.updates.get(key)
+        if new is None:
+            new = self.updates[key] = model.update(memory, observation)
+        return new
+
+    def transitions(self, i: int, a1: int, a2: int) -> tuple[list[float], list[int]]:
+        """Cumulative probabilities and successor nodes of node i under (a1, a2)."""
+        key = (i, a2)
+        move = self.moves.get(key)
+        if move is None:
+            v, q, m1, m2 = self.nodes[i]
+            observation = (v, a1)
+            n1 = self.update(1, self.p1_model, m1, observation)
+            n2 = n1 if self.p2_model is None else self.update(2, self.p2_model, m2, observation)
+            merged: dict[int, float] = {}
+            for k in range(self.succ.shape[-1]):
+                p = float(self.prob[v, a1, a2, k])
+                if p <= 0.0:
+                    continue
+                w = int(self.succ[v, a1, a2, k])
+                j = self.node(w, self.delta[q][self.label[w]], n1, n2)
+                merged[j] = merged.get(j, 0.0) + p
+            cumulative, targets, total = [], [], 0.0
+            for j, p in merged.items():
+                total += p
+                cumulative.append(total)
+                targets.append(j)
+            cumulative[-1] = 1.0 + 1e-12      # guards against rounding in the sum
+            move = self.moves[key] = (cumulative, targets)
+        return move
+
+
+def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: int,
+                       p2_policy: P2Policy | None = None, observer: Observer | None = None,
+                       progress: bool = True,
+                       p2_inference: InferenceModel | None = None) -> SimulationSummary:
+    """Play `episodes` episodes of P1's deceptive strategy against P2's inference (SPEC §8).
+
+    `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
+    `strategy` is a Strategy (or any object whose ``action(ts_state, q, memory)`` returns P1's
+    action index; it must be deterministic, since transitions are memoised per state).
+    `p2_policy(rng, n, ts_state, predicted, memory) -> a2` replaces P2's model behaviour; there
+    ``predicted`` = pi2_xh(v) for P2's real hypothesis and ``memory`` is P2's real memory
+    (n = 1, 2, ... within each episode). It must return an allowed trap set of v.
+    `p2_inference` runs P2's real inference with another model than P1's (analysis.inference);
+    P1 still tracks its own model's memory to choose actions and predict traps.
+    `observer(StepRecord)` is called once per transition.
+    """
+    _check_run(episodes, horizon)
+    start_time = time.perf_counter()
+    ts, task = analysis.ts, analysis.task
+    chain = _Chain(ts, task, analysis.games, analysis.inference, p2_inference)
+    rng = np.random.default_rng(seed)
+    uniforms = _Uniforms(rng)
+    allowed = ts.allowed
+    n_allowed = allowed.sum(axis=1).tolist()
+    trap_choice = chain.trap_choice
+    p1_initial = analysis.inference.initial_memory()
+    p2_initial = p1_initial if p2_inference is None else p2_inference.initial_memory()
+    v0 = ts.start_state
+    root = chain.node(v0, chain.delta[task.initial][chain.label[v0]], p1_initial, p2_initial)
+
+    outcomes = np.empty(episodes, dtype=np.int8)
+    lengths = np.empty(episodes, dtype=np.int64)
+    bar = _Progress("simulate deceptive", episodes, progress)
+    status, a1_of, nodes = chain.status, chain.a1, chain.nodes
+    recorded = getattr(strategy, "table", None)
+    off_record: set[int] = set()
+    off_record_steps = 0
+    for episode in range(episodes):
+        node = root
+        steps = 0
+        outcome = status[node]
+        while outcome < 0 and steps < horizon:
+            steps += 1
+            a1 = a1_of[node]
+            v, q, m1, m2 = nodes[node]
+            if a1 < 0:
+                try:
+                    a1 = int(strategy.action(v, q, m1))
+                except StrategyError as err:
+                    raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+                a1_of[node] = a1
+                if recorded is not None and (v, q, m1) not in recorded:
+                    off_record.add(node)
+            if off_record and node in off_record:
+                off_record_steps += 1
+            predicted = trap_choice[m1.hypothesis][v]
+            if p2_policy is None:
+                a2 = trap_choice[m2.hypothesis][v]
+            else:
+                a2 = int(p2_policy(rng, steps, v, trap_choice[m2.hypothesis][v], m2))
+                if not (0 <= a2 < ts.n_sets and allowed[v, a2]):
+                    raise ValueError(f"p2_policy returned trap set {a2}, which is not "
+                                     f"available in TS state {v}")
+            cumulative, targets = chain.transitions(node, a1, a2)
+            if len(targets) == 1:
+                nxt = targets[0]
+            else:
+                u = uniforms.next()
+                k = 0
+                while u >= cumulative[k]:
+                    k += 1
+                nxt = targets[k]
+            if observer is not None:
+                w, q2 = nodes[nxt][0], nodes[nxt][1]
+                observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1,
+                                    a1=a1, a2=a2, predicted_a2=predicted, n_a2=n_allowed[v],
+                                    p2_memory=m2, next_state=w, next_q=q2))
+            node = nxt
+            outcome = status[node]
+        outcomes[episode] = TRUNCATED if outcome < 0 else outcome
+        lengths[episode] = steps
+        bar.update(episode + 1)
+    seconds = time.perf_counter() - start_time
+    bar.close(seconds)
+    return _summary(outcomes, lengths, horizon, seed, seconds, off_record_steps)
+
+
+# ---------------------------------------------------------------------------------------------
+# Nash runs
+# ---------------------------------------------------------------------------------------------
+
+def _cumulative(policy: np.ndarray, rows: np.ndarray, name: str) -> np.ndarray:
+    """Row-wise cumulative sums of a mixed strategy, checked on the rows that are played."""
+    if (policy[rows] < -1e-9).any():
+        raise ValueError(f"{name} has negative probabilities")
+    sums = policy[rows].sum(axis=1)
+    if rows.any() and np.abs(sums - 1.0).max() > 1e-6:
+        raise ValueError(f"{name}: the rows of non-absorbing game states must sum to 1 "
+                         f"(found sums between {sums.min():.6g} and {sums.max():.6g})")
+    cumulative = np.cumsum(np.clip(policy, 0.0, None), axis=1)
+    cumulative /= np.where(cumulative[:, -1:] > 0, cumulative[:, -1:], 1.0)
+    cumulative[:, -1] = 1.0 + 1e-12
+    return cumulative
+
+
+def _sample(cumulative: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Index of the first cumulative entry above u, row by row."""
+    return (u[:, None] >= cumulative).sum(axis=1)
+
+
+def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: np.ndarray,
+                  episodes: int, horizon: int, seed: int,
+                  progress: bool = True) -> SimulationSummary:
+    """Both players sample stationary mixed strategies over g = s * n_q + q (SPEC §7/§8).
+
+    `nash_p1` is [G, 4] (P1's action distribution), `nash_p2` is [G, n_sets] (only trap sets
+    allowed at s may have positive probability); rows of absorbing game states are ignored.
+    Episodes run side by side (vectorised over episodes).
+    """
+    _check_run(episodes, horizon)
+    start_time = time.perf_counter()
+    n_q = dfa.n_states
+    size = ts.n_states * n_q
+    nash_p1 = np.asarray(nash_p1, dtype=float)
+    nash_p2 = np.asarray(nash_p2, dtype=float)
+    if nash_p1.shape != (size, len(ACTIONS)):
+        raise ValueError(f"nash_p1 must have shape {(size, len(ACTIONS))}, got {nash_p1.shape}")
+    if nash_p2.shape != (size, ts.n_sets):
+        raise ValueError(f"nash_p2 must have shape {(size, ts.n_sets)}, got {nash_p2.shape}")
+
+    label = ts.state_label()
+    q_of = np.tile(np.arange(n_q), ts.n_states)
+    s_of = np.repeat(np.arange(ts.n_states), n_q)
+    goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
+    fail = (s_of == ts.trapped) | (~goal & np.isin(q_of, list(dfa.sink)))
+    running = ~(goal | fail)
+    allowed = np.repeat(ts.allowed, n_q, axis=0)
+    if (nash_p2[running] > 1e-9)[~allowed[running]].any():
+        raise ValueError("nash_p2 gives positive probability to a trap set that is not available")
+    cum1 = _cumulative(nash_p1, running, "nash_p1")
+    cum2 = _cumulative(np.where(allowed, nash_p2, 0.0), running, "nash_p2")
+    succ_q = dfa.delta[:, label[ts.succ]]                                  # [n_q, S, 4, A2, 3]
+    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
+        size, len(ACTIONS), ts.n_sets, -1)
+    cum_outcome = np.cumsum(np.repeat(ts.prob, n_q, axis=0), axis=-1)
+    cum_outcome[..., -1] = 1.0 + 1e-12
+
+    rng = np.random.default_rng(seed)
+    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, label[ts.start_state]])
+    state = np.full(episodes, start, dtype=np.int64)
+    lengths = np.zeros(episodes, dtype=np.int64)
+    active = np.flatnonzero(running[state])
+    bar = _Progress("simulate nash", episodes, progress)
+    bar.update(episodes - len(active))
+    for _ in range(horizon):
+        if not len(active):
+            break
+        g = state[active]
+        u = rng.random((3, len(active)))
+        a1 = _sample(cum1[g], u[0])
+        a2 = _sample(cum2[g], u[1])
+        k = _sample(cum_outcome[g, a1, a2], u[2])
+        state[active] = nxt[g, a1, a2, k]
+        lengths[active] += 1
+        active = active[running[state[active]]]
+        bar.update(episodes - len(active))
+    outcomes = np.where(goal[state], GOAL, np.where(fail[state], FAIL, TRUNCATED)).astype(np.int8)
+    seconds = time.perf_counter() - start_time
+    bar.close(seconds)
+    return _summary(outcomes, lengths, horizon, seed, seconds)
