@@ -25,11 +25,16 @@ Certificate: for mixed strategies x (P1) and y (P2), every value lies in
 lower end is used as the value, so every iterate stays below the least fixed point. HiGHS
 (through scipy) rejects feasibility tolerances below 1e-10, so the kernel polish is what makes
 values exact to 1e-12 rather than the LP tolerance.
+
+Strategies are read off the final matrices. Where a state's game has a pure saddle point, P1
+mixes uniformly over all moves that are optimal on their own instead of taking one saddle row:
+still locally optimal, but it does not stall (e.g. against a wall where the value is 1) when
+another optimal move makes progress. `guaranteed_value` then computes, exactly, what that
+stationary strategy guarantees against a minimising P2 (SPEC §7 asks to report it beside V_NE).
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,9 +79,9 @@ class ConcurrentGame:
             raise ValueError("every state needs an allowed P2 action")
         if (self.next < 0).any() or (self.next >= g).any() or (self.prob < 0).any():
             raise ValueError("successors out of range or negative probabilities")
-        total = self.prob.sum(axis=-1)[self.free][:, :, :]
-        if not np.allclose(total[np.broadcast_to(self.allowed[self.free][:, None, :], total.shape)],
-                           1.0, atol=1e-9):
+        total = self.prob.sum(axis=-1)[self.free]                       # [free, A1, A2]
+        used = np.broadcast_to(self.allowed[self.free][:, None, :], total.shape)
+        if not np.allclose(total[used], 1.0, atol=1e-9):
             raise ValueError("outcome probabilities of a free state do not sum to 1")
 
     @property
@@ -114,7 +119,9 @@ class NashBaseline:
     initial: tuple[int, int]  # (start_state, delta(iota, L(start cell)))
     v_ne: float
     v_ne_p1_guaranteed: float
-    shortfall: float          # v_ne - v_ne_p1_guaranteed
+    # v_ne - v_ne_p1_guaranteed. It can be slightly negative (about -1e-8 on world1): value
+    # iteration stops below the least fixed point, while the guarantee is computed exactly.
+    shortfall: float
 
     @property
     def warn(self) -> bool:
@@ -269,13 +276,14 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
     # 3. LP, then polish with the kernel on the LP's supports.
     for i in np.flatnonzero(~done):
         kernels.lp_calls += 1
-        lp_value, lp_x, lp_y = _lp_solve(m[i], allowed[i])
+        _, lp_x, lp_y = _lp_solve(m[i], allowed[i])
         rows, cols = np.flatnonzero(lp_x > SUPPORT), np.flatnonzero(lp_y > SUPPORT)
         if rows.size == cols.size:
             got = _kernel_solve(m[i:i + 1], allowed[i:i + 1], rows[None], cols[None])
             if got.ok[0]:
                 value[i], x[i], y[i] = got.value[0], got.x[0], got.y[0]
-                kernels.rows[states[i]], kernels.cols[states[i]] = tuple(rows), tuple(cols)
+                kernels.rows[states[i]] = tuple(int(r) for r in rows)
+                kernels.cols[states[i]] = tuple(int(c) for c in cols)
                 continue
         # Degenerate supports: keep the LP answer if it is tight enough, without a kernel.
         kernels.rows[states[i]] = kernels.cols[states[i]] = None
@@ -298,9 +306,11 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     free = np.flatnonzero(game.free)
     kernels = _Kernels(rows=[None] * game.size, cols=[None] * game.size)
     v = game.goal.astype(float)
-    allowed = game.allowed[free]
+    # Only free states change: restrict the tables to them once.
+    nxt, prob, allowed = game.next[free], game.prob[free], game.allowed[free]
     for sweeps in range(1, MAX_SWEEPS + 1):
-        solved = _solve_matrix_games(game.matrices(v)[free], allowed, free, kernels)
+        m = (prob * v[nxt]).sum(axis=-1)
+        solved = _solve_matrix_games(m, allowed, free, kernels)
         # Certified lower ends are <= val(M), so the iterates stay below the fixed point;
         # the maximum keeps them monotone despite rounding.
         new = np.maximum(v[free], solved.value)
@@ -315,7 +325,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     n1, n2 = game.next.shape[1:3]
     p1 = np.full((game.size, n1), 1.0 / n1)
     p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
-    final = _solve_matrix_games(game.matrices(v)[free], allowed, free, kernels)
+    final = _solve_matrix_games((prob * v[nxt]).sum(axis=-1), allowed, free, kernels)
     p1[free], p2[free] = final.x, final.y
     return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
 
@@ -342,7 +352,11 @@ def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     solve = game.free & ~avoid
 
     rows = np.arange(g)
-    q_of = lambda x: np.where(game.allowed, (weight * x[nxt]).sum(axis=-1), np.inf)  # noqa: E731
+
+    def q_of(x: np.ndarray) -> np.ndarray:
+        """[G, A2] reach probability of each P2 action, one step then x."""
+        return np.where(game.allowed, (weight * x[nxt]).sum(axis=-1), np.inf)
+
     x = game.goal.astype(float)
     policy = q_of(x).argmin(axis=1)
     idx = np.flatnonzero(solve)

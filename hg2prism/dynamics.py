@@ -15,6 +15,8 @@ import numpy as np
 from hg2prism.world import Cell, World
 
 ACTIONS = ("N", "E", "S", "W")
+# Action labels in generated PRISM: E, S and W are PRISM keywords.
+ACTION_LABELS = {"N": "north", "E": "east", "S": "south", "W": "west"}
 _STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
 # The two directions perpendicular to each move, in a fixed order.
 _PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}

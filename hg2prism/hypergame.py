@@ -23,7 +23,7 @@ import numpy as np
 
 from hg2prism import __version__
 from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTIONS, TransitionSystem
+from hg2prism.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.inference import TOLERANCE, InferenceModel
 from hg2prism.games import PerceptualGame
 from hg2prism.world import World
@@ -124,7 +124,7 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
     # Robot dynamics tables.
     moves = {a: lookup(np.append(ts.move[:, d], trapped), cell_key) for d, a in enumerate(ACTIONS)}
     label_expr = lookup(np.append(ts.cell_label, 0), cell_key)
-    q_now = lookup(task.delta, [("q", 0), ("label", 0)])
+    q_now = lookup(task.delta, [("q", 0), ("label_class", 0)])
     accepting = sorted(task.accepting)
     sink = sorted(task.sink)
 
@@ -173,7 +173,7 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
     model_text = render_template(
         "hypergame.prism.j2",
         version=__version__, world=world, ts=ts, task=task, games=games, inference=inference,
-        actions=ACTIONS, cell_map=_cell_map(world, ts), trapped=trapped,
+        actions=ACTIONS, labels=ACTION_LABELS, cell_map=_cell_map(world, ts), trapped=trapped,
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
         ts_state=ts_state, trap_tables=trap_tables, slots=slots,
         n_obs_states=n_obs_states, ratio_formulas=ratio_formulas, inference_rules=inference_rules,

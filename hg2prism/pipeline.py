@@ -79,6 +79,7 @@ class CheckResult:
     prism: PrismModel
     checked: storm.CheckedModel
     decoded: storm.DecodedStates
+    strategy: storm.Strategy
     records: list[dict]
     results: dict
 
@@ -93,7 +94,8 @@ def check(world: World, out: Path) -> CheckResult:
     moves = storm.transitions(checked.model)
     decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task)
     states, transitions = storm.canonical_size(decoded, moves)
-    records = storm.strategy_records(decoded, checked, moves, analysis.ts)
+    strategy = storm.deceptive_strategy(decoded, checked, moves)
+    records = storm.strategy_records(decoded, strategy, moves, analysis.ts)
     analysis.timings["export"] = time.perf_counter() - start
     results = {
         "world": world.name,
@@ -118,4 +120,4 @@ def check(world: World, out: Path) -> CheckResult:
     write_json(out / "results.json", results)
     progress(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
-    return CheckResult(analysis, prism, checked, decoded, records, results)
+    return CheckResult(analysis, prism, checked, decoded, strategy, records, results)

@@ -15,6 +15,11 @@ An episode ends in goal (``q`` in F and not trapped), in failure (trapped, or ``
 after ``horizon`` transitions (truncated: not completed, reported). The completion rate thus
 estimates ``P(F<=horizon goal)``; it is reported with a Wilson score interval.
 
+The exported records cover only the states reachable when P2 behaves as modelled. When an
+experiment makes P2 deviate, P1 can reach other states (e.g. a trap candidate cell on which the
+model would have trapped it): `Strategy.action` then raises StrategyError unless the strategy was
+given a fallback (`leader_fallback`); the summary counts such steps (`off_record_steps`).
+
 Runs are reproducible: every random number comes from ``numpy.random.default_rng(seed)``.
 """
 

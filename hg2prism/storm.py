@@ -20,7 +20,8 @@ from stormpy import developer
 from stormpy.core._io import export_to_umb
 
 from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTIONS, TransitionSystem
+from hg2prism.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.errors import StormError
 from hg2prism.hypergame import Layout
 
 PRECISION = "1/10000000000"   # 1e-10, SPEC §10
@@ -47,6 +48,13 @@ class CheckedModel:
 
 
 def check(prism_path: Path, prop: str) -> CheckedModel:
+    try:
+        return _check(prism_path, prop)
+    except RuntimeError as err:  # stormpy reports parse and build failures as RuntimeError
+        raise StormError(f"{prism_path}: {err}") from err
+
+
+def _check(prism_path: Path, prop: str) -> CheckedModel:
     timings = {}
     start = time.perf_counter()
     program = stormpy.parse_prism_program(str(prism_path))
@@ -72,14 +80,6 @@ def check(prism_path: Path, prop: str) -> CheckedModel:
     initial = model.initial_states[0]
     return CheckedModel(model=model, value=float(values[initial]), values=values,
                         choices=choices, scheduler=scheduler, timings=timings)
-
-
-def induced_probability(checked: CheckedModel, prop: str = 'P=? [F "goal"]') -> float:
-    """A property of the DTMC that the exported scheduler induces, checked by Storm."""
-    dtmc = checked.model.apply_scheduler(checked.scheduler, True)
-    formula = stormpy.parse_properties(prop)[0]
-    result = stormpy.model_checking(dtmc, formula, environment=sound_environment())
-    return float(result.get_value_vector()[dtmc.initial_states[0]])
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,7 +179,8 @@ def read_structure(model: object) -> Transitions:
                 member = f"annotations/aps/{key_name}/states/values.bin"
                 bits = np.unpackbits(array(member, np.uint8), bitorder="little")
                 labels[label] = bits[:model.nr_states].astype(bool)
-    action_index = np.array([ACTIONS.index(n) if n in ACTIONS else -1 for n in names])
+    by_label = {label: i for i, label in enumerate(ACTION_LABELS[a] for a in ACTIONS)}
+    action_index = np.array([by_label.get(n, -1) for n in names])
     structure = Transitions(
         source=np.repeat(np.arange(model.nr_states), np.diff(state_choices)),
         action=action_index[action_ids], row_start=row_start, target=target,
@@ -207,28 +208,124 @@ def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int
     return decoded.n_canonical, n_triples + loops
 
 
-def strategy_records(decoded: DecodedStates, checked: CheckedModel, moves: Transitions,
+@dataclass(frozen=True, eq=False)
+class Strategy:
+    """P1's deceptive strategy on canonical states: the chosen Storm choice of each."""
+
+    representative: np.ndarray   # [n_canonical] a Storm state of each canonical state
+    choice: np.ndarray           # [n_storm_states] global choice index P1 takes in each Storm state
+    optimal_choices: int         # value-optimal choices seen (for the record)
+
+
+OPTIMAL_SLACK = 1e-8   # Storm's values are sound to 1e-10; choices within this are optimal
+DISCOUNT = 0.9         # how strongly P1 prefers finishing soon among optimal moves
+MAX_DISCOUNT_SWEEPS = 1000
+
+
+def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Transitions) -> Strategy:
+    """An optimal strategy that does not stall, computed on canonical states from Storm's values.
+
+    Storm's own scheduler is optimal in the limit but may dither (push into a wall) for a long
+    time: on world1 it completes within 200 steps with probability 0.02 for a value of 0.95.
+    Its copies of one canonical state (differing in the DFA's previous state) may also pick
+    different optimal moves, which mixed together need not be optimal. Here every canonical
+    state takes, among its value-optimal moves, the one that maximises the discounted
+    probability of reaching the goal (lexicographically: value first, then speed).
+    """
+    n_states = len(decoded.canonical)
+    canonical = decoded.canonical
+    n_canonical = decoded.n_canonical
+    representative = np.full(n_canonical, -1, dtype=np.int64)
+    representative[canonical[::-1]] = np.arange(n_states)[::-1]     # first Storm state of each
+    values = np.zeros(n_canonical)
+    values[canonical] = checked.values
+
+    # Choices of the representatives, and their entries.
+    counts = np.diff(moves.row_start)
+    is_rep = representative[canonical[moves.source]] == moves.source
+    choices = np.flatnonzero(is_rep & (moves.action >= 0))
+    entry_choice = np.repeat(np.arange(len(moves.source)), counts)
+    entries = np.flatnonzero(is_rep[entry_choice] & (moves.action[entry_choice] >= 0))
+    e_choice = entry_choice[entries]
+    e_target = canonical[moves.target[entries]]
+    e_prob = moves.probability[entries]
+    q_value = np.bincount(e_choice, weights=e_prob * values[e_target], minlength=len(moves.source))
+    source_c = canonical[moves.source]
+    optimal = np.zeros(len(moves.source), dtype=bool)
+    optimal[choices] = q_value[choices] >= values[source_c[choices]] - OPTIMAL_SLACK
+
+    # Among optimal choices, prefer reaching the goal soon: the discounted probability
+    # W(s) = max over optimal choices of E[DISCOUNT^steps; reach goal]. A choice that stalls
+    # scores 0 there, so the greedy choice keeps moving, and every state of positive value
+    # keeps a positive chance of reaching the goal: the strategy stays optimal.
+    goal = np.zeros(n_canonical, dtype=bool)
+    goal[canonical[decoded.goal]] = True
+    opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by source
+    keep = optimal[e_choice]
+    k_choice, k_target, k_prob = e_choice[keep], e_target[keep], e_prob[keep]
+    slot = np.searchsorted(opt_choices, k_choice)
+    group_start = np.flatnonzero(np.r_[True, np.diff(source_c[opt_choices]) != 0])
+    group_state = source_c[opt_choices[group_start]]
+    w = np.zeros(n_canonical)
+    for _ in range(MAX_DISCOUNT_SWEEPS):
+        gain = k_prob * np.where(goal[k_target], 1.0, DISCOUNT * w[k_target])
+        per_choice = np.bincount(slot, weights=gain, minlength=len(opt_choices))
+        new = np.zeros(n_canonical)
+        new[group_state] = np.maximum.reduceat(per_choice, group_start)
+        if np.abs(new - w).max() < 1e-12:
+            w = new
+            break
+        w = new
+    soon = np.bincount(k_choice, weights=k_prob * np.where(goal[k_target], 1.0, DISCOUNT * w[k_target]),
+                       minlength=len(moves.source))
+    score = np.where(optimal, soon, -1.0)
+    score[moves.action < 0] = -2.0
+    # Best choice per Storm state's row group (representatives' choices; others copy them).
+    best_of_state = _argmax_by_group(score, moves.source, n_states)
+    chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
+    action_rep = moves.action[chosen_rep]
+    # Every Storm state takes the move its canonical state takes.
+    wanted = action_rep[canonical]
+    match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
+    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
+    return Strategy(representative=representative, choice=choice, optimal_choices=int(optimal.sum()))
+
+
+def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
+    """Index of the first maximal score in each group (groups are contiguous and ordered)."""
+    order = np.lexsort((np.arange(len(score)), -score, group))
+    first = np.searchsorted(group[order], np.arange(n_groups), side="left")
+    return order[first]
+
+
+def induced_probability(checked: CheckedModel, strategy: Strategy,
+                        prop: str = 'P=? [F "goal"]') -> float:
+    """A property of the DTMC that P1's strategy induces, checked by Storm."""
+    matrix = checked.model.transition_matrix
+    scheduler = checked.scheduler
+    for s in range(checked.model.nr_states):
+        local = int(strategy.choice[s]) - matrix.get_row_group_start(s)
+        scheduler.set_choice(developer.storage.SchedulerChoice[float](local), s)
+    dtmc = checked.model.apply_scheduler(scheduler, True)
+    formula = stormpy.parse_properties(prop)[0]
+    result = stormpy.model_checking(dtmc, formula, environment=sound_environment())
+    return float(result.get_value_vector()[dtmc.initial_states[0]])
+
+
+def strategy_records(decoded: DecodedStates, strategy: Strategy, moves: Transitions,
                      ts: TransitionSystem) -> list[dict]:
     """P1's deceptive strategy: one record per reachable non-absorbing canonical state."""
-    model = checked.model
-    matrix = model.transition_matrix
-    seen = set()
     records = []
-    for s in range(model.nr_states):
+    for s in strategy.representative:
+        s = int(s)
         if decoded.goal[s] or decoded.fail[s]:
             continue
-        c = int(decoded.canonical[s])
-        if c in seen:
-            continue
-        seen.add(c)
-        row = matrix.get_row_group_start(s) + int(checked.choices[s])
-        cell = int(decoded.cell[s])
-        state = ts.state(cell, int(decoded.traps[s]), int(decoded.countdown[s]))
+        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         record = ts.describe_state(state)
         record["q"] = int(decoded.q[s])
         record["hypothesis"] = int(decoded.hypothesis[s])
         record["window"] = [dict(ts.describe_state(int(v)), action=ACTIONS[int(a)])
                             for v, a in decoded.window[s] if v >= 0]
-        record["action"] = ACTIONS[int(moves.action[row])]
+        record["action"] = ACTIONS[int(moves.action[strategy.choice[s]])]
         records.append(record)
     return records

@@ -16,6 +16,18 @@ Conventions (the contract with the package under test):
   with ``T`` the tuple of trap cells in candidate numbering (map reading order);
 * DFA states are Spot's state numbers of
   ``spot.translate(formula, "deterministic", "complete", "sbacc")``.
+
+Choices where SPEC is silent (kept deliberately simple):
+
+* ``Sink`` = DFA states from which no accepting state is reachable along Spot's edges
+  (whatever the letter, even one that cannot occur on the map: at most one proposition holds
+  in a cell);
+* with a single hypothesis no change can happen, but B still records the last w-1
+  observations (SPEC 5 step 3 read literally), so such states are distinct in the count;
+* ``trap_strategy`` returns ``tuple(sorted(cells))`` (plain Python order of (x, y));
+* the games G(x) are solved on the TS states reachable from the initial state; asking for
+  P2's strategy or the inference at another TS state raises KeyError;
+* blank lines of the map string (e.g. after the opening triple quote) are ignored.
 """
 
 from __future__ import annotations
@@ -40,6 +52,9 @@ PERP = {"N": ("E", "W"), "S": ("E", "W"), "E": ("N", "S"), "W": ("N", "S")}
 TIE_P2 = 1e-6        # SPEC 4: tie tolerance of P2's strategy
 TOL_CUSUM = 1e-9     # SPEC 5: threshold / argmax tolerance
 SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
+VI_STOP = 1e-9      # value iteration only seeds the strategy iteration
+VI_MAX_SWEEPS = 1500
+TIE_EXTRACT = 1e-7  # near-optimal rows when extracting the first strategy
 
 
 # --------------------------------------------------------------------------------------
@@ -56,13 +71,19 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     Pair ids must be numbered consecutively state by state, row ids pair by pair.
     An MDP for a maximiser is the special case of one pair per state.
 
-    Method: strategy iteration for the maximiser P1 (switch only on a strict improvement),
-    each P1 strategy evaluated exactly by P2's best response, itself computed by policy
-    iteration for minimum reachability after removing (graph analysis) the states where P2
-    can avoid the goal forever.  At termination the vector is the value of a P1 strategy
-    (so <= the game value) and a fixed point of the game operator (so >= the least fixed
-    point), i.e. the game value.  Returns a numpy vector indexed by state id (and, with
-    ``return_strategy``, P1's optimal choice: an array pair id -> row id).
+    Method (exact up to floating point):
+    1. a bounded number of value-iteration sweeps gives approximate values;
+    2. P1's strategy is extracted from them: among the rows within TIE_EXTRACT of the best,
+       each pair takes one that makes progress towards the goal (layered attractor, largest
+       probability of progress), so that P1 never stalls in a tie (which would give a
+       badly conditioned, even wrong, evaluation);
+    3. strategy iteration for the maximiser: the P1 strategy is evaluated exactly by P2's
+       best response (graph analysis of the states where P2 avoids the goal forever, then
+       policy iteration with sparse linear solves), and rows that are strictly better (by
+       SWITCH_TOL) are switched in, until none is;
+    4. certificate: the result is the value of a P1 strategy against P2's best response
+       (<= game value) and a fixed point of the game operator (>= the least fixed point,
+       i.e. the game value); the fixed-point residual is checked (< 1e-11).
     """
     n = len(state_pairs)
     npairs = len(pair_rows)
@@ -97,21 +118,72 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
         row_targets.append(ts)
     P = sp.csr_matrix((vals, (ri, ci)), shape=(nrows, n))
 
+    uniform4 = all(len(rs) == 4 for rs in pair_rows)
+
     def game_op(x):
         q = g + P @ x
+        pv = q.reshape(-1, 4).max(axis=1) if uniform4 else np.maximum.reduceat(q, pair_start)
+        return q, pv, (pv if npairs == n else np.minimum.reduceat(pv, state_start))
+
+    row_pair = np.repeat(np.arange(npairs), [len(rs) for rs in pair_rows])
+    row_nt = [[(t, pr) for t, pr in succ if pr > 0 and t not in ("goal", "fail")]
+              for succ in row_succ]
+    preds = [[] for _ in range(n)]          # state -> rows that can move into it
+    for r, ts in enumerate(row_targets):
+        for t in ts:
+            preds[t].append(r)
+
+    def extract(x, tol):
+        """P1 strategy, greedy w.r.t. x among rows within tol of the best, with progress:
+        pairs are ranked in layers (a state is ranked once all its pairs are); a pair picks,
+        among its near-optimal rows, the one with the largest probability of moving into the
+        goal or an already ranked state.  Unranked pairs (value 0) take a best row."""
+        q = g + P @ x
         pv = np.maximum.reduceat(q, pair_start)
-        return q, pv, np.minimum.reduceat(pv, state_start)
+        near = q >= pv[row_pair] - tol
+        choice = np.full(npairs, -1, dtype=np.int64)
+        ranked = np.zeros(n, dtype=bool)
+        left = np.array([len(ps) for ps in state_pairs])
+        frontier = sorted({int(row_pair[r]) for r in range(nrows) if near[r] and g[r] > 0})
+        while frontier:
+            newly = []
+            for p in frontier:
+                if choice[p] >= 0:
+                    continue
+                best, bestm = -1, 0.0
+                for r in pair_rows[p]:
+                    if not near[r]:
+                        continue
+                    m = g[r] + sum(pr for t, pr in row_nt[r] if ranked[t])
+                    if m > bestm + 1e-15:
+                        best, bestm = r, m
+                if best < 0:
+                    continue
+                choice[p] = best
+                s = pair_state[p]
+                left[s] -= 1
+                if left[s] == 0:
+                    newly.append(s)
+            for s in newly:
+                ranked[s] = True
+            frontier = sorted({int(row_pair[r]) for s in newly for r in preds[s]
+                               if near[r] and choice[row_pair[r]] < 0})
+        for p in np.nonzero(choice < 0)[0]:
+            choice[p] = max(pair_rows[p], key=lambda r: q[r])
+        return choice
 
-    # initial P1 strategy: greedy after a few sweeps of plain value iteration (only a
-    # starting point; correctness comes from the strategy iteration below)
+    # 1. value iteration (approximate values, only used to pick a good first strategy)
     x = np.zeros(n)
-    for _ in range(50):
-        _, _, x = game_op(x)
-    q, pv, _ = game_op(x)
-    sigma1 = np.array([max(pair_rows[p], key=lambda r: q[r]) for p in range(npairs)],
-                      dtype=np.int64)
-
-    for _outer in range(10000):
+    for _ in range(VI_MAX_SWEEPS):
+        _, _, y = game_op(x)
+        d = float(np.max(np.abs(y - x)))
+        x = y
+        if d < VI_STOP:
+            break
+    # 2. optimal-looking strategy with progress, evaluated exactly; then strategy
+    #    iteration (strict improvements only) until no row improves on the exact values
+    sigma1 = extract(x, TIE_EXTRACT)
+    for _outer in range(1000):
         x = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
                                state_start)
         q, pv, _ = game_op(x)
@@ -122,10 +194,12 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
             sigma1[p] = max(pair_rows[p], key=lambda r: q[r])
     else:
         raise RuntimeError("strategy iteration did not converge")
-    # sanity: x is (numerically) a fixed point of the game operator
+    # certificate: x is the exact value of P1's strategy sigma1 against P2's best response
+    # (a lower bound of the game value) and a fixed point of the game operator (an upper
+    # bound: the value is its least fixed point)
     _, _, fx = game_op(x)
     res = float(np.max(np.abs(fx - x)))
-    if res > 1e-9:
+    if res > 1e-11:
         raise RuntimeError(f"game solution residual {res}")
     return (x, sigma1) if return_strategy else x
 
@@ -459,7 +533,10 @@ class World:
             return 1.0
         if q in dfa.sink:
             return 0.0
-        return vals[(v, q)]
+        try:
+            return vals[(v, q)]
+        except KeyError:
+            raise KeyError(f"TS state {v!r} is not reachable from the initial state") from None
 
     def Q(self, formula, v, q, a1, a2):
         dfa, _ = self.game_values(formula)
@@ -627,7 +704,9 @@ class World:
             value = float(x[0])
             self._policy = {s: ACTIONS[sigma1[i] - pair_rows[i][0]] for i, s in enumerate(order)}
         self._hyper = (s0, order, idx, trans, reached)
-        return Reference(value=value, v_lead=float(v_lead), states=nstates,
+        value = min(1.0, max(0.0, value))               # clip floating-point noise
+        v_lead = min(1.0, max(0.0, float(v_lead)))
+        return Reference(value=value, v_lead=v_lead, states=nstates,
                          transitions=ntrans, world=self)
 
     # ----- strategy evaluation -----
@@ -686,7 +765,7 @@ class World:
             succ = self.hyper_successors(s, table[s])
             succs.append([(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()])
         x = _dtmc_reach(succs)
-        return float(x[0])
+        return min(1.0, max(0.0, float(x[0])))
 
 
 def _dtmc_reach(succs):

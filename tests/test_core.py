@@ -81,14 +81,14 @@ def test_trap_strategy_matches_reference(case) -> None:
     for h, game in enumerate(result.analysis.games):
         for state in range(ts.n_states - 1):
             ours = ts.trap_cells(int(game.trap_choice[state]))
-            assert ours == ref.trap_strategy(h, _reference_state(ts, state)), (h, state)
+            assert set(ours) == set(ref.trap_strategy(h, _reference_state(ts, state))), (h, state)
 
 
 def test_exported_strategy_is_optimal(case) -> None:
     result, ref = case
     value = result.results["deceptive_value"]
     # The DTMC Storm's scheduler induces, checked by Storm ...
-    assert storm.induced_probability(result.checked) == pytest.approx(value, abs=TOL)
+    assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(value, abs=TOL)
     # ... and the exported JSON strategy, evaluated by the independent solver.
     assert ref.strategy_value(result.records) == pytest.approx(value, abs=TOL)
 
