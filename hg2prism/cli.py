@@ -26,11 +26,17 @@ def main(argv: list[str] | None = None) -> int:
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
         ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
-        ("run", "Everything computed for a world (currently: check); writes into OUT."),
+        ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
+                "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
+                "the completion table (table.md) and a picture of one episode (world.png)."),
     ):
         p = add(name, help + " OUT defaults to the folder next to the world file named after it "
                 "(models/world1.toml -> models/world1/).")
         p.add_argument("--out", metavar="OUT", help="output folder")
+        if name == "run":
+            p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
+            p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
+            p.add_argument("--seed", type=int, help="random seed (default: the world's)")
 
     args = parser.parse_args(argv)
     try:
@@ -46,8 +52,18 @@ def main(argv: list[str] | None = None) -> int:
         out = _out_dir(Path(args.world), args.out)
         if args.command == "emit":
             pipeline.emit(world, out)
-        else:
+        elif args.command == "check":
             print(report.summary(pipeline.check(world, out).results, out))
+        else:
+            for option in ("episodes", "horizon"):
+                if getattr(args, option) is not None and getattr(args, option) < 1:
+                    raise InputError("command line", f"--{option}", "must be at least 1")
+            if args.seed is not None and args.seed < 0:
+                raise InputError("command line", "--seed", "must be at least 0")
+            result = pipeline.run(world, out, args.episodes, args.horizon, args.seed)
+            print(report.summary(result.results, out))
+            print()
+            print(result.table)
         return 0
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)

@@ -34,6 +34,8 @@ class GameSolution:
     """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
 
     values: np.ndarray        # [n_ts, n_q]
+    p2_strategy: np.ndarray   # [n_ts * n_q] P2's optimal trap set at each game state
+    p1_strategy: np.ndarray   # [n_ts * n_q, n_sets] P1's optimal answer to each trap set
     sweeps: int
     improvements: int
 
@@ -109,10 +111,12 @@ def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
         lower, used = _value_iteration(game, lower, fixed, tolerance)
         sweeps += used
         attempts += 1
-        values = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11))
-        if values is not None:
+        certified = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11))
+        if certified is not None:
+            values, p1, p2 = certified
             return GameSolution(values=values.reshape(ts.n_states, dfa.n_states),
-                                sweeps=sweeps, improvements=attempts)
+                                p2_strategy=p2, p1_strategy=p1, sweeps=sweeps,
+                                improvements=attempts)
         if tolerance < 1e-15:
             raise SolverError("could not certify the game values to 1e-10 (SPEC §10)")
         tolerance /= 100
@@ -131,10 +135,10 @@ def _value_iteration(game: _Game, v: np.ndarray, fixed: np.ndarray,
     raise SolverError(f"value iteration did not converge in {MAX_SWEEPS} sweeps")
 
 
-def _certify(game: _Game, v: np.ndarray, zero: np.ndarray,
-             optimal_slack: float) -> np.ndarray | None:
+def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Greedy strategies for both players from v, evaluated exactly and polished; the exact
-    values if certified (see the module docstring), else None."""
+    values and the strategies (P1's, P2's) if certified (see the module docstring), else None."""
     for _ in range(3):
         q = game.q_values(v)                                          # [G, 4, A2]
         best_a1 = q.max(axis=1)                                       # [G, A2]
@@ -151,7 +155,7 @@ def _certify(game: _Game, v: np.ndarray, zero: np.ndarray,
         x = _evaluate_pair(game, p1, p2, zero)
         residual = np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0)
         if residual <= 1e-11 and _certified(game, p1, x):
-            return x
+            return x, p1, p2
         v, optimal_slack = x, 1e-9
     return None
 
@@ -202,6 +206,28 @@ def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
             break
         avoid = new
     return bool((x[avoid] <= 1e-12).all())
+
+
+def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
+                    discount: float = 0.9) -> np.ndarray:
+    """P1's answer at every game state to P2's optimal strategy: among P1's value-optimal moves,
+    the one maximising the discounted probability of reaching the goal, so that P1 never
+    stalls (any optimal answer keeps the value, but some dither for a long time)."""
+    game = _Game(ts, dfa)
+    v = solution.values.reshape(-1)
+    rows = np.arange(game.size)
+    p2 = solution.p2_strategy
+    nxt = game.next[rows, :, p2]                                      # [G, 4, 3]
+    prob = game.prob[rows, :, p2]
+    optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - 1e-9
+    w = np.zeros(game.size)
+    for _ in range(MAX_SWEEPS):
+        gain = (prob * np.where(game.goal[nxt], 1.0, discount * w[nxt])).sum(-1)
+        new = np.where(game.free, np.where(optimal, gain, 0.0).max(axis=1), 0.0)
+        if np.abs(new - w).max() < 1e-12:
+            break
+        w = new
+    return np.where(optimal, gain, -1.0).argmax(axis=1)
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:

@@ -9,13 +9,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
+import numpy as np
+
 from hg2prism import __version__, storm
 from hg2prism.automata import DFA, translate
 from hg2prism.dynamics import TransitionSystem, build_transition_system
-from hg2prism.games import PerceptualGame, perceptual_game, solve_game
+from hg2prism.games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
+                            solve_game)
 from hg2prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.inference import InferenceModel, build_inference
-from hg2prism.outputs import write_json
+from hg2prism.outputs import write_json, write_text
 from hg2prism.world import World
 
 
@@ -39,6 +42,7 @@ class Analysis:
     task: DFA
     games: list[PerceptualGame]
     inference: InferenceModel
+    leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (SPEC §7)
     v_lead: float
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -56,7 +60,7 @@ def analyse(world: World) -> Analysis:
         v_lead = float(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]])
     progress(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
-    return Analysis(world, ts, task, games, inference, v_lead, timings)
+    return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
 
 
 def generate(analysis: Analysis, out: Path) -> PrismModel:
@@ -110,7 +114,7 @@ def check(world: World, out: Path) -> CheckResult:
         "storm_choices": checked.model.nr_choices,
         "model_commands": prism.commands,
         "parameters": {
-            "slip": world.slip, "traps": world.traps, "delay": world.delay,
+            "formula": world.formula, "slip": world.slip, "traps": world.traps, "delay": world.delay,
             "hypotheses": list(world.hypotheses), "initial_hypothesis": world.initial_hypothesis,
             "window": world.window, "threshold": world.threshold, "rationality": world.rationality,
         },
@@ -121,3 +125,107 @@ def check(world: World, out: Path) -> CheckResult:
     progress(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
     return CheckResult(analysis, prism, checked, decoded, strategy, records, results)
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    check: CheckResult
+    results: dict
+    table: str
+
+
+def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
+        seed: int | None = None, show_progress: bool = True) -> RunResult:
+    """Everything computed for a world: the check, the baselines (SPEC §7), the PRISM-games
+    exports, the online simulations (SPEC §8), the completion table and the world picture."""
+    from hg2prism import baselines, games_export, plots, report, simulation
+
+    episodes = episodes or world.simulation.episodes
+    horizon = horizon or world.simulation.horizon
+    seed = world.simulation.seed if seed is None else seed
+    checked = check(world, out)
+    analysis, timings = checked.analysis, checked.analysis.timings
+
+    with _timed(timings, "exports"):
+        written = games_export.write_game_models(analysis, out)
+    progress(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
+
+    with _timed(timings, "nash"):
+        nash = baselines.nash_baseline(analysis.ts, analysis.task)
+    progress(f"nash: V_NE = {nash.v_ne:.6f}, guaranteed by P1's stationary strategy "
+             f"{nash.v_ne_p1_guaranteed:.6f} ({timings['nash']:.2f} s)")
+    if nash.warn:
+        progress(f"warning: P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
+                 f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, SPEC §7)")
+
+    with _timed(timings, "simulation"):
+        strategy = simulation.Strategy.from_records(checked.records, analysis.ts)
+        deceptive = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed,
+                                                  progress=show_progress)
+        n_q = analysis.task.n_states
+        nash_sim = simulation.simulate_nash(
+            analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
+            nash.p2.reshape(analysis.ts.n_states * n_q, -1), episodes, horizon, seed,
+            progress=show_progress)
+        leader_p1, leader_p2 = _leader_strategies(analysis)
+        leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
+                                              episodes, horizon, seed, progress=show_progress,
+                                              label="simulate leader")
+        within = {
+            "deceptive": storm.induced_probability(checked.checked, checked.strategy,
+                                                   f'P=? [F<={horizon} "goal"]'),
+            "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
+                                                nash.p2.reshape(analysis.ts.n_states * n_q, -1),
+                                                horizon),
+            "leader": simulation.exact_completion(analysis.ts, analysis.task, leader_p1, leader_p2,
+                                                  horizon),
+        }
+
+    with _timed(timings, "plots"):
+        episode, outcome = _illustrative_episode(analysis, strategy, horizon, seed)
+        plots.world_figure(world, analysis.ts, episode, outcome, out / "world.png")
+
+    results = dict(checked.results)
+    results["v_ne"] = nash.v_ne
+    results["v_ne_p1_guaranteed"] = nash.v_ne_p1_guaranteed
+    results["simulation"] = {
+        "horizon": horizon, "seed": seed,
+        "deceptive": _simulated(deceptive, within["deceptive"]),
+        "nash": _simulated(nash_sim, within["nash"]),
+        "leader": _simulated(leader_sim, within["leader"]),
+    }
+    results["timings"] = {k: round(v, 4) for k, v in timings.items()}
+    table = report.completion_table(results)
+    write_text(out / "table.md", table)
+    write_json(out / "results.json", results)
+    return RunResult(checked, results, table)
+
+
+def _simulated(summary, exact_within_horizon: float) -> dict:
+    return {"rate": summary.rate, "ci95": list(summary.ci95), "episodes": summary.episodes,
+            "truncated": summary.truncated, "exact_within_horizon": exact_within_horizon}
+
+
+def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
+    """The leader game's optimal pair as (degenerate) mixed strategies over g = s * n_q + q."""
+    p2 = analysis.leader.p2_strategy
+    p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
+    return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
+
+
+def _illustrative_episode(analysis: Analysis, strategy, horizon: int, seed: int) -> tuple[list, str]:
+    """The first episode (from `seed`) that completes the task, else the first one."""
+    from hg2prism import simulation
+
+    first: tuple[list, str] | None = None
+    for attempt in range(50):
+        steps: list = []
+        summary = simulation.simulate_deceptive(analysis, strategy, 1, horizon, seed + attempt,
+                                                observer=steps.append, progress=False)
+        outcome = {simulation.GOAL: "task completed", simulation.FAIL: "failed"}.get(
+            int(summary.outcomes[0]), "cut by the horizon")
+        if first is None:
+            first = (steps, outcome)
+        if summary.completed:
+            return steps, f"{outcome}, seed {seed + attempt}"
+    return first

@@ -5,6 +5,34 @@ from __future__ import annotations
 from pathlib import Path
 
 
+def completion_table(results: dict) -> str:
+    """The paper's Table I, with the leader row added."""
+    sim = results["simulation"]
+    rows = [
+        ("Asymmetric", "deceptive π1*", "inference-driven π2", results["deceptive_value"], sim["deceptive"]),
+        ("Symmetric, Nash", "π1^NE", "π2^NE", results["v_ne"], sim["nash"]),
+        ("Symmetric, leader", "best response", "leader π2", results["v_lead"], sim["leader"]),
+    ]
+    lines = [
+        f"Completion of the task `{results['parameters']['formula']}` in {results['world']} "
+        f"(simulation: horizon {sim['horizon']}, seed {sim['seed']})",
+        "",
+        "| information | P1 policy | P2 policy | exact value | exact within horizon | simulated completion (95% CI) | episodes | cut by horizon |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for info, p1, p2, exact, s in rows:
+        low, high = s["ci95"]
+        lines.append(f"| {info} | {p1} | {p2} | {exact:.4f} | {s['exact_within_horizon']:.4f} "
+                     f"| {s['rate']:.4f} [{low:.4f}, {high:.4f}] | {s['episodes']} | {s['truncated']} |")
+    lines.append("")
+    lines.append(f"Exact value: the probability of ever completing the task (Pmax for the asymmetric "
+                 f"row, V_NE and V_lead for the symmetric ones; P1's extracted Nash strategy "
+                 f"guarantees {results['v_ne_p1_guaranteed']:.4f}). Exact within horizon: the "
+                 f"probability of completing it within {sim['horizon']} steps when both play the "
+                 f"strategies simulated, which the simulated rate estimates.")
+    return "\n".join(lines) + "\n"
+
+
 def summary(results: dict, out: Path) -> str:
     files = sorted(p.name for p in out.iterdir() if p.is_file() and not p.name.startswith("."))
     return "\n".join([

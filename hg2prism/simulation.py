@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.stats import norm
 
 from hg2prism.automata import DFA
@@ -177,9 +178,11 @@ class _Progress:
         self.label, self.total, self.enabled = label, max(int(total), 1), enabled
         self.next_at = 0
         self.stream = sys.stderr
+        # Redrawing with \r only makes sense on a terminal; a log gets the final line alone.
+        self.live = enabled and self.stream.isatty()
 
     def update(self, done: int) -> None:
-        if not self.enabled or done < self.next_at:
+        if not self.live or done < self.next_at:
             return
         fraction = min(done / self.total, 1.0)
         filled = int(round(fraction * self.WIDTH))
@@ -191,9 +194,12 @@ class _Progress:
 
     def close(self, seconds: float) -> None:
         if self.enabled:
-            self.next_at = 0
-            self.update(self.total)
-            self.stream.write(f" in {seconds:.2f} s\n")
+            if self.live:
+                self.next_at = 0
+                self.update(self.total)
+                self.stream.write(f" in {seconds:.2f} s\n")
+            else:
+                self.stream.write(f"{self.label}: {self.total} episodes in {seconds:.2f} s\n")
             self.stream.flush()
 
 
@@ -602,9 +608,31 @@ def _sample(cumulative: np.ndarray, u: np.ndarray) -> np.ndarray:
     return (u[:, None] >= cumulative).sum(axis=1)
 
 
+def exact_completion(ts: TransitionSystem, dfa: DFA, p1: np.ndarray, p2: np.ndarray,
+                     horizon: int) -> float:
+    """P(goal within `horizon` steps) when both players play the stationary mixed strategies
+    p1 [G, 4] and p2 [G, n_sets] over g = s * n_q + q: the number a simulation estimates."""
+    n_q = dfa.n_states
+    size = ts.n_states * n_q
+    label = ts.state_label()
+    s_of, q_of = np.divmod(np.arange(size), n_q)
+    nxt = ts.succ[s_of] * n_q + dfa.delta[q_of[:, None, None, None], label[ts.succ[s_of]]]
+    weight = ts.prob[s_of] * p1[:, :, None, None] * p2[:, None, :, None]       # [G, 4, A2, 3]
+    goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
+    stop = goal | (s_of == ts.trapped) | np.isin(q_of, list(dfa.sink))
+    rows = np.repeat(np.arange(size), weight[0].size)
+    matrix = sp.csr_matrix((weight.reshape(-1), (rows, nxt.reshape(-1))), shape=(size, size))
+    matrix = sp.diags((~stop).astype(float)) @ matrix
+    reach = goal.astype(float)
+    for _ in range(horizon):
+        reach = np.where(stop, goal.astype(float), matrix @ reach)
+    start = ts.start_state * n_q + dfa.delta[dfa.initial, label[ts.start_state]]
+    return float(reach[start])
+
+
 def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: np.ndarray,
                   episodes: int, horizon: int, seed: int,
-                  progress: bool = True) -> SimulationSummary:
+                  progress: bool = True, label: str = "simulate nash") -> SimulationSummary:
     """Both players sample stationary mixed strategies over g = s * n_q + q (SPEC §7/§8).
 
     `nash_p1` is [G, 4] (P1's action distribution), `nash_p2` is [G, n_sets] (only trap sets
@@ -644,7 +672,7 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
     state = np.full(episodes, start, dtype=np.int64)
     lengths = np.zeros(episodes, dtype=np.int64)
     active = np.flatnonzero(running[state])
-    bar = _Progress("simulate nash", episodes, progress)
+    bar = _Progress(label, episodes, progress)
     bar.update(episodes - len(active))
     for _ in range(horizon):
         if not len(active):

@@ -78,10 +78,16 @@ def test_canonical_size_matches_reference(case) -> None:
 def test_trap_strategy_matches_reference(case) -> None:
     result, ref = case
     ts = result.analysis.ts
+    compared = 0
     for h, game in enumerate(result.analysis.games):
         for state in range(ts.n_states - 1):
-            ours = ts.trap_cells(int(game.trap_choice[state]))
-            assert set(ours) == set(ref.trap_strategy(h, _reference_state(ts, state))), (h, state)
+            try:  # the reference solves P2's games on the TS states reachable from the start
+                theirs = ref.trap_strategy(h, _reference_state(ts, state))
+            except KeyError:
+                continue
+            assert set(ts.trap_cells(int(game.trap_choice[state]))) == set(theirs), (h, state)
+            compared += 1
+    assert compared > 0
 
 
 def test_exported_strategy_is_optimal(case) -> None:
