@@ -214,10 +214,12 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _illustrative_episode(analysis: Analysis, strategy, horizon: int, seed: int) -> tuple[list, str]:
-    """The first episode (from `seed`) that completes the task, else the first one."""
+    """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
+    clearest picture of the strategy), else the first one."""
     from hg2prism import simulation
 
     first: tuple[list, str] | None = None
+    best: tuple[list, str] | None = None
     for attempt in range(50):
         steps: list = []
         summary = simulation.simulate_deceptive(analysis, strategy, 1, horizon, seed + attempt,
@@ -225,7 +227,7 @@ def _illustrative_episode(analysis: Analysis, strategy, horizon: int, seed: int)
         outcome = {simulation.GOAL: "task completed", simulation.FAIL: "failed"}.get(
             int(summary.outcomes[0]), "cut by the horizon")
         if first is None:
-            first = (steps, outcome)
-        if summary.completed:
-            return steps, f"{outcome}, seed {seed + attempt}"
-    return first
+            first = (steps, f"{outcome}, seed {seed + attempt}")
+        if summary.completed and (best is None or len(steps) < len(best[0])):
+            best = (steps, f"{outcome}, seed {seed + attempt}")
+    return best or first

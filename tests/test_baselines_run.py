@@ -1,0 +1,72 @@
+"""SPEC §7 invariants and SPEC §8's statistical check on generated worlds, through `run`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import worldgen
+from conftest import MODELS
+from hg2prism import baselines, pipeline
+from hg2prism.automata import translate
+from hg2prism.dynamics import build_transition_system
+from hg2prism.games import solve_game
+from hg2prism.simulation import wilson_interval
+from hg2prism.world import load_world
+
+FAMILY = dict(worldgen.world_family())
+# Non-trivial worlds: delay 0, 1 and 2, one and two traps, windows 1-3.
+SAMPLE = ["fam04_d1_l1_w2_x2", "fam15_d0_l2_w3_x2", "fam20_d2_l1_w1_x3", "fam25_d1_l1_w3_x2",
+          "fam28_d1_l2_w1_x4", "fam41_tx_d1_l1_w2"]
+
+
+def _world(name: str, folder: Path):
+    path = folder / f"{name}.toml"
+    path.write_text(FAMILY[name])
+    return load_world(path)
+
+
+@pytest.mark.parametrize("name", SAMPLE + ["world1"])
+def test_nash_below_leader_everywhere(name: str, tmp_path: Path) -> None:
+    world = load_world(MODELS / "world1.toml") if name == "world1" else _world(name, tmp_path)
+    ts = build_transition_system(world)
+    task = translate(world.formula, ts.label_names)
+    nash = baselines.nash_baseline(ts, task)
+    lead = solve_game(ts, task).values
+    assert (nash.values <= lead + 1e-6).all()
+    assert (nash.guaranteed <= nash.values + 1e-6).all()
+
+
+@pytest.mark.parametrize("name", SAMPLE[:3] + ["world1"])
+def test_run_simulations_agree_with_exact_bounded_probabilities(name: str, tmp_path: Path) -> None:
+    world = load_world(MODELS / "world1.toml") if name == "world1" else _world(name, tmp_path)
+    out = tmp_path / "out"
+    result = pipeline.run(world, out, episodes=3000, horizon=60, seed=7, show_progress=False)
+    r = result.results
+    assert r["v_ne"] <= r["v_lead"] + 1e-6 <= r["deceptive_value"] + 2e-6
+    for row in ("deceptive", "nash", "leader"):
+        sim = r["simulation"][row]
+        successes = round(sim["rate"] * sim["episodes"])
+        low, high = wilson_interval(successes, sim["episodes"], 0.999)
+        assert low <= sim["exact_within_horizon"] <= high, (row, sim)
+        assert sim["exact_within_horizon"] <= {"deceptive": r["deceptive_value"], "nash": 1.0,
+                                              "leader": r["v_lead"]}[row] + 1e-6
+    saved = json.loads((out / "results.json").read_text())
+    for key in ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states", "transitions",
+                "storm_states", "storm_transitions", "storm_choices", "timings", "simulation"):
+        assert key in saved
+    for name_ in ("table.md", "world.png", "symmetric.prism", "symmetric.props",
+                  "perceptual_0.prism", "perceptual_0.props", "strategy.json", "hypergame.prism"):
+        assert (out / name_).stat().st_size > 0
+    assert (out / "world.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_run_is_reproducible(tmp_path: Path) -> None:
+    world = load_world(MODELS / "world1.toml")
+    a = pipeline.run(world, tmp_path / "a", episodes=500, horizon=50, seed=3, show_progress=False)
+    b = pipeline.run(world, tmp_path / "b", episodes=500, horizon=50, seed=3, show_progress=False)
+    assert a.results["simulation"] == b.results["simulation"]
+    assert (tmp_path / "a" / "table.md").read_text() == (tmp_path / "b" / "table.md").read_text()
