@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from hg2prism.errors import InputError, SolverError, StormError
+from hg2prism.outputs import staged
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -50,20 +51,27 @@ def main(argv: list[str] | None = None) -> int:
         from hg2prism import pipeline, report
 
         out = _out_dir(Path(args.world), args.out)
-        if args.command == "emit":
-            pipeline.emit(world, out)
-        elif args.command == "check":
-            print(report.summary(pipeline.check(world, out).results, out))
-        else:
+        if args.command == "run":
             for option in ("episodes", "horizon"):
                 if getattr(args, option) is not None and getattr(args, option) < 1:
                     raise InputError("command line", f"--{option}", "must be at least 1")
             if args.seed is not None and args.seed < 0:
                 raise InputError("command line", "--seed", "must be at least 0")
-            result = pipeline.run(world, out, args.episodes, args.horizon, args.seed)
-            print(report.summary(result.results, out))
+        table = None
+        with staged(out) as stage:
+            if args.command == "emit":
+                pipeline.emit(world, stage)
+                results = None
+            elif args.command == "check":
+                results = pipeline.check(world, stage).results
+            else:
+                result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed)
+                results, table = result.results, result.table
+            files = sorted(p.name for p in stage.iterdir())
+        print(report.summary(results, out, files) if results else report.written(out, files))
+        if table:
             print()
-            print(result.table)
+            print(table)
         return 0
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)

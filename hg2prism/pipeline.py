@@ -68,7 +68,7 @@ def generate(analysis: Analysis, out: Path) -> PrismModel:
     model = build_model(analysis.world, analysis.ts, analysis.task, analysis.games, analysis.inference)
     prism, _ = write_model(model, out)
     analysis.timings["generate"] = time.perf_counter() - start
-    progress(f"generate: wrote {prism} ({sum(model.commands.values())} commands) "
+    progress(f"generate: {prism.name} ({sum(model.commands.values())} commands) "
              f"in {analysis.timings['generate']:.2f} s")
     return model
 

@@ -33,8 +33,11 @@ def completion_table(results: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def summary(results: dict, out: Path) -> str:
-    files = sorted(p.name for p in out.iterdir() if p.is_file() and not p.name.startswith("."))
+def written(out: Path, files: list[str]) -> str:
+    return f"wrote {out}/{{{', '.join(files)}}}"
+
+
+def summary(results: dict, out: Path, files: list[str]) -> str:
     return "\n".join([
         f"{results['world']}:",
         f"  deceptive value  {results['deceptive_value']:.6f}   P1 against P2's inference (Pmax, Storm)",
