@@ -17,6 +17,8 @@ world1: $(STAMP)
 
 world2: $(STAMP)
 	$(BIN)/hg2prism run models/world2.toml
+	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
+	$(BIN)/hg2prism detect models/world2.toml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -39,6 +39,22 @@ def main(argv: list[str] | None = None) -> int:
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
             p.add_argument("--seed", type=int, help="random seed (default: the world's)")
 
+    p = add("sweep", "Re-solve the world for each value of one parameter and compare the deceptive "
+            "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png and "
+            "OUT/<param>_<value>/ (each value's model and strategy).")
+    p.add_argument("--param", required=True, metavar="NAME",
+                   help="delay, window, threshold or rationality")
+    p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
+    p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    p = add("detect", "Detect a wrong opponent model (SPEC §9): the seeded episode where P2 deviates "
+            "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
+            "rate, and P2 running another window or threshold; writes OUT/detection.json and "
+            "OUT/detection.png.")
+    p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
+    p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
+    p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+
     args = parser.parse_args(argv)
     try:
         from hg2prism import world as world_mod
@@ -48,10 +64,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
                   f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
             return 0
-        from hg2prism import pipeline, report
+        from hg2prism import experiments, pipeline, report
 
         out = _out_dir(Path(args.world), args.out)
-        if args.command == "run":
+        if args.command in ("run", "detect"):
             for option in ("episodes", "horizon"):
                 if getattr(args, option) is not None and getattr(args, option) < 1:
                     raise InputError("command line", f"--{option}", "must be at least 1")
@@ -64,6 +80,13 @@ def main(argv: list[str] | None = None) -> int:
                 results = None
             elif args.command == "check":
                 results = pipeline.check(world, stage).results
+            elif args.command == "sweep":
+                rows = experiments.sweep(world, args.param, args.values, stage)
+                results, table = None, "\n".join(
+                    experiments.sweep_summary_lines(args.param, rows, world.name))
+            elif args.command == "detect":
+                detection = experiments.detect(world, stage, args.episodes, args.seed, args.horizon)
+                results, table = None, "\n".join(experiments.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed)
                 results, table = result.results, result.table

@@ -1,0 +1,707 @@
+"""Experiments on one world: parameter sweeps (the paper's Fig. 4) and the detection of a wrong
+opponent model (SPEC §9, the paper's Fig. 5).
+
+* :func:`sweep` re-solves the world for each value of one parameter (``delay``, ``window``,
+  ``threshold`` or ``rationality``) and records the deceptive value, V_lead and V_NE at the
+  initial state (SPEC §§6–7). Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``;
+  each value's model, strategy and results stay in ``OUT/<parameter>_<value>/``.
+
+  Sweeping ``delay`` needs the traps standing at the start when the delay is positive
+  (SPEC §2). The rule: the world's own ``initial_traps`` when it has them (a world loaded with
+  delay > 0); otherwise the ``[adversary] initial_traps`` written in the world file (the loader
+  drops them when delay = 0; here they are checked as if delay were positive); otherwise the
+  first ``traps`` trap candidates in map reading order. A delay of 0 has no initial traps.
+
+* :func:`detection_experiment` runs P1's deceptive strategy against a P2 who departs from P1's
+  model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.detection`):
+
+  (a) one seeded episode in which P2 follows the model for ``deviate_after`` steps, then plays
+      uniformly at random (the G-per-step picture, ``OUT/detection.png``);
+  (b) many such episodes: the distribution of detection steps and the share not detected;
+  (c) as many episodes in which P2 follows the model: the false-alarm rate;
+  (d) the paper's other mismatch: P2's real inference runs with another window or threshold
+      than P1's model of it. P1 keeps playing its records (the leader-game fallback of
+      :func:`hg2prism.simulation.leader_fallback` on states they do not cover, counted as
+      ``off_record_steps``); the detector compares P2's traps with P1's prediction.
+
+  Writes ``OUT/detection.json`` and ``OUT/detection.png``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import math
+import sys
+import time
+import tomllib
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from hg2prism.errors import InputError
+from hg2prism.outputs import write_json, write_text
+from hg2prism.world import Cell, World
+
+__all__ = [
+    "SWEEP_PARAMETERS",
+    "parse_sweep_values",
+    "sweep_world",
+    "delay_initial_traps",
+    "sweep",
+    "DetectionBatch",
+    "detection_batch",
+    "detection_experiment",
+    "detect",
+    "sweep_summary_lines",
+    "detection_summary_lines",
+    "summary_lines",
+]
+
+# parameter -> (type, minimum, minimum is exclusive, what is expected)
+SWEEP_PARAMETERS: dict[str, tuple[type, float, bool, str]] = {
+    "delay": (int, 0, False, "an integer >= 0"),
+    "window": (int, 1, False, "an integer >= 1"),
+    "threshold": (float, 0.0, True, "a number > 0"),
+    "rationality": (float, 0.0, True, "a number > 0"),
+}
+
+# The seeded episode of the detection picture lasts more than deviate_after + this many steps.
+STEPS_AFTER_DEVIATION = 3
+SEED_SEARCH = 1000
+MAX_DETECTION_EPISODES = 2000
+
+_CLI = "command line"
+
+
+# ---------------------------------------------------------------------------------------------
+# Sweep
+# ---------------------------------------------------------------------------------------------
+
+def _parse_value(parameter: str, value: object) -> int | float:
+    kind, minimum, exclusive, expected = SWEEP_PARAMETERS[parameter]
+    shown = repr(value) if not isinstance(value, str) else value
+    if isinstance(value, bool):
+        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
+    number: float
+    if isinstance(value, (int, float)):
+        number = value
+    elif isinstance(value, str):
+        text = value.strip()
+        try:
+            number = int(text) if kind is int else float(text)
+        except ValueError:
+            raise InputError(_CLI, "--values",
+                             f"{parameter} value {shown!r} is not {expected}") from None
+    else:
+        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
+    if kind is int:
+        if isinstance(number, float):
+            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
+        number = int(number)
+    else:
+        number = float(number)
+        if not math.isfinite(number):
+            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
+    if number < minimum or (exclusive and number == minimum):
+        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
+    return number
+
+
+def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[int | float]:
+    """Validate a sweep: a known parameter and a non-empty list of distinct valid values
+    (strings as typed on the command line are parsed). Raises InputError (key --param or
+    --values)."""
+    if parameter not in SWEEP_PARAMETERS:
+        raise InputError(_CLI, "--param", f"unknown parameter {parameter!r}; expected one of "
+                                          + ", ".join(SWEEP_PARAMETERS))
+    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
+        raise InputError(_CLI, "--values", f"expected at least one value of {parameter} "
+                                           f"({SWEEP_PARAMETERS[parameter][3]})")
+    parsed = [_parse_value(parameter, v) for v in values]
+    for i, v in enumerate(parsed):
+        if v in parsed[:i]:
+            raise InputError(_CLI, "--values", f"{parameter} value {v} is repeated; expected "
+                                               "distinct values")
+    return parsed
+
+
+def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
+    """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
+    file has none (or cannot be read any more)."""
+    try:
+        with open(world.path, "rb") as handle:
+            data = tomllib.load(handle)
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    adversary = data.get("adversary")
+    if not isinstance(adversary, dict) or "initial_traps" not in adversary:
+        return None
+    key = "adversary.initial_traps"
+    value = adversary["initial_traps"]
+    numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
+    cells: list[Cell] = []
+    if isinstance(value, list):
+        for item in value:
+            if (isinstance(item, list) and len(item) == 2
+                    and all(isinstance(c, int) and not isinstance(c, bool) for c in item)):
+                cells.append((item[0], item[1]))
+            else:
+                cells = []
+                break
+        else:
+            if (len(cells) == world.traps and len(set(cells)) == len(cells)
+                    and all(c in numbering for c in cells)):
+                return tuple(sorted(cells, key=numbering.__getitem__))
+    candidates = ", ".join(f"[{x}, {y}]" for x, y in world.grid.trap_candidates)
+    raise InputError(str(world.path), key,
+                     f"sweeping delay > 0 needs initial_traps to be {world.traps} distinct trap "
+                     f"candidate cells (candidates are {candidates}), got {value!r}")
+
+
+def delay_initial_traps(world: World) -> tuple[Cell, ...]:
+    """The traps standing at the start when the world is re-solved with a positive delay (the
+    rule in the module docstring)."""
+    if world.initial_traps:
+        return tuple(world.initial_traps)
+    from_file = _file_initial_traps(world)
+    if from_file is not None:
+        return from_file
+    return tuple(world.grid.trap_candidates[:world.traps])
+
+
+def sweep_world(world: World, parameter: str, value: object) -> World:
+    """The world with one parameter replaced (validated as in :func:`parse_sweep_values`)."""
+    (value,) = parse_sweep_values(parameter, [value])
+    if parameter == "delay":
+        traps = delay_initial_traps(world) if value > 0 else ()
+        return replace(world, delay=value, initial_traps=traps)
+    return replace(world, **{parameter: value})
+
+
+def _value_text(value: int | float) -> str:
+    return str(value) if isinstance(value, int) else f"{value:g}"
+
+
+def _bar(done: int, total: int, width: int = 20) -> str:
+    filled = int(round(width * done / max(total, 1)))
+    return "#" * filled + "." * (width - filled)
+
+
+_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states",
+                "transitions", "storm_states", "storm_transitions", "seconds")
+
+
+def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
+          show_progress: bool = True) -> list[dict]:
+    """Solve the world for each value of `parameter` and record the values at the initial
+    state: ``{parameter: value, deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, states,
+    transitions, storm_states, storm_transitions, initial_traps, seconds}`` per value.
+
+    Each value is checked into ``out/<parameter>_<value>/`` (hypergame.prism, strategy.json,
+    results.json); ``out/sweep.json``, ``out/sweep.csv`` and ``out/sweep.png`` summarise them.
+    Progress: one line per value on stderr (the stages' own messages are not shown).
+    """
+    from hg2prism import baselines, pipeline, plots
+
+    parsed = parse_sweep_values(parameter, values)
+    worlds = [sweep_world(world, parameter, v) for v in parsed]   # all errors before any work
+    out = Path(out)
+    rows: list[dict] = []
+    total_start = time.perf_counter()
+    for i, (value, w) in enumerate(zip(parsed, worlds), start=1):
+        label = f"sweep {parameter}={_value_text(value)} ({i}/{len(parsed)}) [{_bar(i - 1, len(parsed))}]"
+        live = show_progress and sys.stderr.isatty()
+        if live:
+            sys.stderr.write(label + " ...")
+            sys.stderr.flush()
+        start = time.perf_counter()
+        finished = False
+        try:
+            with contextlib.redirect_stderr(io.StringIO()):
+                checked = pipeline.check(w, out / f"{parameter}_{_value_text(value)}")
+                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
+            finished = True
+        finally:
+            if live and not finished:
+                sys.stderr.write(" failed\n")
+                sys.stderr.flush()
+        seconds = time.perf_counter() - start
+        results = checked.results
+        row = {
+            parameter: value,
+            "deceptive_value": results["deceptive_value"],
+            "v_lead": results["v_lead"],
+            "v_ne": nash.v_ne,
+            "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
+            "states": results["states"],
+            "transitions": results["transitions"],
+            "storm_states": results["storm_states"],
+            "storm_transitions": results["storm_transitions"],
+            "initial_traps": [list(c) for c in w.initial_traps],
+            "seconds": round(seconds, 3),
+        }
+        rows.append(row)
+        if show_progress:
+            warn = (f"; warning: P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}"
+                    if nash.warn else "")
+            sys.stderr.write(f"{chr(13) if live else ''}{label.rsplit(' [', 1)[0]} "
+                             f"[{_bar(i, len(parsed))}]: deceptive "
+                             f"{row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
+                             f"{row['v_ne']:.4f}, {row['states']} states ({seconds:.1f} s){warn}\n")
+            sys.stderr.flush()
+
+    fixed = {"formula": world.formula, "slip": world.slip, "traps": world.traps,
+             "delay": world.delay, "hypotheses": list(world.hypotheses),
+             "initial_hypothesis": world.initial_hypothesis, "window": world.window,
+             "threshold": world.threshold, "rationality": world.rationality}
+    fixed.pop(parameter)
+    summary = {
+        "world": world.name,
+        "world_file": str(world.path),
+        "parameter": parameter,
+        "values": parsed,
+        "fixed_parameters": fixed,
+        "initial_traps_rule": ("delay > 0: the world's initial_traps, else the file's "
+                               "[adversary] initial_traps, else the first `traps` candidates"
+                               if parameter == "delay" else None),
+        "rows": rows,
+        "seconds": round(time.perf_counter() - total_start, 3),
+    }
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow((parameter,) + _CSV_COLUMNS)
+    for row in rows:
+        writer.writerow([row[parameter]] + [repr(row[c]) if isinstance(row[c], float) else row[c]
+                                            for c in _CSV_COLUMNS])
+    write_json(out / "sweep.json", summary)
+    write_text(out / "sweep.csv", buffer.getvalue())
+    plots.sweep_figure(parameter, rows, out / "sweep.png")
+    return rows
+
+
+# ---------------------------------------------------------------------------------------------
+# Detection
+# ---------------------------------------------------------------------------------------------
+
+class DetectionBatch:
+    """An observer for simulate_deceptive that runs one fresh MismatchDetector per episode
+    (fed ``(s~_n, pi2_xh(v), a2_n, |A2(v)|)``) and keeps what the experiments report.
+
+    ``first_rejection[e]``: the first step n at which episode e's detector rejected H0 (absent:
+    never). ``unpredicted``: episodes in which P2 played a trap set other than the predicted
+    one at a step with several choices. ``diverged``: episodes in which P2's real hypothesis
+    differed from P1's model of it at some step. With ``keep_steps`` every Step of every
+    episode is kept (``steps[e]``); otherwise an episode's detector stops at its rejection.
+    """
+
+    def __init__(self, alpha: float, epsilon: float, keep_steps: bool = False,
+                 scores_of=None) -> None:
+        from hg2prism.detection import MismatchDetector
+
+        self._make = lambda: MismatchDetector(alpha, epsilon)
+        self.keep_steps = keep_steps
+        # with an InferenceModel: the largest CUSUM score max_x Z_x (x != xh) any step reached
+        # under P1's model memory (how close P2 came to changing her mind)
+        self._scores_of = scores_of
+        self._score_cache: dict = {}
+        self.max_score = 0.0
+        self.first_rejection: dict[int, int] = {}
+        self.unpredicted: set[int] = set()
+        self.diverged: set[int] = set()
+        self.steps: dict[int, list] = {}
+        self.records: dict[int, list] = {}
+        self._episode: int | None = None
+        self._detector = None
+
+    def __call__(self, record) -> None:
+        episode = record.episode
+        if episode != self._episode:
+            self._episode = episode
+            self._detector = self._make()
+        if record.n_a2 > 1 and record.a2 != record.predicted_a2:
+            self.unpredicted.add(episode)
+        if record.memory.hypothesis != record.p2_memory.hypothesis:
+            self.diverged.add(episode)
+        if self._scores_of is not None:
+            key = (record.memory, record.ts_state, record.a1)
+            score = self._score_cache.get(key)
+            if score is None:
+                z = self._scores_of.scores(record.memory, (record.ts_state, record.a1))
+                score = self._score_cache[key] = float(z.max()) if len(z) else 0.0
+            self.max_score = max(self.max_score, score)
+        if episode in self.first_rejection and not self.keep_steps:
+            return
+        step = self._detector.observe(record.augmented_state, record.predicted_a2, record.a2,
+                                      record.n_a2)
+        if step.rejected and episode not in self.first_rejection:
+            self.first_rejection[episode] = step.n
+        if self.keep_steps:
+            self.steps.setdefault(episode, []).append(step)
+            self.records.setdefault(episode, []).append(record)
+
+    def rejections(self, episodes: int) -> list[int | None]:
+        return [self.first_rejection.get(e) for e in range(episodes)]
+
+
+def detection_batch(analysis, strategy, episodes: int, horizon: int, seed: int, alpha: float,
+                    epsilon: float, p2_policy=None, p2_inference=None, keep_steps: bool = False,
+                    progress: bool = False, track_scores: bool = False):
+    """Simulate `episodes` deceptive episodes with P1's detector running in each.
+    Returns (SimulationSummary, DetectionBatch). With `track_scores` the batch records the
+    largest CUSUM score of P1's model of P2's inference (DetectionBatch.max_score)."""
+    from hg2prism.simulation import simulate_deceptive
+
+    batch = DetectionBatch(alpha, epsilon, keep_steps,
+                           scores_of=analysis.inference if track_scores else None)
+    summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, p2_policy=p2_policy,
+                                 observer=batch, progress=progress, p2_inference=p2_inference)
+    return summary, batch
+
+
+def _completion(summary) -> dict:
+    return {"rate": summary.rate, "ci95": list(summary.ci95), "episodes": summary.episodes,
+            "completed": summary.completed, "failed": summary.failed,
+            "truncated": summary.truncated, "off_record_steps": summary.off_record_steps,
+            "mean_length": summary.mean_length}
+
+
+def _distribution(rejections: list[int | None], deviate_after: int | None = None) -> dict:
+    from hg2prism.detection import summarize_detection
+    from hg2prism.simulation import wilson_interval
+
+    s = summarize_detection(rejections, deviate_after)
+    result = {
+        "episodes": s.episodes,
+        "detected": s.detected,
+        "not_detected": s.not_detected,
+        "share_detected": s.share_detected,
+        "share_detected_ci95": list(wilson_interval(s.detected, s.episodes)),
+        "share_not_detected": s.share_not_detected,
+        "mean_detection_step": s.mean_detection_step,
+        "median_detection_step": s.median_detection_step,
+        "histogram": {str(n): c for n, c in s.histogram},
+    }
+    if deviate_after is not None:
+        result["detected_before_deviation"] = s.before_deviation
+        result["mean_delay_after_deviation"] = s.mean_delay
+    return result
+
+
+def _find_seeded_episode(analysis, strategy, horizon: int, seed: int, alpha: float,
+                         epsilon: float, deviate_after: int, p2_policy) -> tuple[int, object, object]:
+    """The first seed from `seed` upward whose deviating episode lasts more than
+    deviate_after + STEPS_AFTER_DEVIATION steps (else the longest of SEED_SEARCH seeds)."""
+    best = None
+    for s in range(seed, seed + SEED_SEARCH):
+        summary, batch = detection_batch(analysis, strategy, 1, horizon, s, alpha, epsilon,
+                                         p2_policy=p2_policy, keep_steps=True)
+        length = int(summary.lengths[0])
+        if length > deviate_after + STEPS_AFTER_DEVIATION:
+            return s, summary, batch
+        if best is None or length > int(best[1].lengths[0]):
+            best = (s, summary, batch)
+    return best
+
+
+_OUTCOME = {0: "failed", 1: "task completed", 2: "cut by the horizon"}
+
+
+def _check_positive(value: int | None, key: str, minimum: int) -> None:
+    if value is not None and (isinstance(value, bool) or not isinstance(value, int)
+                              or value < minimum):
+        raise InputError(_CLI, key, f"must be an integer >= {minimum}, got {value!r}")
+
+
+def detection_experiment(world: World, check_result, out: Path, episodes: int | None = None,
+                         seed: int | None = None, show_progress: bool = True,
+                         horizon: int | None = None) -> dict:
+    """SPEC §9's experiment and the other mismatch (see the module docstring).
+
+    `check_result` is pipeline.check(world, ...). `episodes` defaults to
+    min(world.simulation.episodes, 2000) per batch, `seed` and `horizon` to the world's.
+    Writes out/detection.json and out/detection.png and returns the JSON's content.
+    """
+    from hg2prism import plots
+    from hg2prism.inference import build_inference
+    from hg2prism.simulation import (Strategy, deviating_policy, leader_fallback,
+                                     wilson_interval)
+
+    _check_positive(episodes, "--episodes", 1)
+    _check_positive(seed, "--seed", 0)
+    _check_positive(horizon, "--horizon", 1)
+    out = Path(out)
+    start_time = time.perf_counter()
+    settings = world.detection
+    alpha, epsilon, deviate_after = settings.alpha, settings.epsilon, settings.deviate_after
+    episodes = episodes or min(world.simulation.episodes, MAX_DETECTION_EPISODES)
+    horizon = horizon or world.simulation.horizon
+    seed = world.simulation.seed if seed is None else seed
+    analysis = check_result.analysis
+    ts = analysis.ts
+    strategy = Strategy.from_records(check_result.records, ts, fallback=leader_fallback(analysis))
+    deviating = deviating_policy(ts, deviate_after)
+
+    def say(message: str) -> None:
+        if show_progress:
+            print(message, file=sys.stderr, flush=True)
+
+    # (a) one seeded episode, for the picture
+    chosen, summary_a, batch_a = _find_seeded_episode(analysis, strategy, horizon, seed, alpha,
+                                                      epsilon, deviate_after, deviating)
+    steps = batch_a.steps.get(0, [])
+    records = batch_a.records.get(0, [])
+    detected_at = batch_a.first_rejection.get(0)
+    per_step = []
+    for step, record in zip(steps, records):
+        per_step.append({
+            "n": step.n,
+            "cell": list(ts.cells[ts.decode(record.ts_state)[0]]),
+            "hypothesis_modelled": record.memory.hypothesis,
+            "hypothesis_real": record.p2_memory.hypothesis,
+            "predicted_traps": [list(c) for c in ts.trap_cells(record.predicted_a2)],
+            "played_traps": [list(c) for c in ts.trap_cells(record.a2)],
+            "choices": record.n_a2,
+            "counted": step.counted,
+            "G": step.statistic,
+            "df": step.df,
+            "threshold": step.threshold,
+            "rejected": step.rejected,
+        })
+    seeded = {
+        "seed": chosen,
+        "searched_from_seed": seed,
+        "rule": (f"the first seed from {seed} upward whose episode lasts more than "
+                 f"deviate_after + {STEPS_AFTER_DEVIATION} steps"),
+        "steps": int(summary_a.lengths[0]),
+        "outcome": _OUTCOME[int(summary_a.outcomes[0])],
+        "detected_at": detected_at,
+        "per_step": per_step,
+    }
+    plots.detection_figure([s.statistic for s in steps], [s.threshold for s in steps],
+                           deviate_after, detected_at, out / "detection.png")
+    say(f"detection: seeded episode (seed {chosen}, {seeded['steps']} steps): "
+        + (f"mismatch detected at step {detected_at}" if detected_at is not None
+           else "mismatch not detected"))
+
+    # (b) many episodes with the deviation
+    say(f"detection: {episodes} episodes, P2 follows the model for {deviate_after} step(s), "
+        "then plays at random")
+    summary_b, batch_b = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
+                                         epsilon, p2_policy=deviating, progress=show_progress)
+    deviation = _distribution(batch_b.rejections(episodes), deviate_after)
+    reached = [e for e in range(episodes) if summary_b.lengths[e] > deviate_after]
+    deviation["episodes_reaching_deviation"] = len(reached)
+    deviation["episodes_with_unpredicted_traps"] = len(batch_b.unpredicted)
+    deviation["share_not_detected_among_reaching_deviation"] = (
+        sum(1 for e in reached if e not in batch_b.first_rejection) / len(reached)
+        if reached else None)
+    deviation["completion"] = _completion(summary_b)
+
+    # (c) as many episodes in which P2 follows the model
+    say(f"detection: {episodes} episodes, P2 follows the model (false alarms)")
+    summary_c, batch_c = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
+                                         epsilon, progress=show_progress, track_scores=True)
+    alarms = batch_c.rejections(episodes)
+    n_alarms = sum(1 for n in alarms if n is not None)
+    compliant = {
+        "episodes": episodes,
+        "false_alarms": n_alarms,
+        "false_alarm_rate": n_alarms / episodes,
+        "false_alarm_rate_ci95": list(wilson_interval(n_alarms, episodes)),
+        "false_alarm_steps": {str(n): c for n, c in
+                              _distribution(alarms)["histogram"].items()},
+        "completion": _completion(summary_c),
+        "max_cusum_score": batch_c.max_score,
+    }
+
+    # (d) P2's real inference differs from P1's model of it
+    variants: list[tuple[str, int, float, str]] = [
+        (f"window {world.window + 1}", world.window + 1, world.threshold, "window + 1")]
+    if world.window - 1 >= 1:
+        variants.append((f"window {world.window - 1}", world.window - 1, world.threshold,
+                         "window - 1"))
+    variants += [(f"threshold {world.threshold / 2:.4g}", world.window, world.threshold / 2,
+                  "threshold / 2"),
+                 (f"threshold {world.threshold * 2:.4g}", world.window, world.threshold * 2,
+                  "threshold * 2")]
+    # When P1's strategy keeps every CUSUM score far below the threshold (so that the variants
+    # above change nothing), a P2 who changes her mind on half the largest score P1 lets her
+    # reach certainly behaves differently somewhere.
+    hasty = batch_c.max_score / 2
+    if 0.0 < hasty < world.threshold / 2:
+        variants.append((f"threshold {hasty:.4g}", world.window, hasty,
+                         "half the largest CUSUM score reached when P2 follows the model"))
+    reference_rate = summary_c.rate
+    mismatch = []
+    for label, window, threshold, why in variants:
+        say(f"detection: {episodes} episodes, P2's inference uses {label} "
+            f"(P1 models window {world.window}, threshold {world.threshold:g})")
+        real = build_inference(analysis.games, window, threshold, world.initial_hypothesis)
+        summary_d, batch_d = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
+                                             epsilon, p2_inference=real, progress=show_progress)
+        rejections = batch_d.rejections(episodes)
+        detected = sum(1 for n in rejections if n is not None)
+        observable = len(batch_d.unpredicted)
+        detected_observable = sum(1 for e in batch_d.unpredicted if e in batch_d.first_rejection)
+        dist = _distribution(rejections)
+        mismatch.append({
+            "p2_inference": label,
+            "chosen_as": why,
+            "p2_window": window,
+            "p2_threshold": threshold,
+            "episodes": episodes,
+            "detected": detected,
+            "detection_rate": detected / episodes,
+            "detection_rate_ci95": list(wilson_interval(detected, episodes)),
+            "mean_detection_step": dist["mean_detection_step"],
+            "median_detection_step": dist["median_detection_step"],
+            "histogram": dist["histogram"],
+            "episodes_with_hypothesis_divergence": len(batch_d.diverged),
+            "episodes_with_unpredicted_traps": observable,
+            "detection_rate_given_unpredicted_traps": (detected_observable / observable
+                                                       if observable else None),
+            "completion": _completion(summary_d),
+            "completion_change": summary_d.rate - reference_rate,
+        })
+
+    result = {
+        "world": world.name,
+        "world_file": str(world.path),
+        "alpha": alpha,
+        "epsilon": epsilon,
+        "deviate_after": deviate_after,
+        "horizon": horizon,
+        "seed": seed,
+        "episodes": episodes,
+        "deceptive_value": check_result.results.get("deceptive_value"),
+        "p1_model": {"window": world.window, "threshold": world.threshold},
+        "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
+                  "exceeds the free parameters, so the test is conservative. P1 plays its "
+                  "exported records and, on states they do not cover (reachable only when P2 "
+                  "departs from the model), the leader-game fallback; such steps are counted in "
+                  "off_record_steps. Every batch uses the same seed."),
+        "seeded_episode": seeded,
+        "deviation": deviation,
+        "compliant": compliant,
+        "model_mismatch": {
+            "reference": {"p2_inference": "as modelled", "p2_window": world.window,
+                          "p2_threshold": world.threshold, "detection_rate": n_alarms / episodes,
+                          "completion": _completion(summary_c)},
+            "variants": mismatch,
+        },
+        "seconds": round(time.perf_counter() - start_time, 3),
+    }
+    write_json(out / "detection.json", result)
+    return result
+
+
+def detect(world: World, out: Path, episodes: int | None = None, seed: int | None = None,
+           horizon: int | None = None, show_progress: bool = True) -> dict:
+    """pipeline.check in a temporary folder (so that OUT/results.json of `hg2prism run` is not
+    overwritten), then :func:`detection_experiment` into `out`."""
+    import tempfile
+
+    from hg2prism import pipeline
+
+    _check_positive(episodes, "--episodes", 1)
+    _check_positive(seed, "--seed", 0)
+    _check_positive(horizon, "--horizon", 1)
+    with tempfile.TemporaryDirectory(prefix="hg2prism-detect-") as scratch:
+        quiet = contextlib.nullcontext() if show_progress else contextlib.redirect_stderr(io.StringIO())
+        with quiet:
+            checked = pipeline.check(world, Path(scratch))
+        return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon)
+
+
+# ---------------------------------------------------------------------------------------------
+# Printable summaries
+# ---------------------------------------------------------------------------------------------
+
+def sweep_summary_lines(parameter: str, rows: Sequence[dict], world_name: str | None = None) -> list[str]:
+    """The sweep as a Markdown table."""
+    title = f"Completion probability at the initial state against {parameter}"
+    if world_name:
+        title += f" ({world_name})"
+    lines = [title, "",
+             f"| {parameter} | deceptive value | V_lead | V_NE | hypergame states | transitions |",
+             "|---|---|---|---|---|---|"]
+    for row in rows:
+        lines.append(f"| {_value_text(row[parameter])} | {row['deceptive_value']:.4f} "
+                     f"| {row['v_lead']:.4f} | {row['v_ne']:.4f} | {row['states']} "
+                     f"| {row['transitions']} |")
+    return lines
+
+
+def _rate(c: dict) -> str:
+    low, high = c["ci95"]
+    return f"{c['rate']:.4f} [{low:.4f}, {high:.4f}]"
+
+
+def _step(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1f}"
+
+
+def detection_summary_lines(result: dict) -> list[str]:
+    """What `make world2` prints about the detection experiment."""
+    seeded, dev, comp = result["seeded_episode"], result["deviation"], result["compliant"]
+    k = result["deviate_after"]
+    hist = ", ".join(f"{n}: {c}" for n, c in dev["histogram"].items())
+    lines = [
+        f"Mismatch detection in {result['world']} (alpha {result['alpha']}, epsilon "
+        f"{result['epsilon']}, P2 follows the model for {k} step(s), then plays at random)",
+        "",
+        f"  seeded episode (seed {seeded['seed']}, {seeded['steps']} steps, {seeded['outcome']}): "
+        + (f"detected at step {seeded['detected_at']}" if seeded["detected_at"] is not None
+           else "not detected"),
+        f"  {dev['episodes']} episodes: detected {dev['detected']} "
+        f"({dev['share_detected']:.1%}), not detected {dev['not_detected']} "
+        f"({dev['share_not_detected']:.1%}; {dev['episodes'] - dev['episodes_reaching_deviation']}"
+        f" ended by step {k}), mean detection step {_step(dev['mean_detection_step'])}, "
+        f"median {_step(dev['median_detection_step'])}",
+        f"  detection steps: {hist or 'none'}",
+        f"  false alarms when P2 follows the model: {comp['false_alarms']}/{comp['episodes']} "
+        f"({comp['false_alarm_rate']:.2%}, 95% CI [{comp['false_alarm_rate_ci95'][0]:.4f}, "
+        f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
+        "",
+        f"P2's real inference differs from P1's model (window {result['p1_model']['window']}, "
+        f"threshold {result['p1_model']['threshold']:g}); P1 keeps playing its strategy:",
+        "",
+        "| P2's inference | episodes where P2's hypothesis / traps differed from P1's model "
+        "| detected | detected where the traps differed | mean detection step "
+        "| completion (95% CI) | change | off-record steps |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    ref = result["model_mismatch"]["reference"]
+    lines.append(f"| as modelled (window {ref['p2_window']}, threshold {ref['p2_threshold']:g}) "
+                 f"| 0 / 0 | {ref['detection_rate']:.1%} (false alarms) | - | - "
+                 f"| {_rate(ref['completion'])} | - | {ref['completion']['off_record_steps']} |")
+    for v in result["model_mismatch"]["variants"]:
+        given = v["detection_rate_given_unpredicted_traps"]
+        given_text = f"{given:.1%}" if given is not None else "-"
+        lines.append(f"| {v['p2_inference']} | {v['episodes_with_hypothesis_divergence']} / "
+                     f"{v['episodes_with_unpredicted_traps']} | {v['detection_rate']:.1%} "
+                     f"| {given_text} | {_step(v['mean_detection_step'])} "
+                     f"| {_rate(v['completion'])} | {v['completion_change']:+.4f} "
+                     f"| {v['completion']['off_record_steps']} |")
+    lines.append("")
+    lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
+                 f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
+                 f"model is {result['compliant']['max_cusum_score']:.4g})")
+    return lines
+
+
+def summary_lines(sweep_rows: Sequence[dict] | None = None, parameter: str | None = None,
+                  detection: dict | None = None, world_name: str | None = None) -> list[str]:
+    """Both summaries, separated by a blank line (what `make world2` prints)."""
+    lines: list[str] = []
+    if sweep_rows is not None:
+        if parameter is None:
+            raise ValueError("parameter is required with sweep_rows")
+        lines += sweep_summary_lines(parameter, sweep_rows, world_name)
+    if detection is not None:
+        if lines:
+            lines.append("")
+        lines += detection_summary_lines(detection)
+    return lines

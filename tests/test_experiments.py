@@ -1,0 +1,399 @@
+"""Experiments (hg2prism.experiments): the delay semantics the sweep relies on (SPEC §2), the
+parameter sweep (paper Fig. 4) and the detection of a wrong opponent model (SPEC §9, paper
+Fig. 5). The LRT statistic itself is tested in test_detection.py."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+
+from conftest import MODELS
+from hg2prism import experiments, pipeline
+from hg2prism.dynamics import ACTIONS, build_transition_system
+from hg2prism.errors import InputError
+from hg2prism.simulation import Strategy, deviating_policy, leader_fallback
+from hg2prism.world import load_world
+
+WORLD2 = MODELS / "world2.toml"
+
+# Two trap candidates: c0 = (2, 2) on the top row, c1 = (3, 1) on the bottom row.
+DELAYED = '''name = "delayed"
+description = "tiny world with a 2-step delay on moving the single trap"
+
+[grid]
+map = """
+######
+#@t.A#
+#..t.#
+######
+"""
+
+[robot]
+slip = 0.1
+
+[task]
+formula = "F A"
+
+[adversary]
+traps = 1
+delay = 2
+initial_traps = [[3, 1]]
+hypotheses = ["F A"]
+
+[inference]
+window = 1
+threshold = 1.0
+rationality = 10.0
+'''
+
+# Two hypotheses so that window and threshold matter; no initial_traps in the file.
+SMALL = '''name = "small"
+
+[grid]
+map = """
+#######
+#@.t.A#
+#..t..#
+#.B...#
+#######
+"""
+
+[robot]
+slip = 0.1
+
+[task]
+formula = "F A"
+
+[adversary]
+traps = 1
+hypotheses = ["F A", "F B"]
+
+[inference]
+window = 2
+threshold = 1.0
+rationality = 5.0
+'''
+
+STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
+SIDES = {"N": "EW", "E": "NS", "S": "EW", "W": "NS"}
+
+
+def write_world(folder: Path, name: str, text: str) -> Path:
+    path = folder / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def delayed(tmp_path_factory: pytest.TempPathFactory):
+    world = load_world(write_world(tmp_path_factory.mktemp("delayed"), "delayed", DELAYED))
+    return world, build_transition_system(world)
+
+
+@pytest.fixture(scope="module")
+def world2(tmp_path_factory: pytest.TempPathFactory) -> pipeline.CheckResult:
+    return pipeline.check(load_world(WORLD2), tmp_path_factory.mktemp("exp_world2"))
+
+
+# ---------------------------------------------------------------------------------------------
+# delay semantics on the TS tables (SPEC §2)
+# ---------------------------------------------------------------------------------------------
+
+def outcomes(ts, state: int, a1: int, a2: int) -> dict[int, float]:
+    """The successor distribution the tables give, merged."""
+    dist: dict[int, float] = {}
+    for k in range(ts.succ.shape[-1]):
+        p = float(ts.prob[state, a1, a2, k])
+        if p > 0:
+            s = int(ts.succ[state, a1, a2, k])
+            dist[s] = dist.get(s, 0.0) + p
+    return dist
+
+
+def expected(world, ts, cell, traps: int, countdown: int, a1: str, a2: int) -> dict[int, float]:
+    """SPEC §2 written out directly on cells, for one state (cell, T, c) and joint action."""
+    free = set(ts.cells)
+    trap_cells = set(ts.trap_cells(a2))
+    dist: dict[int, float] = {}
+    for direction, p in ((a1, 1 - 2 * world.slip), (SIDES[a1][0], world.slip),
+                         (SIDES[a1][1], world.slip)):
+        if p == 0:
+            continue
+        x, y = cell[0] + STEP[direction][0], cell[1] + STEP[direction][1]
+        target = (x, y) if (x, y) in free else cell
+        if target in trap_cells:
+            succ = ts.trapped
+        else:
+            c = world.delay if a2 != traps else max(countdown - 1, 0)
+            succ = ts.state(ts.cell_index[target], a2, c)
+        dist[succ] = dist.get(succ, 0.0) + p
+    return dist
+
+
+def test_delay_tables_follow_spec_section_2_everywhere(delayed) -> None:
+    world, ts = delayed
+    assert ts.delay == 2 and ts.trap_cells(0) == ((2, 2),) and ts.trap_cells(1) == ((3, 1),)
+    assert ts.decode(ts.start_state) == (ts.cell_index[(1, 2)], 1, 0)   # initial traps, c = 0
+    for state in range(ts.n_states - 1):
+        cell, traps, countdown = ts.decode(state)
+        for a1, name in enumerate(ACTIONS):
+            for a2 in range(ts.n_sets):
+                got = outcomes(ts, state, a1, a2)
+                want = expected(world, ts, ts.cells[cell], traps, countdown, name, a2)
+                assert got.keys() == want.keys(), (state, name, a2)
+                for s, p in want.items():
+                    assert got[s] == pytest.approx(p, abs=1e-12)
+    for a1 in range(4):
+        for a2 in range(ts.n_sets):
+            assert outcomes(ts, ts.trapped, a1, a2) == {ts.trapped: 1.0}
+
+
+def test_p2_cannot_move_traps_while_the_countdown_is_positive(delayed) -> None:
+    _, ts = delayed
+    for state in range(ts.n_states - 1):
+        _, traps, countdown = ts.decode(state)
+        allowed = set(map(int, ts.allowed[state].nonzero()[0]))
+        assert allowed == ({traps} if countdown > 0 else set(range(ts.n_sets))), state
+
+
+def test_moving_traps_starts_the_countdown_and_keeping_them_does_not_restart_it(delayed) -> None:
+    _, ts = delayed
+    cell = ts.cell_index[(1, 1)]           # bottom-left corner, no trap candidate around
+    east = ACTIONS.index("E")
+
+    def countdowns(traps: int, countdown: int, a2: int) -> set[tuple[int, int]]:
+        return {ts.decode(s)[1:] for s in outcomes(ts, ts.state(cell, traps, countdown), east, a2)
+                if s != ts.trapped}
+
+    assert countdowns(1, 0, 0) == {(0, 2)}     # moved: wait k = 2
+    assert countdowns(0, 2, 0) == {(0, 1)}     # kept: count down
+    assert countdowns(0, 1, 0) == {(0, 0)}
+    assert countdowns(0, 0, 0) == {(0, 0)}     # kept at 0: stays 0, not restarted
+    assert countdowns(0, 0, 1) == {(1, 2)}     # moved again
+
+
+def test_a_robot_on_a_cell_where_a_trap_stays_is_trapped(delayed) -> None:
+    _, ts = delayed
+    on_c0 = ts.cell_index[(2, 2)]
+    north = ACTIONS.index("N")                 # into the wall: the robot stays unless it slips
+    # The trap stands on the robot's cell and must stay (countdown 1): trapped unless it leaves.
+    dist = outcomes(ts, ts.state(on_c0, 0, 1), north, 0)
+    assert dist[ts.trapped] == pytest.approx(0.8)
+    assert {ts.cells[ts.decode(s)[0]] for s in dist if s != ts.trapped} == {(1, 2), (3, 2)}
+    # A trap P2 now sets on the robot's cell traps it the same way.
+    dist = outcomes(ts, ts.state(on_c0, 1, 0), north, 0)
+    assert dist[ts.trapped] == pytest.approx(0.8)
+    # Moving the trap away from under the robot frees it.
+    dist = outcomes(ts, ts.state(on_c0, 0, 0), north, 1)
+    assert ts.trapped not in dist
+    # Walking onto the standing trap: the intended move (0.8) is trapped.
+    dist = outcomes(ts, ts.state(ts.cell_index[(1, 2)], 0, 1), ACTIONS.index("E"), 0)
+    assert dist[ts.trapped] == pytest.approx(0.8)
+
+
+# ---------------------------------------------------------------------------------------------
+# sweep
+# ---------------------------------------------------------------------------------------------
+
+def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
+    world = load_world(WORLD2)
+    rows = experiments.sweep(world, "delay", [0, 1, 2, 3], tmp_path / "sweep", show_progress=False)
+    assert [r["delay"] for r in rows] == [0, 1, 2, 3]
+    text = WORLD2.read_text()
+    assert "delay = 0\n" in text and "initial_traps = [[2, 5]]" in text
+    for row in rows:
+        k = row["delay"]
+        assert row["initial_traps"] == ([[2, 5]] if k else [])
+        single_path = write_world(tmp_path, f"world2_k{k}", text.replace("delay = 0\n", f"delay = {k}\n"))
+        single = pipeline.check(load_world(single_path), tmp_path / f"single_{k}")
+        assert row["deceptive_value"] == pytest.approx(single.results["deceptive_value"], abs=1e-9)
+        assert row["v_lead"] == pytest.approx(single.results["v_lead"], abs=1e-9)
+        assert row["states"] == single.results["states"]
+        assert row["transitions"] == single.results["transitions"]
+        # SPEC §7: V_NE <= V_lead <= deceptive value at the initial state
+        assert row["v_ne"] <= row["v_lead"] + 1e-6 <= row["deceptive_value"] + 2e-6
+    values = [r["deceptive_value"] for r in rows]
+    assert all(a < b for a, b in zip(values, values[1:]))          # the paper's Fig. 4
+    assert values[0] == pytest.approx(0.709, abs=1e-3)
+    assert values[3] == pytest.approx(0.8592, abs=1e-3)
+
+    out = tmp_path / "sweep"
+    saved = json.loads((out / "sweep.json").read_text())
+    assert saved["parameter"] == "delay" and saved["values"] == [0, 1, 2, 3]
+    assert saved["rows"] == json.loads(json.dumps(rows))
+    with open(out / "sweep.csv", newline="") as handle:
+        table = list(csv.DictReader(handle))
+    assert [int(r["delay"]) for r in table] == [0, 1, 2, 3]
+    assert [float(r["deceptive_value"]) for r in table] == values
+    assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "delay_2" / "results.json").exists()
+    assert not list(out.glob(".*.tmp"))
+    lines = experiments.sweep_summary_lines("delay", rows, "world2")
+    assert any(line.startswith("| 3 | 0.8592 |") for line in lines)
+
+
+def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsys) -> None:
+    world = load_world(write_world(tmp_path, "small", SMALL))
+    assert world.initial_traps == ()
+    # no initial_traps anywhere: the first candidate, (3, 3)
+    assert experiments.delay_initial_traps(world) == (world.grid.trap_candidates[0],) == ((3, 3),)
+    rows = experiments.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
+    assert [r["window"] for r in rows] == [1, 3]
+    err = capsys.readouterr().err
+    assert "sweep window=1 (1/2)" in err and "sweep window=3 (2/2)" in err
+    assert "games:" not in err                      # the stages' own messages are not shown
+    for row in rows:
+        single = pipeline.check(experiments.sweep_world(world, "window", row["window"]),
+                                tmp_path / f"single_w{row['window']}")
+        assert row["deceptive_value"] == pytest.approx(single.results["deceptive_value"], abs=1e-9)
+    capsys.readouterr()
+    rows = experiments.sweep(world, "threshold", [0.5, 2], tmp_path / "t", show_progress=False)
+    assert [r["threshold"] for r in rows] == [0.5, 2.0]
+    rows = experiments.sweep(world, "rationality", [1, 20.0], tmp_path / "r", show_progress=False)
+    assert [r["rationality"] for r in rows] == [1.0, 20.0]
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("parameter, values, key, fragment", [
+    ("slip", [0.1], "--param", "unknown parameter 'slip'"),
+    ("window", [0], "--values", "window value 0 must be an integer >= 1"),
+    ("window", ["two"], "--values", "is not an integer >= 1"),
+    ("delay", [-1], "--values", "delay value -1 must be an integer >= 0"),
+    ("delay", [1.5], "--values", "must be an integer"),
+    ("delay", [True], "--values", "must be an integer"),
+    ("threshold", [0], "--values", "must be a number > 0"),
+    ("threshold", ["nan"], "--values", "must be a number > 0"),
+    ("rationality", [-2.0], "--values", "must be a number > 0"),
+    ("delay", [], "--values", "at least one value"),
+    ("delay", [1, "1"], "--values", "repeated"),
+])
+def test_sweep_rejects_bad_parameters(tmp_path: Path, parameter, values, key, fragment) -> None:
+    world = load_world(WORLD2)
+    with pytest.raises(InputError) as caught:
+        experiments.sweep(world, parameter, values, tmp_path / "out", show_progress=False)
+    assert caught.value.key == key and caught.value.file == "command line"
+    assert fragment in caught.value.reason
+    assert not (tmp_path / "out").exists()
+
+
+def test_bad_initial_traps_in_the_file_are_reported_when_sweeping_delay(tmp_path: Path) -> None:
+    text = SMALL.replace("hypotheses = [", "initial_traps = [[1, 1]]\nhypotheses = [")
+    world = load_world(write_world(tmp_path, "bad", text))    # ignored while delay = 0
+    with pytest.raises(InputError) as caught:
+        experiments.sweep(world, "delay", [0, 1], tmp_path / "out", show_progress=False)
+    assert caught.value.key == "adversary.initial_traps"
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# detection (SPEC §9)
+# ---------------------------------------------------------------------------------------------
+
+def strategy(result: pipeline.CheckResult) -> Strategy:
+    return Strategy.from_records(result.records, result.analysis.ts,
+                                 fallback=leader_fallback(result.analysis))
+
+
+def test_no_false_alarm_when_p2_follows_the_model(world2) -> None:
+    summary, batch = experiments.detection_batch(world2.analysis, strategy(world2), 300, 200, 0,
+                                                 alpha=0.05, epsilon=0.01, keep_steps=True)
+    assert batch.rejections(300) == [None] * 300
+    assert summary.off_record_steps == 0 and not batch.unpredicted and not batch.diverged
+    steps = [s for episode in batch.steps.values() for s in episode]
+    assert len(steps) == int(summary.lengths.sum())          # every transition was observed
+    assert all(s.statistic < s.threshold for s in steps if s.threshold is not None)
+
+
+def test_detection_when_p2_plays_at_random_from_step_1(world2) -> None:
+    ts = world2.analysis.ts
+    summary, batch = experiments.detection_batch(
+        world2.analysis, strategy(world2), 300, 200, 0, alpha=0.05, epsilon=0.01,
+        p2_policy=deviating_policy(ts, 0), keep_steps=True)
+    rejections = batch.rejections(300)
+    detected = [e for e in range(300) if rejections[e] is not None]
+    assert len(detected) >= 0.9 * 300
+    assert len([e for e in batch.unpredicted if e in batch.first_rejection]) >= 0.95 * len(batch.unpredicted)
+    for episode, records in batch.records.items():
+        first = records[0]
+        if first.n_a2 > 1 and first.a2 != first.predicted_a2:
+            # one unpredicted action: G = 2 ln(2 / epsilon) = 10.6 > chi2(0.95, 1) = 3.84
+            assert rejections[episode] == 1
+        if episode not in batch.unpredicted:
+            assert rejections[episode] is None     # P2 happened to play the prediction
+    again = experiments.detection_batch(world2.analysis, strategy(world2), 300, 200, 0, alpha=0.05,
+                                        epsilon=0.01, p2_policy=deviating_policy(ts, 0))
+    assert again[1].rejections(300) == rejections and (again[0].outcomes == summary.outcomes).all()
+
+
+def test_detection_experiment_writes_a_consistent_report(world2, tmp_path: Path) -> None:
+    world = world2.analysis.world
+    k = world.detection.deviate_after
+    result = experiments.detection_experiment(world, world2, tmp_path, episodes=200,
+                                              show_progress=False)
+    assert json.loads((tmp_path / "detection.json").read_text()) == json.loads(json.dumps(result))
+    assert (tmp_path / "detection.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    seeded = result["seeded_episode"]
+    assert seeded["seed"] >= world.simulation.seed
+    assert seeded["steps"] == len(seeded["per_step"]) > k + experiments.STEPS_AFTER_DEVIATION
+    assert all(s["predicted_traps"] == s["played_traps"] for s in seeded["per_step"][:k])
+    first = next((s["n"] for s in seeded["per_step"] if s["rejected"]), None)
+    assert seeded["detected_at"] == first
+    assert first is None or first > k
+
+    dev = result["deviation"]
+    assert dev["episodes"] == 200 == dev["detected"] + dev["not_detected"]
+    assert sum(dev["histogram"].values()) == dev["detected"]
+    assert dev["detected_before_deviation"] == 0
+    assert all(int(n) > k for n in dev["histogram"])
+    assert dev["share_not_detected"] == pytest.approx(dev["not_detected"] / 200)
+
+    comp = result["compliant"]
+    assert comp["false_alarms"] == 0 and comp["false_alarm_rate"] == 0.0
+    assert comp["completion"]["off_record_steps"] == 0
+    assert 0 < comp["max_cusum_score"] < world.threshold
+
+    reference = result["model_mismatch"]["reference"]["completion"]
+    variants = result["model_mismatch"]["variants"]
+    assert [v["p2_inference"] for v in variants[:4]] == [
+        f"window {world.window + 1}", f"window {world.window - 1}",
+        f"threshold {world.threshold / 2:.4g}", f"threshold {world.threshold * 2:.4g}"]
+    for v in variants:
+        c = v["completion"]
+        assert c["ci95"][0] <= c["rate"] <= c["ci95"][1]
+        assert 0.0 <= v["detection_rate"] <= 1.0
+        if v["episodes_with_unpredicted_traps"] == 0:
+            # P2 never played differently: the very same episodes (same seed), never detected
+            assert v["detection_rate"] == 0.0 and c == reference
+    # the threshold below every score P1 lets P2 reach makes P2 change her mind
+    hasty = variants[-1]
+    assert hasty["p2_threshold"] == pytest.approx(comp["max_cusum_score"] / 2)
+    assert hasty["episodes_with_hypothesis_divergence"] > 0
+
+    text = "\n".join(experiments.summary_lines(detection=result))
+    assert "seeded episode (seed" in text and "false alarms when P2 follows the model: 0/200" in text
+
+
+def test_detection_experiment_rejects_bad_options(world2, tmp_path: Path) -> None:
+    world = world2.analysis.world
+    for options, key in (({"episodes": 0}, "--episodes"), ({"seed": -1}, "--seed"),
+                         ({"horizon": 0}, "--horizon")):
+        with pytest.raises(InputError) as caught:
+            experiments.detection_experiment(world, world2, tmp_path / "out", show_progress=False,
+                                             **options)
+        assert caught.value.key == key
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError):
+        experiments.detect(world, tmp_path / "out", episodes=0, show_progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: Path) -> None:
+    world = load_world(write_world(tmp_path, "small", SMALL))
+    result = experiments.detect(world, tmp_path / "out", episodes=50, show_progress=False)
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["detection.json",
+                                                                     "detection.png"]
+    assert result["compliant"]["false_alarms"] == 0
