@@ -8,6 +8,8 @@ import math
 from collections import deque
 from pathlib import Path
 
+import sys
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -253,6 +255,15 @@ def test_progress_bar_goes_to_stderr_and_can_be_disabled(world1, capsys) -> None
     strategy = strategy_of(world1)
     simulate_deceptive(world1.analysis, strategy, 1000, 50, 0, progress=False)
     assert capsys.readouterr().err == ""
+    # Not a terminal (pytest captures stderr): one final line, no redrawing.
+    simulate_deceptive(world1.analysis, strategy, 1000, 50, 0, progress=True)
+    err = capsys.readouterr().err
+    assert "1000 episodes" in err and err.count("\r") == 0 and err.count("\n") == 1
+
+
+def test_progress_bar_redraws_on_a_terminal(world1, capsys, monkeypatch) -> None:
+    strategy = strategy_of(world1)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
     simulate_deceptive(world1.analysis, strategy, 1000, 50, 0, progress=True)
     err = capsys.readouterr().err
     assert "1000/1000" in err and 2 <= err.count("\r") <= 25
