@@ -25,8 +25,9 @@ from hg2prism.errors import SolverError
 TIE = 1e-6              # P2's tie tolerance between trap sets (SPEC §4)
 # Value iteration only has to get the strategies nearly right: strategy iteration then
 # evaluates them exactly, so it stops early and leaves the precision to the linear solves.
-VI_TOLERANCE = 1e-8
+VI_TOLERANCE = 1e-4
 MAX_SWEEPS = 1_000_000
+POLISH_ROUNDS = 12
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,7 +140,7 @@ def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Greedy strategies for both players from v, evaluated exactly and polished; the exact
     values and the strategies (P1's, P2's) if certified (see the module docstring), else None."""
-    for _ in range(3):
+    for _ in range(POLISH_ROUNDS):
         q = game.q_values(v)                                          # [G, 4, A2]
         best_a1 = q.max(axis=1)                                       # [G, A2]
         p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
@@ -156,7 +157,8 @@ def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
         residual = np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0)
         if residual <= 1e-11 and _certified(game, p1, x):
             return x, p1, p2
-        v, optimal_slack = x, 1e-9
+        # From exact values of a pair, only float noise separates truly optimal moves.
+        v, optimal_slack = x, 1e-12
     return None
 
 
