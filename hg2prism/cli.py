@@ -6,8 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from hg2prism import sizeguard
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.outputs import staged
+from hg2prism.storm import STORM_METHODS
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -34,6 +36,14 @@ def main(argv: list[str] | None = None) -> int:
         p = add(name, help + " OUT defaults to the folder next to the world file named after it "
                 "(models/world1.toml -> models/world1/).")
         p.add_argument("--out", metavar="OUT", help="output folder")
+        p.add_argument("--max-states", type=int, metavar="N",
+                       help="refuse worlds whose estimated hypergame size exceeds N "
+                            f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+        if name != "emit":
+            p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
+                           help="sound (default, SPEC §10: sound value iteration, precision "
+                                "1e-10) or fast (plain value iteration to 1e-12, not sound; "
+                                "for large benchmark models)")
         if name == "run":
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
@@ -67,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
         from hg2prism import experiments, pipeline, report
 
         out = _out_dir(Path(args.world), args.out)
+        if getattr(args, "max_states", None) is not None or args.command in ("emit", "check", "run"):
+            sizeguard.check_size(world, getattr(args, "max_states", None))
         if args.command in ("run", "detect"):
             for option in ("episodes", "horizon"):
                 if getattr(args, option) is not None and getattr(args, option) < 1:
@@ -79,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                 pipeline.emit(world, stage)
                 results = None
             elif args.command == "check":
-                results = pipeline.check(world, stage).results
+                results = pipeline.check(world, stage, args.storm_method).results
             elif args.command == "sweep":
                 rows = experiments.sweep(world, args.param, args.values, stage)
                 results, table = None, "\n".join(
@@ -88,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
                 detection = experiments.detect(world, stage, args.episodes, args.seed, args.horizon)
                 results, table = None, "\n".join(experiments.detection_summary_lines(detection))
             else:
-                result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed)
+                result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
+                                      storm_method=args.storm_method)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
         print(report.summary(results, out, files) if results else report.written(out, files))

@@ -88,11 +88,11 @@ class CheckResult:
     results: dict
 
 
-def check(world: World, out: Path) -> CheckResult:
+def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     analysis = analyse(world)
     prism = generate(analysis, out)
-    progress("storm: building and checking " + PROPERTY)
-    checked = storm.check(out / "hypergame.prism", PROPERTY)
+    progress(f"storm: building and checking {PROPERTY} ({storm_method})")
+    checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method)
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
     moves = storm.transitions(checked.model)
@@ -106,6 +106,7 @@ def check(world: World, out: Path) -> CheckResult:
         "world_file": str(world.path),
         "hg2prism_version": __version__,
         "deceptive_value": checked.value,
+        "storm_method": storm_method,
         "v_lead": analysis.v_lead,
         "states": states,
         "transitions": transitions,
@@ -135,7 +136,8 @@ class RunResult:
 
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
-        seed: int | None = None, show_progress: bool = True) -> RunResult:
+        seed: int | None = None, show_progress: bool = True,
+        storm_method: str = "sound") -> RunResult:
     """Everything computed for a world: the check, the baselines (SPEC §7), the PRISM-games
     exports, the online simulations (SPEC §8), the completion table and the world picture."""
     from hg2prism import baselines, games_export, plots, report, simulation
@@ -143,7 +145,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
     seed = world.simulation.seed if seed is None else seed
-    checked = check(world, out)
+    checked = check(world, out, storm_method)
     analysis, timings = checked.analysis, checked.analysis.timings
 
     with _timed(timings, "exports"):
