@@ -20,6 +20,9 @@ world2: $(STAMP)
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
 	$(BIN)/hg2prism detect models/world2.toml
 
+bench: $(STAMP)
+	$(BIN)/hg2prism bench --out bench
+
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 

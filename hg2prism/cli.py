@@ -65,6 +65,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
     p.add_argument("--seed", type=int, help="random seed (default: the world's)")
 
+    sub.add_parser("bench", add_help=False,
+                   help="Scaling benchmark: worlds of growing size through every stage; writes "
+                        "bench/results.csv and bench/scaling.png (see `hg2prism bench --help`).")
+
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["bench"]:
+        from hg2prism import bench
+
+        return bench.main(argv[1:])
     args = parser.parse_args(argv)
     try:
         from hg2prism import world as world_mod
