@@ -116,10 +116,9 @@ def _cell_map(world: World, ts: TransitionSystem) -> list[str]:
 
 def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
                 inference: InferenceModel) -> PrismModel:
-    n_cells, n_sets, n_q = ts.n_cells, ts.n_sets, task.n_states
+    n_cells, n_sets = ts.n_cells, ts.n_sets
     trapped = n_cells
     cell_key = [("cell", 0)]
-    cells_plus = np.arange(n_cells + 1)
 
     # Robot dynamics tables.
     moves = {a: lookup(np.append(ts.move[:, d], trapped), cell_key) for d, a in enumerate(ACTIONS)}
