@@ -1,51 +1,148 @@
-"""Scaling benchmark (`hg2prism bench`): a family of generated worlds of growing size, each run
-through every stage with its time, Storm's sizes and the peak memory."""
+"""Scaling benchmark (`hg2prism bench`, `make bench`): a family of generated worlds of growing
+size, each run through every stage of `hg2prism check` in its own process, with the time of each
+stage, Storm's sizes and the peak memory. Writes OUT/results.csv and OUT/scaling.png.
+
+The worlds share one 12 x 12 core — the regions A-E, eight trap candidates next to them and a
+few walls and obstacles, fixed — in the top right corner of a side x side field of open cells
+with scattered walls and obstacles; the robot starts in the opposite corner. The core is where
+the game is decided (deceptive value 0.7103 against v_lead 0 for window 3, 0.64 for windows 1
+and 2: P2 switches between every hypothesis she can, and knowing the task she would trap P1
+for sure), so the value stays the same while the field, and with it the hypergame, grows: the
+canonical size is about (free cells) x (hypotheses) x (windows of P1's last moves).
+"""
 
 from __future__ import annotations
 
+import csv
+import io
+import math
+import multiprocessing
+import os
 import random
+import resource
+import sys
+import time
+import traceback
+from collections import deque
+from pathlib import Path
 
-REGIONS = "ABCDE"
 HYPOTHESIS_POOL = ("!obs U A", "!obs U B", "!obs U C", "!obs U D", "!obs U E")
+TASK = "(!obs U A) & (!(B | obs) U C)"
+
+# The core, top row first: P1 needs A and C (and must not touch B before C); traps stand next
+# to every region, so P2 blocks whichever region she believes in.
+CORE = (
+    "....#Ct..#..",
+    ".#..ott..o..",
+    "..#..tB...#.",
+    "........E...",
+    "........t...",
+    "..#.o.......",
+    ".#..........",
+    "....D....#..",
+    "....t.......",
+    ".....##.....",
+    ".........At#",
+    "...o...#t...",
+)
+CORE_SIZE = len(CORE)
+
+STAGES = ("games", "generate", "parse", "build", "check", "export")
+
+# (side, window, hypotheses, traps): small worlds with windows 1 and 2, varied hypotheses and
+# traps, then window 3 with a growing field up to about 1e6 canonical states.
+DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
+    (12, 1, 3, 1),
+    (24, 1, 5, 1),
+    (12, 2, 2, 1),
+    (12, 2, 3, 2),
+    (12, 2, 3, 1),
+    (20, 2, 4, 1),
+    (32, 2, 3, 1),
+    (12, 3, 3, 1),
+    (12, 3, 5, 2),
+    (16, 3, 3, 1),
+    (20, 3, 4, 1),
+    (24, 3, 3, 1),
+    (28, 3, 3, 1),
+    (31, 3, 3, 1),
+)
+
+SLOPE_RANGE = (1e4, 1e6)
+WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
+
+COLUMNS = ("name", "side", "window", "hypotheses", "traps", "cells", "estimate", "states",
+           "transitions", "storm_states", "storm_transitions", "storm_choices",
+           "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
+           "time_write", "time_total", "time_python", "peak_mb", "error")
+
+
+def _connected(grid: list[list[str]]) -> bool:
+    side = len(grid)
+    free = {(r, c) for r in range(side) for c in range(side) if grid[r][c] != "#"}
+    first = next(iter(free))
+    seen, queue = {first}, deque([first])
+    while queue:
+        r, c = queue.popleft()
+        for n in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
+            if n in free and n not in seen:
+                seen.add(n)
+                queue.append(n)
+    return seen == free
 
 
 def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0,
-                candidates: int = 6) -> str:
-    """TOML text of a side x side open grid (plus border) with scattered walls and obstacles,
-    regions A-E, `candidates` trap cells, the paper's task and `hypotheses` subgoal hypotheses."""
+                candidates: int | None = None) -> str:
+    """TOML text of a side x side world (plus border): the fixed core in the top right corner,
+    the start in the bottom left one, 1/12 of the other cells walls and 1/25 obstacles
+    (none next to the start).
+
+    `hypotheses` (1-5) takes P2's candidate tasks from "!obs U A", "!obs U B", ... in that
+    order; `traps` (1-2) among the core's 8 candidates. `candidates` is accepted for
+    compatibility and ignored (the core fixes them)."""
+    if side < CORE_SIZE:
+        raise ValueError(f"side must be at least {CORE_SIZE} (the core)")
+    if not 1 <= hypotheses <= len(HYPOTHESIS_POOL):
+        raise ValueError(f"hypotheses must be in 1..{len(HYPOTHESIS_POOL)}")
     rng = random.Random(seed * 1000 + side)
-    grid = [["." for _ in range(side)] for _ in range(side)]
-    free = [(r, c) for r in range(side) for c in range(side)]
-    rng.shuffle(free)
-    start = free.pop()
-    grid[start[0]][start[1]] = "@"
-    for letter in REGIONS:
-        r, c = free.pop()
-        grid[r][c] = letter
-    for _ in range(candidates):
-        r, c = free.pop()
-        grid[r][c] = "t"
-    for _ in range(side * side // 12):
-        r, c = free.pop()
-        grid[r][c] = "#"
-    for _ in range(side * side // 25):
-        r, c = free.pop()
-        grid[r][c] = "o"
+    for _ in range(1000):
+        grid = [["." for _ in range(side)] for _ in range(side)]
+        for r, row in enumerate(CORE):
+            grid[r][side - CORE_SIZE:] = list(row)
+        start = (side - 1, 0)
+        grid[start[0]][start[1]] = "@"
+        # walls and obstacles anywhere but the core, its rim and the start's neighbourhood
+        field = [(r, c) for r in range(side) for c in range(side)
+                 if not (r <= CORE_SIZE and c >= side - CORE_SIZE - 1)
+                 and max(abs(r - start[0]), abs(c - start[1])) > 1]
+        rng.shuffle(field)
+        n_field = len(field)
+        for _ in range(n_field // 12):
+            r, c = field.pop()
+            grid[r][c] = "#"
+        for _ in range(n_field // 25):
+            r, c = field.pop()
+            grid[r][c] = "o"
+        if _connected(grid):
+            break
+    else:  # pragma: no cover - 1/12 walls essentially never disconnect the field
+        raise RuntimeError("could not generate a connected benchmark world")
     rows = ["#" * (side + 2)] + ["#" + "".join(row) + "#" for row in grid] + ["#" * (side + 2)]
     hyps = ", ".join(f'"{h}"' for h in HYPOTHESIS_POOL[:hypotheses])
-    return f'''name = "bench_s{side}_w{window}_x{hypotheses}_t{traps}"
+    newline = "\n"
+    return f'''name = "{world_name(side, window, hypotheses, traps)}"
 description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, {traps} trap(s)"
 
 [grid]
 map = """
-{chr(10).join(rows)}
+{newline.join(rows)}
 """
 
 [robot]
 slip = 0.1
 
 [task]
-formula = "(!obs U A) & (!(B | obs) U C)"
+formula = "{TASK}"
 
 [adversary]
 traps = {traps}
@@ -56,3 +153,213 @@ window = {window}
 threshold = 1.5
 rationality = 5.0
 '''
+
+
+def world_name(side: int, window: int, hypotheses: int, traps: int) -> str:
+    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}"
+
+
+# ---------------------------------------------------------------------------------------------
+# one world, in its own process
+# ---------------------------------------------------------------------------------------------
+
+def _measure(world_path: Path, out: Path) -> dict:
+    """Runs `pipeline.check` on one world (in the calling process) and returns its row."""
+    from hg2prism import pipeline, sizeguard
+    from hg2prism.world import load_world
+
+    world = load_world(world_path)
+    estimate = sizeguard.estimate_states(world)
+    start = time.perf_counter()
+    result = pipeline.check(world, out)
+    total = time.perf_counter() - start
+    res = result.results
+    timings = res["timings"]
+    row = {
+        "cells": result.analysis.ts.n_cells,
+        "estimate": estimate,
+        "states": res["states"], "transitions": res["transitions"],
+        "storm_states": res["storm_states"], "storm_transitions": res["storm_transitions"],
+        "storm_choices": res["storm_choices"],
+        "deceptive_value": res["deceptive_value"], "v_lead": res["v_lead"],
+        "time_total": total,
+    }
+    for stage in STAGES:
+        row[f"time_{stage}"] = float(timings.get(stage, 0.0))
+    # Whatever check() spends outside its timed stages (writing the JSON outputs).
+    row["time_write"] = max(0.0, total - sum(row[f"time_{s}"] for s in STAGES))
+    row["time_python"] = row["time_games"] + row["time_generate"] + row["time_export"] + row["time_write"]
+    row["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return row
+
+
+def _child(world_path: str, out: str, connection, quiet: bool) -> None:
+    try:
+        if quiet:
+            devnull = open(os.devnull, "w")
+            os.dup2(devnull.fileno(), 2)
+            sys.stderr = devnull
+        connection.send(("ok", _measure(Path(world_path), Path(out))))
+    except BaseException as err:  # reported in the row, the benchmark goes on
+        connection.send(("error", f"{type(err).__name__}: {err}\n{traceback.format_exc()}"))
+    finally:
+        connection.close()
+
+
+def measure_world(world_path: Path, out: Path, timeout: float = WORLD_TIMEOUT,
+                  quiet: bool = True) -> dict:
+    """`_measure` in a forked child process, so that the peak memory is this world's alone."""
+    context = multiprocessing.get_context("fork")
+    receive, send = context.Pipe(duplex=False)
+    process = context.Process(target=_child, args=(str(world_path), str(out), send, quiet))
+    process.start()
+    send.close()
+    status, payload = "error", f"no result within {timeout:.0f} s"
+    if receive.poll(timeout):
+        try:
+            status, payload = receive.recv()
+        except EOFError:
+            status, payload = "error", "the process ended without a result (out of memory?)"
+    process.join(5)
+    if process.is_alive():
+        process.kill()
+        process.join()
+    if status == "error":
+        return {"error": str(payload).strip().splitlines()[-1] if payload else "failed",
+                "traceback": payload}
+    return payload
+
+
+# ---------------------------------------------------------------------------------------------
+# the family
+# ---------------------------------------------------------------------------------------------
+
+def loglog_slope(rows: list[dict], low: float = SLOPE_RANGE[0], high: float = SLOPE_RANGE[1],
+                 column: str = "time_total") -> float | None:
+    """Least-squares slope of log(time) against log(states) over rows with low <= states <= high."""
+    points = [(math.log(r["states"]), math.log(r[column])) for r in rows
+              if not r.get("error") and low <= r["states"] <= high and r.get(column, 0) > 0]
+    if len(points) < 2:
+        return None
+    mx = sum(x for x, _ in points) / len(points)
+    my = sum(y for _, y in points) / len(points)
+    sxx = sum((x - mx) ** 2 for x, _ in points)
+    if sxx == 0:
+        return None
+    return sum((x - mx) * (y - my) for x, y in points) / sxx
+
+
+def _line(row: dict) -> str:
+    if row.get("error"):
+        return f"{row['name']:<24} FAILED: {row['error']}"
+    stages = " ".join(f"{s} {row[f'time_{s}']:6.2f}" for s in STAGES)
+    return (f"{row['name']:<24} {row['states']:>9,} states (estimate {row['estimate']:>9,}) "
+            f"value {row['deceptive_value']:.4f} | {stages} write {row['time_write']:6.2f} | "
+            f"total {row['time_total']:7.2f} s, python {row['time_python']:6.2f} s, "
+            f"peak {row['peak_mb']:6.0f} MB")
+
+
+def _format(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}" if abs(value) < 1e-3 or abs(value) >= 1e6 else f"{value:.4f}"
+    return "" if value is None else str(value)
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    from hg2prism.outputs import write_text
+
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for row in rows:
+        writer.writerow([_format(row.get(c)) for c in COLUMNS])
+    write_text(path, buffer.getvalue())
+
+
+def summary(rows: list[dict]) -> str:
+    """The closing lines: slope, the largest world, Python stages against Storm's build."""
+    good = [r for r in rows if not r.get("error")]
+    lines = []
+    slope = loglog_slope(good)
+    lo, hi = SLOPE_RANGE
+    lines.append(f"log-log slope of total time against states ({lo:.0e}..{hi:.0e}): "
+                 + ("n/a (fewer than two worlds in range)" if slope is None else f"{slope:.3f}"))
+    if good:
+        top = max(good, key=lambda r: r["states"])
+        lines.append(f"largest world {top['name']}: {top['states']:,} states end to end in "
+                     f"{top['time_total']:.1f} s (build {top['time_build']:.1f} s, Python stages "
+                     f"{top['time_python']:.1f} s), peak memory {top['peak_mb']:.0f} MB "
+                     f"({top['peak_mb'] * 2 ** 20 / top['states']:.0f} bytes per state)")
+        ranged = [r for r in good if r["states"] >= lo]
+        slower = [r["name"] for r in ranged if r["time_python"] > r["time_build"]]
+        lines.append(f"Python stages (games + generate + export + write) within Storm's build, "
+                     f"worlds of {lo:.0e} states or more: "
+                     + ("all" if not slower else "not for " + ", ".join(slower)))
+        ratios = [r["estimate"] / r["states"] for r in good if r["states"]]
+        lines.append(f"size estimate / canonical states: {min(ratios):.2f} .. {max(ratios):.2f}")
+    failed = [r["name"] for r in rows if r.get("error")]
+    if failed:
+        lines.append("failed: " + ", ".join(failed))
+    return "\n".join(lines)
+
+
+def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
+              keep_outputs: bool = False) -> list[dict]:
+    """Runs every world of `sizes` ((side, window, hypotheses, traps) each) through
+    `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
+    writes out_dir/results.csv and out_dir/scaling.png and prints the summary.
+
+    The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
+    and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed."""
+    from hg2prism.outputs import write_text
+
+    out_dir = Path(out_dir)
+    rows: list[dict] = []
+    if show_progress:
+        print(f"hg2prism bench: {len(sizes)} worlds, each in its own process "
+              f"(times in seconds; 'write' is check's JSON output outside the timed stages)",
+              flush=True)
+    for side, window, hypotheses, traps in sizes:
+        name = world_name(side, window, hypotheses, traps)
+        world_path = out_dir / "worlds" / f"{name}.toml"
+        write_text(world_path, bench_world(side, window, hypotheses, traps))
+        run_dir = out_dir / "runs" / name
+        row = {"name": name, "side": side, "window": window, "hypotheses": hypotheses,
+               "traps": traps}
+        row.update(measure_world(world_path, run_dir))
+        if not keep_outputs:
+            (run_dir / "strategy.json").unlink(missing_ok=True)
+        rows.append(row)
+        if show_progress:
+            print(_line(row), flush=True)
+    write_csv(rows, out_dir / "results.csv")
+    good = [r for r in rows if not r.get("error")]
+    if good:
+        from hg2prism.plots import scaling_figure   # after the children: keeps them small
+
+        scaling_figure(good, STAGES, out_dir / "scaling.png")
+    if show_progress:
+        print(summary(rows), flush=True)
+        print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'}", flush=True)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default="bench", help="output folder (default: bench)")
+    parser.add_argument("--quick", action="store_true",
+                        help="only the worlds below 2e5 states (about a minute)")
+    parser.add_argument("--keep-outputs", action="store_true",
+                        help="keep every world's strategy.json")
+    args = parser.parse_args(argv)
+    sizes = DEFAULT_SIZES
+    if args.quick:
+        sizes = tuple(s for s in DEFAULT_SIZES if s[1] < 3 or s[0] <= 12)
+    run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from contextlib import contextmanager
@@ -121,7 +122,9 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
         },
         "timings": {k: round(v, 4) for k, v in analysis.timings.items()},
     }
-    write_json(out / "strategy.json", records)
+    # One record per line: compact for millions of states, still easy to grep and diff.
+    write_text(out / "strategy.json",
+               "[\n" + ",\n".join(json.dumps(r, separators=(",", ":")) for r in records) + "\n]\n")
     write_json(out / "results.json", results)
     progress(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
