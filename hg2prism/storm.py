@@ -139,11 +139,39 @@ def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA
     key = np.column_stack([cell, traps, countdown, q, hypothesis, window.reshape(model.nr_states, -1)])
     key[goal] = -2
     key[fail] = -3
-    _, canonical = np.unique(key, axis=0, return_inverse=True)
-    canonical = canonical.reshape(-1)
+    canonical = _dense_ids(_row_keys(key))
     return DecodedStates(cell=cell, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
                          window=window, goal=goal, fail=fail, canonical=canonical,
                          n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
+
+
+def _row_keys(rows: np.ndarray) -> np.ndarray:
+    """One integer per row, equal exactly when the rows are equal: sorting one column is far
+    faster than np.unique(axis=0) on millions of rows."""
+    shifted = rows - rows.min(axis=0)
+    radix = shifted.max(axis=0) + 1
+    if np.sum(np.log2(radix.astype(float))) < 62:
+        key = np.zeros(len(rows), dtype=np.int64)
+        for column, base in zip(shifted.T, radix):
+            key = key * int(base) + column
+        return key
+    _, inverse = np.unique(rows, axis=0, return_inverse=True)   # keys too wide for int64
+    return inverse.reshape(-1)
+
+
+def _dense_ids(keys: np.ndarray) -> np.ndarray:
+    """0..n-1 numbering of the distinct keys, in key order (np.unique's inverse, by sorting:
+    numpy 2.4's np.unique is many times slower on millions of keys)."""
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    ids = np.empty(len(keys), dtype=np.int64)
+    ids[order] = np.cumsum(np.r_[True, ordered[1:] != ordered[:-1]]) - 1
+    return ids
+
+
+def _count_distinct(keys: np.ndarray) -> int:
+    ordered = np.sort(keys)
+    return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
 
 
 def _label_mask(model: object, label: str) -> np.ndarray:
@@ -223,7 +251,7 @@ def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int
     keep = ~absorbing[src] & (moves.probability > 0)
     triples = np.column_stack([decoded.canonical[src[keep]], moves.action[choice_of_entry[keep]],
                                decoded.canonical[moves.target[keep]]])
-    n_triples = len(np.unique(triples, axis=0)) if len(triples) else 0
+    n_triples = _count_distinct(_row_keys(triples)) if len(triples) else 0
     loops = int(decoded.goal.any()) + int(decoded.fail.any())
     return decoded.n_canonical, n_triples + loops
 
@@ -286,18 +314,20 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     slot = np.searchsorted(opt_choices, k_choice)
     group_start = np.flatnonzero(np.r_[True, np.diff(source_c[opt_choices]) != 0])
     group_state = source_c[opt_choices[group_start]]
+    reached = k_prob * goal[k_target]                                 # constant part of the gain
+    onward = k_prob * DISCOUNT * ~goal[k_target]
+    reached_per_choice = np.bincount(slot, weights=reached, minlength=len(opt_choices))
     w = np.zeros(n_canonical)
     for _ in range(MAX_DISCOUNT_SWEEPS):
-        gain = k_prob * np.where(goal[k_target], 1.0, DISCOUNT * w[k_target])
-        per_choice = np.bincount(slot, weights=gain, minlength=len(opt_choices))
+        per_choice = reached_per_choice + np.bincount(slot, weights=onward * w[k_target],
+                                                      minlength=len(opt_choices))
         new = np.zeros(n_canonical)
         new[group_state] = np.maximum.reduceat(per_choice, group_start)
-        if np.abs(new - w).max() < 1e-12:
-            w = new
-            break
+        done = np.abs(new - w).max() < 1e-9   # enough to rank the moves
         w = new
-    soon = np.bincount(k_choice, weights=k_prob * np.where(goal[k_target], 1.0, DISCOUNT * w[k_target]),
-                       minlength=len(moves.source))
+        if done:
+            break
+    soon = np.bincount(k_choice, weights=reached + onward * w[k_target], minlength=len(moves.source))
     score = np.where(optimal, soon, -1.0)
     score[moves.action < 0] = -2.0
     # Best choice per Storm state's row group (representatives' choices; others copy them).
@@ -336,16 +366,25 @@ def strategy_records(decoded: DecodedStates, strategy: Strategy, moves: Transiti
                      ts: TransitionSystem) -> list[dict]:
     """P1's deceptive strategy: one record per reachable non-absorbing canonical state."""
     records = []
-    for s in strategy.representative:
-        s = int(s)
-        if decoded.goal[s] or decoded.fail[s]:
+    described: dict[int, dict] = {}     # a few hundred TS states describe millions of records
+
+    def describe(state: int) -> dict:
+        if state not in described:
+            described[state] = ts.describe_state(state)
+        return dict(described[state])
+
+    cells, traps, countdowns = decoded.cell.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
+    qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
+    windows = decoded.window.tolist()
+    chosen = moves.action[strategy.choice].tolist()
+    absorbing = (decoded.goal | decoded.fail).tolist()
+    for s in strategy.representative.tolist():
+        if absorbing[s]:
             continue
-        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
-        record = ts.describe_state(state)
-        record["q"] = int(decoded.q[s])
-        record["hypothesis"] = int(decoded.hypothesis[s])
-        record["window"] = [dict(ts.describe_state(int(v)), action=ACTIONS[int(a)])
-                            for v, a in decoded.window[s] if v >= 0]
-        record["action"] = ACTIONS[int(moves.action[strategy.choice[s]])]
+        record = describe(ts.state(cells[s], traps[s], countdowns[s]))
+        record["q"] = qs[s]
+        record["hypothesis"] = hypotheses[s]
+        record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
+        record["action"] = ACTIONS[chosen[s]]
         records.append(record)
     return records
