@@ -71,7 +71,8 @@ DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
 SLOPE_RANGE = (1e4, 1e6)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
 
-COLUMNS = ("name", "side", "window", "hypotheses", "traps", "cells", "estimate", "states",
+COLUMNS = ("name", "side", "window", "hypotheses", "traps", "storm_method", "cells", "estimate",
+           "states",
            "transitions", "storm_states", "storm_transitions", "storm_choices",
            "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
            "time_write", "time_total", "time_python", "peak_mb", "error")
@@ -131,7 +132,8 @@ def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int =
     hyps = ", ".join(f'"{h}"' for h in HYPOTHESIS_POOL[:hypotheses])
     newline = "\n"
     return f'''name = "{world_name(side, window, hypotheses, traps)}"
-description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, {traps} trap(s)"
+description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, \
+{traps} trap(s)"
 
 [grid]
 map = """
@@ -163,7 +165,7 @@ def world_name(side: int, window: int, hypotheses: int, traps: int) -> str:
 # one world, in its own process
 # ---------------------------------------------------------------------------------------------
 
-def _measure(world_path: Path, out: Path) -> dict:
+def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     """Runs `pipeline.check` on one world (in the calling process) and returns its row."""
     from hg2prism import pipeline, sizeguard
     from hg2prism.world import load_world
@@ -171,7 +173,7 @@ def _measure(world_path: Path, out: Path) -> dict:
     world = load_world(world_path)
     estimate = sizeguard.estimate_states(world)
     start = time.perf_counter()
-    result = pipeline.check(world, out)
+    result = pipeline.check(world, out, storm_method)
     total = time.perf_counter() - start
     res = result.results
     timings = res["timings"]
@@ -188,30 +190,31 @@ def _measure(world_path: Path, out: Path) -> dict:
         row[f"time_{stage}"] = float(timings.get(stage, 0.0))
     # Whatever check() spends outside its timed stages (writing the JSON outputs).
     row["time_write"] = max(0.0, total - sum(row[f"time_{s}"] for s in STAGES))
-    row["time_python"] = row["time_games"] + row["time_generate"] + row["time_export"] + row["time_write"]
+    row["time_python"] = sum(row[f"time_{s}"] for s in ("games", "generate", "export", "write"))
     row["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return row
 
 
-def _child(world_path: str, out: str, connection, quiet: bool) -> None:
+def _child(world_path: str, out: str, storm_method: str, connection, quiet: bool) -> None:
     try:
         if quiet:
             devnull = open(os.devnull, "w")
             os.dup2(devnull.fileno(), 2)
             sys.stderr = devnull
-        connection.send(("ok", _measure(Path(world_path), Path(out))))
+        connection.send(("ok", _measure(Path(world_path), Path(out), storm_method)))
     except BaseException as err:  # reported in the row, the benchmark goes on
         connection.send(("error", f"{type(err).__name__}: {err}\n{traceback.format_exc()}"))
     finally:
         connection.close()
 
 
-def measure_world(world_path: Path, out: Path, timeout: float = WORLD_TIMEOUT,
-                  quiet: bool = True) -> dict:
+def measure_world(world_path: Path, out: Path, storm_method: str = "sound",
+                  timeout: float = WORLD_TIMEOUT, quiet: bool = True) -> dict:
     """`_measure` in a forked child process, so that the peak memory is this world's alone."""
     context = multiprocessing.get_context("fork")
     receive, send = context.Pipe(duplex=False)
-    process = context.Process(target=_child, args=(str(world_path), str(out), send, quiet))
+    process = context.Process(target=_child,
+                              args=(str(world_path), str(out), storm_method, send, quiet))
     process.start()
     send.close()
     status, payload = "error", f"no result within {timeout:.0f} s"
@@ -304,20 +307,22 @@ def summary(rows: list[dict]) -> str:
 
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
-              keep_outputs: bool = False) -> list[dict]:
+              keep_outputs: bool = False, storm_method: str = "sound") -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv and out_dir/scaling.png and prints the summary.
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
-    and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed."""
+    and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
+    `storm_method` is check's --storm-method: "sound" (SPEC §10) or "fast"."""
     from hg2prism.outputs import write_text
 
     out_dir = Path(out_dir)
     rows: list[dict] = []
     if show_progress:
         print(f"hg2prism bench: {len(sizes)} worlds, each in its own process "
-              f"(times in seconds; 'write' is check's JSON output outside the timed stages)",
+              f"with Storm method {storm_method!r} (times in seconds; 'write' is check's JSON "
+              f"output outside the timed stages)",
               flush=True)
     for side, window, hypotheses, traps in sizes:
         name = world_name(side, window, hypotheses, traps)
@@ -325,8 +330,8 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         write_text(world_path, bench_world(side, window, hypotheses, traps))
         run_dir = out_dir / "runs" / name
         row = {"name": name, "side": side, "window": window, "hypotheses": hypotheses,
-               "traps": traps}
-        row.update(measure_world(world_path, run_dir))
+               "traps": traps, "storm_method": storm_method}
+        row.update(measure_world(world_path, run_dir, storm_method))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
         rows.append(row)
@@ -353,11 +358,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="only the worlds below 2e5 states (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
+    parser.add_argument("--storm-method", choices=("sound", "fast"), default="sound",
+                        help="how Storm solves Pmax, as for `hg2prism check` (default: sound)")
     args = parser.parse_args(argv)
     sizes = DEFAULT_SIZES
     if args.quick:
         sizes = tuple(s for s in DEFAULT_SIZES if s[1] < 3 or s[0] <= 12)
-    run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs)
+    run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs,
+              storm_method=args.storm_method)
     return 0
 
 

@@ -1,0 +1,165 @@
+"""The size guard: an upper bound of the hypergame's canonical size, read off the world file.
+
+Before anything is built, `estimate_states(world)` bounds the number of canonical hypergame
+states (SPEC §6: the reachable states (v, q, M), goal states merged into one, failure states
+into another) from the world alone — the grid, the task's DFA and the parameters — without
+solving any game, and `check_size` refuses a world whose bound exceeds a limit.
+
+The bound (rigorous; every factor over-approximates one component of a canonical state):
+
+    estimate = X * P * sum_{L=0}^{w-1} sum_c Q(c) * N_L(c)  +  2
+
+  c        a free (non-wall) cell: the robot's cell in a non-absorbing state;
+  Q(c)     the DFA states q a non-absorbing canonical state can hold at cell c: q is
+           delta(q', label(c)) with q' the DFA's initial state or a non-absorbing state, and
+           q itself is neither accepting nor a sink (those states are the merged goal / fail);
+  X        the number of hypotheses (P2's current one);
+  P        (delay k > 0) the trap part of a TS state, |trap sets| * (k+1) pairs (standing set,
+           countdown); 1 when delay is 0 (the TS state is the cell);
+  L        the length of P2's window: she remembers the last min(steps since her last change,
+           w-1) observations (TS state, P1's action);
+  N_L(c)   the number of cell/action sequences (c_1,a_1),...,(c_L,a_L) that are walks ending
+           next to c: c_{i+1} is an outcome of a_i from c_i, and c an outcome of a_L from c_L
+           (outcomes: the intended move and, when slip > 0, the two perpendicular slips; walls
+           bounce). N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
+  2        the merged goal and failure states.
+
+Why P appears once, not once per observation: P2's window is emptied whenever she changes her
+hypothesis, so every observation in it was made under the current hypothesis x, and the trap
+set in force at each of those steps is a function of the TS state and x (the standing set while
+the countdown runs, pi2_x otherwise, SPEC §4). Given x, the trap part of the oldest observation
+and the walk of cells and actions, the trap parts of the later observations and of the current
+TS state are therefore determined. Consecutive observations are consecutive moves of one run,
+hence walks. The bound only over-counts what the hypergame never reaches (hypothesis/window
+pairs P2's inference never produces, walks cut short by traps and absorbing states, trap parts
+and DFA states that do not occur at a cell).
+
+Measured on the generated test worlds and the benchmark family, the bound is between 1.0 and
+about 7 times the real canonical size (tests/test_scale.py checks `real <= estimate <= 10 real`
+on a sample, README "Scale" gives the numbers).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+
+from hg2prism.errors import InputError
+from hg2prism.world import World
+
+# Memory of a whole `hg2prism check`, measured as peak resident memory over canonical states
+# on the benchmark family (bench/results.csv, `peak_mb`): about 2.5 KB per state at 1e6 states
+# (Storm's model with state valuations and choice labels, the arrays read back from Storm, the
+# strategy export). The default limit keeps a model within 24 GiB at 6 KB per estimated state,
+# a margin of more than 2x over what was measured.
+MEMORY_BUDGET = 24 * 2 ** 30
+BYTES_PER_STATE = 6 * 1024
+DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 4,194,304 estimated states
+
+# dynamics.py's directions (N, E, S, W) and the two perpendicular slips of each.
+_STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
+_PERPENDICULAR = ((1, 3), (0, 2), (1, 3), (0, 2))
+
+
+def _cells(world: World) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Free cells' coordinates (x, y), the cell each move reaches ([n, 4], walls bounce) and
+    the index of each grid position ([height, width], -1 on walls)."""
+    grid = world.grid
+    free = np.ones((grid.height, grid.width), dtype=bool)          # [y, x]
+    for x, y in grid.walls:
+        if 0 <= x < grid.width and 0 <= y < grid.height:
+            free[y, x] = False
+    ys, xs = np.nonzero(free)
+    index = np.full((grid.height, grid.width), -1, dtype=np.int64)
+    index[ys, xs] = np.arange(len(xs))
+    move = np.empty((len(xs), 4), dtype=np.int64)
+    for d, (dx, dy) in enumerate(_STEP):
+        nx, ny = xs + dx, ys + dy
+        inside = (nx >= 0) & (nx < grid.width) & (ny >= 0) & (ny < grid.height)
+        target = np.full(len(xs), -1, dtype=np.int64)
+        target[inside] = index[ny[inside], nx[inside]]
+        move[:, d] = np.where(target >= 0, target, np.arange(len(xs)))
+    return np.column_stack([xs, ys]), move, index
+
+
+def _labels(world: World, index: np.ndarray, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Label class of every free cell (as in dynamics.py), and the label class names."""
+    grid = world.grid
+    label = np.zeros(n, dtype=np.int64)
+    marked = [(cell, 1) for cell in grid.obstacles]
+    marked += [(cell, 2 + k) for k, (_, cells) in enumerate(grid.regions) for cell in cells]
+    for (x, y), k in marked:
+        if index[y, x] >= 0:
+            label[index[y, x]] = k
+    return label, ("", "obs") + grid.region_letters()
+
+
+def _dfa_states_per_label(world: World, label_names: tuple[str, ...]) -> np.ndarray:
+    """Q per label class: the non-absorbing DFA states delta(q', label), q' initial or
+    non-absorbing."""
+    from hg2prism.automata import translate
+
+    dfa = translate(world.formula, label_names)
+    absorbing = set(dfa.accepting) | set(dfa.sink)
+    before = sorted({dfa.initial} | (set(range(dfa.n_states)) - absorbing))
+    counts = np.zeros(len(label_names), dtype=np.int64)
+    for k in range(len(label_names)):
+        reached = {int(dfa.delta[q, k]) for q in before}
+        counts[k] = len(reached - absorbing)
+    return counts
+
+
+def trap_parts(world: World) -> int:
+    """P: the (standing trap set, countdown) pairs of a TS state; 1 when delay is 0."""
+    if world.delay == 0:
+        return 1
+    return math.comb(len(world.grid.trap_candidates), world.traps) * (world.delay + 1)
+
+
+def estimate_states(world: World) -> int:
+    """An upper bound of the hypergame's canonical size (see the module docstring)."""
+    coords, move, index = _cells(world)
+    n = len(coords)
+    label, label_names = _labels(world, index, n)
+    q_count = _dfa_states_per_label(world, label_names)[label]           # Q(c)
+    outcomes = [(d,) + (_PERPENDICULAR[d] if world.slip > 0 else ()) for d in range(4)]
+    # A[c', c] = number of actions a such that c' is an outcome of a from c (distinct outcomes).
+    rows, cols = [], []
+    for dirs in outcomes:
+        targets = np.column_stack([move[:, e] for e in dirs])             # [n, outcomes]
+        targets = np.sort(targets, axis=1)
+        distinct = np.ones(targets.shape, dtype=bool)
+        distinct[:, 1:] = targets[:, 1:] != targets[:, :-1]
+        src = np.repeat(np.arange(n)[:, None], targets.shape[1], axis=1)
+        rows.append(targets[distinct])
+        cols.append(src[distinct])
+
+    adjacency = sp.csr_matrix((np.ones(sum(len(r) for r in rows)),
+                               (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    walks = np.ones(n)                                                    # N_0
+    total = 0.0
+    for length in range(world.window):                                    # L = 0 .. w-1
+        if length:
+            walks = adjacency @ walks
+        total += float(np.dot(q_count, walks))
+    exact = total < 2 ** 52
+    total *= trap_parts(world) * len(world.hypotheses)
+    if exact and total < 2 ** 52:
+        return int(total) + 2
+    return math.ceil(total * (1 + 1e-9)) + 2
+
+
+def check_size(world: World, limit: int | None = None) -> int:
+    """The estimate, or InputError when it exceeds `limit` (default DEFAULT_LIMIT)."""
+    limit = DEFAULT_LIMIT if limit is None else limit
+    estimate = estimate_states(world)
+    if estimate > limit:
+        raise InputError(
+            str(world.path), "size",
+            f"the hypergame may have up to {estimate:,} states (estimated from the grid, the "
+            f"task's DFA, {len(world.hypotheses)} hypotheses and window {world.window}), more than "
+            f"the limit of {limit:,} that fits in memory; nothing was written. To build it "
+            f"anyway, pass --max-states {estimate}")
+    return estimate

@@ -1,0 +1,129 @@
+"""Scale: the size estimate bounds the real canonical size, the size guard refuses oversized
+worlds before anything is written, and the benchmark's machinery runs (timings themselves belong
+in `make bench`, not here)."""
+
+from __future__ import annotations
+
+import csv
+import functools
+import math
+from pathlib import Path
+
+import pytest
+
+import worldgen
+from conftest import MODELS
+from hg2prism import bench, cli, pipeline, sizeguard
+from hg2prism.errors import InputError
+from hg2prism.world import load_world
+
+# Observed estimate / canonical size on these worlds: 1.17 .. 4.43 (fam08, delay 2, window 3);
+# over the whole test family of 46 worlds it is 1.2 .. 52 (the largest ratios on tiny worlds
+# with delay > 0 where traps end most runs early), on the benchmark family 1.01 .. 2.1.
+FACTOR = 5
+
+FAMILY = dict(worldgen.world_family())
+FAMILY_SAMPLE = ["fam00_d0_l1_w1_x2", "fam04_d1_l1_w2_x2", "fam08_d2_l1_w3_x3",
+                 "fam15_d0_l2_w3_x2", "fam22_d1_l1_w2_x3", "fam33_d0_l2_w3_x3",
+                 "fam44_big_d0_l1_w3_x3", "fam45_big_d1_l1_w3_x3"]
+BENCH_SAMPLE = [(12, 2, 2, 1), (12, 2, 3, 2)]
+CASES = (["world1"] + FAMILY_SAMPLE
+         + [bench.world_name(*size) for size in BENCH_SAMPLE])
+
+
+@functools.cache
+def world_path(name: str, folder: str) -> Path:
+    if name == "world1":
+        return MODELS / "world1.toml"
+    if name in FAMILY:
+        text = FAMILY[name]
+    else:
+        size = next(s for s in BENCH_SAMPLE if bench.world_name(*s) == name)
+        text = bench.bench_world(*size)
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_estimate_bounds_the_canonical_size(name: str, world_dir: Path) -> None:
+    path = world_path(name, str(world_dir))
+    world = load_world(path)
+    estimate = sizeguard.estimate_states(world)
+    states = pipeline.check(world, world_dir / f"{name}_scale").results["states"]
+    assert states <= estimate <= FACTOR * states, (states, estimate)
+
+
+def test_estimate_is_cheap_on_a_huge_world(tmp_path: Path) -> None:
+    """A 300 x 300 world: no game is solved and no TS is built, the estimate is immediate."""
+    text = bench.bench_world(300, 3, 5, 2)
+    path = tmp_path / "huge.toml"
+    path.write_text(text)
+    estimate = sizeguard.estimate_states(load_world(path))
+    assert estimate > 10 * sizeguard.DEFAULT_LIMIT
+
+
+def test_default_limit_admits_the_benchmark(tmp_path: Path) -> None:
+    largest = max(bench.DEFAULT_SIZES, key=lambda s: (s[1], s[0]))
+    path = tmp_path / "largest.toml"
+    path.write_text(bench.bench_world(*largest))
+    world = load_world(path)
+    assert sizeguard.check_size(world) == sizeguard.estimate_states(world)
+
+
+def test_check_size_refuses_with_the_estimate_and_the_override() -> None:
+    world = load_world(MODELS / "world1.toml")
+    estimate = sizeguard.estimate_states(world)
+    assert sizeguard.check_size(world, estimate) == estimate        # at the limit: accepted
+    with pytest.raises(InputError) as caught:
+        sizeguard.check_size(world, 1000)
+    err = caught.value
+    assert err.file == str(world.path)
+    assert err.key == "size"
+    assert f"{estimate:,}" in err.reason and "1,000" in err.reason
+    assert f"--max-states {estimate}" in err.reason
+
+
+def test_guard_refuses_an_oversized_world_and_writes_nothing(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    world = MODELS / "world1.toml"
+    estimate = sizeguard.estimate_states(load_world(world))
+    status = cli.main(["check", str(world), "--out", str(out), "--max-states", "1000"])
+    captured = capsys.readouterr()
+    assert status == 2
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    line = lines[0]
+    assert line.startswith("hg2prism: error: ")
+    assert str(world) in line
+    assert ": size: " in line
+    assert f"{estimate:,}" in line
+    assert "--max-states" in line
+    assert captured.out == ""
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_loglog_slope() -> None:
+    rows = [{"states": n, "time_total": 2e-5 * n ** 1.05} for n in (1e4, 1e5, 1e6)]
+    rows.append({"states": 1e7, "time_total": 1.0})                  # outside the range
+    rows.append({"states": 5e4, "time_total": 1.0, "error": "x"})    # failed run
+    assert bench.loglog_slope(rows) == pytest.approx(1.05)
+    assert bench.loglog_slope(rows[:1]) is None
+
+
+def test_bench_writes_results_and_figure(tmp_path: Path) -> None:
+    sizes = [(12, 1, 2, 1), (12, 1, 3, 1)]
+    rows = bench.run_bench(tmp_path, sizes, show_progress=False)
+    assert [r["name"] for r in rows] == [bench.world_name(*s) for s in sizes]
+    assert not any(r.get("error") for r in rows), [r.get("traceback") for r in rows]
+    with open(tmp_path / "results.csv", newline="") as handle:
+        table = list(csv.DictReader(handle))
+    assert tuple(table[0]) == bench.COLUMNS
+    for row, saved in zip(rows, table):
+        assert int(saved["states"]) == row["states"] > 0
+        assert int(saved["estimate"]) >= row["states"]
+        assert float(saved["peak_mb"]) > 0
+        stages = sum(float(saved[f"time_{s}"]) for s in bench.STAGES) + float(saved["time_write"])
+        assert math.isclose(stages, float(saved["time_total"]), rel_tol=1e-2, abs_tol=1e-3)
+    assert (tmp_path / "scaling.png").stat().st_size > 0
+    assert (tmp_path / "worlds" / f"{rows[0]['name']}.toml").exists()
