@@ -342,7 +342,11 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
     if good:
         from hg2prism.plots import scaling_figure   # after the children: keeps them small
 
-        scaling_figure(good, STAGES, out_dir / "scaling.png")
+        slope = loglog_slope(good)
+        title = (f"hg2prism bench (Storm method {storm_method}): log-log slope of the total "
+                 f"{'n/a' if slope is None else f'{slope:.2f}'} over {SLOPE_RANGE[0]:.0e}.."
+                 f"{SLOPE_RANGE[1]:.0e} states")
+        scaling_figure(good, STAGES + ("write",), out_dir / "scaling.png", title)
     if show_progress:
         print(summary(rows), flush=True)
         print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'}", flush=True)

@@ -119,16 +119,25 @@ def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | N
     _save(fig, path)
 
 
-def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path) -> None:
-    """Time per stage against canonical states, log-log."""
-    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
+                   title: str | None = None) -> None:
+    """Time per stage against canonical states, log-log, with a slope-1 guide through the
+    largest world's total (a stage parallel to it grows linearly)."""
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
     rows = sorted(rows, key=lambda r: r["states"])
     xs = [r["states"] for r in rows]
     for stage in stages:
-        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-4) for r in rows], "o-", label=stage)
-    ax.loglog(xs, [r["time_total"] for r in rows], "k^-", lw=2, label="total")
+        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-3) for r in rows], "o-", ms=4, lw=0.8,
+                  alpha=0.85, label=stage)
+    totals = [r["time_total"] for r in rows]
+    ax.loglog(xs, totals, "k^-", lw=2, label="total")
+    if len(xs) >= 2 and xs[0] < xs[-1]:
+        ax.loglog([xs[0], xs[-1]], [totals[-1] * xs[0] / xs[-1], totals[-1]], "k:", lw=1,
+                  label="slope 1")
     ax.set_xlabel("hypergame states (canonical)")
-    ax.set_ylabel("seconds")
+    ax.set_ylabel("seconds (floor 1 ms)")
+    if title:
+        ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     _save(fig, path)

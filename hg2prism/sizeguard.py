@@ -34,9 +34,10 @@ hence walks. The bound only over-counts what the hypergame never reaches (hypoth
 pairs P2's inference never produces, walks cut short by traps and absorbing states, trap parts
 and DFA states that do not occur at a cell).
 
-Measured on the generated test worlds and the benchmark family, the bound is between 1.0 and
-about 7 times the real canonical size (tests/test_scale.py checks `real <= estimate <= 10 real`
-on a sample, README "Scale" gives the numbers).
+Measured (estimate / canonical size): 1.0-4.6 on the benchmark family (1.2 at 1e6 states);
+1.2-52 on the 46 generated test worlds, above 10 only on tiny worlds with delay > 0 where traps
+end most runs within a few steps; 1.76 on world1. tests/test_scale.py checks
+`real <= estimate <= 5 real` on a sample of them.
 """
 
 from __future__ import annotations
@@ -49,11 +50,12 @@ import scipy.sparse as sp
 from hg2prism.errors import InputError
 from hg2prism.world import World
 
-# Memory of a whole `hg2prism check`, measured as peak resident memory over canonical states
-# on the benchmark family (bench/results.csv, `peak_mb`): about 2.5 KB per state at 1e6 states
-# (Storm's model with state valuations and choice labels, the arrays read back from Storm, the
-# strategy export). The default limit keeps a model within 24 GiB at 6 KB per estimated state,
-# a margin of more than 2x over what was measured.
+# Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
+# the benchmark family (bench/results.csv, `peak_mb`): 2.3-2.5 KB per canonical state from 4e5
+# to 1e6 states (2,269 MB for 982,387 states: Storm's model with state valuations and choice
+# labels, the arrays read back from Storm, the strategy export). The default limit keeps a
+# model within 24 GiB at 6 KB per *estimated* state, a margin of 2.5x over what was measured on
+# top of the estimate's own (1.0-4.6x on that family).
 MEMORY_BUDGET = 24 * 2 ** 30
 BYTES_PER_STATE = 6 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 4,194,304 estimated states

@@ -19,7 +19,7 @@ from hg2prism.world import load_world
 
 # Observed estimate / canonical size on these worlds: 1.17 .. 4.43 (fam08, delay 2, window 3);
 # over the whole test family of 46 worlds it is 1.2 .. 52 (the largest ratios on tiny worlds
-# with delay > 0 where traps end most runs early), on the benchmark family 1.01 .. 2.1.
+# with delay > 0 where traps end most runs early), on the benchmark family 1.01 .. 4.6.
 FACTOR = 5
 
 FAMILY = dict(worldgen.world_family())
