@@ -42,7 +42,6 @@ class CheckedModel:
     model: object                  # stormpy sparse MDP
     value: float
     values: np.ndarray             # value of every Storm state
-    choices: np.ndarray            # scheduler: local choice index of every Storm state
     scheduler: object              # stormpy scheduler (for the DTMC it induces)
     timings: dict[str, float]      # parse, build, check
 
@@ -94,12 +93,10 @@ def _check(prism_path: Path, prop: str, environment: developer.Environment) -> C
                                     environment=environment)
     values = np.asarray(result.get_value_vector())
     scheduler = result.get_scheduler()
-    choices = np.array([scheduler.get_choice(s).get_deterministic_choice()
-                        for s in range(model.nr_states)], dtype=np.int64)
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
     return CheckedModel(model=model, value=float(values[initial]), values=values,
-                        choices=choices, scheduler=scheduler, timings=timings)
+                        scheduler=scheduler, timings=timings)
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,9 +246,10 @@ def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int
     choice_of_entry = np.repeat(np.arange(len(moves.source)), counts)
     src = moves.source[choice_of_entry]
     keep = ~absorbing[src] & (moves.probability > 0)
-    triples = np.column_stack([decoded.canonical[src[keep]], moves.action[choice_of_entry[keep]],
-                               decoded.canonical[moves.target[keep]]])
-    n_triples = _count_distinct(_row_keys(triples)) if len(triples) else 0
+    n = decoded.n_canonical   # one integer per (state, action, successor): n*n*5 < 2**63
+    key = ((decoded.canonical[src[keep]] * 5 + moves.action[choice_of_entry[keep]] + 1) * n
+           + decoded.canonical[moves.target[keep]])
+    n_triples = _count_distinct(key)
     loops = int(decoded.goal.any()) + int(decoded.fail.any())
     return decoded.n_canonical, n_triples + loops
 

@@ -55,8 +55,8 @@ def test_estimate_bounds_the_canonical_size(name: str, world_dir: Path) -> None:
 
 
 def test_estimate_is_cheap_on_a_huge_world(tmp_path: Path) -> None:
-    """A 300 x 300 world: no game is solved and no TS is built, the estimate is immediate."""
-    text = bench.bench_world(300, 3, 5, 2)
+    """A 200 x 200 world: no game is solved and no TS is built, the estimate is immediate."""
+    text = bench.bench_world(200, 3, 5, 2)
     path = tmp_path / "huge.toml"
     path.write_text(text)
     estimate = sizeguard.estimate_states(load_world(path))
