@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from hg2prism.automata import DFA
@@ -71,6 +72,7 @@ class _Game:
         self.zero_fixed = (s_of == ts.trapped) | np.isin(q_of, list(dfa.sink))
         self.free = ~(self.goal | self.zero_fixed)
         self.size = ts.n_states * n_q
+        self._reverse: tuple[np.ndarray, np.ndarray] | None = None
 
     def q_values(self, v: np.ndarray) -> np.ndarray:
         """Q[g, a1, a2]; for absorbing g every entry is V(g)."""
@@ -84,22 +86,45 @@ class _Game:
         best = q.max(axis=1)
         return np.where(self.allowed, best, np.inf).min(axis=1)
 
+    def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(moves, start): moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat
+        indices into [G, 4, A2], that reach game state t with positive probability."""
+        if self._reverse is None:
+            positive = np.flatnonzero(self.prob.reshape(-1) > 0)
+            target = self.next.reshape(-1)[positive]
+            order = np.argsort(target, kind="stable")
+            start = np.searchsorted(target[order], np.arange(self.size + 1))
+            self._reverse = (positive[order] // 3, start)
+        return self._reverse
+
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
         """Rank of each state in P1's attractor for reaching the goal with positive probability
-        (P2 picks a2 first); -1 outside. `actions` [G, 4, A2] restricts P1's moves."""
+        (P2 picks a2 first); -1 outside. `actions` [G, 4, A2] restricts P1's moves.
+
+        Breadth-first from the goal over the predecessor moves, so each move is looked at
+        once per state that enters the attractor, not once per level."""
+        moves, start = self._predecessors()
+        n_moves = 4 * self.ts.n_sets
+        allowed_moves = None if actions is None else actions.reshape(-1)
+        reach = np.zeros(self.size * n_moves, dtype=bool)     # move reaches the attractor
         rank = np.where(self.goal, 0, -1)
-        positive = self.prob > 0
+        frontier = np.flatnonzero(self.goal)
         level = 0
-        while True:
+        while frontier.size:
             level += 1
-            inside = rank >= 0
-            reach = (positive & inside[self.next]).any(axis=-1)      # [G, 4, A2]
-            if actions is not None:
-                reach &= actions
-            ok = (reach.any(axis=1) | ~self.allowed).all(axis=1) & self.free & ~inside
-            if not ok.any():
-                return rank
-            rank[ok] = level
+            lengths = start[frontier + 1] - start[frontier]
+            offsets = np.repeat(start[frontier] - np.cumsum(lengths) + lengths, lengths)
+            found = moves[np.arange(lengths.sum()) + offsets]
+            if allowed_moves is not None:
+                found = found[allowed_moves[found]]
+            reach[found] = True
+            candidates = np.unique(found // n_moves)
+            candidates = candidates[self.free[candidates] & (rank[candidates] < 0)]
+            hit = reach.reshape(self.size, 4, -1)[candidates].any(axis=1)
+            ok = (hit | ~self.allowed[candidates]).all(axis=1)
+            frontier = candidates[ok]
+            rank[frontier] = level
+        return rank
 
 
 def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
@@ -171,14 +196,18 @@ def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
     nxt = game.next[rows, a1, p2]                                     # [G, 3]
     prob = game.prob[rows, a1, p2]
     solve = game.free & ~zero
-    # States that can reach the goal in this chain; the rest have value 0.
-    can = game.goal.copy()
-    while True:
-        grow = solve & ~can & ((prob > 0) & can[nxt]).any(axis=1)
-        if not grow.any():
-            break
-        can |= grow
-    solve &= can
+    # States that can reach the goal in this chain (the rest have value 0): a breadth-first
+    # search from the goal along reversed edges, entering only states to solve.
+    edge = solve[:, None] & (prob > 0)
+    goal_states = np.flatnonzero(game.goal)
+    reverse = sp.csr_matrix(
+        (np.ones(int(edge.sum()) + goal_states.size, dtype=np.int8),
+         (np.r_[nxt[edge], np.full(goal_states.size, n)],
+          np.r_[np.broadcast_to(rows[:, None], nxt.shape)[edge], goal_states])),
+        shape=(n + 1, n + 1))
+    can = np.zeros(n + 1, dtype=bool)
+    can[csgraph.breadth_first_order(reverse, n, directed=True, return_predecessors=False)] = True
+    solve &= can[:n]
     x = game.goal.astype(float)
     idx = np.flatnonzero(solve)
     if idx.size:
@@ -196,18 +225,10 @@ def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
 
 
 def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
-    """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever."""
-    rows = np.arange(game.size)
-    a1_for = p1                                                       # [G, A2]
-    nxt = game.next[rows[:, None], a1_for, np.arange(game.ts.n_sets)[None, :]]   # [G, A2, 3]
-    prob = game.prob[rows[:, None], a1_for, np.arange(game.ts.n_sets)[None, :]]
-    avoid = ~game.goal
-    while True:
-        stays = (((prob == 0) | avoid[nxt]).all(axis=-1) & game.allowed).any(axis=1)
-        new = avoid & (stays | game.zero_fixed)
-        if (new == avoid).all():
-            break
-        avoid = new
+    """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever: outside the
+    positive attractor of the goal when P1 answers each a2 with p1[g, a2]."""
+    answers = p1[:, None, :] == np.arange(4)[None, :, None]           # [G, 4, A2]
+    avoid = game.positive_attractor(answers) < 0
     return bool((x[avoid] <= 1e-12).all())
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import functools
 import sys
 import time
 from contextlib import contextmanager
@@ -85,8 +85,15 @@ class CheckResult:
     checked: storm.CheckedModel
     decoded: storm.DecodedStates
     strategy: storm.Strategy
-    records: list[dict]
     results: dict
+    out: Path                       # the folder holding hypergame.prism, strategy.json, ...
+
+    @functools.cached_property
+    def records(self) -> list[dict]:
+        """The strategy's records (strategy.json's content), built on first use: writing the
+        file does not need them, and they cost seconds on million-state models."""
+        return storm.strategy_records(self.decoded, self.strategy, storm.transitions(
+            self.checked.model), self.analysis.ts)
 
 
 def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
@@ -100,7 +107,7 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task)
     states, transitions = storm.canonical_size(decoded, moves)
     strategy = storm.deceptive_strategy(decoded, checked, moves)
-    records = storm.strategy_records(decoded, strategy, moves, analysis.ts)
+    strategy_text = storm.strategy_json(decoded, strategy, moves, analysis.ts)
     analysis.timings["export"] = time.perf_counter() - start
     results = {
         "world": world.name,
@@ -123,12 +130,11 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
         "timings": {k: round(v, 4) for k, v in analysis.timings.items()},
     }
     # One record per line: compact for millions of states, still easy to grep and diff.
-    write_text(out / "strategy.json",
-               "[\n" + ",\n".join(json.dumps(r, separators=(",", ":")) for r in records) + "\n]\n")
+    write_text(out / "strategy.json", strategy_text)
     write_json(out / "results.json", results)
     progress(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
-    return CheckResult(analysis, prism, checked, decoded, strategy, records, results)
+    return CheckResult(analysis, prism, checked, decoded, strategy, results, out)
 
 
 @dataclass(frozen=True, eq=False)

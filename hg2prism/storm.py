@@ -6,6 +6,7 @@ one canonical state (v, q, M) of SPEC §6; `canonical_states` maps each to its c
 
 from __future__ import annotations
 
+import functools
 import json
 import tarfile
 import tempfile
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 import stormpy
 import stormpy.environments as environments
 from stormpy import developer
@@ -42,8 +44,17 @@ class CheckedModel:
     model: object                  # stormpy sparse MDP
     value: float
     values: np.ndarray             # value of every Storm state
-    scheduler: object              # stormpy scheduler (for the DTMC it induces)
+    formula: object                # the checked property's formula
     timings: dict[str, float]      # parse, build, check
+
+    @functools.cached_property
+    def scheduler(self) -> object:
+        """A scheduler object of the model, for `induced_probability` to overwrite (stormpy
+        cannot create one). Extracting it during the sound check costs about a fifth of the
+        check at 1e6 states, so it comes from a quick plain value iteration, when needed."""
+        result = stormpy.model_checking(self.model, self.formula, extract_scheduler=True,
+                                        environment=solver_environment("fast"))
+        return result.get_scheduler()
 
 
 # How Storm solves Pmax. "sound" is SPEC §10's setting. Sound methods can be very slow on some
@@ -89,14 +100,12 @@ def _check(prism_path: Path, prop: str, environment: developer.Environment) -> C
     timings["build"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    result = stormpy.model_checking(model, properties[0], extract_scheduler=True,
-                                    environment=environment)
+    result = stormpy.model_checking(model, properties[0], environment=environment)
     values = np.asarray(result.get_value_vector())
-    scheduler = result.get_scheduler()
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
     return CheckedModel(model=model, value=float(values[initial]), values=values,
-                        scheduler=scheduler, timings=timings)
+                        formula=properties[0], timings=timings)
 
 
 @dataclass(frozen=True, eq=False)
@@ -309,23 +318,39 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by source
     keep = optimal[e_choice]
     k_choice, k_target, k_prob = e_choice[keep], e_target[keep], e_prob[keep]
-    slot = np.searchsorted(opt_choices, k_choice)
+    # The optimal choices of each canonical state that has some form a column of a
+    # [width, states] table (padded with -1, below every score), so that a sweep is one sparse
+    # product and a maximum over the table's few contiguous rows.
     group_start = np.flatnonzero(np.r_[True, np.diff(source_c[opt_choices]) != 0])
-    group_state = source_c[opt_choices[group_start]]
-    reached = k_prob * goal[k_target]                                 # constant part of the gain
-    onward = k_prob * DISCOUNT * ~goal[k_target]
-    reached_per_choice = np.bincount(slot, weights=reached, minlength=len(opt_choices))
-    w = np.zeros(n_canonical)
+    group_size = np.diff(np.r_[group_start, len(opt_choices)])
+    n_groups, width = len(group_start), int(group_size.max(initial=1))
+    group_of = np.full(n_canonical, -1, dtype=np.int64)
+    group_of[source_c[opt_choices[group_start]]] = np.arange(n_groups)
+    group_of_slot = np.repeat(np.arange(n_groups), group_size)
+    rank_in_group = np.arange(len(opt_choices)) - np.repeat(group_start, group_size)
+    cell_of_slot = rank_in_group * n_groups + group_of_slot
+    k_cell = cell_of_slot[(np.cumsum(optimal) - 1)[k_choice]]
+    n_cells = n_groups * width
+    reached = np.full(n_cells, -1.0)
+    reached[cell_of_slot] = 0.0
+    reached += np.bincount(k_cell, weights=k_prob * goal[k_target], minlength=n_cells)
+    # Onward entries lead to states that still have choices (goal counts in `reached`, and
+    # failure adds nothing).
+    onward = (group_of[k_target] >= 0) & ~goal[k_target]
+    onward_matrix = sp.csr_matrix(
+        (k_prob[onward] * DISCOUNT, (k_cell[onward], group_of[k_target[onward]])),
+        shape=(n_cells, n_groups))
+    w = np.zeros(n_groups)
     for _ in range(MAX_DISCOUNT_SWEEPS):
-        per_choice = reached_per_choice + np.bincount(slot, weights=onward * w[k_target],
-                                                      minlength=len(opt_choices))
-        new = np.zeros(n_canonical)
-        new[group_state] = np.maximum.reduceat(per_choice, group_start)
-        done = np.abs(new - w).max() < 1e-9   # enough to rank the moves
+        table = (onward_matrix @ w).reshape(width, n_groups)
+        table += reached.reshape(width, n_groups)
+        new = np.max(table, axis=0) if width > 1 else table[0]
+        done = np.abs(new - w).max(initial=0.0) < 1e-9   # enough to rank the moves
         w = new
         if done:
             break
-    soon = np.bincount(k_choice, weights=reached + onward * w[k_target], minlength=len(moves.source))
+    soon = np.zeros(len(moves.source))
+    soon[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]
     score = np.where(optimal, soon, -1.0)
     score[moves.action < 0] = -2.0
     # Best choice per Storm state's row group (representatives' choices; others copy them).
@@ -340,10 +365,14 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
 
 
 def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
-    """Index of the first maximal score in each group (groups are contiguous and ordered)."""
-    order = np.lexsort((np.arange(len(score)), -score, group))
-    first = np.searchsorted(group[order], np.arange(n_groups), side="left")
-    return order[first]
+    """Index of the first maximal score in each group (groups are contiguous, ordered and
+    cover 0..n_groups-1: every Storm state has a choice)."""
+    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    if len(start) != n_groups:
+        raise ValueError("every group needs at least one member")
+    best = np.maximum.reduceat(score, start)
+    candidates = np.flatnonzero(score == np.repeat(best, np.diff(np.r_[start, len(score)])))
+    return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]
 
 
 def induced_probability(checked: CheckedModel, strategy: Strategy,
@@ -386,3 +415,30 @@ def strategy_records(decoded: DecodedStates, strategy: Strategy, moves: Transiti
         record["action"] = ACTIONS[chosen[s]]
         records.append(record)
     return records
+
+
+def strategy_json(decoded: DecodedStates, strategy: Strategy, moves: Transitions,
+                  ts: TransitionSystem) -> str:
+    """strategy.json: the records of `strategy_records`, one compact JSON object per line.
+
+    Built from JSON fragments cached per TS state (and per observed move), because a few
+    hundred TS states describe millions of records: the same text as json.dumps of each record,
+    without creating the records."""
+    states = strategy.representative
+    states = states[~(decoded.goal | decoded.fail)[states]]
+    compact = {"separators": (",", ":")}
+    ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
+    prefix = {v: json.dumps(ts.describe_state(v), **compact)[:-1] + ',"q":'
+              for v in np.unique(ts_state).tolist()}
+    window = decoded.window[states]                                   # [n, slots, 2]
+    observed = np.unique(window[..., 0][window[..., 0] >= 0]).tolist()
+    fragment = {v * 4 + a: json.dumps(dict(ts.describe_state(v), action=ACTIONS[a]), **compact)
+                for v in observed for a in range(len(ACTIONS))}
+    codes = np.where(window[..., 0] >= 0, window[..., 0] * 4 + window[..., 1], -1).tolist()
+    tails = [f'],"action":"{a}"}}' for a in ACTIONS]
+    chosen = moves.action[strategy.choice[states]].tolist()
+    lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
+             + ",".join([fragment[c] for c in slots if c >= 0]) + tails[a]
+             for v, q, h, slots, a in zip(ts_state.tolist(), decoded.q[states].tolist(),
+                                          decoded.hypothesis[states].tolist(), codes, chosen)]
+    return "[\n" + ",\n".join(lines) + "\n]\n"

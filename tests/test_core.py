@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 from pathlib import Path
 
 import pytest
@@ -96,6 +97,15 @@ def test_exported_strategy_is_optimal(case) -> None:
     assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(value, abs=TOL)
     # ... and the exported JSON strategy, evaluated by the independent solver.
     assert ref.strategy_value(result.records) == pytest.approx(value, abs=TOL)
+
+
+def test_strategy_file_holds_the_records(case) -> None:
+    """strategy.json is written from cached fragments, not from the records: same content."""
+    result, _ = case
+    written = json.loads((result.out / "strategy.json").read_text())
+    assert written == result.records
+    absorbing = int(result.decoded.goal.any()) + int(result.decoded.fail.any())
+    assert len(written) == result.results["states"] - absorbing   # one per canonical state
 
 
 def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
