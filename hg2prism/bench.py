@@ -323,7 +323,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
     and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
-    `storm_method` is check's --storm-method: "sound" (SPEC §10) or "fast"."""
+    `storm_method` is check's --storm-method: "sound" (SPEC §10), "sound-ovi" or "fast"."""
     from hg2prism.outputs import write_text
 
     out_dir = Path(out_dir)
@@ -365,13 +365,15 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
+    from hg2prism.storm import STORM_METHODS
+
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
                         help="only the worlds below 2e5 states (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
-    parser.add_argument("--storm-method", choices=("sound", "fast"), default="sound",
+    parser.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
                         help="how Storm solves Pmax, as for `hg2prism check` (default: sound)")
     args = parser.parse_args(argv)
     sizes = DEFAULT_SIZES

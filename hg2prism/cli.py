@@ -41,9 +41,10 @@ def main(argv: list[str] | None = None) -> int:
                             f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
         if name != "emit":
             p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
-                           help="sound (default, SPEC §10: sound value iteration, precision "
-                                "1e-10) or fast (plain value iteration to 1e-12, not sound; "
-                                "for large benchmark models)")
+                           help="sound (default, SPEC §10: Storm's sound solver, precision "
+                                "1e-10), sound-ovi (optimistic value iteration, also sound; often "
+                                "much faster on large models, occasionally stuck) or fast (plain "
+                                "value iteration to 1e-12, not sound)")
         if name == "run":
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")

@@ -203,3 +203,13 @@ def test_storm_builds_more_states_with_longer_windows(world_dir: Path) -> None:
     sizes = [pipeline.check(dataclasses.replace(world, window=w), world_dir / f"size_w{w}")
              .results["states"] for w in (1, 2, 3)]
     assert sizes[0] < sizes[1] < sizes[2]
+
+
+@pytest.mark.parametrize("name", ["world1"] + sorted(FAMILY)[::9])
+@pytest.mark.parametrize("method", ["sound-ovi", "fast"])
+def test_storm_methods_agree_with_the_sound_default(name: str, method: str, world_dir: Path) -> None:
+    result, ref = run(name, str(world_dir))
+    other = storm.check(result.out / "hypergame.prism", pipeline.PROPERTY, method)
+    tolerance = 1e-9 if method.startswith("sound") else TOL   # "fast" is not sound
+    assert other.values == pytest.approx(result.checked.values, abs=tolerance)
+    assert other.value == pytest.approx(ref.value, abs=TOL)
