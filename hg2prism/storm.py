@@ -327,7 +327,7 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     # The optimal choices of each canonical state that has some form a column of a
     # [width, states] table (padded with -1, below every score), so that a sweep is one sparse
     # product and a maximum over the table's few contiguous rows.
-    group_start = np.flatnonzero(np.r_[True, np.diff(source_c[opt_choices]) != 0])
+    group_start = np.flatnonzero(np.diff(np.r_[-1, source_c[opt_choices]]) != 0)
     group_size = np.diff(np.r_[group_start, len(opt_choices)])
     n_groups, width = len(group_start), int(group_size.max(initial=1))
     group_of = np.full(n_canonical, -1, dtype=np.int64)
