@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from pathlib import Path
 
@@ -14,6 +15,10 @@ from hg2prism.storm import STORM_METHODS
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
     return Path(out) if out else world_path.parent / world_path.stem
+
+
+def _exit_on_signal(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
                         "bench/results.csv and bench/scaling.png (see `hg2prism bench --help`).")
 
     argv = sys.argv[1:] if argv is None else argv
+    # SIGTERM (a killed job, a CI timeout) unwinds like Ctrl-C, so that the staging folder of a
+    # half-done command is removed instead of left beside its output folder.
+    signal.signal(signal.SIGTERM, _exit_on_signal)
     if argv[:1] == ["bench"]:
         from hg2prism import bench
 
@@ -129,3 +137,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hg2prism: error: {args.world}: storm: {str(err).strip().splitlines()[0]}",
               file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("hg2prism: interrupted; nothing was written", file=sys.stderr)
+        return 130

@@ -14,6 +14,7 @@ balanced decision trees over the state variables, so Storm evaluates each in log
 
 from __future__ import annotations
 
+import functools
 import importlib.resources
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,6 +89,7 @@ def _template_source(name: str) -> str:
     return folder.joinpath(name).read_text()
 
 
+@functools.cache   # one environment, so each template is compiled once per process
 def _environment() -> jinja2.Environment:
     return jinja2.Environment(
         loader=jinja2.FunctionLoader(_template_source),

@@ -351,3 +351,29 @@ def test_optional_tables(tmp_path: Path) -> None:
     w = load_world(path)
     assert (w.simulation.episodes, w.simulation.horizon, w.simulation.seed) == (5, 7, 3)
     assert (w.detection.alpha, w.detection.epsilon, w.detection.deviate_after) == (0.1, 0.2, 0)
+
+
+@pytest.mark.parametrize("signal_name,status", [("SIGTERM", 143), ("SIGINT", 130)])
+def test_stopped_run_leaves_nothing_half_written(tmp_path: Path, signal_name: str,
+                                                 status: int) -> None:
+    """A run stopped by SIGTERM or Ctrl-C while it simulates removes its staging folder."""
+    import signal
+    import time
+
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    command = [sys.executable, "-m", "hg2prism", "run", str(MODELS / "world1.toml"),
+               "--out", str(out), "--episodes", "1000000"]
+    proc = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    # Wait until the model is checked (strategy.json staged): the simulations run from then on.
+    while not any(tmp_path.glob(".out.staging-*/strategy.json")):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+        time.sleep(0.05)
+    proc.send_signal(getattr(signal, signal_name))
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == status, stderr
+    assert "Traceback" not in stderr
+    assert not list(tmp_path.glob(".out.staging-*"))
+    assert not out.exists()
