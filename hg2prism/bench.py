@@ -222,15 +222,17 @@ def measure_world(world_path: Path, out: Path, storm_method: str = "sound",
     process.start()
     send.close()
     status, payload = "error", f"no result within {timeout:.0f} s"
-    if receive.poll(timeout):
-        try:
-            status, payload = receive.recv()
-        except EOFError:
-            status, payload = "error", "the process ended without a result (out of memory?)"
-    process.join(5)
-    if process.is_alive():
-        process.kill()
-        process.join()
+    try:
+        if receive.poll(timeout):
+            try:
+                status, payload = receive.recv()
+            except EOFError:
+                status, payload = "error", "the process ended without a result (out of memory?)"
+        process.join(5)
+    finally:   # also when the benchmark itself is interrupted: never leave a world running
+        if process.is_alive():
+            process.kill()
+            process.join()
     if status == "error":
         return {"error": str(payload).strip().splitlines()[-1] if payload else "failed",
                 "traceback": payload}

@@ -76,14 +76,29 @@ def main(argv: list[str] | None = None) -> int:
                         "bench/results.csv and bench/scaling.png (see `hg2prism bench --help`).")
 
     argv = sys.argv[1:] if argv is None else argv
-    # SIGTERM (a killed job, a CI timeout) unwinds like Ctrl-C, so that the staging folder of a
-    # half-done command is removed instead of left beside its output folder.
-    signal.signal(signal.SIGTERM, _exit_on_signal)
     if argv[:1] == ["bench"]:
         from hg2prism import bench
 
-        return bench.main(argv[1:])
+        try:
+            return bench.main(argv[1:])
+        except KeyboardInterrupt:
+            print("hg2prism bench: interrupted", file=sys.stderr)
+            return 130
     args = parser.parse_args(argv)
+    # SIGTERM (a killed job, a CI timeout) unwinds like Ctrl-C, so that the staging folder of a
+    # half-done command is removed instead of left beside its output folder.
+    try:
+        previous = signal.signal(signal.SIGTERM, _exit_on_signal)
+    except ValueError:      # not the main thread: leave signals alone
+        previous = None
+    try:
+        return _command(args)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _command(args: argparse.Namespace) -> int:
     try:
         from hg2prism import world as world_mod
 
@@ -138,5 +153,5 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("hg2prism: interrupted; nothing was written", file=sys.stderr)
+        print("hg2prism: interrupted", file=sys.stderr)
         return 130

@@ -38,7 +38,7 @@ class GameSolution:
     """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
 
     values: np.ndarray        # [n_ts, n_q]
-    p2_strategy: np.ndarray   # [n_ts * n_q] P2's optimal trap set at each game state
+    p2_strategy: np.ndarray   # [n_ts * n_q] P2's trap set at each game state (SPEC §4's rule)
     p1_strategy: np.ndarray   # [n_ts * n_q, n_sets] P1's optimal answer to each trap set
     sweeps: int
     improvements: int
@@ -75,6 +75,8 @@ class _Game:
         self.free = ~(self.goal | self.zero_fixed)
         self.size = ts.n_states * n_q
         self._reverse: tuple[np.ndarray, np.ndarray] | None = None
+        standing = _standing_sets(ts)
+        self.standing = None if standing is None else np.repeat(standing, n_q)
 
     def q_values(self, v: np.ndarray) -> np.ndarray:
         """Q[g, a1, a2]; for absorbing g every entry is V(g)."""
@@ -129,6 +131,13 @@ class _Game:
         return rank
 
 
+def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
+    """The trap set standing in each TS state (-1 when trapped); None when delay is 0."""
+    if not ts.delay:
+        return None
+    return np.array([ts.decode(s)[1] if s != ts.trapped else -1 for s in range(ts.n_states)])
+
+
 def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
     game = _Game(ts, dfa)
     rank = game.positive_attractor()
@@ -166,28 +175,52 @@ def _value_iteration(game: _Game, v: np.ndarray, fixed: np.ndarray,
 
 def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Greedy strategies for both players from v, evaluated exactly and polished; the exact
-    values and the strategies (P1's, P2's) if certified (see the module docstring), else None."""
+    """Greedy strategies for both players from v, evaluated exactly and polished; if certified
+    (see the module docstring), the exact values x, P1's answers greedy for x (which guarantee
+    x) and P2's trap sets chosen from x by SPEC §4's rule (`trap_rule`), else None."""
     for _ in range(POLISH_ROUNDS):
-        q = game.q_values(v)                                          # [G, 4, A2]
-        best_a1 = q.max(axis=1)                                       # [G, A2]
-        p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
-        # P1: among (near-)optimal answers, one that makes progress toward the goal, so
-        # that P1 never stalls (a wall bump can look exactly as good as a real move).
-        optimal = q >= best_a1[:, None, :] - optimal_slack
-        rank = game.positive_attractor(optimal)
-        lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
-        # The chance of moving strictly closer: maximising it (not merely asking for a chance
-        # > 0) keeps hitting times short and the linear systems well conditioned.
-        closer = (game.prob * (lower[game.next] < lower[:, None, None, None])).sum(-1)
-        p1 = np.where(optimal, closer, -1.0).argmax(axis=1)
+        p1, p2 = _greedy(game, v, optimal_slack)
         x = _evaluate_pair(game, p1, p2, zero)
         residual = np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0)
-        if residual <= 1e-11 and _certified(game, p1, x):
-            return x, p1, p2
-        # From exact values of a pair, only float noise separates truly optimal moves.
+        if residual <= 1e-11:
+            # From exact values of a pair, only float noise separates truly optimal moves.
+            p1_x, _ = _greedy(game, x, 1e-12)
+            if _certified(game, p1_x, x):
+                worst = np.where(game.allowed, game.q_values(x).max(axis=1), np.inf)
+                return x, p1_x, trap_rule(worst, game.standing)
         v, optimal_slack = x, 1e-12
     return None
+
+
+def _greedy(game: _Game, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
+    """P1's answer to every trap set and P2's trap set (exactly greedy: strategy iteration
+    needs it), greedy for v."""
+    q = game.q_values(v)                                              # [G, 4, A2]
+    best_a1 = q.max(axis=1)                                           # [G, A2]
+    p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
+    # P1: among (near-)optimal answers, one that makes progress toward the goal, so that P1
+    # never stalls (a wall bump can look exactly as good as a real move).
+    optimal = q >= best_a1[:, None, :] - optimal_slack
+    rank = game.positive_attractor(optimal)
+    lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
+    # The chance of moving strictly closer: maximising it (not merely asking for a chance > 0)
+    # keeps hitting times short and the linear systems well conditioned.
+    closer = (game.prob * (lower[game.next] < lower[:, None, None, None])).sum(-1)
+    p1 = np.where(optimal, closer, -1.0).argmax(axis=1)
+    return p1, p2
+
+
+def trap_rule(worst: np.ndarray, standing: np.ndarray | None) -> np.ndarray:
+    """P2's choice of trap set (SPEC §4): worst[i, a2] is the value of P1's best answer to a2
+    (inf where a2 is not allowed); the sets within TIE of the lowest are tied, and among them
+    P2 keeps the standing set (standing[i], -1 for none) when it is tied, else takes the
+    first."""
+    tied = worst <= worst.min(axis=1, keepdims=True) + TIE
+    choice = tied.argmax(axis=1)
+    if standing is not None:
+        keep = (standing >= 0) & tied[np.arange(len(choice)), np.maximum(standing, 0)]
+        choice = np.where(keep, standing, choice)
+    return choice
 
 
 def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
@@ -266,13 +299,7 @@ def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> Perce
     g = np.arange(ts.n_states) * dfa.n_states + fresh_q
     q = game.q_values(flat)[g]                                        # [S, 4, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
-    tied = worst <= worst.min(axis=1, keepdims=True) + TIE
-    choice = tied.argmax(axis=1)
-    if ts.delay:
-        for s in range(ts.n_states - 1):
-            standing = ts.decode(s)[1]
-            if tied[s, standing]:
-                choice[s] = standing
+    choice = trap_rule(worst, _standing_sets(ts))
     scaled = rationality * q.transpose(0, 2, 1)                       # [S, A2, 4]
     top = scaled.max(axis=2, keepdims=True)
     log_policy = scaled - (top + np.log(np.exp(scaled - top).sum(axis=2, keepdims=True)))

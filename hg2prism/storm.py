@@ -360,7 +360,9 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     score = np.where(optimal, soon, -1.0)
     score[moves.action < 0] = -2.0
     # Best choice per Storm state's row group (representatives' choices; others copy them).
-    best_of_state = _argmax_by_group(score, moves.source, n_states)
+    # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
+    # wins whatever order the sums were taken in.
+    best_of_state = _argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
     chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
     action_rep = moves.action[chosen_rep]
     # Every Storm state takes the move its canonical state takes.
@@ -370,14 +372,16 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     return Strategy(representative=representative, choice=choice, optimal_choices=int(optimal.sum()))
 
 
-def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int) -> np.ndarray:
-    """Index of the first maximal score in each group (groups are contiguous, ordered and
-    cover 0..n_groups-1: every Storm state has a choice)."""
+def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
+                     relative_tie: float = 0.0) -> np.ndarray:
+    """Index of the first score in each group within `relative_tie` (relative) of the group's
+    maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
+    choice)."""
     start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
     if len(start) != n_groups:
         raise ValueError("every group needs at least one member")
-    best = np.maximum.reduceat(score, start)
-    candidates = np.flatnonzero(score == np.repeat(best, np.diff(np.r_[start, len(score)])))
+    best = np.repeat(np.maximum.reduceat(score, start), np.diff(np.r_[start, len(score)]))
+    candidates = np.flatnonzero(score >= best - relative_tie * np.abs(best))
     return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]
 
 

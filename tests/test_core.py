@@ -183,14 +183,18 @@ def test_command_count_does_not_grow_with_the_product(world_dir: Path) -> None:
         "w3": dataclasses.replace(world, window=3),
         "x2": dataclasses.replace(world, hypotheses=world.hypotheses[:2]),
         "x5": dataclasses.replace(world, hypotheses=world.hypotheses + ("F A", "!obs U (A & X C)")),
+        "t2": dataclasses.replace(world, traps=2),
     }
     counts = {}
     for name, variant in variants.items():
         model = pipeline.emit(variant, world_dir / f"cmd_{name}")
         counts[name] = model.commands
-    assert len({c["robot"] for c in counts.values()}) == 1
-    assert len({c["task"] for c in counts.values()}) == 1
-    # The inference module grows with the hypotheses (a table), not with the window.
+    # One command per move and one for the absorbing states, whatever the trap sets.
+    assert {c["robot"] for c in counts.values()} == {5}
+    assert {c["task"] for c in counts.values()} == {4}
+    # The inference module grows with the hypotheses (8 commands each), not with the window.
+    for name, variant in variants.items():
+        assert counts[name]["p2_inference"] == 8 * len(variant.hypotheses), name
     assert counts["w1"]["p2_inference"] == counts["w3"]["p2_inference"]
     model = pipeline.emit(world, world_dir / "cmd_world1")
     assert sum(model.commands.values()) < 100

@@ -83,3 +83,32 @@ def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[_G
             spoiled = inside.copy()
             spoiled[np.flatnonzero(avoid)[-1]] = 1e-6
             assert not _certified(game, p1, spoiled)
+
+
+def best_response_lower_bound(game: _Game, pick, sweeps: int = 5_000) -> np.ndarray:
+    """Value iteration from 0 for v = pick(Q_v) (a one-player game): every iterate is a lower
+    bound of that player's value. These games converge slowly (slip loops), so no more."""
+    v = game.goal.astype(float)
+    for _ in range(sweeps):
+        new = np.where(game.free, pick(game.q_values(v)), v)
+        if np.abs(new - v).max() < 1e-13:
+            return new
+        v = new
+    return v
+
+
+def test_solved_strategies_are_optimal(games: list[_Game]) -> None:
+    """P2's returned trap sets hold P1 to V (up to SPEC §4's 1e-6 ties), and P1's returned
+    answers are greedy for V."""
+    from hg2prism.games import solve_game
+
+    for game in games:
+        solution = solve_game(game.ts, game.dfa)
+        value = solution.values.reshape(-1)
+        rows = np.arange(game.size)
+        p2, p1 = solution.p2_strategy, solution.p1_strategy
+        against_p2 = best_response_lower_bound(game, lambda q: q[rows, :, p2].max(axis=1))
+        assert (against_p2 <= value + 1e-4).all(), (against_p2 - value).max()
+        q = game.q_values(value)
+        answered = q[rows[:, None], p1, np.arange(game.ts.n_sets)[None, :]]       # [G, A2]
+        assert (~game.allowed | (answered >= q.max(axis=1) - 1e-9)).all()
