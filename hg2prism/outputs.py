@@ -48,6 +48,11 @@ def staged(out: Path) -> Iterator[Path]:
         yield stage
         out.mkdir(exist_ok=True)
         for item in stage.iterdir():
-            os.replace(item, out / item.name)
+            target = out / item.name
+            if target.is_dir() and not target.is_symlink():
+                # os.replace cannot replace a folder that has files (a re-run's delay_1/ ...):
+                # move the old one aside into the stage, which is removed below.
+                os.replace(target, stage / f".replaced-{item.name}")
+            os.replace(item, target)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

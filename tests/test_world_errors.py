@@ -377,3 +377,22 @@ def test_stopped_run_leaves_nothing_half_written(tmp_path: Path, signal_name: st
     assert "Traceback" not in stderr
     assert not list(tmp_path.glob(".out.staging-*"))
     assert not out.exists()
+
+
+def test_staged_outputs_replace_earlier_ones(tmp_path: Path) -> None:
+    """A re-run replaces the files and folders of the previous one (a sweep's delay_1/ ...) and
+    keeps what it does not write."""
+    from hg2prism.outputs import staged
+
+    out = tmp_path / "out"
+    for run, files in enumerate((["a.txt", "sub/old.txt", "sub/both.txt", "kept.txt"],
+                                 ["a.txt", "sub/both.txt", "sub/new.txt"])):
+        with staged(out) as stage:
+            for name in files:
+                (stage / name).parent.mkdir(parents=True, exist_ok=True)
+                (stage / name).write_text(f"run {run}")
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [
+        "a.txt", "kept.txt", "sub/both.txt", "sub/new.txt"]
+    assert (out / "sub" / "both.txt").read_text() == "run 1"
+    assert (out / "kept.txt").read_text() == "run 0"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
