@@ -21,6 +21,7 @@ import multiprocessing
 import os
 import random
 import resource
+import signal
 import sys
 import time
 import traceback
@@ -200,6 +201,7 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
 
 
 def _child(world_path: str, out: str, storm_method: str, connection, quiet: bool) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)   # the parent's handler is not for a world
     try:
         if quiet:
             devnull = open(os.devnull, "w")
@@ -378,6 +380,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
                         help="how Storm solves Pmax, as for `hg2prism check` (default: sound)")
     args = parser.parse_args(argv)
+    # SIGTERM unwinds like Ctrl-C, so that the running world's process is killed (measure_world).
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     sizes = DEFAULT_SIZES
     if args.quick:
         sizes = tuple(s for s in DEFAULT_SIZES if s[1] < 3 or s[0] <= 12)

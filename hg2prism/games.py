@@ -269,7 +269,8 @@ def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
 
 def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
                     discount: float = 0.9) -> np.ndarray:
-    """P1's answer at every game state to P2's optimal strategy: among P1's value-optimal moves,
+    """P1's answer at every game state to P2's strategy (SPEC §4's rule on the exact values,
+    optimal up to its 1e-6 ties): among P1's value-optimal moves,
     the one maximising the discounted probability of reaching the goal, so that P1 never
     stalls (any optimal answer keeps the value, but some dither for a long time)."""
     game = _Game(ts, dfa)

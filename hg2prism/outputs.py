@@ -39,7 +39,9 @@ def write_bytes(path: Path, data: bytes) -> None:
 @contextmanager
 def staged(out: Path) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
-    the command succeeds, so a failure leaves nothing half-written."""
+    the command succeeds, so a failure leaves nothing half-written. Each item replaces its
+    predecessor in one rename (a stop between two items leaves some new, some old, none
+    broken); an item that cannot be placed puts its predecessor back."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
@@ -47,12 +49,21 @@ def staged(out: Path) -> Iterator[Path]:
     try:
         yield stage
         out.mkdir(exist_ok=True)
-        for item in stage.iterdir():
+        for item in list(stage.iterdir()):
             target = out / item.name
-            if target.is_dir() and not target.is_symlink():
-                # os.replace cannot replace a folder that has files (a re-run's delay_1/ ...):
-                # move the old one aside into the stage, which is removed below.
-                os.replace(target, stage / f".replaced-{item.name}")
-            os.replace(item, target)
+            if not (item.is_dir() or target.is_dir()) or not (target.exists() or
+                                                               target.is_symlink()):
+                os.replace(item, target)      # a file over a file (or nothing): atomic
+                continue
+            # os.replace cannot put a folder over a file or replace a folder that has files
+            # (a re-run's delay_1/ ...): move the old one aside into the stage, which is
+            # removed below, and back if the new one cannot take its place.
+            aside = stage / f".replaced-{item.name}"
+            os.replace(target, aside)
+            try:
+                os.replace(item, target)
+            except BaseException:
+                os.replace(aside, target)
+                raise
     finally:
         shutil.rmtree(stage, ignore_errors=True)

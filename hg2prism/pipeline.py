@@ -218,7 +218,9 @@ def _simulated(summary, exact_within_horizon: float) -> dict:
 
 
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
-    """The leader game's optimal pair as (degenerate) mixed strategies over g = s * n_q + q."""
+    """The leader game's pair as (degenerate) mixed strategies over g = s * n_q + q: P2's trap
+    sets by SPEC §4's rule on the exact values (optimal up to its 1e-6 ties), P1's fastest
+    optimal answers."""
     p2 = analysis.leader.p2_strategy
     p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
     return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]

@@ -396,3 +396,19 @@ def test_staged_outputs_replace_earlier_ones(tmp_path: Path) -> None:
     assert (out / "sub" / "both.txt").read_text() == "run 1"
     assert (out / "kept.txt").read_text() == "run 0"
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_staged_outputs_replace_files_by_folders_and_back(tmp_path: Path) -> None:
+    from hg2prism.outputs import staged
+
+    out = tmp_path / "out"
+    for run, folder in enumerate((False, True, False)):
+        with staged(out) as stage:
+            if folder:
+                (stage / "x").mkdir()
+                (stage / "x" / "inner.txt").write_text(f"run {run}")
+            else:
+                (stage / "x").write_text(f"run {run}")
+        assert (out / "x").is_dir() == folder
+        assert ((out / "x" / "inner.txt") if folder else (out / "x")).read_text() == f"run {run}"
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
