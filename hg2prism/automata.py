@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 import spot
@@ -14,9 +15,10 @@ class DFA:
     formula: str
     n_states: int
     initial: int
-    accepting: frozenset[int]
-    sink: frozenset[int]          # states from which no accepting state is reachable
+    accepting: frozenset[int]     # final states: a good prefix has been read (SPEC §3)
+    sink: frozenset[int]          # states from which no final state is reachable
     delta: np.ndarray             # [n_states, n_labels] successor on each label class
+    automaton: spot.twa_graph | None = None   # Spot's automaton: its state numbers are the q's
 
     def is_absorbing(self, q: int) -> bool:
         return q in self.accepting or q in self.sink
@@ -29,16 +31,20 @@ def is_cosafe(formula: str) -> bool:
     return spot.formula(formula).is_syntactic_guarantee()
 
 
-def translate(formula: str, label_names: tuple[str, ...]) -> DFA:
+def translate(formula: str, label_names: tuple[str, ...],
+              occurring: Iterable[int] | None = None) -> DFA:
     """DFA of a syntactically co-safe formula, its letters being the label classes of the world.
 
     label_names[0] is the empty label; every other class sets exactly one proposition.
+    occurring: the label classes the world's states actually produce (default: all of them).
+    The final states and the sink are computed over these letters only (SPEC §3): a final
+    state is one from which every continuation over them is accepted (a good prefix has been
+    read), a sink one from which no final state can be reached.
     """
     f = spot.formula(formula)
     if not f.is_syntactic_guarantee():
         raise ValueError(f"{formula!r} is not syntactically co-safe")
     aut = spot.translate(f, "deterministic", "complete", "sbacc")
-    bdict = aut.get_dict()
     aps = [str(ap) for ap in aut.ap()]
     ap_vars = {ap: aut.register_ap(ap) for ap in aps}
 
@@ -51,29 +57,51 @@ def translate(formula: str, label_names: tuple[str, ...]) -> DFA:
     letters = [letter(name) for name in label_names]
     n = aut.num_states()
     delta = np.full((n, len(label_names)), -1, dtype=np.int64)
-    accepting = set()
-    graph: list[set[int]] = [set() for _ in range(n)]
     for q in range(n):
-        if aut.state_is_accepting(q):
-            accepting.add(q)
         for edge in aut.out(q):
-            graph[q].add(edge.dst)
             for k, bdd in enumerate(letters):
                 if (edge.cond & bdd) != buddy.bddfalse:
                     delta[q, k] = edge.dst
     if (delta < 0).any():
         raise AssertionError("Spot returned an incomplete automaton")
-    del bdict
+    used = sorted(set(range(len(label_names)) if occurring is None else occurring))
+    buchi = [aut.state_is_accepting(q) for q in range(n)]
+    final = good_prefix_states(delta[:, used], buchi)
+    sink = frozenset(range(n)) - _can_reach(delta[:, used], final)
+    return DFA(formula=formula, n_states=n, initial=aut.get_init_state_number(),
+               accepting=frozenset(final), sink=sink, delta=delta, automaton=aut)
 
-    # Sink: F unreachable in the automaton's graph (over the full alphabet 2^AP).
-    can_accept = set(accepting)
+
+def good_prefix_states(delta: np.ndarray, buchi: list[bool]) -> frozenset[int]:
+    """The states from which every infinite run over delta's letters is Büchi-accepted.
+
+    A run is rejected exactly when it ends up looping in non-accepting states forever, so a
+    state is *not* final when it can reach a state with an infinite path through non-accepting
+    states only. Spot's Büchi marks alone are not final states: for `X A` it marks the transient
+    initial states accepting, which would declare the goal reached before anything was read.
+    """
+    n = delta.shape[0]
+    looping = {q for q in range(n) if not buchi[q]}     # greatest fixed point: can stay outside
     changed = True
     while changed:
         changed = False
-        for q in range(n):
-            if q not in can_accept and graph[q] & can_accept:
-                can_accept.add(q)
+        for q in list(looping):
+            if not any(int(d) in looping for d in delta[q]):
+                looping.discard(q)
                 changed = True
-    sink = frozenset(q for q in range(n) if q not in can_accept)
-    return DFA(formula=formula, n_states=n, initial=aut.get_init_state_number(),
-               accepting=frozenset(accepting), sink=sink, delta=delta)
+    return frozenset(range(n)) - _can_reach(delta, frozenset(looping))
+
+
+def _can_reach(delta: np.ndarray, targets: frozenset[int]) -> frozenset[int]:
+    """States with a path (of length >= 0) into targets."""
+    predecessors: list[set[int]] = [set() for _ in range(delta.shape[0])]
+    for q in range(delta.shape[0]):
+        for d in delta[q]:
+            predecessors[int(d)].add(q)
+    reached, stack = set(targets), list(targets)
+    while stack:
+        for p in predecessors[stack.pop()]:
+            if p not in reached:
+                reached.add(p)
+                stack.append(p)
+    return frozenset(reached)

@@ -45,6 +45,11 @@ class TransitionSystem:
         return len(self.cells)
 
     @property
+    def letters(self) -> tuple[int, ...]:
+        """The label classes the world's states produce: its cells' and none (trapped)."""
+        return tuple(sorted(set(self.cell_label.tolist()) | {0}))
+
+    @property
     def n_sets(self) -> int:
         return len(self.trap_sets)
 

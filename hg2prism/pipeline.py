@@ -52,8 +52,8 @@ def analyse(world: World) -> Analysis:
     timings: dict[str, float] = {}
     with _timed(timings, "games"):
         ts = build_transition_system(world)
-        task = translate(world.formula, ts.label_names)
-        games = [perceptual_game(ts, translate(h, ts.label_names), world.rationality)
+        task = translate(world.formula, ts.label_names, ts.letters)
+        games = [perceptual_game(ts, translate(h, ts.label_names, ts.letters), world.rationality)
                  for h in world.hypotheses]
         inference = build_inference(games, world.window, world.threshold, world.initial_hypothesis)
         leader = solve_game(ts, task)

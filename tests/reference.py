@@ -19,9 +19,9 @@ Conventions (the contract with the package under test):
 
 Choices where SPEC is silent (kept deliberately simple):
 
-* ``Sink`` = DFA states from which no accepting state is reachable along Spot's edges
-  (whatever the letter, even one that cannot occur on the map: at most one proposition holds
-  in a cell);
+* the DFA's final states are those from which every infinite continuation over the world's
+  letters is accepted (asked of Spot as a language containment, state by state), and ``Sink``
+  the states from which no final state can be reached over those letters;
 * with a single hypothesis no change can happen, but B still records the last w-1
   observations (SPEC 5 step 3 read literally), so such states are distinct in the count;
 * ``trap_strategy`` returns ``tuple(sorted(cells))`` (plain Python order of (x, y));
@@ -267,8 +267,17 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
 # automata
 # --------------------------------------------------------------------------------------
 
+def _one_of(letters, aps):
+    """Spot formula: the letter is one of `letters` (None = no proposition, else exactly that one)."""
+    terms = []
+    for lab in letters:
+        terms.append("(" + " & ".join(
+            (ap if ap == lab else f"!{ap}") for ap in aps) + ")" if aps else "1")
+    return " | ".join(terms) if terms else "0"
+
+
 class DFA:
-    def __init__(self, formula: str, labels):
+    def __init__(self, formula: str, labels, world_letters=None):
         self.formula = formula
         f = spot.formula(formula)
         if not f.is_syntactic_guarantee():
@@ -277,8 +286,8 @@ class DFA:
         self.aut = aut
         self.n = aut.num_states()
         self.init = aut.get_init_state_number()
-        self.acc = {s for s in range(self.n) if any(bool(e.acc) for e in aut.out(s))}
         aps = [str(a) for a in aut.ap()]
+        aps_all = sorted({lab for lab in labels if lab is not None} | set(aps))
         # delta[q][label] for label in labels (None or a proposition name)
         self.delta = {}
         for q in range(self.n):
@@ -295,19 +304,26 @@ class DFA:
                     raise RuntimeError(f"DFA of {formula} not deterministic/complete on {lab}")
                 row[lab] = dsts[0]
             self.delta[q] = row
-        # Sink: states from which no accepting state is reachable (Spot's edges)
-        rev = {q: set() for q in range(self.n)}
+        # Final states (SPEC 3): a good prefix has been read, i.e. every infinite continuation
+        # over the world's letters is accepted. Asked of Spot as a language containment: the
+        # automaton started in q contains every word over the world's letters.
+        letters = labels if world_letters is None else world_letters
+        universe = spot.translate(spot.formula(f"G({_one_of(letters, aps_all)})"))
+        self.acc = set()
         for q in range(self.n):
-            for e in aut.out(q):
-                rev[e.dst].add(q)
+            from_q = spot.make_twa_graph(aut, spot.twa_prop_set.all())
+            from_q.set_init_state(q)
+            if spot.contains(from_q, universe):
+                self.acc.add(q)
+        # Sink: states from which no final state is reachable reading the world's letters.
         good = set(self.acc)
-        stack = list(self.acc)
-        while stack:
-            t = stack.pop()
-            for s in rev[t]:
-                if s not in good:
-                    good.add(s)
-                    stack.append(s)
+        changed = True
+        while changed:
+            changed = False
+            for q in range(self.n):
+                if q not in good and any(self.delta[q][lab] in good for lab in letters):
+                    good.add(q)
+                    changed = True
         self.sink = set(range(self.n)) - good
 
     def step(self, q, lab):
@@ -388,6 +404,11 @@ class World:
         else:
             self.v0 = self.start
         labels = [None] + sorted(self.props)
+        # the letters the world's states produce: none (free cells, trapped), obs where the map
+        # has an obstacle, and each region letter on the map
+        self.world_letters = [None] + sorted(
+            p for p in self.props
+            if p != "obs" or any("o" in row for row in self.rows))
         self.dfa_cache = {}
         self.task_dfa = self.dfa(self.task, labels)
         self.hyp_dfas = [self.dfa(h, labels) for h in self.hyps]
@@ -401,7 +422,7 @@ class World:
     # ----- helpers -----
     def dfa(self, formula, labels):
         if formula not in self.dfa_cache:
-            self.dfa_cache[formula] = DFA(formula, labels)
+            self.dfa_cache[formula] = DFA(formula, labels, self.world_letters)
         return self.dfa_cache[formula]
 
     def char(self, x, y):

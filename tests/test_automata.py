@@ -48,3 +48,111 @@ def test_a_subgoal_hypothesis_has_three_states() -> None:
     (final,), (sink,) = dfa.accepting, dfa.sink
     assert dfa.read(dfa.initial, 2) == final and dfa.read(dfa.initial, 1) == sink
     assert dfa.read(dfa.initial, 3) == dfa.read(dfa.initial, 0) == dfa.initial
+
+
+# ------------------------------------------------------------------ final states = good prefixes
+# SPEC §3: a DFA state is final exactly when every infinite continuation over the world's letters
+# is accepted. These tests ask Spot directly (language containment and satisfiability), without
+# the package's rule, on random syntactically co-safe formulas.
+
+import random
+
+import spot
+
+PROPS = ("obs", "A", "B", "C")
+
+
+def _letter_formula(letter: str, props: tuple[str, ...]) -> str:
+    """The Spot formula of one world letter: no proposition ("") or exactly one."""
+    return " & ".join(p if p == letter else f"!{p}" for p in props)
+
+
+def _only_world_letters(letters: list[str], props: tuple[str, ...]) -> spot.formula:
+    return spot.formula("G(" + " | ".join(f"({_letter_formula(x, props)})" for x in letters) + ")")
+
+
+def _random_cosafe_formulas(count: int, seed: int) -> list[tuple[str, tuple[str, ...]]]:
+    """(formula, propositions): seeded randltl, half over 3 and half over 4 propositions,
+    syntactic guarantees only (constants left out), each formula once."""
+    chosen: list[tuple[str, tuple[str, ...]]] = []
+    seen: set[str] = set()
+    for props, tree_size, part_seed, quota in ((PROPS[:3], 12, seed, count // 2),
+                                               (PROPS, 15, seed + 1, count - count // 2)):
+        taken = 0
+        for f in spot.randltl(list(props), seed=part_seed, tree_size=tree_size, simplify=1):
+            if taken == quota:
+                break
+            text = str(f)
+            if f.is_syntactic_guarantee() and not f.is_constant() and text not in seen:
+                seen.add(text)
+                chosen.append((text, props))
+                taken += 1
+    return chosen
+
+
+COSAFE_FORMULAS = _random_cosafe_formulas(220, seed=20261123)
+
+
+def _world_letters(props: tuple[str, ...], rng: random.Random) -> list[str]:
+    """A world's letters: always none and the regions; obs only when the map has an obstacle."""
+    letters = [""] + [p for p in props if p != "obs"]
+    if rng.random() < 0.7:
+        letters.append("obs")
+    return letters
+
+
+def test_enough_random_cosafe_formulas() -> None:
+    assert len(COSAFE_FORMULAS) >= 200
+    assert sum(1 for f, _ in COSAFE_FORMULAS if "X" in f) >= 50
+
+
+@pytest.mark.parametrize("index", range(0, 220, 20))
+def test_final_states_are_the_good_prefix_states(index: int) -> None:
+    rng = random.Random(index)
+    for formula, props in COSAFE_FORMULAS[index:index + 20]:
+        labels = ("",) + props
+        letters = _world_letters(props, rng)
+        occurring = [labels.index(x) for x in letters]
+        dfa = translate(formula, labels, occurring)
+        universe = spot.translate(_only_world_letters(letters, props))
+        # Spot numbers states differently from one translation to the next (the order in which
+        # propositions were registered), so the DFA's own automaton is asked.
+        aut = dfa.automaton
+        assert aut.num_states() == dfa.n_states and aut.is_deterministic()
+        for q in range(dfa.n_states):
+            from_q = spot.make_twa_graph(aut, spot.twa_prop_set.all())
+            from_q.set_init_state(q)
+            every_continuation_accepted = spot.contains(from_q, universe)
+            assert (q in dfa.accepting) == every_continuation_accepted, (formula, letters, q)
+        # Sink: no final state reachable over the world's letters (breadth-first, here).
+        reach = {q: {q} for q in range(dfa.n_states)}
+        for _ in range(dfa.n_states):
+            for q in reach:
+                reach[q] |= {int(dfa.delta[r, k]) for r in reach[q] for k in occurring}
+        for q in range(dfa.n_states):
+            assert (q in dfa.sink) == (not reach[q] & dfa.accepting), (formula, q)
+
+
+@pytest.mark.parametrize("index", range(0, 220, 20))
+def test_dfa_accepts_a_finite_word_exactly_when_it_is_a_good_prefix(index: int) -> None:
+    rng = random.Random(1000 + index)
+    for formula, props in COSAFE_FORMULAS[index:index + 20]:
+        labels = ("",) + props
+        letters = _world_letters(props, rng)
+        occurring = [labels.index(x) for x in letters]
+        dfa = translate(formula, labels, occurring)
+        negation = spot.formula(f"!({formula})")
+        world_only = _only_world_letters(letters, props)
+        for _ in range(4):
+            word = [rng.choice(letters) for _ in range(rng.randint(0, 4))]
+            q = dfa.initial
+            for x in word:
+                q = dfa.read(q, labels.index(x))
+            # u is a good prefix iff no infinite word over the world's letters extends u and
+            # violates the formula.
+            prefix = "1"
+            for x in reversed(word):
+                prefix = f"({_letter_formula(x, props)}) & X({prefix})"
+            counterexample = spot.formula(f"({prefix}) & {world_only} & {negation}")
+            is_good_prefix = spot.translate(counterexample).is_empty()
+            assert (q in dfa.accepting) == is_good_prefix, (formula, word, letters)

@@ -32,7 +32,7 @@ def _world(name: str, folder: Path):
 def test_nash_below_leader_everywhere(name: str, tmp_path: Path) -> None:
     world = load_world(MODELS / "world1.toml") if name == "world1" else _world(name, tmp_path)
     ts = build_transition_system(world)
-    task = translate(world.formula, ts.label_names)
+    task = translate(world.formula, ts.label_names, ts.letters)
     nash = baselines.nash_baseline(ts, task)
     lead = solve_game(ts, task).values
     assert (nash.values <= lead + 1e-6).all()

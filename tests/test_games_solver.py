@@ -58,7 +58,7 @@ def games(request: pytest.FixtureRequest, world_dir: Path) -> list[_Game]:
         path.write_text(FAMILY[request.param])
     world = load_world(path)
     ts = build_transition_system(world)
-    return [_Game(ts, translate(f, ts.label_names)) for f in (world.formula,) + world.hypotheses]
+    return [_Game(ts, translate(f, ts.label_names, ts.letters)) for f in (world.formula,) + world.hypotheses]
 
 
 def test_attractor_ranks_match_the_level_by_level_search(games: list[_Game]) -> None:

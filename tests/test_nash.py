@@ -145,7 +145,7 @@ def test_bad_game_rejected() -> None:
 def world1():
     world = load_world(WORLD1)
     ts = build_transition_system(world)
-    dfa = translate(world.formula, ts.label_names)
+    dfa = translate(world.formula, ts.label_names, ts.letters)
     start = time.perf_counter()
     baseline = nash_baseline(ts, dfa)
     elapsed = time.perf_counter() - start
