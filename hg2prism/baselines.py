@@ -44,7 +44,7 @@ from scipy.optimize import linprog
 
 from hg2prism.automata import DFA
 from hg2prism.dynamics import TransitionSystem
-from hg2prism.games import SolverError
+from hg2prism.errors import SolverError, probability
 
 VI_TOLERANCE = 1e-10        # SPEC §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
@@ -119,6 +119,9 @@ class NashBaseline:
     initial: tuple[int, int]  # (start_state, delta(iota, L(start cell)))
     v_ne: float
     v_ne_p1_guaranteed: float
+    # The sound bracket around V_NE at the start (SPEC §7): what P1's extracted strategy
+    # guarantees, and what P1's best response to P2's extracted strategy achieves.
+    v_ne_bounds: tuple[float, float]
     # v_ne - v_ne_p1_guaranteed. It can be slightly negative (about -1e-8 on world1): value
     # iteration stops below the least fixed point, while the guarantee is computed exactly.
     shortfall: float
@@ -127,6 +130,11 @@ class NashBaseline:
     def warn(self) -> bool:
         """SPEC §7: P1's stationary strategy guarantees noticeably less than V_NE."""
         return self.shortfall > SHORTFALL_WARNING
+
+    @property
+    def bracket_warn(self) -> bool:
+        """SPEC §7: the sound bracket around V_NE is wider than 1e-6."""
+        return self.v_ne_bounds[1] - self.v_ne_bounds[0] > SHORTFALL_WARNING
 
 
 def concurrent_game(ts: TransitionSystem, dfa: DFA) -> ConcurrentGame:
@@ -382,16 +390,76 @@ def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     raise SolverError("policy iteration for P1's guaranteed value did not converge")
 
 
+def best_response_value(game: ConcurrentGame, p2: np.ndarray) -> np.ndarray:
+    """[G] P1's maximal reach probability against P2's stationary mixed strategy p2 (an MDP).
+    Solved exactly: the states from which no move of P1 can reach the goal get 0; on the others
+    policy iteration starts from an attractor policy (each move gives a positive chance of
+    getting closer to the goal, so the goal or a zero-value state is reached with probability
+    1) and switches a move only on a strict improvement, so every policy stays of that kind and
+    each evaluation is one sparse linear system."""
+    g, n1, n2, k = game.next.shape
+    # Outcomes of (g, a1) with P2 mixing: [G, A1, A2*K].
+    nxt = game.next.reshape(g, n1, n2 * k)
+    weight = (p2[:, None, :, None] * game.prob).reshape(g, n1, n2 * k)
+    positive = weight > 0
+    rows = np.arange(g)
+
+    # Attractor of the goal: rank = number of steps with a positive chance of reaching it.
+    rank = np.where(game.goal, 0, -1)
+    policy = np.zeros(g, dtype=int)
+    for step in range(1, g + 1):
+        reached = rank >= 0
+        closer = (positive & reached[nxt]).any(axis=-1)            # [G, A1]
+        new = game.free & ~reached & closer.any(axis=1)
+        if not new.any():
+            break
+        policy[new] = closer[new].argmax(axis=1)
+        rank[new] = step
+    solve = game.free & (rank > 0)
+
+    def q_of(x: np.ndarray) -> np.ndarray:
+        """[G, A1] reach probability of each P1 move, one step then x."""
+        return (weight * x[nxt]).sum(axis=-1)
+
+    idx = np.flatnonzero(solve)
+    pos = np.full(g, -1)
+    pos[idx] = np.arange(idx.size)
+    for _ in range(10_000):
+        sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]   # [n, A2*K]
+        inner = solve[sub_next] & (sub_w > 0)
+        r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
+        matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
+            (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
+        rhs = (sub_w * game.goal[sub_next]).sum(axis=1)
+        x = game.goal.astype(float)
+        if idx.size:
+            x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+        q = q_of(x)
+        best = q.argmax(axis=1)
+        improve = solve & (q[rows, best] > q[rows, policy] + 1e-14)
+        if not improve.any():
+            return x
+        policy = np.where(improve, best, policy)
+    raise SolverError("policy iteration for P1's best response did not converge")
+
+
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     """The Nash baseline of SPEC §7 for the task DFA, read at every (s, q) and at the start."""
     game = concurrent_game(ts, dfa)
     solution = solve_nash(game)
     guaranteed = guaranteed_value(game, solution.p1)
+    best_response = best_response_value(game, solution.p2)
     n_q = dfa.n_states
     start_cell = ts.decode(ts.start_state)[0]
     q0 = int(dfa.delta[dfa.initial, ts.cell_label[start_cell]])
     g0 = ts.start_state * n_q + q0
-    v_ne, v_guaranteed = float(solution.values[g0]), float(guaranteed[g0])
+    v_guaranteed = probability(guaranteed[g0], "P1's guaranteed Nash value")
+    upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
+    if v_guaranteed > upper + 1e-9:
+        raise SolverError(f"the Nash bracket is empty: [{v_guaranteed!r}, {upper!r}]")
+    # Value iteration approaches V_NE from below, and the lower end of the bracket is also
+    # below V_NE: the larger of the two is the better estimate, kept inside the bracket.
+    v_ne = min(max(probability(solution.values[g0], "V_NE"), v_guaranteed), upper)
     return NashBaseline(
         game=game, solution=solution,
         values=solution.values.reshape(ts.n_states, n_q),
@@ -399,5 +467,5 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
         p1=solution.p1.reshape(ts.n_states, n_q, -1),
         p2=solution.p2.reshape(ts.n_states, n_q, -1),
         initial=(ts.start_state, q0), v_ne=v_ne, v_ne_p1_guaranteed=v_guaranteed,
-        shortfall=v_ne - v_guaranteed,
+        v_ne_bounds=(v_guaranteed, upper), shortfall=v_ne - v_guaranteed,
     )

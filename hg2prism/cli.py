@@ -7,9 +7,9 @@ import signal
 import sys
 from pathlib import Path
 
-from hg2prism import sizeguard
+from hg2prism import __version__, sizeguard
 from hg2prism.errors import InputError, SolverError, StormError
-from hg2prism.outputs import staged
+from hg2prism.outputs import OWNED, check_writable, staged
 from hg2prism.storm import STORM_METHODS
 
 
@@ -18,11 +18,13 @@ def _out_dir(world_path: Path, out: str | None) -> Path:
 
 
 def _exit_on_signal(signum: int, frame: object) -> None:
+    print(f"hg2prism: stopped by signal {signum}; nothing was written", file=sys.stderr)
     raise SystemExit(128 + signum)
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"hg2prism {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def add(name: str, help: str) -> argparse.ArgumentParser:
@@ -31,6 +33,16 @@ def main(argv: list[str] | None = None) -> int:
         return p
 
     add("validate", "Check a world file and print a summary; writes nothing.")
+
+    def solver_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--max-states", type=int, metavar="N",
+                       help="refuse worlds whose estimated hypergame size exceeds N "
+                            f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+        p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
+                       help="sound (default, Storm's sound solver, precision 1e-10), sound-ovi "
+                            "(optimistic value iteration, also sound; often much faster on large "
+                            "models, occasionally stuck) or fast (plain value iteration to 1e-12, "
+                            "not sound: flagged in the outputs)")
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
         ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
@@ -41,15 +53,12 @@ def main(argv: list[str] | None = None) -> int:
         p = add(name, help + " OUT defaults to the folder next to the world file named after it "
                 "(models/world1.toml -> models/world1/).")
         p.add_argument("--out", metavar="OUT", help="output folder")
-        p.add_argument("--max-states", type=int, metavar="N",
-                       help="refuse worlds whose estimated hypergame size exceeds N "
-                            f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
-        if name != "emit":
-            p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
-                           help="sound (default, SPEC §10: Storm's sound solver, precision "
-                                "1e-10), sound-ovi (optimistic value iteration, also sound; often "
-                                "much faster on large models, occasionally stuck) or fast (plain "
-                                "value iteration to 1e-12, not sound)")
+        if name == "emit":
+            p.add_argument("--max-states", type=int, metavar="N",
+                           help="refuse worlds whose estimated hypergame size exceeds N "
+                                f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+        else:
+            solver_options(p)
         if name == "run":
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
@@ -62,6 +71,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="delay, window, threshold or rationality")
     p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    solver_options(p)
     p = add("detect", "Detect a wrong opponent model (SPEC §9): the seeded episode where P2 deviates "
             "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
             "rate, and P2 running another window or threshold; writes OUT/detection.json and "
@@ -70,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
     p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+    solver_options(p)
 
     sub.add_parser("bench", add_help=False,
                    help="Scaling benchmark: worlds of growing size through every stage; writes "
@@ -110,27 +121,42 @@ def _command(args: argparse.Namespace) -> int:
         from hg2prism import experiments, pipeline, report
 
         out = _out_dir(Path(args.world), args.out)
-        if getattr(args, "max_states", None) is not None or args.command in ("emit", "check", "run"):
-            sizeguard.check_size(world, getattr(args, "max_states", None))
+        if args.max_states is not None and args.max_states < 1:
+            raise InputError("command line", "--max-states", "must be at least 1")
+        if args.command == "sweep":
+            # every swept world is guarded before the first is solved
+            for value in experiments.parse_sweep_values(args.param, args.values):
+                swept = experiments.sweep_world(world, args.param, value)
+                sizeguard.check_size(swept, args.max_states)
+        else:
+            sizeguard.check_size(world, args.max_states)
+        check_writable(out)
         if args.command in ("run", "detect"):
-            for option in ("episodes", "horizon"):
-                if getattr(args, option) is not None and getattr(args, option) < 1:
+            for option, most in (("episodes", world_mod.MAX_EPISODES),
+                                 ("horizon", world_mod.MAX_HORIZON)):
+                given = getattr(args, option)
+                if given is not None and given < 1:
                     raise InputError("command line", f"--{option}", "must be at least 1")
+                if given is not None and given > most:
+                    raise InputError("command line", f"--{option}", f"must be at most {most:,} "
+                                     f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
             if args.seed is not None and args.seed < 0:
                 raise InputError("command line", "--seed", "must be at least 0")
         table = None
-        with staged(out) as stage:
+        with staged(out, owns=OWNED[args.command]) as stage:
             if args.command == "emit":
                 pipeline.emit(world, stage)
                 results = None
             elif args.command == "check":
                 results = pipeline.check(world, stage, args.storm_method).results
             elif args.command == "sweep":
-                rows = experiments.sweep(world, args.param, args.values, stage)
+                rows = experiments.sweep(world, args.param, args.values, stage,
+                                         storm_method=args.storm_method)
                 results, table = None, "\n".join(
                     experiments.sweep_summary_lines(args.param, rows, world.name))
             elif args.command == "detect":
-                detection = experiments.detect(world, stage, args.episodes, args.seed, args.horizon)
+                detection = experiments.detect(world, stage, args.episodes, args.seed, args.horizon,
+                                               storm_method=args.storm_method)
                 results, table = None, "\n".join(experiments.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
@@ -151,6 +177,12 @@ def _command(args: argparse.Namespace) -> int:
     except StormError as err:
         print(f"hg2prism: error: {args.world}: storm: {str(err).strip().splitlines()[0]}",
               file=sys.stderr)
+        return 1
+    except OSError as err:
+        # the output folder was checked up front; this is the disk filling up or a folder
+        # changing under us. Nothing was placed: the staging folder is gone.
+        where = err.filename or getattr(args, "out", None) or args.world
+        print(f"hg2prism: error: {where}: {err.strerror or err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("hg2prism: interrupted", file=sys.stderr)

@@ -19,3 +19,15 @@ class SolverError(RuntimeError):
 
 class StormError(RuntimeError):
     """Storm refused or failed on a generated model."""
+
+
+PROBABILITY_SLACK = 1e-9   # how far outside [0, 1] rounding may put an exact probability
+
+
+def probability(value: float, what: str) -> float:
+    """`value` clamped to [0, 1]. Rounding puts exact probabilities a few ulps outside (a
+    leader value of 1.0000000000000353); more than 1e-9 outside is a bug, reported loudly
+    rather than hidden by the clamp."""
+    if not -PROBABILITY_SLACK <= value <= 1 + PROBABILITY_SLACK:
+        raise SolverError(f"{what} = {value!r} is not a probability")
+    return min(max(float(value), 0.0), 1.0)

@@ -129,7 +129,7 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[int | f
 
 def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
     """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
-    file has none (or cannot be read any more)."""
+    file has none, an empty list, or cannot be read any more."""
     try:
         with open(world.path, "rb") as handle:
             data = tomllib.load(handle)
@@ -140,6 +140,8 @@ def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
         return None
     key = "adversary.initial_traps"
     value = adversary["initial_traps"]
+    if value == []:          # what a delay-0 world writes: nothing given, so the rule goes on
+        return None
     numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
     cells: list[Cell] = []
     if isinstance(value, list):
@@ -193,8 +195,15 @@ _CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "stat
                 "transitions", "storm_states", "storm_transitions", "seconds")
 
 
+def results_sound(storm_method: str) -> bool:
+    """Whether values from `storm_method` are certified (SPEC §10)."""
+    from hg2prism.storm import SOUND_METHODS
+
+    return storm_method in SOUND_METHODS
+
+
 def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
-          show_progress: bool = True) -> list[dict]:
+          show_progress: bool = True, storm_method: str = "sound") -> list[dict]:
     """Solve the world for each value of `parameter` and record the values at the initial
     state: ``{parameter: value, deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, states,
     transitions, storm_states, storm_transitions, initial_traps, seconds}`` per value.
@@ -220,7 +229,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
         finished = False
         try:
             with contextlib.redirect_stderr(io.StringIO()):
-                checked = pipeline.check(w, out / f"{parameter}_{_value_text(value)}")
+                checked = pipeline.check(w, out / f"{parameter}_{_value_text(value)}", storm_method)
                 nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
             finished = True
         finally:
@@ -235,6 +244,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
             "v_lead": results["v_lead"],
             "v_ne": nash.v_ne,
             "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
+            "v_ne_bounds": list(nash.v_ne_bounds),
             "states": results["states"],
             "transitions": results["transitions"],
             "storm_states": results["storm_states"],
@@ -263,6 +273,8 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
         "parameter": parameter,
         "values": parsed,
         "fixed_parameters": fixed,
+        "storm_method": storm_method,
+        "sound": results_sound(storm_method),
         "initial_traps_rule": ("delay > 0: the world's initial_traps, else the file's "
                                "[adversary] initial_traps, else the first `traps` candidates"
                                if parameter == "delay" else None),
@@ -576,6 +588,8 @@ def detection_experiment(world: World, check_result, out: Path, episodes: int | 
         "seed": seed,
         "episodes": episodes,
         "deceptive_value": check_result.results.get("deceptive_value"),
+        "storm_method": check_result.results.get("storm_method"),
+        "sound": check_result.results.get("sound"),
         "p1_model": {"window": world.window, "threshold": world.threshold},
         "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
                   "exceeds the free parameters, so the test is conservative. P1 plays its "
@@ -598,7 +612,8 @@ def detection_experiment(world: World, check_result, out: Path, episodes: int | 
 
 
 def detect(world: World, out: Path, episodes: int | None = None, seed: int | None = None,
-           horizon: int | None = None, show_progress: bool = True) -> dict:
+           horizon: int | None = None, show_progress: bool = True,
+           storm_method: str = "sound") -> dict:
     """pipeline.check in a temporary folder (so that OUT/results.json of `hg2prism run` is not
     overwritten), then :func:`detection_experiment` into `out`."""
     import tempfile
@@ -611,7 +626,7 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
     with tempfile.TemporaryDirectory(prefix="hg2prism-detect-") as scratch:
         quiet = contextlib.nullcontext() if show_progress else contextlib.redirect_stderr(io.StringIO())
         with quiet:
-            checked = pipeline.check(world, Path(scratch))
+            checked = pipeline.check(world, Path(scratch), storm_method)
         return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon)
 
 

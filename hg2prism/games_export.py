@@ -29,7 +29,7 @@ import numpy as np
 from hg2prism import __version__
 from hg2prism.automata import DFA
 from hg2prism.dynamics import ACTIONS, TransitionSystem
-from hg2prism.hypergame import _cell_map, _number, lookup, render_template
+from hg2prism.hypergame import _cell_map, _number, lookup, region_labels, render_template
 from hg2prism.world import World
 
 PROPERTY = '<<p1>> Pmax=? [F "goal"]'
@@ -78,7 +78,7 @@ def _context(world: World, ts: TransitionSystem, dfa: DFA) -> dict:
         accepting=sorted(dfa.accepting), sink=sorted(dfa.sink),
         robot_commands=_robot_commands(ts),
         start_cell=start_cell, start_traps=start_traps, slip=_number(world.slip),
-        region_labels=[(name, k) for k, name in enumerate(ts.label_names) if k >= 2],
+        region_labels=region_labels(ts),
         set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(ts.n_sets)],
     )
 

@@ -52,6 +52,17 @@ class PrismModel:
     commands: dict[str, int]        # module name -> number of commands
 
 
+def region_label(letter: str) -> str:
+    """The PRISM label of a region letter: "reg_A" for A. PRISM rejects a keyword as a label
+    name even inside quotes, and A, C, E, F, G, I, P, R, S, U, W and X are keywords."""
+    return f"reg_{letter}"
+
+
+def region_labels(ts: TransitionSystem) -> list[tuple[str, int]]:
+    """(PRISM label, label class) of each region letter (classes 0 and 1 are none and obs)."""
+    return [(region_label(name), k) for k, name in enumerate(ts.label_names) if k >= 2]
+
+
 def _number(value: float | int) -> str:
     if isinstance(value, (int, np.integer)):
         return str(int(value))
@@ -89,12 +100,21 @@ def _template_source(name: str) -> str:
     return folder.joinpath(name).read_text()
 
 
+def upper(count: int) -> int:
+    """The upper bound of a variable [0..upper] taking `count` values (0 .. count-1). PRISM
+    rejects a range of one value ("Invalid range (0-0)"), so a variable that only ever holds 0
+    (one trap set, one hypothesis, a one-state DFA) is declared [0..1]; 1 is never reached."""
+    return max(count - 1, 1)
+
+
 @functools.cache   # one environment, so each template is compiled once per process
 def _environment() -> jinja2.Environment:
-    return jinja2.Environment(
+    environment = jinja2.Environment(
         loader=jinja2.FunctionLoader(_template_source),
         undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
         keep_trailing_newline=True)
+    environment.globals["upper"] = upper
+    return environment
 
 
 def render_template(name: str, **context: object) -> str:
@@ -131,7 +151,9 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
 
     # The TS state as one number (for observations), and P2's trap choice per hypothesis.
     if ts.delay:
-        ts_state = f"(cell*{n_sets}+traps)*{ts.phases}+countdown"
+        # (with one trap set, traps is always 0 but declared [0..1]: see upper())
+        ts_state = (f"(cell*{n_sets}+traps)*{ts.phases}+countdown" if n_sets > 1
+                    else f"cell*{ts.phases}+countdown")
         trap_keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
         shape = (n_cells, n_sets, ts.phases)
     else:
@@ -182,7 +204,7 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
         robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
         start_traps=ts.decode(ts.start_state)[1], slip=_number(world.slip),
-        region_labels=[(name, k) for k, name in enumerate(ts.label_names) if k >= 2],
+        region_labels=region_labels(ts),
         set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(n_sets)],
         fmt=_number,
     )

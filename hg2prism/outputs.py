@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+
+from hg2prism.errors import InputError
 
 
 _UMASK = os.umask(0)
@@ -36,12 +39,46 @@ def write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
+# What each command owns in its output folder. When a command finishes, the items it owns but
+# did not write this time are stale (emit after run: the old strategy.json, results.json and
+# world.png would describe another model) and are removed. Commands with different outputs share
+# a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
+_MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md|world\.(png|svg|pdf)"
+          r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
+OWNED = {
+    "emit": _MODEL, "check": _MODEL, "run": _MODEL,
+    "sweep": r"sweep\.(json|csv|png|svg|pdf)|(delay|window|threshold|rationality)_[0-9][0-9.e+-]*",
+    "detect": r"detection\.(json|png|svg|pdf)",
+}
+
+
+def check_writable(out: Path, what: str = "--out") -> None:
+    """InputError unless `out` is (or can be created as) a folder this process can write, so
+    that a command fails before its work rather than after it."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("command line", what, f"{out} exists and is not a folder")
+    existing = out
+    while not existing.exists():
+        if existing.parent == existing:
+            break
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError("command line", what, f"{existing} is not a folder, so {out} cannot be made")
+    try:    # os.access says yes to root on read-only file systems: try it
+        tempfile.TemporaryDirectory(dir=existing, prefix=".hg2prism-probe-").cleanup()
+    except OSError as err:
+        raise InputError("command line", what,
+                         f"cannot write in {existing}: {err.strerror or err}") from None
+
+
 @contextmanager
-def staged(out: Path) -> Iterator[Path]:
+def staged(out: Path, owns: str | None = None) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
     the command succeeds, so a failure leaves nothing half-written. Each item replaces its
     predecessor in one rename (a stop between two items leaves some new, some old, none
-    broken); an item that cannot be placed puts its predecessor back."""
+    broken); an item that cannot be placed puts its predecessor back. `owns` (a regular
+    expression over names, see OWNED) removes the command's stale outputs afterwards."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
@@ -49,7 +86,8 @@ def staged(out: Path) -> Iterator[Path]:
     try:
         yield stage
         out.mkdir(exist_ok=True)
-        for item in list(stage.iterdir()):
+        new_items = list(stage.iterdir())
+        for item in new_items:
             target = out / item.name
             if not (item.is_dir() or target.is_dir()) or not (target.exists() or
                                                                target.is_symlink()):
@@ -65,5 +103,11 @@ def staged(out: Path) -> Iterator[Path]:
             except BaseException:
                 os.replace(aside, target)
                 raise
+        if owns is not None:
+            written = {item.name for item in new_items}
+            pattern = re.compile(owns)
+            for old in list(out.iterdir()):
+                if old.name not in written and pattern.fullmatch(old.name):
+                    os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
     finally:
         shutil.rmtree(stage, ignore_errors=True)

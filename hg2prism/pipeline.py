@@ -17,6 +17,7 @@ from hg2prism.automata import DFA, translate
 from hg2prism.dynamics import TransitionSystem, build_transition_system
 from hg2prism.games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
                             solve_game)
+from hg2prism.errors import probability
 from hg2prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
@@ -58,7 +59,8 @@ def analyse(world: World) -> Analysis:
         inference = build_inference(games, world.window, world.threshold, world.initial_hypothesis)
         leader = solve_game(ts, task)
         start_cell = ts.decode(ts.start_state)[0]
-        v_lead = float(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]])
+        v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]],
+                             "V_lead")
     progress(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
     return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
@@ -100,6 +102,9 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     analysis = analyse(world)
     prism = generate(analysis, out)
     progress(f"storm: building and checking {PROPERTY} ({storm_method})")
+    if storm_method not in storm.SOUND_METHODS:
+        progress(f"warning: Storm method {storm_method!r} is not sound: the deceptive value is not "
+                 "certified to 1e-10")
     checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method)
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
@@ -115,6 +120,7 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
         "hg2prism_version": __version__,
         "deceptive_value": checked.value,
         "storm_method": storm_method,
+        "sound": storm_method in storm.SOUND_METHODS,
         "v_lead": analysis.v_lead,
         "states": states,
         "transitions": transitions,
@@ -163,8 +169,11 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
 
     with _timed(timings, "nash"):
         nash = baselines.nash_baseline(analysis.ts, analysis.task)
-    progress(f"nash: V_NE = {nash.v_ne:.6f}, guaranteed by P1's stationary strategy "
-             f"{nash.v_ne_p1_guaranteed:.6f} ({timings['nash']:.2f} s)")
+    low, high = nash.v_ne_bounds
+    progress(f"nash: V_NE = {nash.v_ne:.6f} in [{low:.10f}, {high:.10f}], guaranteed by P1's "
+             f"stationary strategy {nash.v_ne_p1_guaranteed:.6f} ({timings['nash']:.2f} s)")
+    if nash.bracket_warn:
+        progress(f"warning: the bracket around V_NE is {high - low:.2e} wide (more than 1e-6)")
     if nash.warn:
         progress(f"warning: P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, SPEC §7)")
@@ -183,8 +192,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                                               episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
         within = {
-            "deceptive": storm.induced_probability(checked.checked, checked.strategy,
-                                                   f'P=? [F<={horizon} "goal"]'),
+            "deceptive": storm.induced_within(checked.checked, checked.strategy, horizon),
             "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
                                                 nash.p2.reshape(analysis.ts.n_states * n_q, -1),
                                                 horizon),
@@ -199,6 +207,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     results = dict(checked.results)
     results["v_ne"] = nash.v_ne
     results["v_ne_p1_guaranteed"] = nash.v_ne_p1_guaranteed
+    results["v_ne_bounds"] = list(nash.v_ne_bounds)
     results["simulation"] = {
         "horizon": horizon, "seed": seed,
         "deceptive": _simulated(deceptive, within["deceptive"]),

@@ -42,8 +42,12 @@ def summary(results: dict, out: Path, files: list[str]) -> str:
         f"{results['world']}:",
         f"  deceptive value  {results['deceptive_value']:.6f}   P1 against P2's inference (Pmax, Storm)",
         f"  v_lead           {results['v_lead']:.6f}   P2 knows the task and commits first each step",
+    ] + ([f"  v_ne             {results['v_ne']:.6f}   in [{results['v_ne_bounds'][0]:.10f}, "
+          f"{results['v_ne_bounds'][1]:.10f}], both players mixing, P2 knowing the task"]
+         if "v_ne_bounds" in results else []) + [
         f"  hypergame        {results['states']} states, {results['transitions']} transitions (canonical); "
         f"Storm: {results['storm_states']} states, {results['storm_transitions']} transitions, "
         f"{results['storm_choices']} choices",
         f"  wrote            {out}/{{{', '.join(files)}}}",
-    ])
+    ] + ([f"  warning          Storm method {results['storm_method']!r} is not sound: the values "
+          f"above are not certified to 1e-10"] if not results.get("sound", True) else []))

@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.stats import norm
 
 from hg2prism.automata import DFA
@@ -623,10 +624,43 @@ def exact_completion(ts: TransitionSystem, dfa: DFA, p1: np.ndarray, p2: np.ndar
     rows = np.repeat(np.arange(size), weight[0].size)
     matrix = sp.csr_matrix((weight.reshape(-1), (rows, nxt.reshape(-1))), shape=(size, size))
     matrix = sp.diags((~stop).astype(float)) @ matrix
+    start = ts.start_state * n_q + dfa.delta[dfa.initial, label[ts.start_state]]
+    return bounded_reach(matrix, goal, stop, int(start), horizon)
+
+
+CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
+
+
+def bounded_reach(matrix: sp.csr_matrix, goal: np.ndarray, stop: np.ndarray, start: int,
+                  horizon: int) -> float:
+    """P(goal within `horizon` steps) from `start` in the DTMC `matrix` (rows of the absorbing
+    `stop` states are ignored). The k-step probabilities increase towards the unbounded one,
+    computed exactly first; the iteration stops at the horizon or as soon as it is within
+    CONVERGED of it, so a horizon of millions of steps costs only what convergence needs."""
+    matrix = sp.csr_matrix(matrix, copy=True)
+    matrix.eliminate_zeros()       # an edge of probability 0 must not count as a path
+    # Unbounded: 0 where the goal cannot be reached, else one sparse linear system.
+    can = goal.copy()
+    reverse = matrix.T.tocsr()
+    frontier = np.flatnonzero(goal)
+    while frontier.size:
+        before = reverse[frontier].indices
+        fresh = np.unique(before[~can[before] & ~stop[before]])
+        can[fresh] = True
+        frontier = fresh
+    solve = np.flatnonzero(can & ~stop)
+    unbounded = goal.astype(float)
+    if solve.size:
+        sub = matrix[solve][:, solve]
+        rhs = np.asarray(matrix[solve] @ goal.astype(float)).ravel()
+        unbounded[solve] = spla.spsolve((sp.identity(solve.size, format="csc") - sub).tocsc(), rhs)
+    limit = float(unbounded[start])
+
     reach = goal.astype(float)
     for _ in range(horizon):
         reach = np.where(stop, goal.astype(float), matrix @ reach)
-    start = ts.start_state * n_q + dfa.delta[dfa.initial, label[ts.start_state]]
+        if reach[start] >= limit - CONVERGED:
+            break
     return float(reach[start])
 
 
@@ -650,7 +684,7 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
     if nash_p2.shape != (size, ts.n_sets):
         raise ValueError(f"nash_p2 must have shape {(size, ts.n_sets)}, got {nash_p2.shape}")
 
-    label = ts.state_label()
+    state_label = ts.state_label()
     q_of = np.tile(np.arange(n_q), ts.n_states)
     s_of = np.repeat(np.arange(ts.n_states), n_q)
     goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
@@ -661,14 +695,14 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
         raise ValueError("nash_p2 gives positive probability to a trap set that is not available")
     cum1 = _cumulative(nash_p1, running, "nash_p1")
     cum2 = _cumulative(np.where(allowed, nash_p2, 0.0), running, "nash_p2")
-    succ_q = dfa.delta[:, label[ts.succ]]                                  # [n_q, S, 4, A2, 3]
+    succ_q = dfa.delta[:, state_label[ts.succ]]                                  # [n_q, S, 4, A2, 3]
     nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
         size, len(ACTIONS), ts.n_sets, -1)
     cum_outcome = np.cumsum(np.repeat(ts.prob, n_q, axis=0), axis=-1)
     cum_outcome[..., -1] = 1.0 + 1e-12
 
     rng = np.random.default_rng(seed)
-    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, label[ts.start_state]])
+    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, state_label[ts.start_state]])
     state = np.full(episodes, start, dtype=np.int64)
     lengths = np.zeros(episodes, dtype=np.int64)
     active = np.flatnonzero(running[state])

@@ -59,6 +59,7 @@ from hg2prism.world import World
 MEMORY_BUDGET = 24 * 2 ** 30
 BYTES_PER_STATE = 6 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 4,194,304 estimated states
+BEYOND = 10 ** 18     # the estimate stops counting here ("more than 10^18 states")
 
 # dynamics.py's directions (N, E, S, W) and the two perpendicular slips of each.
 _STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
@@ -142,15 +143,18 @@ def estimate_states(world: World) -> int:
                                (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
     walks = np.ones(n)                                                    # N_0
     total = 0.0
+    factor = trap_parts(world) * len(world.hypotheses)
     for length in range(world.window):                                    # L = 0 .. w-1
         if length:
             walks = adjacency @ walks
         total += float(np.dot(q_count, walks))
+        if total * factor >= BEYOND:   # a huge window: stop before the floats overflow
+            return BEYOND
     exact = total < 2 ** 52
-    total *= trap_parts(world) * len(world.hypotheses)
+    total *= factor
     if exact and total < 2 ** 52:
         return int(total) + 2
-    return math.ceil(total * (1 + 1e-9)) + 2
+    return min(math.ceil(total * (1 + 1e-9)) + 2, BEYOND)
 
 
 def check_size(world: World, limit: int | None = None) -> int:
@@ -158,10 +162,12 @@ def check_size(world: World, limit: int | None = None) -> int:
     limit = DEFAULT_LIMIT if limit is None else limit
     estimate = estimate_states(world)
     if estimate > limit:
+        size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
+        hint = (f"To build it anyway, pass --max-states {estimate}" if estimate < BEYOND
+                else "Reduce inference.window or the grid")
         raise InputError(
             str(world.path), "size",
-            f"the hypergame may have up to {estimate:,} states (estimated from the grid, the "
+            f"the hypergame may have {size} states (estimated from the grid, the "
             f"task's DFA, {len(world.hypotheses)} hypotheses and window {world.window}), more than "
-            f"the limit of {limit:,} that fits in memory; nothing was written. To build it "
-            f"anyway, pass --max-states {estimate}")
+            f"the limit of {limit:,} that fits in memory; nothing was written. {hint}")
     return estimate

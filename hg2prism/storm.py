@@ -23,7 +23,7 @@ from stormpy.core._io import export_to_umb
 
 from hg2prism.automata import DFA
 from hg2prism.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
-from hg2prism.errors import StormError
+from hg2prism.errors import StormError, probability
 from hg2prism.hypergame import Layout
 
 PRECISION = "1/10000000000"   # 1e-10, SPEC §10
@@ -65,6 +65,7 @@ class CheckedModel:
 # default. "fast" is Storm's topological value iteration stopped at an absolute change of 1e-12,
 # which is not sound (7e-6 short on one 42k-state model).
 STORM_METHODS = ("sound", "sound-ovi", "fast")
+SOUND_METHODS = ("sound", "sound-ovi")      # certified to 1e-10 (SPEC §10); "fast" is not
 
 
 def solver_environment(method: str) -> developer.Environment:
@@ -110,7 +111,8 @@ def _check(prism_path: Path, prop: str, environment: developer.Environment) -> C
     values = np.asarray(result.get_value_vector())
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
-    return CheckedModel(model=model, value=float(values[initial]), values=values,
+    value = probability(values[initial], "Storm's value at the initial state")
+    return CheckedModel(model=model, value=value, values=values,
                         formula=properties[0], timings=timings)
 
 
@@ -385,18 +387,43 @@ def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
     return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]
 
 
-def induced_probability(checked: CheckedModel, strategy: Strategy,
-                        prop: str = 'P=? [F "goal"]') -> float:
-    """A property of the DTMC that P1's strategy induces, checked by Storm."""
+def _induced_dtmc(checked: CheckedModel, strategy: Strategy) -> object:
     matrix = checked.model.transition_matrix
     scheduler = checked.scheduler
     for s in range(checked.model.nr_states):
         local = int(strategy.choice[s]) - matrix.get_row_group_start(s)
         scheduler.set_choice(developer.storage.SchedulerChoice[float](local), s)
-    dtmc = checked.model.apply_scheduler(scheduler, True)
+    return checked.model.apply_scheduler(scheduler, True)
+
+
+def _dtmc_value(dtmc: object, prop: str) -> float:
     formula = stormpy.parse_properties(prop)[0]
     result = stormpy.model_checking(dtmc, formula, environment=sound_environment())
     return float(result.get_value_vector()[dtmc.initial_states[0]])
+
+
+def induced_probability(checked: CheckedModel, strategy: Strategy,
+                        prop: str = 'P=? [F "goal"]') -> float:
+    """A property of the DTMC that P1's strategy induces, checked by Storm."""
+    return _dtmc_value(_induced_dtmc(checked, strategy), prop)
+
+
+CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
+
+
+def induced_within(checked: CheckedModel, strategy: Strategy, horizon: int) -> float:
+    """P(goal within `horizon` steps) under P1's strategy. Storm's bounded reachability costs
+    one sweep per step, so the bound doubles from 1024 and stops at the horizon or as soon as
+    the bounded probability is within CONVERGED of the unbounded one (it only increases
+    towards it): a horizon of millions of steps costs what convergence needs."""
+    dtmc = _induced_dtmc(checked, strategy)
+    unbounded = _dtmc_value(dtmc, 'P=? [F "goal"]')
+    bound = min(horizon, 1024)
+    while True:
+        value = _dtmc_value(dtmc, f'P=? [F<={bound} "goal"]')
+        if bound == horizon or value >= unbounded - CONVERGED:
+            return value
+        bound = min(2 * bound, horizon)
 
 
 def strategy_records(decoded: DecodedStates, strategy: Strategy, moves: Transitions,

@@ -88,6 +88,19 @@ _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
+# Limits that keep every accepted world within bounded time and memory. Simulated episodes run
+# side by side (arrays of `episodes` entries); a horizon bounds the steps of an episode that
+# never ends (P1 kept away from both goal and traps), and the exact within-horizon numbers stop
+# once converged. 10^5 steps x 10^6 episodes is the worst case these admit.
+MAX_EPISODES = 1_000_000
+MAX_HORIZON = 100_000
+LIMIT_REASON = {
+    "simulation.episodes": "episodes are simulated side by side in memory",
+    "simulation.horizon": "an episode that never ends is simulated to the horizon",
+    "--episodes": "episodes are simulated side by side in memory",
+    "--horizon": "an episode that never ends is simulated to the horizon",
+}
+
 _MISSING_HINT = {
     "grid.map": "a multi-line string with the map (legend: " + MAP_LEGEND + ")",
     "robot.slip": "a number in [0, 0.5)",
@@ -225,12 +238,15 @@ class _Loader:
             raise self.fail(key, f"must be a string, got {_toml_type(value)}")
         return value
 
-    def integer(self, value: object, key: str, minimum: int | None = None) -> int:
+    def integer(self, value: object, key: str, minimum: int | None = None,
+                maximum: int | None = None) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.fail(key, f"must be an integer, got {_shown(value)}")
+        name = key.rsplit(".", 1)[-1]
         if minimum is not None and value < minimum:
-            name = key.rsplit(".", 1)[-1]
             raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise self.fail(key, f"{name} must be <= {maximum:,} ({LIMIT_REASON[key]}), got {value:,}")
         return value
 
     def number(self, value: object, key: str) -> float:
@@ -406,8 +422,10 @@ class _Loader:
         sim = self.table(root, "simulation")
         d = SimulationSettings()
         simulation = SimulationSettings(
-            episodes=self.integer(sim.get("episodes", d.episodes), "simulation.episodes", 1),
-            horizon=self.integer(sim.get("horizon", d.horizon), "simulation.horizon", 1),
+            episodes=self.integer(sim.get("episodes", d.episodes), "simulation.episodes", 1,
+                                  MAX_EPISODES),
+            horizon=self.integer(sim.get("horizon", d.horizon), "simulation.horizon", 1,
+                                 MAX_HORIZON),
             seed=self.integer(sim.get("seed", d.seed), "simulation.seed", 0),
         )
 

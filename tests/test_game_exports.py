@@ -1,7 +1,8 @@
 """PRISM-games exports (SPEC §7 last paragraph): the symmetric game as a csg and each G(x) as an smg.
 
-PRISM-games is not available here, so the files are checked with Storm (stormpy) and by
-independent computations, on world1 and on world2 with delay 2:
+These checks need no PRISM (tests/test_prism.py runs PRISM-games itself where installed): the
+files are checked with Storm (stormpy) and by independent computations, on world1 and on world2
+with delay 2:
   * smg (perceptual_<i>.prism): Storm parses and builds it. Its states are those of an explicit
     search of TS x DFA(x) x turn, P2 owns exactly the turn-0 states, every choice has exactly
     the successor distribution of SPEC §2, and value iteration on Storm's matrix (P1 maximising,

@@ -1,0 +1,232 @@
+"""Command-line edges: each error is one line, a non-zero exit, no traceback, nothing written;
+options every solving command shares; output folders that never mix fresh and stale outputs;
+extreme values that run in bounded time or are refused up front.
+
+The CLI runs as a subprocess, so a traceback reaching the terminal would be seen.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from conftest import MODELS, ROOT
+from hg2prism import __version__
+from hg2prism.simulation import bounded_reach
+
+WORLD1 = str(MODELS / "world1.toml")
+
+
+def run_cli(args: list[str], cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "hg2prism", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> str:
+    assert proc.returncode != 0, (proc.stdout, proc.stderr)
+    assert "Traceback" not in proc.stderr, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hg2prism: error: "), proc.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+def only(folder: Path, *names: str) -> None:
+    """`folder` holds exactly `names` (no staging folder, no probe left behind)."""
+    assert sorted(p.name for p in folder.iterdir()) == sorted(names)
+
+
+def small_world(tmp_path: Path, extra: dict[str, str] | None = None) -> Path:
+    """world1 with some lines replaced."""
+    text = (MODELS / "world1.toml").read_text()
+    for old, new in (extra or {}).items():
+        assert old in text, old
+        text = text.replace(old, new)
+    path = tmp_path / "w.toml"
+    path.write_text(text)
+    return path
+
+
+# ------------------------------------------------------------------------------- output folders
+
+def test_out_is_an_existing_file(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("mine")
+    proc = run_cli(["emit", WORLD1, "--out", str(tmp_path / "file")], tmp_path)
+    assert_one_line_error(proc, "--out", "not a folder")
+    only(tmp_path, "file")
+    assert (tmp_path / "file").read_text() == "mine"
+
+
+def test_out_below_a_file(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("mine")
+    proc = run_cli(["check", WORLD1, "--out", str(tmp_path / "file" / "sub")], tmp_path)
+    assert_one_line_error(proc, "--out", "not a folder")
+    only(tmp_path, "file")
+
+
+@pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs /proc (a folder nobody can write)")
+def test_out_in_a_folder_that_cannot_be_written(tmp_path: Path) -> None:
+    # /proc refuses new entries even to root, for whom permission bits would not do
+    proc = run_cli(["run", WORLD1, "--out", "/proc/hg2prism-out"], tmp_path)
+    assert_one_line_error(proc, "--out", "cannot write in /proc")
+
+
+def test_version(tmp_path: Path) -> None:
+    proc = run_cli(["--version"], tmp_path)
+    assert proc.returncode == 0 and proc.stdout.strip() == f"hg2prism {__version__}"
+
+
+def test_emit_after_run_leaves_no_stale_outputs(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert run_cli(["run", WORLD1, "--out", str(out), "--episodes", "50"], tmp_path).returncode == 0
+    assert {"strategy.json", "results.json", "world.png", "table.md", "symmetric.prism"} <= {
+        p.name for p in out.iterdir()}
+    (out / "notes.txt").write_text("mine")      # not hg2prism's: kept
+    proc = run_cli(["emit", WORLD1, "--out", str(out)], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    only(out, "hypergame.prism", "hypergame.props", "notes.txt")
+    only(tmp_path, "out")
+
+
+# ---------------------------------------------------------------------------- shared options
+
+def test_sweep_and_detect_refuse_a_world_above_max_states(tmp_path: Path) -> None:
+    for command in (["sweep", WORLD1, "--param", "window", "--values", "1", "2"],
+                    ["detect", WORLD1]):
+        proc = run_cli(command + ["--out", str(tmp_path / "out"), "--max-states", "100"], tmp_path)
+        assert_one_line_error(proc, WORLD1, "size", "limit of 100")
+        assert not (tmp_path / "out").exists()
+
+
+def test_a_sweep_guards_every_value_before_solving(tmp_path: Path) -> None:
+    # window 1 fits in 2,000 states, window 3 does not: nothing is solved, nothing written
+    proc = run_cli(["sweep", WORLD1, "--param", "window", "--values", "1", "3", "--out",
+                    str(tmp_path / "out"), "--max-states", "2000"], tmp_path)
+    assert_one_line_error(proc, "size", "window 3")
+    assert not (tmp_path / "out").exists()
+
+
+def test_fast_method_is_flagged(tmp_path: Path) -> None:
+    proc = run_cli(["check", WORLD1, "--out", str(tmp_path / "c"), "--storm-method", "fast"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "not sound" in proc.stdout and "not sound" in proc.stderr
+    results = json.loads((tmp_path / "c" / "results.json").read_text())
+    assert results["storm_method"] == "fast" and results["sound"] is False
+    proc = run_cli(["check", WORLD1, "--out", str(tmp_path / "s")], tmp_path)
+    assert "not sound" not in proc.stdout + proc.stderr
+    assert json.loads((tmp_path / "s" / "results.json").read_text())["sound"] is True
+
+
+def test_sweep_delay_without_initial_traps_and_with_a_storm_method(tmp_path: Path) -> None:
+    """world1 writes `initial_traps = []`: a delay sweep falls back to the first candidate, as
+    sweep.json's rule says, and --storm-method reaches every point."""
+    proc = run_cli(["sweep", WORLD1, "--param", "delay", "--values", "0", "1", "--out",
+                    str(tmp_path / "out"), "--storm-method", "sound-ovi"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert summary["storm_method"] == "sound-ovi" and summary["sound"] is True
+    first_candidate = [1, 4]        # world1's candidates, top row first: (1,4) (3,4) (2,2) (3,2)
+    assert [row["initial_traps"] for row in summary["rows"]] == [[], [first_candidate]]
+    for row in summary["rows"]:
+        low, high = row["v_ne_bounds"]
+        assert 0 <= low <= row["v_ne"] <= high <= 1
+
+
+def test_simulation_progress_names_the_simulation(tmp_path: Path) -> None:
+    proc = run_cli(["run", WORLD1, "--out", str(tmp_path / "out"), "--episodes", "50"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if "episodes in" in line]
+    assert [line.split(":")[0] for line in lines] == [
+        "simulate deceptive", "simulate nash", "simulate leader"], lines
+
+
+# ----------------------------------------------------------------------------- extreme values
+
+def test_huge_window_is_refused_up_front(tmp_path: Path) -> None:
+    world = small_world(tmp_path, {"window = 2": "window = 1000000"})
+    start = time.monotonic()
+    proc = run_cli(["run", str(world), "--out", str(tmp_path / "out")], tmp_path, timeout=60)
+    assert time.monotonic() - start < 30
+    assert_one_line_error(proc, str(world), "size", "more than 10^18", "window 1000000",
+                          "limit of 4,194,304")
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("key,line", [("simulation.horizon", "horizon = 1000000000"),
+                                      ("simulation.episodes", "episodes = 1000000000")])
+def test_huge_simulation_is_refused_by_the_validator(tmp_path: Path, key: str, line: str) -> None:
+    world = small_world(tmp_path)
+    world.write_text(world.read_text() + f"\n[simulation]\n{line}\n")
+    proc = run_cli(["validate", str(world)], tmp_path)
+    assert_one_line_error(proc, str(world), key, "<= ")
+
+
+def test_huge_horizon_on_the_command_line_is_refused(tmp_path: Path) -> None:
+    proc = run_cli(["run", WORLD1, "--out", str(tmp_path / "o"), "--horizon", "1000000000"], tmp_path)
+    assert_one_line_error(proc, "--horizon", "at most 100,000")
+    assert not (tmp_path / "o").exists()
+
+
+def test_largest_horizon_runs_in_bounded_time(tmp_path: Path) -> None:
+    """At the largest horizon the exact within-horizon numbers stop once converged: they equal
+    the unbounded values, and the run takes seconds, not 10^5 sweeps per number."""
+    out = tmp_path / "out"
+    proc = run_cli(["run", WORLD1, "--out", str(out), "--episodes", "200", "--horizon", "100000"],
+                   tmp_path, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((out / "results.json").read_text())
+    simulated = results["simulation"]
+    assert abs(simulated["deceptive"]["exact_within_horizon"] - results["deceptive_value"]) < 1e-9
+    assert abs(simulated["leader"]["exact_within_horizon"] - results["v_lead"]) < 1e-9
+
+
+def test_bounded_reach_equals_step_by_step_iteration() -> None:
+    """The converged stop changes nothing that step-by-step iteration would give (to 1e-12)."""
+    rng = np.random.default_rng(5)
+    n = 60
+    for trial in range(20):
+        dense = rng.random((n, n)) * (rng.random((n, n)) < 0.08)
+        dense[np.arange(n), rng.integers(0, n, n)] += 0.01
+        dense /= dense.sum(axis=1, keepdims=True)
+        goal = np.zeros(n, dtype=bool)
+        goal[:2] = True
+        stop = goal.copy()
+        stop[2:4] = True
+        matrix = sp.diags((~stop).astype(float)) @ sp.csr_matrix(dense)
+        for horizon in (1, 7, 50, 10_000):
+            reach = goal.astype(float)
+            for _ in range(horizon):
+                reach = np.where(stop, goal.astype(float), matrix @ reach)
+            assert abs(bounded_reach(matrix, goal, stop, 10, horizon) - reach[10]) <= 1e-12
+
+
+def test_sigterm_stops_a_long_simulation_within_seconds(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    command = [sys.executable, "-m", "hg2prism", "run", WORLD1, "--out", str(out),
+               "--episodes", "1000000", "--horizon", "100000"]
+    proc = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not any(tmp_path.glob(".out.staging-*/strategy.json")):   # simulating from then on
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+        time.sleep(0.05)
+    time.sleep(1.0)
+    sent = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=60)
+    assert time.monotonic() - sent < 5, "SIGTERM took more than 5 s to stop the run"
+    assert proc.returncode == 143, stderr
+    assert "Traceback" not in stderr
+    only(tmp_path)
