@@ -1,15 +1,20 @@
 """hg2prism: deceptive strategies in dynamic hypergames, checked with Storm.
 
-The pipeline, one module per stage:
+The Python API (docs/api.md):
 
-    world      -> load and validate a world file (SPEC §1)
-    dynamics   -> the transition system TS: cells, labels, trap sets, P(v'|v,a1,a2) (SPEC §2)
-    automata   -> Spot: co-safe LTL -> complete DFA (SPEC §3)
-    games      -> P2's perceptual games G(x): values, trap strategy, softmax model of P1 (SPEC §4)
-    inference  -> P2's sliding-window CUSUM inference (SPEC §5)
-    hypergame  -> the hypergame MDP rendered as a structured PRISM model (SPEC §6)
-    storm      -> Storm: build, check Pmax, export the deceptive strategy (SPEC §6)
-    pipeline   -> runs the stages for one world and writes its outputs
+    load_world(path), world_from_toml(text, name="world")   -> World
+    solve(world, *, out=None, storm_method="sound")          -> Solution
+    baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
+    simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
+
+The pipeline, one module per stage, is listed in the README; the meaning of every number is in
+docs/semantics.md.
 """
 
 __version__ = "0.1.0"
+
+from hg2prism.api import (Baselines, DeceptiveStrategy, Simulation, Solution,  # noqa: E402
+                          baselines, load_world, simulate, solve, world_from_toml)
+
+__all__ = ["__version__", "load_world", "world_from_toml", "solve", "baselines", "simulate",
+           "Solution", "DeceptiveStrategy", "Baselines", "Simulation"]

@@ -7,10 +7,11 @@ import signal
 import sys
 from pathlib import Path
 
-from hg2prism import __version__, sizeguard
+from hg2prism import __version__, progress
+from hg2prism.engines.storm import STORM_METHODS
 from hg2prism.errors import InputError, SolverError, StormError
+from hg2prism.model import sizeguard
 from hg2prism.outputs import OWNED, check_writable, staged
-from hg2prism.storm import STORM_METHODS
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -72,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
     solver_options(p)
-    p = add("detect", "Detect a wrong opponent model (SPEC §9): the seeded episode where P2 deviates "
+    p = add("detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded episode where P2 deviates "
             "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
             "rate, and P2 running another window or threshold; writes OUT/detection.json and "
             "OUT/detection.png.")
@@ -88,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
 
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["bench"]:
-        from hg2prism import bench
+        from hg2prism.experiments import bench
 
         try:
             return bench.main(argv[1:])
@@ -103,7 +104,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:      # not the main thread: leave signals alone
         previous = None
     try:
-        return _command(args)
+        with progress.on_stderr():
+            return _command(args)
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
@@ -111,22 +113,24 @@ def main(argv: list[str] | None = None) -> int:
 
 def _command(args: argparse.Namespace) -> int:
     try:
-        from hg2prism import world as world_mod
+        from hg2prism.model import world as world_mod
 
         world = world_mod.load_world(args.world)
         if args.command == "validate":
             print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
                   f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
             return 0
-        from hg2prism import experiments, pipeline, report
+        from hg2prism import pipeline
+        from hg2prism.experiments import detect, sweep
+        from hg2prism.report import tables
 
         out = _out_dir(Path(args.world), args.out)
         if args.max_states is not None and args.max_states < 1:
             raise InputError("command line", "--max-states", "must be at least 1")
         if args.command == "sweep":
             # every swept world is guarded before the first is solved
-            for value in experiments.parse_sweep_values(args.param, args.values):
-                swept = experiments.sweep_world(world, args.param, value)
+            for value in sweep.parse_sweep_values(args.param, args.values):
+                swept = sweep.sweep_world(world, args.param, value)
                 sizeguard.check_size(swept, args.max_states)
         else:
             sizeguard.check_size(world, args.max_states)
@@ -150,20 +154,20 @@ def _command(args: argparse.Namespace) -> int:
             elif args.command == "check":
                 results = pipeline.check(world, stage, args.storm_method).results
             elif args.command == "sweep":
-                rows = experiments.sweep(world, args.param, args.values, stage,
+                rows = sweep.sweep(world, args.param, args.values, stage,
                                          storm_method=args.storm_method)
                 results, table = None, "\n".join(
-                    experiments.sweep_summary_lines(args.param, rows, world.name))
+                    sweep.sweep_summary_lines(args.param, rows, world.name))
             elif args.command == "detect":
-                detection = experiments.detect(world, stage, args.episodes, args.seed, args.horizon,
+                detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
                                                storm_method=args.storm_method)
-                results, table = None, "\n".join(experiments.detection_summary_lines(detection))
+                results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
                                       storm_method=args.storm_method)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
-        print(report.summary(results, out, files) if results else report.written(out, files))
+        print(tables.summary(results, out, files) if results else tables.written(out, files))
         if table:
             print()
             print(table)

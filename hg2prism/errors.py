@@ -14,7 +14,7 @@ class InputError(Exception):
 
 
 class SolverError(RuntimeError):
-    """A numerical solver did not reach the precision SPEC §10 requires."""
+    """A numerical solver did not reach the precision docs/semantics.md §10 requires."""
 
 
 class StormError(RuntimeError):

@@ -1,9 +1,8 @@
-"""Runs the stages for one world and writes its outputs (SPEC §§2–6)."""
+"""Runs the stages for one world and writes its outputs (docs/semantics.md §§2–6)."""
 
 from __future__ import annotations
 
 import functools
-import sys
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -12,20 +11,18 @@ from typing import Iterator
 
 import numpy as np
 
-from hg2prism import __version__, storm
-from hg2prism.automata import DFA, translate
-from hg2prism.dynamics import TransitionSystem, build_transition_system
-from hg2prism.games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
+from hg2prism import __version__
+from hg2prism.engines import storm
+from hg2prism.model.automata import DFA, translate
+from hg2prism.model.dynamics import TransitionSystem, build_transition_system
+from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
                             solve_game)
 from hg2prism.errors import probability
-from hg2prism.hypergame import PROPERTY, PrismModel, build_model, write_model
-from hg2prism.inference import InferenceModel, build_inference
+from hg2prism.progress import say, warn
+from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
+from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
-from hg2prism.world import World
-
-
-def progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+from hg2prism.model.world import World
 
 
 @contextmanager
@@ -44,7 +41,7 @@ class Analysis:
     task: DFA
     games: list[PerceptualGame]
     inference: InferenceModel
-    leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (SPEC §7)
+    leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (docs/semantics.md §7)
     v_lead: float
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -61,7 +58,7 @@ def analyse(world: World) -> Analysis:
         start_cell = ts.decode(ts.start_state)[0]
         v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]],
                              "V_lead")
-    progress(f"games: {len(games)} perceptual game(s) and the leader game solved "
+    say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
     return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
 
@@ -71,7 +68,7 @@ def generate(analysis: Analysis, out: Path) -> PrismModel:
     model = build_model(analysis.world, analysis.ts, analysis.task, analysis.games, analysis.inference)
     prism, _ = write_model(model, out)
     analysis.timings["generate"] = time.perf_counter() - start
-    progress(f"generate: {prism.name} ({sum(model.commands.values())} commands) "
+    say(f"generate: {prism.name} ({sum(model.commands.values())} commands) "
              f"in {analysis.timings['generate']:.2f} s")
     return model
 
@@ -101,9 +98,9 @@ class CheckResult:
 def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     analysis = analyse(world)
     prism = generate(analysis, out)
-    progress(f"storm: building and checking {PROPERTY} ({storm_method})")
+    say(f"storm: building and checking {PROPERTY} ({storm_method})")
     if storm_method not in storm.SOUND_METHODS:
-        progress(f"warning: Storm method {storm_method!r} is not sound: the deceptive value is not "
+        warn(f"Storm method {storm_method!r} is not sound: the deceptive value is not "
                  "certified to 1e-10")
     checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method)
     analysis.timings.update(checked.timings)
@@ -138,7 +135,7 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     # One record per line: compact for millions of states, still easy to grep and diff.
     write_text(out / "strategy.json", strategy_text)
     write_json(out / "results.json", results)
-    progress(f"storm: {checked.model.nr_states} states ({states} canonical), "
+    say(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
     return CheckResult(analysis, prism, checked, decoded, strategy, results, out)
 
@@ -153,9 +150,13 @@ class RunResult:
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
         seed: int | None = None, show_progress: bool = True,
         storm_method: str = "sound") -> RunResult:
-    """Everything computed for a world: the check, the baselines (SPEC §7), the PRISM-games
-    exports, the online simulations (SPEC §8), the completion table and the world picture."""
-    from hg2prism import baselines, games_export, plots, report, simulation
+    """Everything computed for a world: the check, the baselines (docs/semantics.md §7), the PRISM-games
+    exports, the online simulations (docs/semantics.md §8), the completion table and the world picture."""
+    from hg2prism.analyses import baselines
+    from hg2prism.prism import game_models
+    from hg2prism.report import plots
+    from hg2prism.report import tables
+    from hg2prism.analyses import simulation
 
     episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
@@ -164,19 +165,19 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     analysis, timings = checked.analysis, checked.analysis.timings
 
     with _timed(timings, "exports"):
-        written = games_export.write_game_models(analysis, out)
-    progress(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
+        written = game_models.write_game_models(analysis, out)
+    say(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
 
     with _timed(timings, "nash"):
         nash = baselines.nash_baseline(analysis.ts, analysis.task)
     low, high = nash.v_ne_bounds
-    progress(f"nash: V_NE = {nash.v_ne:.6f} in [{low:.10f}, {high:.10f}], guaranteed by P1's "
+    say(f"nash: V_NE = {nash.v_ne:.6f} in [{low:.10f}, {high:.10f}], guaranteed by P1's "
              f"stationary strategy {nash.v_ne_p1_guaranteed:.6f} ({timings['nash']:.2f} s)")
     if nash.bracket_warn:
-        progress(f"warning: the bracket around V_NE is {high - low:.2e} wide (more than 1e-6)")
+        warn(f"the bracket around V_NE is {high - low:.2e} wide (more than 1e-6)")
     if nash.warn:
-        progress(f"warning: P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
-                 f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, SPEC §7)")
+        warn(f"P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
+                 f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
 
     with _timed(timings, "simulation"):
         strategy = simulation.Strategy.from_records(checked.records, analysis.ts)
@@ -215,7 +216,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         "leader": _simulated(leader_sim, within["leader"]),
     }
     results["timings"] = {k: round(v, 4) for k, v in timings.items()}
-    table = report.completion_table(results)
+    table = tables.completion_table(results)
     write_text(out / "table.md", table)
     write_json(out / "results.json", results)
     return RunResult(checked, results, table)
@@ -228,7 +229,7 @@ def _simulated(summary, exact_within_horizon: float) -> dict:
 
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     """The leader game's pair as (degenerate) mixed strategies over g = s * n_q + q: P2's trap
-    sets by SPEC §4's rule on the exact values (optimal up to its 1e-6 ties), P1's fastest
+    sets by docs/semantics.md §4's rule on the exact values (optimal up to its 1e-6 ties), P1's fastest
     optimal answers."""
     p2 = analysis.leader.p2_strategy
     p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
@@ -238,7 +239,7 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
 def _illustrative_episode(analysis: Analysis, strategy, horizon: int, seed: int) -> tuple[list, str]:
     """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
     clearest picture of the strategy), else the first one."""
-    from hg2prism import simulation
+    from hg2prism.analyses import simulation
 
     first: tuple[list, str] | None = None
     best: tuple[list, str] | None = None

@@ -1,6 +1,6 @@
-"""Independent reference implementation of the hg2prism semantics (SPEC sections 1-6).
+"""Independent reference implementation of the hg2prism semantics (docs/semantics.md §§1-6).
 
-Written directly from /work/shared/SPEC.md, deliberately without importing anything from
+Written directly from the semantics (docs/semantics.md), deliberately without importing anything from
 ``hg2prism`` (and without stormpy), so that the test suite can use it to catch bugs in the
 package.  Everything is explicit: the world is read with ``tomllib``, the transition system,
 the perceptual games, the inference machine and the hypergame MDP are explored with
@@ -17,13 +17,13 @@ Conventions (the contract with the package under test):
 * DFA states are Spot's state numbers of
   ``spot.translate(formula, "deterministic", "complete", "sbacc")``.
 
-Choices where SPEC is silent (kept deliberately simple):
+Choices where the semantics are silent (kept deliberately simple):
 
 * the DFA's final states are those from which every infinite continuation over the world's
   letters is accepted (asked of Spot as a language containment, state by state), and ``Sink``
   the states from which no final state can be reached over those letters;
 * with a single hypothesis no change can happen, but B still records the last w-1
-  observations (SPEC 5 step 3 read literally), so such states are distinct in the count;
+  observations (semantics §5 step 3 read literally), so such states are distinct in the count;
 * ``trap_strategy`` returns ``tuple(sorted(cells))`` (plain Python order of (x, y));
 * the games G(x) are solved on the TS states reachable from the initial state; asking for
   P2's strategy or the inference at another TS state raises KeyError;
@@ -49,8 +49,8 @@ ACTIONS = ("N", "E", "S", "W")
 DELTA = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
 PERP = {"N": ("E", "W"), "S": ("E", "W"), "E": ("N", "S"), "W": ("N", "S")}
 
-TIE_P2 = 1e-6        # SPEC 4: tie tolerance of P2's strategy
-TOL_CUSUM = 1e-9     # SPEC 5: threshold / argmax tolerance
+TIE_P2 = 1e-6        # semantics §4: tie tolerance of P2's strategy
+TOL_CUSUM = 1e-9     # semantics §5: threshold / argmax tolerance
 SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
 VI_STOP = 1e-9      # value iteration only seeds the strategy iteration
 VI_MAX_SWEEPS = 1500
@@ -304,7 +304,7 @@ class DFA:
                     raise RuntimeError(f"DFA of {formula} not deterministic/complete on {lab}")
                 row[lab] = dsts[0]
             self.delta[q] = row
-        # Final states (SPEC 3): a good prefix has been read, i.e. every infinite continuation
+        # Final states (semantics §3): a good prefix has been read, i.e. every infinite continuation
         # over the world's letters is accepted. Asked of Spot as a language containment: the
         # automaton started in q contains every word over the world's letters.
         letters = labels if world_letters is None else world_letters
@@ -451,7 +451,7 @@ class World:
             return (int(v[0]), int(v[1]))
         return (int(v[0]), int(v[1]), self.norm_traps(v[2]), int(v[3]))
 
-    # ----- TS (SPEC 2) -----
+    # ----- TS (semantics §2) -----
     def move(self, cell, d):
         dx, dy = DELTA[d]
         nx, ny = cell[0] + dx, cell[1] + dy
@@ -504,7 +504,7 @@ class World:
                             queue.append(s)
         return order
 
-    # ----- perceptual games (SPEC 4) -----
+    # ----- perceptual games (semantics §4) -----
     def game_values(self, formula):
         """V_x as a dict {(v, q): value} over TS-reachable v (non-trapped) and all q."""
         if formula in self._games:
@@ -571,7 +571,7 @@ class World:
         return tot
 
     def pi2(self, x, v):
-        """P2's strategy pi2_x(v) (SPEC 4): a trap set (tuple in candidate order)."""
+        """P2's strategy pi2_x(v) (semantics §4): a trap set (tuple in candidate order)."""
         key = (x, v)
         if key in self._pi2_cache:
             return self._pi2_cache[key]
@@ -611,7 +611,7 @@ class World:
         a2 = self.pi2(xh, v)
         return self.logpi1(x, v, a2)[a1] - self.logpi1(xh, v, a2)[a1]
 
-    # ----- inference (SPEC 5) -----
+    # ----- inference (semantics §5) -----
     def eta(self, M, obs):
         key = (M, obs)
         if key in self._eta_cache:
@@ -636,7 +636,7 @@ class World:
         self._eta_cache[key] = res
         return res
 
-    # ----- hypergame MDP (SPEC 6) -----
+    # ----- hypergame MDP (semantics §6) -----
     def hyper_successors(self, s, a1):
         """dict canonical successor -> probability; successors are "goal", "fail" or (v,q,M)."""
         v, q, M = s

@@ -1,10 +1,10 @@
-"""SPEC §3: Spot's DFAs over the world's label classes."""
+"""docs/semantics.md §3: Spot's DFAs over the world's label classes."""
 
 from __future__ import annotations
 
 import pytest
 
-from hg2prism.automata import is_cosafe, translate
+from hg2prism.model.automata import is_cosafe, translate
 
 LABELS = ("", "obs", "A", "B", "C")
 TASK = "(!obs U A) & (!(B | obs) U C)"
@@ -51,7 +51,7 @@ def test_a_subgoal_hypothesis_has_three_states() -> None:
 
 
 # ------------------------------------------------------------------ final states = good prefixes
-# SPEC §3: a DFA state is final exactly when every infinite continuation over the world's letters
+# docs/semantics.md §3: a DFA state is final exactly when every infinite continuation over the world's letters
 # is accepted. These tests ask Spot directly (language containment and satisfiability), without
 # the package's rule, on random syntactically co-safe formulas.
 

@@ -1,4 +1,4 @@
-"""SPEC §7 invariants and SPEC §8's statistical check on generated worlds, through `run`."""
+"""docs/semantics.md §7 invariants and docs/semantics.md §8's statistical check on generated worlds, through `run`."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ import pytest
 
 import worldgen
 from conftest import MODELS
-from hg2prism import baselines, pipeline
-from hg2prism.automata import translate
-from hg2prism.dynamics import build_transition_system
-from hg2prism.games import solve_game
-from hg2prism.simulation import wilson_interval
-from hg2prism.world import load_world
+from hg2prism import pipeline
+from hg2prism.analyses import baselines
+from hg2prism.model.automata import translate
+from hg2prism.model.dynamics import build_transition_system
+from hg2prism.opponent.perceptual_games import solve_game
+from hg2prism.analyses.simulation import wilson_interval
+from hg2prism.model.world import load_world
 
 FAMILY = dict(worldgen.world_family())
 # Non-trivial worlds: delay 0, 1 and 2, one and two traps, windows 1-3.

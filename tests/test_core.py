@@ -13,10 +13,11 @@ import pytest
 import reference
 import worldgen
 from conftest import MODELS
-from hg2prism import pipeline, storm
-from hg2prism.dynamics import ACTIONS
-from hg2prism.inference import Memory
-from hg2prism.world import load_world
+from hg2prism import pipeline
+from hg2prism.engines import storm
+from hg2prism.model.dynamics import ACTIONS
+from hg2prism.opponent.inference import Memory
+from hg2prism.model.world import load_world
 
 FAMILY = dict(worldgen.world_family())
 CASES = ["world1"] + sorted(FAMILY)
@@ -166,7 +167,7 @@ def _reference_window(ts, window) -> tuple:
 
 
 def test_single_hypothesis_equal_to_a_one_step_task_gives_v_lead(world_dir: Path) -> None:
-    """SPEC §7: X = {phi}, phi = "!obs U A": deceptive value equals V_lead."""
+    """docs/semantics.md §7: X = {phi}, phi = "!obs U A": deceptive value equals V_lead."""
     world = load_world(MODELS / "world1.toml")
     for window in (1, 2):
         single = dataclasses.replace(world, formula="!obs U A", hypotheses=("!obs U A",),

@@ -1,4 +1,4 @@
-"""Online mismatch detection (SPEC §9): likelihood-ratio test on hand-computed sequences.
+"""Online mismatch detection (docs/semantics.md §9): likelihood-ratio test on hand-computed sequences.
 
 Notation: eps = epsilon; with 3 actions p0(predicted) = 1 - eps, p0(other) = eps / 2;
 with eps = 0.1:  ln 0.9 = -0.1053605,  ln 0.05 = -2.9957323.
@@ -13,7 +13,7 @@ import random
 import pytest
 from scipy.stats import chi2
 
-from hg2prism.detection import (
+from hg2prism.analyses.detection import (
     MismatchDetector,
     Step,
     compliant_rejection_count,
@@ -173,7 +173,7 @@ def test_following_the_prediction_at_one_repeated_state_eventually_rejects():
         d.observe("u", "x", "x", 1)
         d.observe("s", "a", "a", 3)
     assert d.first_rejection == 38
-    # the defaults of SPEC §1 (alpha 0.05, eps 0.01): 3.8414588 / (-2 ln 0.99) = 191.11 -> 192
+    # the defaults of docs/semantics.md §1 (alpha 0.05, eps 0.01): 3.8414588 / (-2 ln 0.99) = 191.11 -> 192
     d = MismatchDetector(alpha=0.05, epsilon=0.01)
     steps = [d.observe("s", "a", "a", 4) for _ in range(200)]
     assert d.first_rejection == 192 == compliant_rejection_count(0.05, 0.01)

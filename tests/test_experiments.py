@@ -1,5 +1,5 @@
-"""Experiments (hg2prism.experiments): the delay semantics the sweep relies on (SPEC §2), the
-parameter sweep (paper Fig. 4) and the detection of a wrong opponent model (SPEC §9, paper
+"""Experiments (hg2prism.experiments.sweep and .detect): the delay semantics the sweep relies on (docs/semantics.md §2), the
+parameter sweep (paper Fig. 4) and the detection of a wrong opponent model (docs/semantics.md §9, paper
 Fig. 5). The LRT statistic itself is tested in test_detection.py."""
 
 from __future__ import annotations
@@ -11,11 +11,12 @@ from pathlib import Path
 import pytest
 
 from conftest import MODELS
-from hg2prism import experiments, pipeline
-from hg2prism.dynamics import ACTIONS, build_transition_system
+from hg2prism import pipeline
+from hg2prism.experiments import detect, sweep
+from hg2prism.model.dynamics import ACTIONS, build_transition_system
 from hg2prism.errors import InputError
-from hg2prism.simulation import Strategy, deviating_policy, leader_fallback
-from hg2prism.world import load_world
+from hg2prism.analyses.simulation import Strategy, deviating_policy, leader_fallback
+from hg2prism.model.world import load_world
 
 WORLD2 = MODELS / "world2.toml"
 
@@ -99,7 +100,7 @@ def world2(tmp_path_factory: pytest.TempPathFactory) -> pipeline.CheckResult:
 
 
 # ---------------------------------------------------------------------------------------------
-# delay semantics on the TS tables (SPEC §2)
+# delay semantics on the TS tables (docs/semantics.md §2)
 # ---------------------------------------------------------------------------------------------
 
 def outcomes(ts, state: int, a1: int, a2: int) -> dict[int, float]:
@@ -114,7 +115,7 @@ def outcomes(ts, state: int, a1: int, a2: int) -> dict[int, float]:
 
 
 def expected(world, ts, cell, traps: int, countdown: int, a1: str, a2: int) -> dict[int, float]:
-    """SPEC §2 written out directly on cells, for one state (cell, T, c) and joint action."""
+    """docs/semantics.md §2 written out directly on cells, for one state (cell, T, c) and joint action."""
     free = set(ts.cells)
     trap_cells = set(ts.trap_cells(a2))
     dist: dict[int, float] = {}
@@ -200,7 +201,7 @@ def test_a_robot_on_a_cell_where_a_trap_stays_is_trapped(delayed) -> None:
 
 def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
     world = load_world(WORLD2)
-    rows = experiments.sweep(world, "delay", [0, 1, 2, 3], tmp_path / "sweep", show_progress=False)
+    rows = sweep.sweep(world, "delay", [0, 1, 2, 3], tmp_path / "sweep", show_progress=False)
     assert [r["delay"] for r in rows] == [0, 1, 2, 3]
     text = WORLD2.read_text()
     assert "delay = 0\n" in text and "initial_traps = [[2, 5]]" in text
@@ -213,7 +214,7 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
         assert row["v_lead"] == pytest.approx(single.results["v_lead"], abs=1e-9)
         assert row["states"] == single.results["states"]
         assert row["transitions"] == single.results["transitions"]
-        # SPEC §7: V_NE <= V_lead <= deceptive value at the initial state
+        # docs/semantics.md §7: V_NE <= V_lead <= deceptive value at the initial state
         assert row["v_ne"] <= row["v_lead"] + 1e-6 <= row["deceptive_value"] + 2e-6
     values = [r["deceptive_value"] for r in rows]
     assert all(a < b for a, b in zip(values, values[1:]))          # the paper's Fig. 4
@@ -231,7 +232,7 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "delay_2" / "results.json").exists()
     assert not list(out.glob(".*.tmp"))
-    lines = experiments.sweep_summary_lines("delay", rows, "world2")
+    lines = sweep.sweep_summary_lines("delay", rows, "world2")
     assert any(line.startswith("| 3 | 0.8592 |") for line in lines)
 
 
@@ -239,20 +240,20 @@ def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsy
     world = load_world(write_world(tmp_path, "small", SMALL))
     assert world.initial_traps == ()
     # no initial_traps anywhere: the first candidate, (3, 3)
-    assert experiments.delay_initial_traps(world) == (world.grid.trap_candidates[0],) == ((3, 3),)
-    rows = experiments.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
+    assert sweep.delay_initial_traps(world) == (world.grid.trap_candidates[0],) == ((3, 3),)
+    rows = sweep.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
     assert [r["window"] for r in rows] == [1, 3]
     err = capsys.readouterr().err
     assert "sweep window=1 (1/2)" in err and "sweep window=3 (2/2)" in err
     assert "games:" not in err                      # the stages' own messages are not shown
     for row in rows:
-        single = pipeline.check(experiments.sweep_world(world, "window", row["window"]),
+        single = pipeline.check(sweep.sweep_world(world, "window", row["window"]),
                                 tmp_path / f"single_w{row['window']}")
         assert row["deceptive_value"] == pytest.approx(single.results["deceptive_value"], abs=1e-9)
     capsys.readouterr()
-    rows = experiments.sweep(world, "threshold", [0.5, 2], tmp_path / "t", show_progress=False)
+    rows = sweep.sweep(world, "threshold", [0.5, 2], tmp_path / "t", show_progress=False)
     assert [r["threshold"] for r in rows] == [0.5, 2.0]
-    rows = experiments.sweep(world, "rationality", [1, 20.0], tmp_path / "r", show_progress=False)
+    rows = sweep.sweep(world, "rationality", [1, 20.0], tmp_path / "r", show_progress=False)
     assert [r["rationality"] for r in rows] == [1.0, 20.0]
     assert capsys.readouterr().err == ""
 
@@ -273,7 +274,7 @@ def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsy
 def test_sweep_rejects_bad_parameters(tmp_path: Path, parameter, values, key, fragment) -> None:
     world = load_world(WORLD2)
     with pytest.raises(InputError) as caught:
-        experiments.sweep(world, parameter, values, tmp_path / "out", show_progress=False)
+        sweep.sweep(world, parameter, values, tmp_path / "out", show_progress=False)
     assert caught.value.key == key and caught.value.file == "command line"
     assert fragment in caught.value.reason
     assert not (tmp_path / "out").exists()
@@ -283,13 +284,13 @@ def test_bad_initial_traps_in_the_file_are_reported_when_sweeping_delay(tmp_path
     text = SMALL.replace("hypotheses = [", "initial_traps = [[1, 1]]\nhypotheses = [")
     world = load_world(write_world(tmp_path, "bad", text))    # ignored while delay = 0
     with pytest.raises(InputError) as caught:
-        experiments.sweep(world, "delay", [0, 1], tmp_path / "out", show_progress=False)
+        sweep.sweep(world, "delay", [0, 1], tmp_path / "out", show_progress=False)
     assert caught.value.key == "adversary.initial_traps"
     assert not (tmp_path / "out").exists()
 
 
 # ---------------------------------------------------------------------------------------------
-# detection (SPEC §9)
+# detection (docs/semantics.md §9)
 # ---------------------------------------------------------------------------------------------
 
 def strategy(result: pipeline.CheckResult) -> Strategy:
@@ -298,7 +299,7 @@ def strategy(result: pipeline.CheckResult) -> Strategy:
 
 
 def test_no_false_alarm_when_p2_follows_the_model(world2) -> None:
-    summary, batch = experiments.detection_batch(world2.analysis, strategy(world2), 300, 200, 0,
+    summary, batch = detect.detection_batch(world2.analysis, strategy(world2), 300, 200, 0,
                                                  alpha=0.05, epsilon=0.01, keep_steps=True)
     assert batch.rejections(300) == [None] * 300
     assert summary.off_record_steps == 0 and not batch.unpredicted and not batch.diverged
@@ -309,7 +310,7 @@ def test_no_false_alarm_when_p2_follows_the_model(world2) -> None:
 
 def test_detection_when_p2_plays_at_random_from_step_1(world2) -> None:
     ts = world2.analysis.ts
-    summary, batch = experiments.detection_batch(
+    summary, batch = detect.detection_batch(
         world2.analysis, strategy(world2), 300, 200, 0, alpha=0.05, epsilon=0.01,
         p2_policy=deviating_policy(ts, 0), keep_steps=True)
     rejections = batch.rejections(300)
@@ -323,7 +324,7 @@ def test_detection_when_p2_plays_at_random_from_step_1(world2) -> None:
             assert rejections[episode] == 1
         if episode not in batch.unpredicted:
             assert rejections[episode] is None     # P2 happened to play the prediction
-    again = experiments.detection_batch(world2.analysis, strategy(world2), 300, 200, 0, alpha=0.05,
+    again = detect.detection_batch(world2.analysis, strategy(world2), 300, 200, 0, alpha=0.05,
                                         epsilon=0.01, p2_policy=deviating_policy(ts, 0))
     assert again[1].rejections(300) == rejections and (again[0].outcomes == summary.outcomes).all()
 
@@ -331,14 +332,14 @@ def test_detection_when_p2_plays_at_random_from_step_1(world2) -> None:
 def test_detection_experiment_writes_a_consistent_report(world2, tmp_path: Path) -> None:
     world = world2.analysis.world
     k = world.detection.deviate_after
-    result = experiments.detection_experiment(world, world2, tmp_path, episodes=200,
+    result = detect.detection_experiment(world, world2, tmp_path, episodes=200,
                                               show_progress=False)
     assert json.loads((tmp_path / "detection.json").read_text()) == json.loads(json.dumps(result))
     assert (tmp_path / "detection.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     seeded = result["seeded_episode"]
     assert seeded["seed"] >= world.simulation.seed
-    assert seeded["steps"] == len(seeded["per_step"]) > k + experiments.STEPS_AFTER_DEVIATION
+    assert seeded["steps"] == len(seeded["per_step"]) > k + detect.STEPS_AFTER_DEVIATION
     assert all(s["predicted_traps"] == s["played_traps"] for s in seeded["per_step"][:k])
     first = next((s["n"] for s in seeded["per_step"] if s["rejected"]), None)
     assert seeded["detected_at"] == first
@@ -373,7 +374,7 @@ def test_detection_experiment_writes_a_consistent_report(world2, tmp_path: Path)
     assert hasty["p2_threshold"] == pytest.approx(comp["max_cusum_score"] / 2)
     assert hasty["episodes_with_hypothesis_divergence"] > 0
 
-    text = "\n".join(experiments.summary_lines(detection=result))
+    text = "\n".join(detect.detection_summary_lines(result))
     assert "seeded episode (seed" in text and "false alarms when P2 follows the model: 0/200" in text
 
 
@@ -382,18 +383,18 @@ def test_detection_experiment_rejects_bad_options(world2, tmp_path: Path) -> Non
     for options, key in (({"episodes": 0}, "--episodes"), ({"seed": -1}, "--seed"),
                          ({"horizon": 0}, "--horizon")):
         with pytest.raises(InputError) as caught:
-            experiments.detection_experiment(world, world2, tmp_path / "out", show_progress=False,
+            detect.detection_experiment(world, world2, tmp_path / "out", show_progress=False,
                                              **options)
         assert caught.value.key == key
     assert not (tmp_path / "out").exists()
     with pytest.raises(InputError):
-        experiments.detect(world, tmp_path / "out", episodes=0, show_progress=False)
+        detect.detect(world, tmp_path / "out", episodes=0, show_progress=False)
     assert not (tmp_path / "out").exists()
 
 
 def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: Path) -> None:
     world = load_world(write_world(tmp_path, "small", SMALL))
-    result = experiments.detect(world, tmp_path / "out", episodes=50, show_progress=False)
+    result = detect.detect(world, tmp_path / "out", episodes=50, show_progress=False)
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["detection.json",
                                                                      "detection.png"]
     assert result["compliant"]["false_alarms"] == 0

@@ -1,11 +1,11 @@
-"""PRISM-games exports (SPEC §7 last paragraph): the symmetric game as a csg and each G(x) as an smg.
+"""PRISM-games exports (docs/semantics.md §7 last paragraph): the symmetric game as a csg and each G(x) as an smg.
 
 These checks need no PRISM (tests/test_prism.py runs PRISM-games itself where installed): the
 files are checked with Storm (stormpy) and by independent computations, on world1 and on world2
 with delay 2:
   * smg (perceptual_<i>.prism): Storm parses and builds it. Its states are those of an explicit
     search of TS x DFA(x) x turn, P2 owns exactly the turn-0 states, every choice has exactly
-    the successor distribution of SPEC §2, and value iteration on Storm's matrix (P1 maximising,
+    the successor distribution of docs/semantics.md §2, and value iteration on Storm's matrix (P1 maximising,
     P2 minimising) gives V_x of games.py at every turn-0 state. (stormpy 2.0 returns no result
     when asked to model-check an SMG, hence our own iteration.)
   * csg (symmetric.prism): Storm has no parser for csg (test_csg_with_stormpy skips with its
@@ -16,7 +16,7 @@ with delay 2:
     actions are the joint actions "a1__a2" (idle when a player has no enabled command). Storm
     builds that mdp; each state must offer exactly (P1's moves) x (P2's allowed trap sets), the
     states are those of an explicit search of TS x DFA(phi), every joint action has the
-    distribution of SPEC §2, min over a2 of max over a1 gives V_lead of games.py, and the
+    distribution of docs/semantics.md §2, min over a2 of max over a1 gives V_lead of games.py, and the
     matrix-game value (what PRISM-games computes for <<p1>>Pmax) is V_NE of baselines.py.
 """
 
@@ -37,9 +37,9 @@ from stormpy import developer
 
 from conftest import MODELS
 from hg2prism import pipeline
-from hg2prism.games import solve_game
-from hg2prism.games_export import ACTION_LABELS, PROPERTY, write_game_models
-from hg2prism.world import load_world
+from hg2prism.opponent.perceptual_games import solve_game
+from hg2prism.prism.game_models import ACTION_LABELS, PROPERTY, write_game_models
+from hg2prism.model.world import load_world
 
 TOL = 1e-6
 MOVES = ("N", "E", "S", "W")
@@ -126,7 +126,7 @@ def _explicit(model: object) -> Explicit:
 # ------------------------------------------------------------------ expected state spaces
 
 def _stop(ts, dfa, cell: int, q_prev: int) -> bool:
-    """Goal or failure of the DFA one step behind: SPEC §6's absorbing states."""
+    """Goal or failure of the DFA one step behind: docs/semantics.md §6's absorbing states."""
     if cell == ts.n_cells:
         return True
     q = dfa.delta[q_prev, ts.cell_label[cell]]
@@ -134,7 +134,7 @@ def _stop(ts, dfa, cell: int, q_prev: int) -> bool:
 
 
 def _landing(ts, cell: int, move: str, trap_set: int) -> dict[int, float]:
-    """Where the robot lands (n_cells = TRAPPED) with what probability (SPEC §2); outcomes of
+    """Where the robot lands (n_cells = TRAPPED) with what probability (docs/semantics.md §2); outcomes of
     probability 0 are dropped, outcomes landing in the same cell merged."""
     outcomes = [(move, 1 - 2 * ts.slip)] + [(d, ts.slip) for d in PERPENDICULAR[move]]
     out: dict[int, float] = {}
@@ -261,7 +261,7 @@ def _check_rows(explicit: Explicit, names: list[str], expected_row) -> None:
 
 
 def _ts_index(ts, cell: np.ndarray, traps: np.ndarray, countdown: np.ndarray) -> np.ndarray:
-    """TS state numbers (SPEC §2 numbering of dynamics.py); `trapped` for cell = TRAPPED."""
+    """TS state numbers (docs/semantics.md §2 numbering of dynamics.py); `trapped` for cell = TRAPPED."""
     if ts.delay:
         index = (cell * ts.n_sets + traps) * ts.phases + countdown
     else:
@@ -500,7 +500,7 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
                            explicit.var["countdown"][s] if ts.delay else 0)
         assert sorted(labels) == sorted(f"{ACTION_LABELS[a]}__place{t}" for a in MOVES for t in allowed)
 
-    # Every joint action moves as SPEC §2 says.
+    # Every joint action moves as docs/semantics.md §2 says.
     _check_rows(explicit, ["cell", "traps", "countdown", "q"], functools.partial(_csg_row, ts, task))
 
     # Leader values on Storm's matrix (P2 commits to a2, P1 answers) are V_lead of games.py.
@@ -528,10 +528,10 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
 
 def test_symmetric_csg_value_is_v_ne(exported, tmp_path: Path) -> None:
     """The matrix games Storm builds from the csg (through the joint-action mdp) have the value
-    V_NE of hg2prism.baselines: what PRISM-games' <<p1>>Pmax=? [F "goal"] computes."""
-    baselines = pytest.importorskip("hg2prism.baselines")
+    V_NE of hg2prism.analyses.baselines: what PRISM-games' <<p1>>Pmax=? [F "goal"] computes."""
+    baselines = pytest.importorskip("hg2prism.analyses.baselines")
     if not all(hasattr(baselines, f) for f in ("ConcurrentGame", "solve_nash", "nash_baseline")):
-        pytest.skip("hg2prism.baselines has no Nash solver")
+        pytest.skip("hg2prism.analyses.baselines has no Nash solver")
     analysis, paths = exported
     ts, task = analysis.ts, analysis.task
     mdp = tmp_path / "symmetric_joint.prism"

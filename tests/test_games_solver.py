@@ -10,16 +10,16 @@ import pytest
 
 import worldgen
 from conftest import MODELS
-from hg2prism.automata import translate
-from hg2prism.dynamics import build_transition_system
-from hg2prism.games import _certified, _Game
-from hg2prism.world import load_world
+from hg2prism.model.automata import translate
+from hg2prism.model.dynamics import build_transition_system
+from hg2prism.opponent.perceptual_games import is_certified, TurnBasedGame
+from hg2prism.model.world import load_world
 
 FAMILY = dict(worldgen.world_family())
 CASES = ["world1"] + sorted(FAMILY)[::5]
 
 
-def level_by_level_attractor(game: _Game, actions: np.ndarray | None) -> np.ndarray:
+def level_by_level_attractor(game: TurnBasedGame, actions: np.ndarray | None) -> np.ndarray:
     """Rank in P1's positive attractor, one full pass over every move per level."""
     rank = np.where(game.goal, 0, -1)
     level = 0
@@ -35,7 +35,7 @@ def level_by_level_attractor(game: _Game, actions: np.ndarray | None) -> np.ndar
         rank[ok] = level
 
 
-def avoid_forever(game: _Game, p1: np.ndarray) -> np.ndarray:
+def avoid_forever(game: TurnBasedGame, p1: np.ndarray) -> np.ndarray:
     """States from which P2 keeps P1 (answering p1) away from the goal: greatest fixed point."""
     rows = np.arange(game.size)[:, None]
     sets = np.arange(game.ts.n_sets)[None, :]
@@ -50,7 +50,7 @@ def avoid_forever(game: _Game, p1: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(params=CASES)
-def games(request: pytest.FixtureRequest, world_dir: Path) -> list[_Game]:
+def games(request: pytest.FixtureRequest, world_dir: Path) -> list[TurnBasedGame]:
     if request.param == "world1":
         path = MODELS / "world1.toml"
     else:
@@ -58,10 +58,10 @@ def games(request: pytest.FixtureRequest, world_dir: Path) -> list[_Game]:
         path.write_text(FAMILY[request.param])
     world = load_world(path)
     ts = build_transition_system(world)
-    return [_Game(ts, translate(f, ts.label_names, ts.letters)) for f in (world.formula,) + world.hypotheses]
+    return [TurnBasedGame(ts, translate(f, ts.label_names, ts.letters)) for f in (world.formula,) + world.hypotheses]
 
 
-def test_attractor_ranks_match_the_level_by_level_search(games: list[_Game]) -> None:
+def test_attractor_ranks_match_the_level_by_level_search(games: list[TurnBasedGame]) -> None:
     rng = np.random.default_rng(0)
     for game in games:
         assert (game.positive_attractor() == level_by_level_attractor(game, None)).all()
@@ -70,7 +70,7 @@ def test_attractor_ranks_match_the_level_by_level_search(games: list[_Game]) -> 
             assert (game.positive_attractor(actions) == level_by_level_attractor(game, actions)).all()
 
 
-def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[_Game]) -> None:
+def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[TurnBasedGame]) -> None:
     rng = np.random.default_rng(1)
     for game in games:
         for _ in range(3):
@@ -78,14 +78,14 @@ def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[_G
             avoid = avoid_forever(game, p1)
             inside = np.zeros(game.size)
             inside[~avoid] = 1.0                       # certified iff x vanishes on `avoid`
-            assert _certified(game, p1, inside)
+            assert is_certified(game, p1, inside)
             assert avoid.any()                         # the trapped state at least
             spoiled = inside.copy()
             spoiled[np.flatnonzero(avoid)[-1]] = 1e-6
-            assert not _certified(game, p1, spoiled)
+            assert not is_certified(game, p1, spoiled)
 
 
-def best_response_lower_bound(game: _Game, pick, sweeps: int = 5_000) -> np.ndarray:
+def best_response_lower_bound(game: TurnBasedGame, pick, sweeps: int = 5_000) -> np.ndarray:
     """Value iteration from 0 for v = pick(Q_v) (a one-player game): every iterate is a lower
     bound of that player's value. These games converge slowly (slip loops), so no more."""
     v = game.goal.astype(float)
@@ -97,10 +97,10 @@ def best_response_lower_bound(game: _Game, pick, sweeps: int = 5_000) -> np.ndar
     return v
 
 
-def test_solved_strategies_are_optimal(games: list[_Game]) -> None:
-    """P2's returned trap sets hold P1 to V (up to SPEC §4's 1e-6 ties), and P1's returned
+def test_solved_strategies_are_optimal(games: list[TurnBasedGame]) -> None:
+    """P2's returned trap sets hold P1 to V (up to docs/semantics.md §4's 1e-6 ties), and P1's returned
     answers are greedy for V."""
-    from hg2prism.games import solve_game
+    from hg2prism.opponent.perceptual_games import solve_game
 
     for game in games:
         solution = solve_game(game.ts, game.dfa)

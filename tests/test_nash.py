@@ -1,4 +1,4 @@
-"""The symmetric-information Nash baseline (SPEC §7): closed-form games and world1."""
+"""The symmetric-information Nash baseline (docs/semantics.md §7): closed-form games and world1."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
-from hg2prism.automata import translate
-from hg2prism.baselines import (ConcurrentGame, concurrent_game, guaranteed_value, nash_baseline,
+from hg2prism.model.automata import translate
+from hg2prism.analyses.baselines import (ConcurrentGame, concurrent_game, guaranteed_value, nash_baseline,
                                 solve_nash)
-from hg2prism.dynamics import build_transition_system
-from hg2prism.games import _Game, solve_game
-from hg2prism.world import load_world
+from hg2prism.model.dynamics import build_transition_system
+from hg2prism.opponent.perceptual_games import TurnBasedGame, solve_game
+from hg2prism.model.world import load_world
 
 WORLD1 = Path(__file__).resolve().parent.parent / "models" / "world1.toml"
 
@@ -155,7 +155,7 @@ def world1():
 
 def test_world1_index_convention_matches_games(world1) -> None:
     ts, dfa, _, _, _ = world1
-    game, reference = concurrent_game(ts, dfa), _Game(ts, dfa)
+    game, reference = concurrent_game(ts, dfa), TurnBasedGame(ts, dfa)
     np.testing.assert_array_equal(game.next, reference.next)
     np.testing.assert_array_equal(game.prob, reference.prob)
     np.testing.assert_array_equal(game.allowed, reference.allowed)

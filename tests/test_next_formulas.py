@@ -1,4 +1,4 @@
-"""Formulas with X (next): the DFA's final states are good prefixes (SPEC §3), so the world values
+"""Formulas with X (next): the DFA's final states are good prefixes (docs/semantics.md §3), so the world values
 are the hand-computed probabilities of reading the right letters at the right steps.
 
 Every world here is a corridor walled above and below, so a slip (probability 0.1 to each side)
@@ -14,7 +14,7 @@ import pytest
 import reference
 from conftest import MODELS
 from hg2prism import pipeline
-from hg2prism.world import load_world
+from hg2prism.model.world import load_world
 
 SLIP = 0.1
 MOVE = 1 - 2 * SLIP          # the chosen move happens

@@ -23,7 +23,6 @@ Agreement is required within 1e-6 (docs/semantics.md, Numbers).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import os
 import re
@@ -34,10 +33,11 @@ from pathlib import Path
 import pytest
 
 from conftest import MODELS
-from hg2prism import baselines, pipeline
-from hg2prism.experiments import sweep_world
-from hg2prism.games_export import write_game_models
-from hg2prism.world import load_world
+from hg2prism import pipeline
+from hg2prism.analyses import baselines
+from hg2prism.experiments.sweep import sweep_world
+from hg2prism.prism.game_models import write_game_models
+from hg2prism.model.world import load_world
 
 import worldgen
 
@@ -52,7 +52,7 @@ def _prism() -> str | None:
 PRISM = _prism()
 pytestmark = pytest.mark.skipif(
     PRISM is None, reason="PRISM is not installed (set PRISM=/path/to/prism or put prism on PATH; "
-                          "`.ci/run` installs PRISM-games from ../shared/tools/prism-games)")
+                          "`.ci/run` installs PRISM-games where its installer is available)")
 
 # Five generated worlds: delay 0 and > 0, one and two traps, several windows.
 GENERATED = [("fam00_d0_l1_w1_x2", 1000, {"delay": 0, "traps": 1, "window": 1, "nhyp": 2}),

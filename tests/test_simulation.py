@@ -1,4 +1,4 @@
-"""Online simulation (SPEC §8): Wilson intervals, reproducibility, and the statistical check that
+"""Online simulation (docs/semantics.md §8): Wilson intervals, reproducibility, and the statistical check that
 the simulated completion rate matches P(F<=horizon goal) of the DTMC that P1's exported
 strategy induces. That DTMC is built here with tests/reference.py (no hg2prism code)."""
 
@@ -17,12 +17,12 @@ import scipy.sparse as sp
 import reference
 from conftest import MODELS
 from hg2prism import pipeline
-from hg2prism.dynamics import ACTIONS
-from hg2prism.inference import build_inference
-from hg2prism.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary, Strategy,
+from hg2prism.model.dynamics import ACTIONS
+from hg2prism.opponent.inference import build_inference
+from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary, Strategy,
                                  StrategyError, deviating_policy, leader_fallback, model_policy,
                                  simulate_deceptive, simulate_nash, wilson_interval)
-from hg2prism.world import load_world
+from hg2prism.model.world import load_world
 
 WORLD1 = MODELS / "world1.toml"
 HORIZON = 200
@@ -125,7 +125,7 @@ def test_wilson_interval_rejects_bad_input() -> None:
 
 
 # ---------------------------------------------------------------------------------------------
-# The statistical check of SPEC §8 against an independently built DTMC
+# The statistical check of docs/semantics.md §8 against an independently built DTMC
 # ---------------------------------------------------------------------------------------------
 
 def reference_chain(path: Path, records: list[dict]):
@@ -177,7 +177,7 @@ def bounded_goal_probability(succs, horizon: int) -> float:
 
 def test_world1_rate_matches_the_bounded_probability_of_the_induced_dtmc(world1) -> None:
     world, order, index, succs = reference_chain(WORLD1, world1.records)
-    # SPEC §8: P=? [F "goal"] of the induced DTMC is the deceptive value (linear solve) ...
+    # docs/semantics.md §8: P=? [F "goal"] of the induced DTMC is the deceptive value (linear solve) ...
     unbounded = float(reference._dtmc_reach(succs)[0])
     assert unbounded == pytest.approx(world1.results["deceptive_value"], abs=1e-6)
     # ... and the bounded probability grows to it.

@@ -1,4 +1,4 @@
-"""World files (SPEC §1): every kind of bad input gives one clear line, exit status 2, no output.
+"""World files (docs/semantics.md §1): every kind of bad input gives one clear line, exit status 2, no output.
 
 Each bad world is the valid BASE world (models/world1.toml's content, inlined) with one edit.
 The CLI runs as a subprocess, so a traceback reaching the terminal would be seen.
@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from hg2prism.errors import InputError
-from hg2prism.world import load_world
+from hg2prism.model.world import load_world
 
 REPO = Path(__file__).resolve().parent.parent
 MODELS = REPO / "models"

@@ -1,4 +1,4 @@
-"""Generator of small random *valid* world files for the tests (SPEC section 1).
+"""Generator of small random *valid* world files for the tests (docs/semantics.md §1).
 
 ``random_world(seed)`` gives the TOML text of one small valid world; ``world_family()`` a
 fixed, deterministic list of worlds covering delay 0/1/2, traps 1/2, window 1/2/3, slip 0 and

@@ -1,4 +1,4 @@
-"""The hypergame MDP of SPEC §6, rendered as a structured PRISM model.
+"""The hypergame MDP of docs/semantics.md §6, rendered as a structured PRISM model.
 
 Storm builds the product of four components, so the number of commands grows with the
 tables, never with the product:
@@ -6,7 +6,7 @@ tables, never with the product:
   robot         cell (TRAPPED once caught): P1's moves with slip, and the trap check
   task          q: P1's task DFA, one step behind (it reads the label of the cell being left)
   p2_traps      (delay > 0 only) the traps standing and the countdown
-  p2_inference  hyp and the observation window: the sliding-window CUSUM of SPEC §5
+  p2_inference  hyp and the observation window: the sliding-window CUSUM of docs/semantics.md §5
 
 Tables (moves, labels, P2's trap choices, log-likelihood ratios) are formulas written as
 balanced decision trees over the state variables, so Storm evaluates each in logarithmic time.
@@ -23,11 +23,11 @@ import jinja2
 import numpy as np
 
 from hg2prism import __version__
-from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
-from hg2prism.inference import TOLERANCE, InferenceModel
-from hg2prism.games import PerceptualGame
-from hg2prism.world import World
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.opponent.inference import TOLERANCE, InferenceModel
+from hg2prism.opponent.perceptual_games import PerceptualGame
+from hg2prism.model.world import World
 
 PROPERTY = 'Pmax=? [F "goal"]'
 
@@ -36,7 +36,6 @@ PROPERTY = 'Pmax=? [F "goal"]'
 class Layout:
     """How hypergame states are encoded in PRISM variables (for decoding Storm's states)."""
 
-    trapped_cell: int
     slots: int                      # observation slots o1 (oldest) .. o{slots}
     delay: int
 
@@ -63,7 +62,8 @@ def region_labels(ts: TransitionSystem) -> list[tuple[str, int]]:
     return [(region_label(name), k) for k, name in enumerate(ts.label_names) if k >= 2]
 
 
-def _number(value: float | int) -> str:
+def prism_number(value: float | int) -> str:
+    """A number as PRISM reads it: integers plain, floats in their shortest exact decimal."""
     if isinstance(value, (int, np.integer)):
         return str(int(value))
     text = np.format_float_positional(float(value), unique=True, trim="0")
@@ -78,7 +78,7 @@ def lookup(table: np.ndarray, keys: list[tuple[str, int]]) -> str:
     def node(block: np.ndarray, dim: int, start: int) -> str:
         first = block.flat[0]
         if (block == first).all():
-            return _number(first.item())
+            return prism_number(first.item())
         if block.shape[0] == 1:
             return node(block[0], dim + 1, 0)
         expr, low = keys[dim]
@@ -96,7 +96,7 @@ def _template_source(name: str) -> str:
     try:
         folder = importlib.resources.files("hg2prism.templates")
     except ModuleNotFoundError:
-        folder = Path(__file__).resolve().parent.parent / "templates"
+        folder = Path(__file__).resolve().parents[2] / "templates"
     return folder.joinpath(name).read_text()
 
 
@@ -121,7 +121,7 @@ def render_template(name: str, **context: object) -> str:
     return _environment().get_template(name).render(**context)
 
 
-def _cell_map(world: World, ts: TransitionSystem) -> list[str]:
+def cell_map(world: World, ts: TransitionSystem) -> list[str]:
     """The map with each free cell's index, for the header."""
     width = max(len(str(ts.n_cells - 1)), 2)
     lines = []
@@ -196,22 +196,22 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
     model_text = render_template(
         "hypergame.prism.j2",
         version=__version__, world=world, ts=ts, task=task, games=games, inference=inference,
-        actions=ACTIONS, labels=ACTION_LABELS, cell_map=_cell_map(world, ts), trapped=trapped,
+        actions=ACTIONS, labels=ACTION_LABELS, cell_map=cell_map(world, ts), trapped=trapped,
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
         ts_state=ts_state, trap_tables=trap_tables, slots=slots,
         n_obs_states=n_obs_states, ratio_formulas=ratio_formulas, inference_rules=inference_rules,
-        switch_threshold=_number(inference.threshold - TOLERANCE), tolerance=_number(TOLERANCE),
+        switch_threshold=prism_number(inference.threshold - TOLERANCE), tolerance=prism_number(TOLERANCE),
         robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
-        start_traps=ts.decode(ts.start_state)[1], slip=_number(world.slip),
+        start_traps=ts.decode(ts.start_state)[1], slip=prism_number(world.slip),
         region_labels=region_labels(ts),
         set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(n_sets)],
-        fmt=_number,
+        fmt=prism_number,
     )
     properties = render_template("hypergame.props.j2", property=PROPERTY, world=world)
     commands = _count_commands(model_text)
     return PrismModel(text=model_text, properties=properties,
-                      layout=Layout(trapped_cell=trapped, slots=slots, delay=ts.delay),
+                      layout=Layout(slots=slots, delay=ts.delay),
                       commands=commands)
 
 

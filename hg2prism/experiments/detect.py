@@ -1,71 +1,33 @@
-"""Experiments on one world: parameter sweeps (the paper's Fig. 4) and the detection of a wrong
-opponent model (SPEC §9, the paper's Fig. 5).
+"""Detecting a wrong opponent model (docs/semantics.md §9, the paper's Fig. 5).
 
-* :func:`sweep` re-solves the world for each value of one parameter (``delay``, ``window``,
-  ``threshold`` or ``rationality``) and records the deceptive value, V_lead and V_NE at the
-  initial state (SPEC §§6–7). Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``;
-  each value's model, strategy and results stay in ``OUT/<parameter>_<value>/``.
+:func:`detection_experiment` runs P1's deceptive strategy against a P2 who departs from P1's
+model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.analyses.detection`):
 
-  Sweeping ``delay`` needs the traps standing at the start when the delay is positive
-  (SPEC §2). The rule: the world's own ``initial_traps`` when it has them (a world loaded with
-  delay > 0); otherwise the ``[adversary] initial_traps`` written in the world file (the loader
-  drops them when delay = 0; here they are checked as if delay were positive); otherwise the
-  first ``traps`` trap candidates in map reading order. A delay of 0 has no initial traps.
+(a) one seeded episode in which P2 follows the model for ``deviate_after`` steps, then plays
+    uniformly at random (the G-per-step picture, ``OUT/detection.png``);
+(b) many such episodes: the distribution of detection steps and the share not detected;
+(c) as many episodes in which P2 follows the model: the false-alarm rate;
+(d) the paper's other mismatch: P2's real inference runs with another window or threshold
+    than P1's model of it. P1 keeps playing its records (the leader-game fallback of
+    :func:`hg2prism.analyses.simulation.leader_fallback` on states they do not cover, counted
+    as ``off_record_steps``); the detector compares P2's traps with P1's prediction.
 
-* :func:`detection_experiment` runs P1's deceptive strategy against a P2 who departs from P1's
-  model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.detection`):
-
-  (a) one seeded episode in which P2 follows the model for ``deviate_after`` steps, then plays
-      uniformly at random (the G-per-step picture, ``OUT/detection.png``);
-  (b) many such episodes: the distribution of detection steps and the share not detected;
-  (c) as many episodes in which P2 follows the model: the false-alarm rate;
-  (d) the paper's other mismatch: P2's real inference runs with another window or threshold
-      than P1's model of it. P1 keeps playing its records (the leader-game fallback of
-      :func:`hg2prism.simulation.leader_fallback` on states they do not cover, counted as
-      ``off_record_steps``); the detector compares P2's traps with P1's prediction.
-
-  Writes ``OUT/detection.json`` and ``OUT/detection.png``.
+Writes ``OUT/detection.json`` and ``OUT/detection.png``.
 """
 
 from __future__ import annotations
 
 import contextlib
-import csv
-import io
-import math
-import sys
 import time
-import tomllib
-from collections.abc import Sequence
-from dataclasses import replace
 from pathlib import Path
 
 from hg2prism.errors import InputError
-from hg2prism.outputs import write_json, write_text
-from hg2prism.world import Cell, World
+from hg2prism.model.world import World
+from hg2prism import progress
+from hg2prism.outputs import write_json
 
-__all__ = [
-    "SWEEP_PARAMETERS",
-    "parse_sweep_values",
-    "sweep_world",
-    "delay_initial_traps",
-    "sweep",
-    "DetectionBatch",
-    "detection_batch",
-    "detection_experiment",
-    "detect",
-    "sweep_summary_lines",
-    "detection_summary_lines",
-    "summary_lines",
-]
-
-# parameter -> (type, minimum, minimum is exclusive, what is expected)
-SWEEP_PARAMETERS: dict[str, tuple[type, float, bool, str]] = {
-    "delay": (int, 0, False, "an integer >= 0"),
-    "window": (int, 1, False, "an integer >= 1"),
-    "threshold": (float, 0.0, True, "a number > 0"),
-    "rationality": (float, 0.0, True, "a number > 0"),
-}
+__all__ = ["DetectionBatch", "detection_batch", "detection_experiment", "detect",
+           "detection_summary_lines"]
 
 # The seeded episode of the detection picture lasts more than deviate_after + this many steps.
 STEPS_AFTER_DEVIATION = 3
@@ -73,224 +35,6 @@ SEED_SEARCH = 1000
 MAX_DETECTION_EPISODES = 2000
 
 _CLI = "command line"
-
-
-# ---------------------------------------------------------------------------------------------
-# Sweep
-# ---------------------------------------------------------------------------------------------
-
-def _parse_value(parameter: str, value: object) -> int | float:
-    kind, minimum, exclusive, expected = SWEEP_PARAMETERS[parameter]
-    shown = repr(value) if not isinstance(value, str) else value
-    if isinstance(value, bool):
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    number: float
-    if isinstance(value, (int, float)):
-        number = value
-    elif isinstance(value, str):
-        text = value.strip()
-        try:
-            number = int(text) if kind is int else float(text)
-        except ValueError:
-            raise InputError(_CLI, "--values",
-                             f"{parameter} value {shown!r} is not {expected}") from None
-    else:
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    if kind is int:
-        if isinstance(number, float):
-            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-        number = int(number)
-    else:
-        number = float(number)
-        if not math.isfinite(number):
-            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    if number < minimum or (exclusive and number == minimum):
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    return number
-
-
-def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[int | float]:
-    """Validate a sweep: a known parameter and a non-empty list of distinct valid values
-    (strings as typed on the command line are parsed). Raises InputError (key --param or
-    --values)."""
-    if parameter not in SWEEP_PARAMETERS:
-        raise InputError(_CLI, "--param", f"unknown parameter {parameter!r}; expected one of "
-                                          + ", ".join(SWEEP_PARAMETERS))
-    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(_CLI, "--values", f"expected at least one value of {parameter} "
-                                           f"({SWEEP_PARAMETERS[parameter][3]})")
-    parsed = [_parse_value(parameter, v) for v in values]
-    for i, v in enumerate(parsed):
-        if v in parsed[:i]:
-            raise InputError(_CLI, "--values", f"{parameter} value {v} is repeated; expected "
-                                               "distinct values")
-    return parsed
-
-
-def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
-    """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
-    file has none, an empty list, or cannot be read any more."""
-    try:
-        with open(world.path, "rb") as handle:
-            data = tomllib.load(handle)
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    adversary = data.get("adversary")
-    if not isinstance(adversary, dict) or "initial_traps" not in adversary:
-        return None
-    key = "adversary.initial_traps"
-    value = adversary["initial_traps"]
-    if value == []:          # what a delay-0 world writes: nothing given, so the rule goes on
-        return None
-    numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
-    cells: list[Cell] = []
-    if isinstance(value, list):
-        for item in value:
-            if (isinstance(item, list) and len(item) == 2
-                    and all(isinstance(c, int) and not isinstance(c, bool) for c in item)):
-                cells.append((item[0], item[1]))
-            else:
-                cells = []
-                break
-        else:
-            if (len(cells) == world.traps and len(set(cells)) == len(cells)
-                    and all(c in numbering for c in cells)):
-                return tuple(sorted(cells, key=numbering.__getitem__))
-    candidates = ", ".join(f"[{x}, {y}]" for x, y in world.grid.trap_candidates)
-    raise InputError(str(world.path), key,
-                     f"sweeping delay > 0 needs initial_traps to be {world.traps} distinct trap "
-                     f"candidate cells (candidates are {candidates}), got {value!r}")
-
-
-def delay_initial_traps(world: World) -> tuple[Cell, ...]:
-    """The traps standing at the start when the world is re-solved with a positive delay (the
-    rule in the module docstring)."""
-    if world.initial_traps:
-        return tuple(world.initial_traps)
-    from_file = _file_initial_traps(world)
-    if from_file is not None:
-        return from_file
-    return tuple(world.grid.trap_candidates[:world.traps])
-
-
-def sweep_world(world: World, parameter: str, value: object) -> World:
-    """The world with one parameter replaced (validated as in :func:`parse_sweep_values`)."""
-    (value,) = parse_sweep_values(parameter, [value])
-    if parameter == "delay":
-        traps = delay_initial_traps(world) if value > 0 else ()
-        return replace(world, delay=value, initial_traps=traps)
-    return replace(world, **{parameter: value})
-
-
-def _value_text(value: int | float) -> str:
-    return str(value) if isinstance(value, int) else f"{value:g}"
-
-
-def _bar(done: int, total: int, width: int = 20) -> str:
-    filled = int(round(width * done / max(total, 1)))
-    return "#" * filled + "." * (width - filled)
-
-
-_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states",
-                "transitions", "storm_states", "storm_transitions", "seconds")
-
-
-def results_sound(storm_method: str) -> bool:
-    """Whether values from `storm_method` are certified (SPEC §10)."""
-    from hg2prism.storm import SOUND_METHODS
-
-    return storm_method in SOUND_METHODS
-
-
-def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
-          show_progress: bool = True, storm_method: str = "sound") -> list[dict]:
-    """Solve the world for each value of `parameter` and record the values at the initial
-    state: ``{parameter: value, deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, states,
-    transitions, storm_states, storm_transitions, initial_traps, seconds}`` per value.
-
-    Each value is checked into ``out/<parameter>_<value>/`` (hypergame.prism, strategy.json,
-    results.json); ``out/sweep.json``, ``out/sweep.csv`` and ``out/sweep.png`` summarise them.
-    Progress: one line per value on stderr (the stages' own messages are not shown).
-    """
-    from hg2prism import baselines, pipeline, plots
-
-    parsed = parse_sweep_values(parameter, values)
-    worlds = [sweep_world(world, parameter, v) for v in parsed]   # all errors before any work
-    out = Path(out)
-    rows: list[dict] = []
-    total_start = time.perf_counter()
-    for i, (value, w) in enumerate(zip(parsed, worlds), start=1):
-        label = f"sweep {parameter}={_value_text(value)} ({i}/{len(parsed)}) [{_bar(i - 1, len(parsed))}]"
-        live = show_progress and sys.stderr.isatty()
-        if live:
-            sys.stderr.write(label + " ...")
-            sys.stderr.flush()
-        start = time.perf_counter()
-        finished = False
-        try:
-            with contextlib.redirect_stderr(io.StringIO()):
-                checked = pipeline.check(w, out / f"{parameter}_{_value_text(value)}", storm_method)
-                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
-            finished = True
-        finally:
-            if live and not finished:
-                sys.stderr.write(" failed\n")
-                sys.stderr.flush()
-        seconds = time.perf_counter() - start
-        results = checked.results
-        row = {
-            parameter: value,
-            "deceptive_value": results["deceptive_value"],
-            "v_lead": results["v_lead"],
-            "v_ne": nash.v_ne,
-            "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
-            "v_ne_bounds": list(nash.v_ne_bounds),
-            "states": results["states"],
-            "transitions": results["transitions"],
-            "storm_states": results["storm_states"],
-            "storm_transitions": results["storm_transitions"],
-            "initial_traps": [list(c) for c in w.initial_traps],
-            "seconds": round(seconds, 3),
-        }
-        rows.append(row)
-        if show_progress:
-            warn = (f"; warning: P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}"
-                    if nash.warn else "")
-            sys.stderr.write(f"{chr(13) if live else ''}{label.rsplit(' [', 1)[0]} "
-                             f"[{_bar(i, len(parsed))}]: deceptive "
-                             f"{row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
-                             f"{row['v_ne']:.4f}, {row['states']} states ({seconds:.1f} s){warn}\n")
-            sys.stderr.flush()
-
-    fixed = {"formula": world.formula, "slip": world.slip, "traps": world.traps,
-             "delay": world.delay, "hypotheses": list(world.hypotheses),
-             "initial_hypothesis": world.initial_hypothesis, "window": world.window,
-             "threshold": world.threshold, "rationality": world.rationality}
-    fixed.pop(parameter)
-    summary = {
-        "world": world.name,
-        "world_file": str(world.path),
-        "parameter": parameter,
-        "values": parsed,
-        "fixed_parameters": fixed,
-        "storm_method": storm_method,
-        "sound": results_sound(storm_method),
-        "initial_traps_rule": ("delay > 0: the world's initial_traps, else the file's "
-                               "[adversary] initial_traps, else the first `traps` candidates"
-                               if parameter == "delay" else None),
-        "rows": rows,
-        "seconds": round(time.perf_counter() - total_start, 3),
-    }
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow((parameter,) + _CSV_COLUMNS)
-    for row in rows:
-        writer.writerow([row[parameter]] + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                                            for c in _CSV_COLUMNS])
-    write_json(out / "sweep.json", summary)
-    write_text(out / "sweep.csv", buffer.getvalue())
-    plots.sweep_figure(parameter, rows, out / "sweep.png")
-    return rows
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,7 +54,7 @@ class DetectionBatch:
 
     def __init__(self, alpha: float, epsilon: float, keep_steps: bool = False,
                  scores_of=None) -> None:
-        from hg2prism.detection import MismatchDetector
+        from hg2prism.analyses.detection import MismatchDetector
 
         self._make = lambda: MismatchDetector(alpha, epsilon)
         self.keep_steps = keep_steps
@@ -363,7 +107,7 @@ def detection_batch(analysis, strategy, episodes: int, horizon: int, seed: int, 
     """Simulate `episodes` deceptive episodes with P1's detector running in each.
     Returns (SimulationSummary, DetectionBatch). With `track_scores` the batch records the
     largest CUSUM score of P1's model of P2's inference (DetectionBatch.max_score)."""
-    from hg2prism.simulation import simulate_deceptive
+    from hg2prism.analyses.simulation import simulate_deceptive
 
     batch = DetectionBatch(alpha, epsilon, keep_steps,
                            scores_of=analysis.inference if track_scores else None)
@@ -380,8 +124,8 @@ def _completion(summary) -> dict:
 
 
 def _distribution(rejections: list[int | None], deviate_after: int | None = None) -> dict:
-    from hg2prism.detection import summarize_detection
-    from hg2prism.simulation import wilson_interval
+    from hg2prism.analyses.detection import summarize_detection
+    from hg2prism.analyses.simulation import wilson_interval
 
     s = summarize_detection(rejections, deviate_after)
     result = {
@@ -429,15 +173,15 @@ def _check_positive(value: int | None, key: str, minimum: int) -> None:
 def detection_experiment(world: World, check_result, out: Path, episodes: int | None = None,
                          seed: int | None = None, show_progress: bool = True,
                          horizon: int | None = None) -> dict:
-    """SPEC §9's experiment and the other mismatch (see the module docstring).
+    """docs/semantics.md §9's experiment and the other mismatch (see the module docstring).
 
     `check_result` is pipeline.check(world, ...). `episodes` defaults to
     min(world.simulation.episodes, 2000) per batch, `seed` and `horizon` to the world's.
     Writes out/detection.json and out/detection.png and returns the JSON's content.
     """
-    from hg2prism import plots
-    from hg2prism.inference import build_inference
-    from hg2prism.simulation import (Strategy, deviating_policy, leader_fallback,
+    from hg2prism.report import plots
+    from hg2prism.opponent.inference import build_inference
+    from hg2prism.analyses.simulation import (Strategy, deviating_policy, leader_fallback,
                                      wilson_interval)
 
     _check_positive(episodes, "--episodes", 1)
@@ -457,7 +201,7 @@ def detection_experiment(world: World, check_result, out: Path, episodes: int | 
 
     def say(message: str) -> None:
         if show_progress:
-            print(message, file=sys.stderr, flush=True)
+            progress.say(message)
 
     # (a) one seeded episode, for the picture
     chosen, summary_a, batch_a = _find_seeded_episode(analysis, strategy, horizon, seed, alpha,
@@ -624,29 +368,10 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
     _check_positive(seed, "--seed", 0)
     _check_positive(horizon, "--horizon", 1)
     with tempfile.TemporaryDirectory(prefix="hg2prism-detect-") as scratch:
-        quiet = contextlib.nullcontext() if show_progress else contextlib.redirect_stderr(io.StringIO())
+        quiet = contextlib.nullcontext() if show_progress else progress.quiet()
         with quiet:
             checked = pipeline.check(world, Path(scratch), storm_method)
         return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon)
-
-
-# ---------------------------------------------------------------------------------------------
-# Printable summaries
-# ---------------------------------------------------------------------------------------------
-
-def sweep_summary_lines(parameter: str, rows: Sequence[dict], world_name: str | None = None) -> list[str]:
-    """The sweep as a Markdown table."""
-    title = f"Completion probability at the initial state against {parameter}"
-    if world_name:
-        title += f" ({world_name})"
-    lines = [title, "",
-             f"| {parameter} | deceptive value | V_lead | V_NE | hypergame states | transitions |",
-             "|---|---|---|---|---|---|"]
-    for row in rows:
-        lines.append(f"| {_value_text(row[parameter])} | {row['deceptive_value']:.4f} "
-                     f"| {row['v_lead']:.4f} | {row['v_ne']:.4f} | {row['states']} "
-                     f"| {row['transitions']} |")
-    return lines
 
 
 def _rate(c: dict) -> str:
@@ -704,19 +429,4 @@ def detection_summary_lines(result: dict) -> list[str]:
     lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
                  f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
                  f"model is {result['compliant']['max_cusum_score']:.4g})")
-    return lines
-
-
-def summary_lines(sweep_rows: Sequence[dict] | None = None, parameter: str | None = None,
-                  detection: dict | None = None, world_name: str | None = None) -> list[str]:
-    """Both summaries, separated by a blank line (what `make world2` prints)."""
-    lines: list[str] = []
-    if sweep_rows is not None:
-        if parameter is None:
-            raise ValueError("parameter is required with sweep_rows")
-        lines += sweep_summary_lines(parameter, sweep_rows, world_name)
-    if detection is not None:
-        if lines:
-            lines.append("")
-        lines += detection_summary_lines(detection)
     return lines

@@ -1,7 +1,7 @@
-"""Storm through stormpy: build the hypergame model, check Pmax, export the strategy (SPEC §6).
+"""Storm through stormpy: build the hypergame model, check Pmax, export the strategy (docs/semantics.md §6).
 
 Storm's states encode (v, q_prev, M) with the DFA one step behind, so several of them can be
-one canonical state (v, q, M) of SPEC §6; `canonical_states` maps each to its canonical id.
+one canonical state (v, q, M) of docs/semantics.md §6; `canonical_states` maps each to its canonical id.
 """
 
 from __future__ import annotations
@@ -19,14 +19,14 @@ import scipy.sparse as sp
 import stormpy
 import stormpy.environments as environments
 from stormpy import developer
-from stormpy.core._io import export_to_umb
+from stormpy.io import export_to_umb
 
-from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.errors import StormError, probability
-from hg2prism.hypergame import Layout
+from hg2prism.prism.hypergame import Layout
 
-PRECISION = "1/10000000000"   # 1e-10, SPEC §10
+PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
 
 
 def sound_environment() -> developer.Environment:
@@ -57,7 +57,7 @@ class CheckedModel:
         return result.get_scheduler()
 
 
-# How Storm solves Pmax. "sound" is SPEC §10's setting: Storm's default sound solver
+# How Storm solves Pmax. "sound" is docs/semantics.md §10's setting: Storm's default sound solver
 # (topological, optimistic value iteration per strongly connected component), precision 1e-10.
 # "sound-ovi" runs optimistic value iteration on the whole model, also sound to 1e-10: 15 s
 # instead of 62-70 s on the 982k-state benchmark model and 2.8 s instead of more than three
@@ -65,7 +65,7 @@ class CheckedModel:
 # default. "fast" is Storm's topological value iteration stopped at an absolute change of 1e-12,
 # which is not sound (7e-6 short on one 42k-state model).
 STORM_METHODS = ("sound", "sound-ovi", "fast")
-SOUND_METHODS = ("sound", "sound-ovi")      # certified to 1e-10 (SPEC §10); "fast" is not
+SOUND_METHODS = ("sound", "sound-ovi")      # certified to 1e-10 (docs/semantics.md §10); "fast" is not
 
 
 def solver_environment(method: str) -> developer.Environment:
@@ -118,9 +118,9 @@ def _check(prism_path: Path, prop: str, environment: developer.Environment) -> C
 
 @dataclass(frozen=True, eq=False)
 class DecodedStates:
-    """Storm's states as SPEC §6 hypergame states."""
+    """Storm's states as docs/semantics.md §6 hypergame states."""
 
-    cell: np.ndarray          # cell index (layout.trapped_cell once trapped)
+    cell: np.ndarray          # cell index (the TRAPPED formula's value once trapped)
     traps: np.ndarray         # standing trap set (0 when delay is 0)
     countdown: np.ndarray
     q: np.ndarray             # DFA state after reading the current cell's label
@@ -257,7 +257,7 @@ def transitions(model: object) -> Transitions:
 
 
 def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int]:
-    """SPEC §6: canonical states, and (state, action, successor) triples after merging."""
+    """docs/semantics.md §6: canonical states, and (state, action, successor) triples after merging."""
     absorbing = decoded.goal | decoded.fail
     counts = np.diff(moves.row_start)
     choice_of_entry = np.repeat(np.arange(len(moves.source)), counts)
@@ -277,7 +277,6 @@ class Strategy:
 
     representative: np.ndarray   # [n_canonical] a Storm state of each canonical state
     choice: np.ndarray           # [n_storm_states] global choice index P1 takes in each Storm state
-    optimal_choices: int         # value-optimal choices seen (for the record)
 
 
 OPTIMAL_SLACK = 1e-8   # Storm's values are sound to 1e-10; choices within this are optimal
@@ -371,7 +370,7 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     wanted = action_rep[canonical]
     match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
     choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
-    return Strategy(representative=representative, choice=choice, optimal_choices=int(optimal.sum()))
+    return Strategy(representative=representative, choice=choice)
 
 
 def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,

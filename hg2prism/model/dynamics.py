@@ -1,4 +1,4 @@
-"""The transition system TS of SPEC §2 as numpy tables.
+"""The transition system TS of docs/semantics.md §2 as numpy tables.
 
 TS states are numbered: with delay 0, state i is cell i; with delay k > 0, state
 (cell * n_sets + traps) * (k + 1) + countdown. The last state is `trapped`.
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.world import Cell, World
+from hg2prism.model.world import Cell, World
 
 ACTIONS = ("N", "E", "S", "W")
 # Action labels in generated PRISM: E, S and W are PRISM keywords.

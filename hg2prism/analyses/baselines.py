@@ -1,4 +1,4 @@
-"""Symmetric-information Nash baseline (SPEC §7): the concurrent game on TS x DFA(phi).
+"""Symmetric-information Nash baseline (docs/semantics.md §7): the concurrent game on TS x DFA(phi).
 
 Both players know the task phi and move at the same time with mixed strategies. The value is
 the least fixed point of
@@ -6,7 +6,7 @@ the least fixed point of
     V(g) = val(M_g),   M_g[a1][a2] = sum_k prob[g, a1, a2, k] * V(next[g, a1, a2, k])
 
 where `val` is the value of the zero-sum matrix game (P1 maximises over rows, P2 minimises over
-her allowed columns). Value iteration from 0 converges to it from below (SPEC §10: stop when the
+her allowed columns). Value iteration from 0 converges to it from below (docs/semantics.md §10: stop when the
 largest change is below 1e-10, fail past 10^6 sweeps).
 
 Every sweep needs one matrix-game value per state, and on world1 value iteration needs about two
@@ -30,7 +30,7 @@ Strategies are read off the final matrices. Where a state's game has a pure sadd
 mixes uniformly over all moves that are optimal on their own instead of taking one saddle row:
 still locally optimal, but it does not stall (e.g. against a wall where the value is 1) when
 another optimal move makes progress. `guaranteed_value` then computes, exactly, what that
-stationary strategy guarantees against a minimising P2 (SPEC §7 asks to report it beside V_NE).
+stationary strategy guarantees against a minimising P2 (docs/semantics.md §7 asks to report it beside V_NE).
 """
 
 from __future__ import annotations
@@ -42,16 +42,16 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.optimize import linprog
 
-from hg2prism.automata import DFA
-from hg2prism.dynamics import TransitionSystem
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
 
-VI_TOLERANCE = 1e-10        # SPEC §10: concurrent game, largest change per sweep
+VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
 GAP = 1e-12                 # accepted width of a matrix game's certified value interval
 LP_GAP = 1e-9               # an unpolished LP solution must still be this tight, or we fail
 LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
-SHORTFALL_WARNING = 1e-6    # SPEC §7: warn when P1's extracted strategy guarantees less
+SHORTFALL_WARNING = 1e-6    # docs/semantics.md §7: warn when P1's extracted strategy guarantees less
 SUPPORT = 1e-9              # a probability above this is in a strategy's support
 TIE = 1e-9                  # a pure move this close to the value counts as optimal for P1
 
@@ -119,7 +119,7 @@ class NashBaseline:
     initial: tuple[int, int]  # (start_state, delta(iota, L(start cell)))
     v_ne: float
     v_ne_p1_guaranteed: float
-    # The sound bracket around V_NE at the start (SPEC §7): what P1's extracted strategy
+    # The sound bracket around V_NE at the start (docs/semantics.md §7): what P1's extracted strategy
     # guarantees, and what P1's best response to P2's extracted strategy achieves.
     v_ne_bounds: tuple[float, float]
     # v_ne - v_ne_p1_guaranteed. It can be slightly negative (about -1e-8 on world1): value
@@ -128,12 +128,12 @@ class NashBaseline:
 
     @property
     def warn(self) -> bool:
-        """SPEC §7: P1's stationary strategy guarantees noticeably less than V_NE."""
+        """docs/semantics.md §7: P1's stationary strategy guarantees noticeably less than V_NE."""
         return self.shortfall > SHORTFALL_WARNING
 
     @property
     def bracket_warn(self) -> bool:
-        """SPEC §7: the sound bracket around V_NE is wider than 1e-6."""
+        """docs/semantics.md §7: the sound bracket around V_NE is wider than 1e-6."""
         return self.v_ne_bounds[1] - self.v_ne_bounds[0] > SHORTFALL_WARNING
 
 
@@ -338,6 +338,27 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
 
 
+def _evaluate(nxt: np.ndarray, weight: np.ndarray, goal: np.ndarray, solve: np.ndarray,
+              policy: np.ndarray) -> np.ndarray:
+    """[G] reach probability of the goal when each state plays the column `policy` of the
+    outcome tables nxt/weight [G, choices, outcomes]: one sparse linear system over the
+    `solve` states (0 elsewhere, 1 on goal states). The policy must reach the goal or leave
+    `solve` with probability 1, so that the system is regular."""
+    idx = np.flatnonzero(solve)
+    pos = np.full(goal.size, -1)
+    pos[idx] = np.arange(idx.size)
+    sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]       # [n, outcomes]
+    inner = solve[sub_next] & (sub_w > 0)
+    r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
+    matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
+        (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
+    rhs = (sub_w * goal[sub_next]).sum(axis=1)
+    x = goal.astype(float)
+    if idx.size:
+        x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+    return x
+
+
 def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     """[G] reach probability P1 guarantees with the stationary mixed strategy p1: P2 minimises in
     the MDP where p1 is fixed. Solved exactly: the states where P2 can avoid the goal surely get
@@ -367,19 +388,8 @@ def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
 
     x = game.goal.astype(float)
     policy = q_of(x).argmin(axis=1)
-    idx = np.flatnonzero(solve)
-    pos = np.full(g, -1)
-    pos[idx] = np.arange(idx.size)
     for _ in range(10_000):
-        sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]   # [n, A1*K]
-        inner = solve[sub_next] & (sub_w > 0)
-        r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
-        matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
-            (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
-        rhs = (sub_w * game.goal[sub_next]).sum(axis=1)
-        x = game.goal.astype(float)
-        if idx.size:
-            x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+        x = _evaluate(nxt, weight, game.goal, solve, policy)
         q = q_of(x)
         best = q.argmin(axis=1)
         # Switch only on a strict improvement, so the iteration cannot cycle on ties.
@@ -421,19 +431,8 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray) -> np.ndarray:
         """[G, A1] reach probability of each P1 move, one step then x."""
         return (weight * x[nxt]).sum(axis=-1)
 
-    idx = np.flatnonzero(solve)
-    pos = np.full(g, -1)
-    pos[idx] = np.arange(idx.size)
     for _ in range(10_000):
-        sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]   # [n, A2*K]
-        inner = solve[sub_next] & (sub_w > 0)
-        r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
-        matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
-            (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
-        rhs = (sub_w * game.goal[sub_next]).sum(axis=1)
-        x = game.goal.astype(float)
-        if idx.size:
-            x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+        x = _evaluate(nxt, weight, game.goal, solve, policy)
         q = q_of(x)
         best = q.argmax(axis=1)
         improve = solve & (q[rows, best] > q[rows, policy] + 1e-14)
@@ -444,7 +443,7 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray) -> np.ndarray:
 
 
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
-    """The Nash baseline of SPEC §7 for the task DFA, read at every (s, q) and at the start."""
+    """The Nash baseline of docs/semantics.md §7 for the task DFA, read at every (s, q) and at the start."""
     game = concurrent_game(ts, dfa)
     solution = solve_nash(game)
     guaranteed = guaranteed_value(game, solution.p1)

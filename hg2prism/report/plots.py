@@ -11,9 +11,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from hg2prism.dynamics import TransitionSystem  # noqa: E402
+from hg2prism.model.dynamics import TransitionSystem  # noqa: E402
 from hg2prism.outputs import write_bytes  # noqa: E402
-from hg2prism.world import World  # noqa: E402
+from hg2prism.model.world import World  # noqa: E402
 
 _HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
 

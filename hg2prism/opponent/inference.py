@@ -1,4 +1,4 @@
-"""P2's inference (SPEC §5): sliding-window CUSUM over log-likelihood ratios of P1's moves.
+"""P2's inference (docs/semantics.md §5): sliding-window CUSUM over log-likelihood ratios of P1's moves.
 
 P2's memory is (current hypothesis, the last at most w-1 observations since the last change);
 an observation is (TS state, P1's action index).
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.games import PerceptualGame
+from hg2prism.opponent.perceptual_games import PerceptualGame
 
 TOLERANCE = 1e-9
 

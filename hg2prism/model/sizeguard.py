@@ -1,7 +1,7 @@
 """The size guard: an upper bound of the hypergame's canonical size, read off the world file.
 
 Before anything is built, `estimate_states(world)` bounds the number of canonical hypergame
-states (SPEC §6: the reachable states (v, q, M), goal states merged into one, failure states
+states (docs/semantics.md §6: the reachable states (v, q, M), goal states merged into one, failure states
 into another) from the world alone — the grid, the task's DFA and the parameters — without
 solving any game, and `check_size` refuses a world whose bound exceeds a limit.
 
@@ -27,7 +27,7 @@ The bound (rigorous; every factor over-approximates one component of a canonical
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap
 set in force at each of those steps is a function of the TS state and x (the standing set while
-the countdown runs, pi2_x otherwise, SPEC §4). Given x, the trap part of the oldest observation
+the countdown runs, pi2_x otherwise, docs/semantics.md §4). Given x, the trap part of the oldest observation
 and the walk of cells and actions, the trap parts of the later observations and of the current
 TS state are therefore determined. Consecutive observations are consecutive moves of one run,
 hence walks. The bound only over-counts what the hypergame never reaches (hypothesis/window
@@ -48,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.errors import InputError
-from hg2prism.world import World
+from hg2prism.model.world import World
 
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
 # the benchmark family (bench/results.csv, `peak_mb`): 2.3-2.5 KB per canonical state from 4e5
@@ -102,7 +102,7 @@ def _labels(world: World, index: np.ndarray, n: int) -> tuple[np.ndarray, tuple[
 def _dfa_states_per_label(world: World, label_names: tuple[str, ...]) -> np.ndarray:
     """Q per label class: the non-absorbing DFA states delta(q', label), q' initial or
     non-absorbing."""
-    from hg2prism.automata import translate
+    from hg2prism.model.automata import translate
 
     dfa = translate(world.formula, label_names)
     absorbing = set(dfa.accepting) | set(dfa.sink)

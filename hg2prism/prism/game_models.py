@@ -1,9 +1,9 @@
-"""PRISM-games exports of the games of SPEC §§4 and 7, so PRISM-games can re-check the baselines.
+"""PRISM-games exports of the games of docs/semantics.md §§4 and 7, so PRISM-games can re-check the baselines.
 
-  symmetric.prism       csg: the symmetric-information game on TS x DFA(phi) (SPEC §7). Both
+  symmetric.prism       csg: the symmetric-information game on TS x DFA(phi) (docs/semantics.md §7). Both
                         players move at once; <<p1>>Pmax=? [F "goal"] is V_NE, the value of the
                         zero-sum concurrent game with mixed strategies (the paper's Table I).
-  perceptual_<i>.prism  smg: P2's perceptual game G(x_i) on TS x DFA(x_i) (SPEC §4). Each step P2
+  perceptual_<i>.prism  smg: P2's perceptual game G(x_i) on TS x DFA(x_i) (docs/semantics.md §4). Each step P2
                         places the traps first, then P1 moves (a turn variable); <<p1>>Pmax=? [F
                         "goal"] is V_x at the initial state (P1 maximises, P2 minimises).
 
@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from hg2prism import __version__
-from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTIONS, TransitionSystem
-from hg2prism.hypergame import _cell_map, _number, lookup, region_labels, render_template
-from hg2prism.world import World
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.prism.hypergame import cell_map, prism_number, lookup, region_labels, render_template
+from hg2prism.model.world import World
 
 PROPERTY = '<<p1>> Pmax=? [F "goal"]'
 
@@ -71,31 +71,31 @@ def _context(world: World, ts: TransitionSystem, dfa: DFA) -> dict:
         version=__version__, world=world, ts=ts, dfa=dfa,
         actions=ACTIONS, action_labels=ACTION_LABELS,
         places=[_place(t) for t in range(ts.n_sets)],
-        cell_map=_cell_map(world, ts), trapped=trapped,
+        cell_map=cell_map(world, ts), trapped=trapped,
         moves={a: lookup(np.append(ts.move[:, d], trapped), cell_key) for d, a in enumerate(ACTIONS)},
         label_expr=lookup(np.append(ts.cell_label, 0), cell_key),
         q_now=lookup(dfa.delta, [("q", 0), ("label_class", 0)]),
         accepting=sorted(dfa.accepting), sink=sorted(dfa.sink),
         robot_commands=_robot_commands(ts),
-        start_cell=start_cell, start_traps=start_traps, slip=_number(world.slip),
+        start_cell=start_cell, start_traps=start_traps, slip=prism_number(world.slip),
         region_labels=region_labels(ts),
         set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(ts.n_sets)],
     )
 
 
 def render_symmetric(world: World, ts: TransitionSystem, task: DFA) -> tuple[str, str]:
-    """The symmetric-information game of SPEC §7 as a PRISM-games csg, and its property file."""
+    """The symmetric-information game of docs/semantics.md §7 as a PRISM-games csg, and its property file."""
     text = render_template("symmetric.prism.j2", **_context(world, ts, task))
-    props = (f"// V_NE of world {world.name} (SPEC §7): the value of the concurrent zero-sum game in which\n"
+    props = (f"// V_NE of world {world.name} (docs/semantics.md §7): the value of the concurrent zero-sum game in which\n"
              f"// P2 knows the task; P1 maximises, P2 minimises, both with mixed strategies.\n"
              f"{PROPERTY}\n")
     return text, props
 
 
 def render_perceptual(world: World, ts: TransitionSystem, dfa: DFA, index: int) -> tuple[str, str]:
-    """P2's perceptual game G(x_index) of SPEC §4 as a PRISM-games smg, and its property file."""
+    """P2's perceptual game G(x_index) of docs/semantics.md §4 as a PRISM-games smg, and its property file."""
     text = render_template("perceptual.prism.j2", index=index, **_context(world, ts, dfa))
-    props = (f"// V_x of world {world.name} for hypothesis x{index} = \"{dfa.formula}\" (SPEC §4): P2 places\n"
+    props = (f"// V_x of world {world.name} for hypothesis x{index} = \"{dfa.formula}\" (docs/semantics.md §4): P2 places\n"
              f"// the traps first each step, P1 answers; P1 maximises, P2 minimises.\n"
              f"{PROPERTY}\n")
     return text, props

@@ -1,4 +1,4 @@
-"""World files (SPEC §1): load a TOML world, validate it, and return an immutable World.
+"""World files (docs/semantics.md §1): load a TOML world, validate it, and return an immutable World.
 
 Coordinates: x is the column from the left, y the row from the BOTTOM (both 0-based).
 """
@@ -172,9 +172,10 @@ def _one_line(text: str) -> str:
 
 
 class _Loader:
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, text: str | None = None) -> None:
         self.path = path
         self.file = str(path)
+        self.text = text        # the file's text when it does not come from a file
 
     def fail(self, key: str, reason: str) -> InputError:
         return InputError(self.file, key, _one_line(reason))
@@ -185,8 +186,12 @@ class _Loader:
         import re
         import tomllib
 
+        if self.text is not None:
+            data = self.text.encode("utf-8", "surrogatepass")
+        else:
+            data = None
         try:
-            data = self.path.read_bytes()
+            data = self.path.read_bytes() if data is None else data
         except FileNotFoundError:
             raise self.fail("-", "file not found") from None
         except IsADirectoryError:
@@ -501,3 +506,10 @@ class _Loader:
 def load_world(path: str | Path) -> World:
     """Read and validate a world file; raise InputError(file, key, reason) on any problem."""
     return _Loader(Path(path)).load()
+
+
+def world_from_toml(text: str, name: str = "world") -> World:
+    """Validate the text of a world file (docs/semantics.md §1). `name` stands for the file in
+    error messages and is the world's name when the text has none; raise InputError(name, key,
+    reason) on any problem."""
+    return _Loader(Path(name), text).load()

@@ -1,7 +1,7 @@
-"""P2's perceptual games G(x) (SPEC §4), solved in numpy.
+"""P2's perceptual games G(x) (docs/semantics.md §4), solved in numpy.
 
 G(x) is played on TS x DFA(x): at every step P2 commits to a trap set a2, then P1 answers with a1.
-Values are solved to within 1e-10 (SPEC §10): a few sweeps of value iteration from below seed
+Values are solved to within 1e-10 (docs/semantics.md §10): a few sweeps of value iteration from below seed
 the strategies, then strategy iteration evaluates the strategy pair exactly (a sparse linear solve)
 and certifies the result:
   * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
@@ -19,11 +19,11 @@ import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
-from hg2prism.automata import DFA
-from hg2prism.dynamics import TransitionSystem
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
-TIE = 1e-6              # P2's tie tolerance between trap sets (SPEC §4)
+TIE = 1e-6              # P2's tie tolerance between trap sets (docs/semantics.md §4)
 # Value iteration only seeds the strategies: strategy iteration then evaluates them exactly and
 # improves them until they are certified, so a few sweeps do (measured: the same values and
 # strategies on every test and benchmark world as with 1e-4, in a third of the time). Should
@@ -38,15 +38,14 @@ class GameSolution:
     """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
 
     values: np.ndarray        # [n_ts, n_q]
-    p2_strategy: np.ndarray   # [n_ts * n_q] P2's trap set at each game state (SPEC §4's rule)
+    p2_strategy: np.ndarray   # [n_ts * n_q] P2's trap set at each game state (docs/semantics.md §4's rule)
     p1_strategy: np.ndarray   # [n_ts * n_q, n_sets] P1's optimal answer to each trap set
     sweeps: int
-    improvements: int
 
 
 @dataclass(frozen=True, eq=False)
 class PerceptualGame:
-    """G(x) for one hypothesis x: what P2 plays and how she models P1 (SPEC §4)."""
+    """G(x) for one hypothesis x: what P2 plays and how she models P1 (docs/semantics.md §4)."""
 
     formula: str
     dfa: DFA
@@ -56,8 +55,10 @@ class PerceptualGame:
     log_policy: np.ndarray    # [n_ts, n_sets, 4] ln pi1_x(a1 | v, a2), softmax at q_x0(v)
 
 
-class _Game:
-    """Index arithmetic shared by the solver: game state g = s * n_q + q."""
+class TurnBasedGame:
+    """The product TS x DFA as a turn-based game (P2 picks the trap set, then P1 moves): game
+    state g = s * n_q + q, its successors, probabilities, P2's allowed sets, goal and absorbing
+    states. The solver here, the leader fallback of the simulation and the tests use it."""
 
     def __init__(self, ts: TransitionSystem, dfa: DFA) -> None:
         self.ts, self.dfa = ts, dfa
@@ -139,28 +140,26 @@ def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
 
 
 def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
-    game = _Game(ts, dfa)
+    game = TurnBasedGame(ts, dfa)
     rank = game.positive_attractor()
     zero = ~game.goal & (rank < 0)
     fixed = ~game.free | zero
     lower = game.goal.astype(float)
-    tolerance, sweeps, attempts = VI_TOLERANCE, 0, 0
+    tolerance, sweeps = VI_TOLERANCE, 0
     while True:
         lower, used = _value_iteration(game, lower, fixed, tolerance)
         sweeps += used
-        attempts += 1
         certified = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11))
         if certified is not None:
             values, p1, p2 = certified
             return GameSolution(values=values.reshape(ts.n_states, dfa.n_states),
-                                p2_strategy=p2, p1_strategy=p1, sweeps=sweeps,
-                                improvements=attempts)
+                                p2_strategy=p2, p1_strategy=p1, sweeps=sweeps)
         if tolerance < 1e-15:
-            raise SolverError("could not certify the game values to 1e-10 (SPEC §10)")
+            raise SolverError("could not certify the game values to 1e-10 (docs/semantics.md §10)")
         tolerance /= 100
 
 
-def _value_iteration(game: _Game, v: np.ndarray, fixed: np.ndarray,
+def _value_iteration(game: TurnBasedGame, v: np.ndarray, fixed: np.ndarray,
                      tolerance: float) -> tuple[np.ndarray, int]:
     """Value iteration from below: every iterate is a lower bound of the least fixed point."""
     for sweep in range(1, MAX_SWEEPS + 1):
@@ -173,11 +172,11 @@ def _value_iteration(game: _Game, v: np.ndarray, fixed: np.ndarray,
     raise SolverError(f"value iteration did not converge in {MAX_SWEEPS} sweeps")
 
 
-def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
+def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Greedy strategies for both players from v, evaluated exactly and polished; if certified
     (see the module docstring), the exact values x, P1's answers greedy for x (which guarantee
-    x) and P2's trap sets chosen from x by SPEC §4's rule (`trap_rule`), else None."""
+    x) and P2's trap sets chosen from x by docs/semantics.md §4's rule (`trap_rule`), else None."""
     for _ in range(POLISH_ROUNDS):
         p1, p2 = _greedy(game, v, optimal_slack)
         x = _evaluate_pair(game, p1, p2, zero)
@@ -185,14 +184,14 @@ def _certify(game: _Game, v: np.ndarray, zero: np.ndarray, optimal_slack: float
         if residual <= 1e-11:
             # From exact values of a pair, only float noise separates truly optimal moves.
             p1_x, _ = _greedy(game, x, 1e-12)
-            if _certified(game, p1_x, x):
+            if is_certified(game, p1_x, x):
                 worst = np.where(game.allowed, game.q_values(x).max(axis=1), np.inf)
                 return x, p1_x, trap_rule(worst, game.standing)
         v, optimal_slack = x, 1e-12
     return None
 
 
-def _greedy(game: _Game, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
+def _greedy(game: TurnBasedGame, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
     """P1's answer to every trap set and P2's trap set (exactly greedy: strategy iteration
     needs it), greedy for v."""
     q = game.q_values(v)                                              # [G, 4, A2]
@@ -211,7 +210,7 @@ def _greedy(game: _Game, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarra
 
 
 def trap_rule(worst: np.ndarray, standing: np.ndarray | None) -> np.ndarray:
-    """P2's choice of trap set (SPEC §4): worst[i, a2] is the value of P1's best answer to a2
+    """P2's choice of trap set (docs/semantics.md §4): worst[i, a2] is the value of P1's best answer to a2
     (inf where a2 is not allowed); the sets within TIE of the lowest are tied, and among them
     P2 keeps the standing set (standing[i], -1 for none) when it is tied, else takes the
     first."""
@@ -223,7 +222,7 @@ def trap_rule(worst: np.ndarray, standing: np.ndarray | None) -> np.ndarray:
     return choice
 
 
-def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
+def _evaluate_pair(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
     """Exact reach probabilities when P2 plays p2[g] and P1 answers p1[g, a2]."""
     n = game.size
     rows = np.arange(n)
@@ -259,7 +258,7 @@ def _evaluate_pair(game: _Game, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
     return x
 
 
-def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
+def is_certified(game: TurnBasedGame, p1: np.ndarray, x: np.ndarray) -> bool:
     """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever: outside the
     positive attractor of the goal when P1 answers each a2 with p1[g, a2]."""
     answers = p1[:, None, :] == np.arange(4)[None, :, None]           # [G, 4, A2]
@@ -269,11 +268,11 @@ def _certified(game: _Game, p1: np.ndarray, x: np.ndarray) -> bool:
 
 def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
                     discount: float = 0.9) -> np.ndarray:
-    """P1's answer at every game state to P2's strategy (SPEC §4's rule on the exact values,
+    """P1's answer at every game state to P2's strategy (docs/semantics.md §4's rule on the exact values,
     optimal up to its 1e-6 ties): among P1's value-optimal moves,
     the one maximising the discounted probability of reaching the goal, so that P1 never
     stalls (any optimal answer keeps the value, but some dither for a long time)."""
-    game = _Game(ts, dfa)
+    game = TurnBasedGame(ts, dfa)
     v = solution.values.reshape(-1)
     rows = np.arange(game.size)
     p2 = solution.p2_strategy
@@ -291,9 +290,9 @@ def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:
-    """Solve G(x) and derive P2's trap strategy and her softmax model of P1 (SPEC §4)."""
+    """Solve G(x) and derive P2's trap strategy and her softmax model of P1 (docs/semantics.md §4)."""
     solution = solve_game(ts, dfa)
-    game = _Game(ts, dfa)
+    game = TurnBasedGame(ts, dfa)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)

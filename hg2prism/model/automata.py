@@ -1,4 +1,4 @@
-"""Spot: syntactically co-safe LTL -> complete DFA over the world's label classes (SPEC §3)."""
+"""Spot: syntactically co-safe LTL -> complete DFA over the world's label classes (docs/semantics.md §3)."""
 
 from __future__ import annotations
 
@@ -15,13 +15,10 @@ class DFA:
     formula: str
     n_states: int
     initial: int
-    accepting: frozenset[int]     # final states: a good prefix has been read (SPEC §3)
+    accepting: frozenset[int]     # final states: a good prefix has been read (docs/semantics.md §3)
     sink: frozenset[int]          # states from which no final state is reachable
     delta: np.ndarray             # [n_states, n_labels] successor on each label class
     automaton: spot.twa_graph | None = None   # Spot's automaton: its state numbers are the q's
-
-    def is_absorbing(self, q: int) -> bool:
-        return q in self.accepting or q in self.sink
 
     def read(self, q: int, label: int) -> int:
         return int(self.delta[q, label])
@@ -37,7 +34,7 @@ def translate(formula: str, label_names: tuple[str, ...],
 
     label_names[0] is the empty label; every other class sets exactly one proposition.
     occurring: the label classes the world's states actually produce (default: all of them).
-    The final states and the sink are computed over these letters only (SPEC §3): a final
+    The final states and the sink are computed over these letters only (docs/semantics.md §3): a final
     state is one from which every continuation over them is accepted (a good prefix has been
     read), a sink one from which no final state can be reached.
     """

@@ -1,15 +1,15 @@
-"""Online simulation of the interaction on TS (SPEC §8).
+"""Online simulation of the interaction on TS (docs/semantics.md §8).
 
 Deceptive runs: P1 follows its exported deceptive strategy (the records of strategy.json),
 tracking the hypergame state ``(v, q, M)`` exactly: ``q`` is its task DFA's state after reading
-the current cell's label and ``M`` its model of P2's memory, which evolves by SPEC §5 with
-``a2 = pi2_xh(v)`` (SPEC §9). P2 runs the inference of SPEC §5 on the actual history and plays
+the current cell's label and ``M`` its model of P2's memory, which evolves by docs/semantics.md §5 with
+``a2 = pi2_xh(v)`` (docs/semantics.md §9). P2 runs the inference of docs/semantics.md §5 on the actual history and plays
 ``pi2_xh(v)`` for the hypothesis ``xh`` of her real memory, unless an experiment gives her
 another policy (``p2_policy``) or another inference model (``p2_inference``). The successor is
 sampled from the TS tables for the actions actually played.
 
 Nash runs: both players sample their stationary mixed strategies over the game states
-``g = s * n_q + q`` of TS x DFA(phi) (the convention of ``hg2prism.games``).
+``g = s * n_q + q`` of TS x DFA(phi) (the convention of ``hg2prism.opponent.perceptual_games``).
 
 An episode ends in goal (``q`` in F and not trapped), in failure (trapped, or ``q`` in Sink) or
 after ``horizon`` transitions (truncated: not completed, reported). The completion rate thus
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
@@ -38,9 +37,10 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.stats import norm
 
-from hg2prism.automata import DFA
-from hg2prism.dynamics import ACTIONS, TransitionSystem
-from hg2prism.inference import InferenceModel, Memory
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.progress import Bar
+from hg2prism.opponent.inference import InferenceModel, Memory
 
 __all__ = [
     "FAIL", "GOAL", "TRUNCATED",
@@ -169,41 +169,6 @@ def _check_run(episodes: int, horizon: int) -> None:
 # Progress bar and random numbers
 # ---------------------------------------------------------------------------------------------
 
-class _Progress:
-    """A text progress bar on stderr, redrawn at most ~20 times."""
-
-    WIDTH = 30
-    UPDATES = 20
-
-    def __init__(self, label: str, total: int, enabled: bool) -> None:
-        self.label, self.total, self.enabled = label, max(int(total), 1), enabled
-        self.next_at = 0
-        self.stream = sys.stderr
-        # Redrawing with \r only makes sense on a terminal; a log gets the final line alone.
-        self.live = enabled and self.stream.isatty()
-
-    def update(self, done: int) -> None:
-        if not self.live or done < self.next_at:
-            return
-        fraction = min(done / self.total, 1.0)
-        filled = int(round(fraction * self.WIDTH))
-        self.stream.write(f"\r{self.label}: [{'#' * filled}{'.' * (self.WIDTH - filled)}] "
-                          f"{fraction:4.0%} {done}/{self.total} episodes")
-        self.stream.flush()
-        step = max(1, -(-self.total // self.UPDATES))
-        self.next_at = (done // step + 1) * step
-
-    def close(self, seconds: float) -> None:
-        if self.enabled:
-            if self.live:
-                self.next_at = 0
-                self.update(self.total)
-                self.stream.write(f" in {seconds:.2f} s\n")
-            else:
-                self.stream.write(f"{self.label}: {self.total} episodes in {seconds:.2f} s\n")
-            self.stream.flush()
-
-
 class _Uniforms:
     """Uniform [0, 1) numbers drawn from the generator in blocks (deterministic for a seed)."""
 
@@ -277,10 +242,6 @@ class Strategy:
         self.ts = ts
         self.fallback = fallback
 
-    def with_fallback(self, fallback: Fallback | None) -> "Strategy":
-        """The same records with another fallback for unrecorded states."""
-        return Strategy(self.table, self.ts, fallback)
-
     @classmethod
     def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
                      fallback: Fallback | None = None) -> "Strategy":
@@ -346,16 +307,16 @@ class Strategy:
 
 def leader_fallback(analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
-    predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of SPEC §7,
+    predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of docs/semantics.md §7,
     ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` (first best in N, E, S, W order).
 
     It is a heuristic for off-model experiments only; simulations report how many steps used it
     (SimulationSummary.off_record_steps)."""
-    from hg2prism.games import _Game, solve_game
+    from hg2prism.opponent.perceptual_games import TurnBasedGame
 
     ts, task = analysis.ts, analysis.task
-    values = solve_game(ts, task).values
-    q_values = _Game(ts, task).q_values(values.reshape(-1))          # [G, 4, A2]
+    values = analysis.leader.values
+    q_values = TurnBasedGame(ts, task).q_values(values.reshape(-1))          # [G, 4, A2]
     n_q = task.n_states
     trap_choice = [g.trap_choice for g in analysis.games]
 
@@ -375,7 +336,7 @@ class StepRecord:
     """One transition of an episode, as passed to the observer.
 
     ``(ts_state, q, memory)`` is P1's augmented state before the step (``memory`` = P1's model
-    of P2's memory, SPEC §9); ``a2`` the trap set P2 actually played, ``predicted_a2`` the one
+    of P2's memory, docs/semantics.md §9); ``a2`` the trap set P2 actually played, ``predicted_a2`` the one
     P1's model predicts (``pi2_xh(v)`` with ``xh = memory.hypothesis``), ``n_a2 = |A2(v)|``.
     ``p2_memory`` is P2's real memory before the step (equal to ``memory`` unless P2 runs another
     inference model). ``next_state``/``next_q`` is where the step led (``next_state`` may be
@@ -408,7 +369,7 @@ def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int
 
 
 def deviating_policy(ts: TransitionSystem, deviate_after: int) -> P2Policy:
-    """SPEC §9's experiment: P2 follows the model for n <= deviate_after, then plays uniformly
+    """docs/semantics.md §9's experiment: P2 follows the model for n <= deviate_after, then plays uniformly
     at random over A2(v)."""
     allowed = [np.flatnonzero(row) for row in ts.allowed]
 
@@ -503,7 +464,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                        p2_policy: P2Policy | None = None, observer: Observer | None = None,
                        progress: bool = True,
                        p2_inference: InferenceModel | None = None) -> SimulationSummary:
-    """Play `episodes` episodes of P1's deceptive strategy against P2's inference (SPEC §8).
+    """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
     `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
     `strategy` is a Strategy (or any object whose ``action(ts_state, q, memory)`` returns P1's
@@ -531,7 +492,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
 
     outcomes = np.empty(episodes, dtype=np.int8)
     lengths = np.empty(episodes, dtype=np.int64)
-    bar = _Progress("simulate deceptive", episodes, progress)
+    bar = Bar("simulate deceptive", episodes, progress)
     status, a1_of, nodes = chain.status, chain.a1, chain.nodes
     recorded = getattr(strategy, "table", None)
     off_record: set[int] = set()
@@ -667,7 +628,7 @@ def bounded_reach(matrix: sp.csr_matrix, goal: np.ndarray, stop: np.ndarray, sta
 def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: np.ndarray,
                   episodes: int, horizon: int, seed: int,
                   progress: bool = True, label: str = "simulate nash") -> SimulationSummary:
-    """Both players sample stationary mixed strategies over g = s * n_q + q (SPEC §7/§8).
+    """Both players sample stationary mixed strategies over g = s * n_q + q (docs/semantics.md §7/§8).
 
     `nash_p1` is [G, 4] (P1's action distribution), `nash_p2` is [G, n_sets] (only trap sets
     allowed at s may have positive probability); rows of absorbing game states are ignored.
@@ -706,7 +667,7 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
     state = np.full(episodes, start, dtype=np.int64)
     lengths = np.zeros(episodes, dtype=np.int64)
     active = np.flatnonzero(running[state])
-    bar = _Progress(label, episodes, progress)
+    bar = Bar(label, episodes, progress)
     bar.update(episodes - len(active))
     for _ in range(horizon):
         if not len(active):

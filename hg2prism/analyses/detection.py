@@ -1,4 +1,4 @@
-"""Online detection of a wrong opponent model (SPEC §9): a likelihood-ratio test of
+"""Online detection of a wrong opponent model (docs/semantics.md §9): a likelihood-ratio test of
 H0 "P2 behaves as modelled" against H1 "P2 plays some other stationary policy on P1's
 augmented states".
 

@@ -93,15 +93,13 @@ def _reachable(grid: list[list[str]], start: tuple[int, int]) -> set[tuple[int, 
     return seen
 
 
-def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0,
-                candidates: int | None = None) -> str:
+def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0) -> str:
     """TOML text of a side x side world (plus border): the fixed core in the top right corner,
     the start in the bottom left one, 1/12 of the other cells walls and 1/25 obstacles (none
     next to the start; cells the start cannot reach are walled in).
 
     `hypotheses` (1-5) takes P2's candidate tasks from "!obs U A", "!obs U B", ... in that
-    order; `traps` (1-2) among the core's 8 candidates. `candidates` is accepted for
-    compatibility and ignored (the core fixes them)."""
+    order; `traps` (1-2) among the core's 8 candidates (the core fixes them)."""
     if side < CORE_SIZE:
         raise ValueError(f"side must be at least {CORE_SIZE} (the core)")
     if not 1 <= hypotheses <= len(HYPOTHESIS_POOL):
@@ -172,8 +170,9 @@ def world_name(side: int, window: int, hypotheses: int, traps: int) -> str:
 
 def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     """Runs `pipeline.check` on one world (in the calling process) and returns its row."""
-    from hg2prism import pipeline, sizeguard
-    from hg2prism.world import load_world
+    from hg2prism import pipeline
+    from hg2prism.model import sizeguard
+    from hg2prism.model.world import load_world
 
     world = load_world(world_path)
     estimate = sizeguard.estimate_states(world)
@@ -327,7 +326,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
     and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
-    `storm_method` is check's --storm-method: "sound" (SPEC §10), "sound-ovi" or "fast"."""
+    `storm_method` is check's --storm-method: "sound" (docs/semantics.md §10), "sound-ovi" or "fast"."""
     from hg2prism.outputs import write_text
 
     out_dir = Path(out_dir)
@@ -353,7 +352,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
     write_csv(rows, out_dir / "results.csv")
     good = [r for r in rows if not r.get("error")]
     if good:
-        from hg2prism.plots import scaling_figure   # after the children: keeps them small
+        from hg2prism.report.plots import scaling_figure   # after the children: keeps them small
 
         slope = loglog_slope(good)
         title = (f"hg2prism bench (Storm method {storm_method}): log-log slope of the total "
@@ -369,7 +368,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
-    from hg2prism.storm import STORM_METHODS
+    from hg2prism.engines.storm import STORM_METHODS
 
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")

@@ -1,0 +1,1 @@
+"""What is computed beside the deceptive value: the symmetric baselines, simulation, detection."""

@@ -1,0 +1,172 @@
+"""The Python API: a few verbs over the pipeline, for notebooks and scripts.
+
+    world = hg2prism.load_world("models/world1.toml")        # or world_from_toml(text)
+    solution = hg2prism.solve(world)                          # Storm, sound; writes nothing
+    solution.deceptive_value, solution.strategy.move(...)     # numbers and P1's moves
+    hg2prism.baselines(world).v_ne_bounds                     # the symmetric baselines
+    hg2prism.simulate(solution, episodes=2000).rate           # online play against P2
+
+Nothing is printed unless the application configures logging (the `hg2prism` logger reports
+each stage at INFO), and nothing is written unless `out` is given. docs/api.md has the details
+and docs/semantics.md the meaning of every number.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from hg2prism.model.world import World, load_world, world_from_toml
+
+__all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "Solution",
+           "DeceptiveStrategy", "Baselines", "Simulation"]
+
+_MOVES = ("N", "E", "S", "W")
+
+
+@dataclass(frozen=True)
+class DeceptiveStrategy:
+    """P1's deceptive strategy: its move in every reachable hypergame state that is neither
+    goal nor failure (docs/semantics.md §6), as written to strategy.json."""
+
+    records: tuple[dict, ...] = field(repr=False)
+
+    def __len__(self) -> int:
+        return len(self.records)
+
+    def move(self, cell: tuple[int, int], q: int, hypothesis: int,
+             window: tuple[tuple[tuple[int, int], str], ...] = (),
+             traps: tuple[tuple[int, int], ...] | None = None,
+             countdown: int | None = None) -> str:
+        """P1's move ("N", "E", "S" or "W") when the robot is at `cell`, the task DFA is in `q`
+        (after reading the cell's label), P2 holds `hypothesis` and remembers `window`
+        ((cell, move) pairs, oldest first). With delay > 0, `traps` and `countdown` describe the
+        standing traps, and each window entry is (cell, move, traps, countdown).
+        Raises KeyError when the state is not one the strategy reaches."""
+        key = _key(cell, traps, countdown, q, hypothesis, window)
+        try:
+            return self._table[key]
+        except KeyError:
+            raise KeyError(f"no move recorded for {key}") from None
+
+    @property
+    def _table(self) -> dict:
+        table = self.__dict__.get("_cached_table")
+        if table is None:
+            table = {}
+            for r in self.records:
+                window = tuple((tuple(o["cell"]), o["action"]) if o["traps"] is None else
+                               (tuple(o["cell"]), o["action"], tuple(map(tuple, o["traps"])),
+                                o["countdown"]) for o in r["window"])
+                traps = None if r["traps"] is None else tuple(map(tuple, r["traps"]))
+                table[_key(tuple(r["cell"]), traps, r["countdown"], r["q"], r["hypothesis"],
+                           window)] = r["action"]
+            object.__setattr__(self, "_cached_table", table)
+        return table
+
+
+def _key(cell, traps, countdown, q, hypothesis, window) -> tuple:
+    normal = tuple((tuple(o[0]), o[1]) + tuple((tuple(map(tuple, o[2])), o[3]) if len(o) > 2 else ())
+                   for o in window)
+    return (tuple(cell), None if traps is None else tuple(map(tuple, traps)), countdown, int(q),
+            int(hypothesis), normal)
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The deceptive value and strategy of a world (what `hg2prism check` computes)."""
+
+    world: World
+    deceptive_value: float          # Pmax of reaching the goal in the hypergame MDP
+    v_lead: float                   # the leader baseline (docs/semantics.md §7)
+    states: int                     # canonical hypergame states
+    transitions: int
+    storm_method: str
+    sound: bool                     # False for the "fast" method: the value is not certified
+    strategy: DeceptiveStrategy
+    results: dict = field(repr=False)   # results.json's content
+    _checked: object = field(repr=False, default=None)
+
+    def to_json(self) -> dict:
+        """The content of results.json."""
+        return dict(self.results)
+
+
+def solve(world: World | str | Path, *, out: str | Path | None = None,
+          storm_method: str = "sound") -> Solution:
+    """Build the hypergame of `world` (a World or the path of a world file), check it with
+    Storm and extract P1's deceptive strategy. With `out`, the model, strategy.json and
+    results.json are written there (atomically); without, nothing is written (the model passes
+    through a temporary folder Storm reads, removed before returning)."""
+    from hg2prism import pipeline
+    from hg2prism.model import sizeguard
+    from hg2prism.outputs import staged
+
+    if not isinstance(world, World):
+        world = load_world(world)
+    sizeguard.check_size(world)
+    if out is not None:
+        with staged(Path(out)) as stage:
+            checked = pipeline.check(world, stage, storm_method)
+            records = tuple(checked.records)
+    else:
+        with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
+            checked = pipeline.check(world, Path(scratch), storm_method)
+            records = tuple(checked.records)
+    r = checked.results
+    return Solution(world=world, deceptive_value=r["deceptive_value"], v_lead=r["v_lead"],
+                    states=r["states"], transitions=r["transitions"], storm_method=storm_method,
+                    sound=r["sound"], strategy=DeceptiveStrategy(records), results=dict(r),
+                    _checked=checked)
+
+
+@dataclass(frozen=True)
+class Baselines:
+    """The symmetric-information baselines at the initial state (docs/semantics.md §7)."""
+
+    v_ne: float
+    v_ne_bounds: tuple[float, float]    # sound bracket around V_NE
+    v_ne_p1_guaranteed: float           # what P1's extracted Nash strategy guarantees
+    v_lead: float
+
+
+def baselines(world: World | str | Path) -> Baselines:
+    """V_NE (with its sound bracket) and V_lead of `world`."""
+    from hg2prism.analyses import baselines as nash
+    from hg2prism import pipeline
+
+    if not isinstance(world, World):
+        world = load_world(world)
+    analysis = pipeline.analyse(world)
+    solved = nash.nash_baseline(analysis.ts, analysis.task)
+    return Baselines(v_ne=solved.v_ne, v_ne_bounds=solved.v_ne_bounds,
+                     v_ne_p1_guaranteed=solved.v_ne_p1_guaranteed, v_lead=analysis.v_lead)
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8)."""
+
+    episodes: int
+    horizon: int
+    seed: int
+    completed: int
+    failed: int
+    truncated: int
+    rate: float                     # completed / episodes
+    ci95: tuple[float, float]       # Wilson score interval of the rate
+
+
+def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int = 200,
+             seed: int = 0) -> Simulation:
+    """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps."""
+    from hg2prism.analyses.simulation import Strategy, simulate_deceptive
+
+    checked = solution._checked
+    analysis = checked.analysis
+    strategy = Strategy.from_records(solution.strategy.records, analysis.ts)
+    summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, progress=False)
+    return Simulation(episodes=summary.episodes, horizon=horizon, seed=seed,
+                      completed=summary.completed, failed=summary.failed,
+                      truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95))

@@ -1,0 +1,1 @@
+"""External model checkers. Only this package imports stormpy."""

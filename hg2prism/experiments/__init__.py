@@ -1,0 +1,1 @@
+"""Studies over many runs: parameter sweeps, the detection experiment, the benchmark."""

@@ -1,0 +1,1 @@
+"""The PRISM models hg2prism writes: the hypergame MDP and the games for PRISM-games."""

@@ -1,0 +1,82 @@
+"""The Python API (docs/api.md): values against the independent reference, nothing written or
+printed unless asked, the examples run."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import hg2prism
+import reference
+from conftest import MODELS, ROOT
+from hg2prism.errors import InputError
+
+TOL = 1e-6
+
+
+def test_solve_a_world_from_text_writes_and_prints_nothing(tmp_path: Path, monkeypatch) -> None:
+    text = (MODELS / "world1.toml").read_text()
+    expected = reference.solve(MODELS / "world1.toml")
+    monkeypatch.chdir(tmp_path)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        world = hg2prism.world_from_toml(text, name="world1")
+        solution = hg2prism.solve(world)
+    assert out.getvalue() == "" and err.getvalue() == ""
+    assert list(tmp_path.iterdir()) == []
+    assert abs(solution.deceptive_value - expected.value) <= TOL
+    assert abs(solution.v_lead - expected.v_lead) <= TOL
+    assert (solution.states, solution.transitions) == (expected.states, expected.transitions)
+    assert solution.sound and solution.storm_method == "sound"
+    assert json.loads(json.dumps(solution.to_json()))["deceptive_value"] == solution.deceptive_value
+    # The strategy answers in every recorded state with the recorded move.
+    record = solution.strategy.records[5]
+    window = tuple((tuple(o["cell"]), o["action"]) for o in record["window"])
+    assert solution.strategy.move(tuple(record["cell"]), record["q"], record["hypothesis"],
+                                  window) == record["action"]
+    with pytest.raises(KeyError):
+        solution.strategy.move((0, 0), 0, 0)
+
+
+def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
+    solution = hg2prism.solve(MODELS / "world1.toml", out=tmp_path / "out")
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "hypergame.prism", "hypergame.props", "results.json", "strategy.json"]
+    saved = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert saved["deceptive_value"] == solution.deceptive_value
+
+
+def test_baselines_and_simulation(tmp_path: Path) -> None:
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    reference_values = hg2prism.baselines(world)
+    low, high = reference_values.v_ne_bounds
+    assert low <= reference_values.v_ne <= high <= reference_values.v_lead + TOL
+    solution = hg2prism.solve(world)
+    played = hg2prism.simulate(solution, episodes=400, horizon=400, seed=3)
+    assert played.episodes == 400 and played.completed + played.failed + played.truncated == 400
+    assert played.ci95[0] <= played.rate <= played.ci95[1]
+    assert hg2prism.simulate(solution, episodes=400, horizon=400, seed=3) == played
+
+
+def test_a_bad_world_text_names_the_key() -> None:
+    text = (MODELS / "world1.toml").read_text().replace("slip = 0.1", "slip = 0.7")
+    with pytest.raises(InputError) as caught:
+        hg2prism.world_from_toml(text, name="mine")
+    assert caught.value.file == "mine" and caught.value.key == "robot.slip"
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "examples").glob("*.py")))
+def test_example_runs(script: str, tmp_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, str(ROOT / "examples" / script)], cwd=tmp_path,
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() and "Traceback" not in done.stderr
+    assert list(tmp_path.iterdir()) == []          # the examples write nothing
