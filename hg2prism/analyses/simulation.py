@@ -40,7 +40,8 @@ from scipy.stats import norm
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.progress import Bar
-from hg2prism.opponent.inference import InferenceModel, Memory
+from hg2prism.opponent.inference import Memory
+from hg2prism.opponent.observer import Observer
 
 __all__ = [
     "FAIL", "GOAL", "TRUNCATED",
@@ -62,7 +63,7 @@ FAIL, GOAL, TRUNCATED = 0, 1, 2
 # (rng, step number n >= 1, TS state v, the trap set P2's model plays at v, P2's real memory)
 # -> the trap set P2 plays.
 P2Policy = Callable[[np.random.Generator, int, int, int, Memory], int]
-Observer = Callable[["StepRecord"], object]
+StepCallback = Callable[["StepRecord"], object]   # sees every step of every episode
 
 _RANDOM_BLOCK = 8192
 
@@ -321,7 +322,7 @@ def leader_fallback(analysis) -> Fallback:
     trap_choice = [g.trap_choice for g in analysis.games]
 
     def fallback(ts_state: int, q: int, memory: Memory) -> int:
-        a2 = int(trap_choice[memory.hypothesis][ts_state])
+        a2 = int(trap_choice[analysis.inference.hypothesis(memory)][ts_state])
         return int(np.argmax(q_values[ts_state * n_q + q, :, a2]))
 
     return fallback
@@ -389,8 +390,8 @@ class _Chain:
     A node is (v, q, M1, M2): TS state, task DFA state, P1's model memory, P2's real memory.
     """
 
-    def __init__(self, ts: TransitionSystem, task: DFA, games: list, p1_model: InferenceModel,
-                 p2_model: InferenceModel | None) -> None:
+    def __init__(self, ts: TransitionSystem, task: DFA, games: list, p1_model: Observer,
+                 p2_model: Observer | None) -> None:
         self.ts, self.task = ts, task
         self.p1_model, self.p2_model = p1_model, p2_model
         self.trap_choice = [[int(a) for a in g.trap_choice] for g in games]
@@ -425,7 +426,7 @@ class _Chain:
             self.a1.append(-1)
         return i
 
-    def update(self, which: int, model: InferenceModel, memory: Memory,
+    def update(self, which: int, model: Observer, memory: Memory,
                observation: tuple[int, int]) -> Memory:
         key = (which, memory, observation)
         new = self.updates.get(key)
@@ -461,9 +462,9 @@ class _Chain:
 
 
 def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: int,
-                       p2_policy: P2Policy | None = None, observer: Observer | None = None,
+                       p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
-                       p2_inference: InferenceModel | None = None) -> SimulationSummary:
+                       p2_inference: Observer | None = None) -> SimulationSummary:
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
     `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
@@ -485,8 +486,10 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     allowed = ts.allowed
     n_allowed = allowed.sum(axis=1).tolist()
     trap_choice = chain.trap_choice
-    p1_initial = analysis.inference.initial_memory()
-    p2_initial = p1_initial if p2_inference is None else p2_inference.initial_memory()
+    p1_model = analysis.inference
+    p2_model = p1_model if p2_inference is None else p2_inference
+    p1_initial = p1_model.initial_memory()
+    p2_initial = p2_model.initial_memory()
     v0 = ts.start_state
     root = chain.node(v0, chain.delta[task.initial][chain.label[v0]], p1_initial, p2_initial)
 
@@ -515,11 +518,11 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                     off_record.add(node)
             if off_record and node in off_record:
                 off_record_steps += 1
-            predicted = trap_choice[m1.hypothesis][v]
+            predicted = trap_choice[p1_model.hypothesis(m1)][v]
             if p2_policy is None:
-                a2 = trap_choice[m2.hypothesis][v]
+                a2 = trap_choice[p2_model.hypothesis(m2)][v]
             else:
-                a2 = int(p2_policy(rng, steps, v, trap_choice[m2.hypothesis][v], m2))
+                a2 = int(p2_policy(rng, steps, v, trap_choice[p2_model.hypothesis(m2)][v], m2))
                 if not (0 <= a2 < ts.n_sets and allowed[v, a2]):
                     raise ValueError(f"p2_policy returned trap set {a2}, which is not "
                                      f"available in TS state {v}")

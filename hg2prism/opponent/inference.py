@@ -1,7 +1,8 @@
 """P2's inference (docs/semantics.md §5): sliding-window CUSUM over log-likelihood ratios of P1's moves.
 
 P2's memory is (current hypothesis, the last at most w-1 observations since the last change);
-an observation is (TS state, P1's action index).
+an observation is (TS state, P1's action index). `InferenceModel` implements the observer
+interface of `observer.py`, its PRISM part included (templates/inference_cusum.prism.j2).
 """
 
 from __future__ import annotations
@@ -10,11 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.opponent.observer import Observation, ObserverPrism
 from hg2prism.opponent.perceptual_games import PerceptualGame
+from hg2prism.prism.rendering import lookup, prism_number, render_macro
 
 TOLERANCE = 1e-9
-
-Observation = tuple[int, int]   # (TS state, action index into dynamics.ACTIONS)
 
 
 @dataclass(frozen=True)
@@ -25,6 +27,8 @@ class Memory:
 
 @dataclass(frozen=True, eq=False)
 class InferenceModel:
+    """Sliding-window CUSUM (the observer of kind "cusum")."""
+
     ratios: np.ndarray        # [X, X, n_ts, 4] r(x | xh; v, a1), indexed [xh, x, v, a1]
     window: int               # w: transitions in the sliding window
     threshold: float          # c
@@ -34,8 +38,13 @@ class InferenceModel:
     def n_hypotheses(self) -> int:
         return self.ratios.shape[0]
 
+    kind = "cusum"
+
     def initial_memory(self) -> Memory:
         return Memory(self.initial_hypothesis, ())
+
+    def hypothesis(self, memory: Memory) -> int:
+        return memory.hypothesis
 
     def scores(self, memory: Memory, observation: Observation) -> np.ndarray:
         """CUSUM score Z_x over the window for every x (0 for the current hypothesis)."""
@@ -63,6 +72,58 @@ class InferenceModel:
                 return Memory(best, ())
         keep = recent[-(self.window - 1):] if self.window > 1 else ()
         return Memory(memory.hypothesis, keep)
+
+
+    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+        """The ratio tables, the CUSUM scores and the module p2_inference: hyp and the window's
+        slots o1 (oldest) .. o{w-1}, each a TS state and a move (-1 when empty). The scores are
+        formulas over the slots, so the module has 2 commands per (hypothesis, move), 1 with a
+        single hypothesis, whatever the window or the grid."""
+        n_x, slots = self.n_hypotheses, self.window - 1
+        n_obs_states = ts.n_states - 1          # the TRAPPED state is never observed
+        ratio_formulas = []      # (name, comment, expression)
+        rules = []               # per (hypothesis, action): switch and best formulas
+        for h in range(n_x):
+            others = [x for x in range(n_x) if x != h]
+            for x in others:
+                ratios = self.ratios[h, x, :n_obs_states]                    # [states, 4]
+                for i in range(1, slots + 1):
+                    padded = np.vstack([np.zeros((1, 4)), ratios])           # state -1 = empty
+                    padded = np.hstack([np.zeros((padded.shape[0], 1)), padded])  # act -1
+                    ratio_formulas.append((
+                        f"r_h{h}_x{x}_o{i}", f"r(x{x} | x{h}) of the move in slot o{i}",
+                        lookup(padded, [(f"o{i}_state", -1), (f"o{i}_act", -1)])))
+                for d, a in enumerate(ACTIONS):
+                    ratio_formulas.append((
+                        f"r_h{h}_x{x}_{a}", f"r(x{x} | x{h}) of moving {a} now",
+                        lookup(ratios[:, d], [("ts_state", 0)])))
+            for a in ACTIONS:
+                scores = {}
+                for x in others:
+                    z = "0.0"
+                    for term in [f"r_h{h}_x{x}_o{i}" for i in range(1, slots + 1)] + [f"r_h{h}_x{x}_{a}"]:
+                        z = f"max(0.0, {z}+{term})" if z != "0.0" else f"max(0.0, {term})"
+                    scores[x] = z
+                rules.append({"h": h, "action": a, "others": others, "scores": scores})
+        context = dict(
+            ts_state=ts_state_expression(ts), ratio_formulas=ratio_formulas, inference_rules=rules,
+            switch_threshold=prism_number(self.threshold - TOLERANCE),
+            tolerance=prism_number(TOLERANCE), actions=ACTIONS, labels=labels, slots=slots,
+            n_obs_states=n_obs_states, n_hypotheses=n_x, initial_hypothesis=self.initial_hypothesis)
+        return ObserverPrism(
+            formulas=render_macro("inference_cusum.prism.j2", "formulas", **context).rstrip("\n"),
+            module=render_macro("inference_cusum.prism.j2", "module", **context).rstrip("\n"),
+            slots=slots, commands=sum(2 if rule["others"] else 1 for rule in rules))
+
+
+def ts_state_expression(ts: TransitionSystem) -> str:
+    """The TS state as one PRISM expression over cell (and traps, countdown when delay > 0),
+    numbered as dynamics.TransitionSystem numbers its states."""
+    if not ts.delay:
+        return "cell"
+    # with one trap set, traps is always 0 (but declared [0..1]: see rendering.upper)
+    return (f"(cell*{ts.n_sets}+traps)*{ts.phases}+countdown" if ts.n_sets > 1
+            else f"cell*{ts.phases}+countdown")
 
 
 def build_inference(games: list[PerceptualGame], window: int, threshold: float,

@@ -29,7 +29,8 @@ import numpy as np
 from hg2prism import __version__
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.prism.hypergame import cell_map, prism_number, lookup, region_labels, render_template
+from hg2prism.prism.hypergame import cell_map
+from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
 from hg2prism.model.world import World
 
 PROPERTY = '<<p1>> Pmax=? [F "goal"]'

@@ -1,0 +1,53 @@
+"""The interface every model of P2's inference implements (docs/semantics.md §5, §12).
+
+P2 observes P1's moves and keeps a memory from which she reads her current hypothesis about P1's
+task. An observer says what that memory is, how one observation updates it, which hypothesis P2
+acts on, and how all of it is written into the hypergame's PRISM model. The hypergame, Storm's
+decoding, the strategy export and the simulations use only this interface, so a new observer
+(the Bayesian one of §12) is one new module beside `inference.py` (CUSUM) and its template.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from dataclasses import dataclass
+from typing import Protocol
+
+from hg2prism.model.dynamics import TransitionSystem
+
+Observation = tuple[int, int]   # (TS state, P1's action index into dynamics.ACTIONS)
+
+
+@dataclass(frozen=True)
+class ObserverPrism:
+    """An observer's part of the hypergame model: PRISM text for the formulas (its tables,
+    placed before the modules) and for its module, plus what decoding Storm's states needs."""
+
+    formulas: str
+    module: str
+    slots: int                 # observation slots o1 (oldest) .. o{slots} in the module
+    commands: int              # commands of its module (the module is "p2_inference")
+
+
+class Observer(Protocol):
+    """P2's inference: memory, update, the hypothesis she acts on, and its PRISM rendering."""
+
+    kind: str                  # the world file's `[inference] kind`
+    window: int
+    initial_hypothesis: int
+
+    @property
+    def n_hypotheses(self) -> int: ...
+
+    def initial_memory(self) -> Hashable:
+        """P2's memory before the first move."""
+
+    def update(self, memory: Hashable, observation: Observation) -> Hashable:
+        """P2's memory after P1 plays `observation[1]` from TS state `observation[0]`."""
+
+    def hypothesis(self, memory: Hashable) -> int:
+        """The hypothesis P2 acts on (her trap policy is pi2 of it)."""
+
+    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+        """The observer written into the hypergame model over `ts`; `labels` maps each move
+        to its synchronisation label."""
