@@ -43,6 +43,7 @@ import scipy.sparse.linalg as spla
 from scipy.optimize import linprog
 
 from hg2prism.model.automata import DFA
+from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
 
@@ -138,20 +139,10 @@ class NashBaseline:
 
 
 def concurrent_game(ts: TransitionSystem, dfa: DFA) -> ConcurrentGame:
-    """TS x DFA(phi) with the index convention of games.py: g = s * n_q + q."""
-    n_q = dfa.n_states
-    label = ts.state_label()
-    # The DFA reads the label of the state being entered: q' = delta(q, L(v')).
-    succ_q = dfa.delta[:, label[ts.succ]]                             # [n_q, S, 4, A2, K]
-    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
-        ts.n_states * n_q, *ts.succ.shape[1:])
-    q_of = np.tile(np.arange(n_q), ts.n_states)
-    s_of = np.repeat(np.arange(ts.n_states), n_q)
-    trapped = s_of == ts.trapped                     # tried first: trapped is a failure
-    goal = np.isin(q_of, list(dfa.accepting)) & ~trapped
-    zero = trapped | (np.isin(q_of, list(dfa.sink)) & ~goal)
-    return ConcurrentGame(next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
-                          allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, zero=zero)
+    """TS x DFA(phi) as a concurrent game (the product's arrays; g = s * n_q + q)."""
+    arena = product(ts, dfa)
+    return ConcurrentGame(next=arena.next, prob=arena.prob, allowed=arena.allowed,
+                          goal=arena.goal, zero=arena.fail)
 
 
 # ---------------------------------------------------------------------------------------------

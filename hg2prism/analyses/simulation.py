@@ -38,6 +38,7 @@ import scipy.sparse.linalg as spla
 from scipy.stats import norm
 
 from hg2prism.model.automata import DFA
+from hg2prism.model.product import product
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.progress import Bar
 from hg2prism.opponent.inference import Memory
@@ -577,19 +578,14 @@ def exact_completion(ts: TransitionSystem, dfa: DFA, p1: np.ndarray, p2: np.ndar
                      horizon: int) -> float:
     """P(goal within `horizon` steps) when both players play the stationary mixed strategies
     p1 [G, 4] and p2 [G, n_sets] over g = s * n_q + q: the number a simulation estimates."""
-    n_q = dfa.n_states
-    size = ts.n_states * n_q
-    label = ts.state_label()
-    s_of, q_of = np.divmod(np.arange(size), n_q)
-    nxt = ts.succ[s_of] * n_q + dfa.delta[q_of[:, None, None, None], label[ts.succ[s_of]]]
-    weight = ts.prob[s_of] * p1[:, :, None, None] * p2[:, None, :, None]       # [G, 4, A2, 3]
-    goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
-    stop = goal | (s_of == ts.trapped) | np.isin(q_of, list(dfa.sink))
-    rows = np.repeat(np.arange(size), weight[0].size)
-    matrix = sp.csr_matrix((weight.reshape(-1), (rows, nxt.reshape(-1))), shape=(size, size))
+    arena = product(ts, dfa)
+    weight = arena.prob * p1[:, :, None, None] * p2[:, None, :, None]       # [G, 4, A2, 3]
+    stop = ~arena.free
+    rows = np.repeat(np.arange(arena.size), weight[0].size)
+    matrix = sp.csr_matrix((weight.reshape(-1), (rows, arena.next.reshape(-1))),
+                           shape=(arena.size, arena.size))
     matrix = sp.diags((~stop).astype(float)) @ matrix
-    start = ts.start_state * n_q + dfa.delta[dfa.initial, label[ts.start_state]]
-    return bounded_reach(matrix, goal, stop, int(start), horizon)
+    return bounded_reach(matrix, arena.goal, stop, arena.start, horizon)
 
 
 CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
@@ -648,25 +644,18 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
     if nash_p2.shape != (size, ts.n_sets):
         raise ValueError(f"nash_p2 must have shape {(size, ts.n_sets)}, got {nash_p2.shape}")
 
-    state_label = ts.state_label()
-    q_of = np.tile(np.arange(n_q), ts.n_states)
-    s_of = np.repeat(np.arange(ts.n_states), n_q)
-    goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
-    fail = (s_of == ts.trapped) | (~goal & np.isin(q_of, list(dfa.sink)))
-    running = ~(goal | fail)
-    allowed = np.repeat(ts.allowed, n_q, axis=0)
+    arena = product(ts, dfa)
+    goal, fail, running, allowed = arena.goal, arena.fail, arena.free, arena.allowed
     if (nash_p2[running] > 1e-9)[~allowed[running]].any():
         raise ValueError("nash_p2 gives positive probability to a trap set that is not available")
     cum1 = _cumulative(nash_p1, running, "nash_p1")
     cum2 = _cumulative(np.where(allowed, nash_p2, 0.0), running, "nash_p2")
-    succ_q = dfa.delta[:, state_label[ts.succ]]                                  # [n_q, S, 4, A2, 3]
-    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
-        size, len(ACTIONS), ts.n_sets, -1)
-    cum_outcome = np.cumsum(np.repeat(ts.prob, n_q, axis=0), axis=-1)
+    nxt = arena.next
+    cum_outcome = np.cumsum(arena.prob, axis=-1)
     cum_outcome[..., -1] = 1.0 + 1e-12
 
     rng = np.random.default_rng(seed)
-    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, state_label[ts.start_state]])
+    start = arena.start
     state = np.full(episodes, start, dtype=np.int64)
     lengths = np.zeros(episodes, dtype=np.int64)
     active = np.flatnonzero(running[state])

@@ -20,6 +20,7 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from hg2prism.model.automata import DFA
+from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -62,19 +63,12 @@ class TurnBasedGame:
 
     def __init__(self, ts: TransitionSystem, dfa: DFA) -> None:
         self.ts, self.dfa = ts, dfa
+        arena = product(ts, dfa)
         n_q = dfa.n_states
-        label = ts.state_label()
-        succ_q = dfa.delta[:, label[ts.succ]]                         # [n_q, S, 4, A2, 3]
-        self.next = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
-            ts.n_states * n_q, 4, ts.n_sets, 3)
-        self.prob = np.repeat(ts.prob, n_q, axis=0)                  # [G, 4, A2, 3]
-        self.allowed = np.repeat(ts.allowed, n_q, axis=0)            # [G, A2]
-        q_of = np.tile(np.arange(n_q), ts.n_states)
-        s_of = np.repeat(np.arange(ts.n_states), n_q)
-        self.goal = np.isin(q_of, list(dfa.accepting)) & (s_of != ts.trapped)
-        self.zero_fixed = (s_of == ts.trapped) | np.isin(q_of, list(dfa.sink))
-        self.free = ~(self.goal | self.zero_fixed)
-        self.size = ts.n_states * n_q
+        self.next, self.prob, self.allowed = arena.next, arena.prob, arena.allowed
+        self.goal, self.zero_fixed = arena.goal, arena.fail
+        self.free = arena.free
+        self.size = arena.size
         self._reverse: tuple[np.ndarray, np.ndarray] | None = None
         standing = _standing_sets(ts)
         self.standing = None if standing is None else np.repeat(standing, n_q)

@@ -1,0 +1,62 @@
+"""The product TS x DFA (docs/semantics.md §§2-4, 7): the arena of P2's perceptual games, of the
+symmetric baselines and of their simulations.
+
+A product state is g = s * n_q + q: TS state s, DFA state q after reading the label of s. Every
+step both players choose (P1 a move, P2 a trap set), the TS moves to one of its outcomes v' and
+the DFA reads L(v'). Goal states (q final, robot not trapped) and failure states (trapped, or q
+a sink) are absorbing; their rows of `next`/`prob` are never used.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import TransitionSystem
+
+
+@dataclass(frozen=True, eq=False)
+class Product:
+    """TS x DFA as arrays over product states g = s * n_q + q."""
+
+    ts: TransitionSystem
+    dfa: DFA
+    next: np.ndarray          # [G, 4, A2, K] successor product state of each outcome
+    prob: np.ndarray          # [G, 4, A2, K] its probability
+    allowed: np.ndarray       # [G, A2] P2's available trap sets
+    goal: np.ndarray          # [G] q final and the robot not trapped
+    fail: np.ndarray          # [G] trapped, or q a sink (and not goal)
+    start: int                # the initial product state: (start, delta(iota, L(start)))
+
+    @property
+    def size(self) -> int:
+        return self.next.shape[0]
+
+    @property
+    def free(self) -> np.ndarray:
+        """[G] the states where the game goes on."""
+        return ~(self.goal | self.fail)
+
+    def state(self, s: int, q: int) -> int:
+        return s * self.dfa.n_states + q
+
+
+def product(ts: TransitionSystem, dfa: DFA) -> Product:
+    """TS x DFA, built once for everything that plays on it."""
+    n_q = dfa.n_states
+    label = ts.state_label()
+    # The DFA reads the label of the state being entered: q' = delta(q, L(v')).
+    succ_q = dfa.delta[:, label[ts.succ]]                             # [n_q, S, 4, A2, K]
+    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
+        ts.n_states * n_q, *ts.succ.shape[1:])
+    q_of = np.tile(np.arange(n_q), ts.n_states)
+    s_of = np.repeat(np.arange(ts.n_states), n_q)
+    trapped = s_of == ts.trapped                     # tried first: trapped is a failure
+    goal = np.isin(q_of, list(dfa.accepting)) & ~trapped
+    fail = trapped | (np.isin(q_of, list(dfa.sink)) & ~goal)
+    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, label[ts.start_state]])
+    return Product(ts=ts, dfa=dfa, next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
+                   allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, fail=fail,
+                   start=int(start))
