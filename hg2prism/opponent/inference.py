@@ -14,7 +14,7 @@ import numpy as np
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Observation, ObserverPrism
 from hg2prism.opponent.perceptual_games import PerceptualGame
-from hg2prism.prism.rendering import lookup, prism_number, render_macro
+from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, render_macro
 
 TOLERANCE = 1e-9
 
@@ -104,7 +104,13 @@ class InferenceModel:
                     for term in [f"r_h{h}_x{x}_o{i}" for i in range(1, slots + 1)] + [f"r_h{h}_x{x}_{a}"]:
                         z = f"max(0.0, {z}+{term})" if z != "0.0" else f"max(0.0, {term})"
                     scores[x] = z
-                rules.append({"h": h, "action": a, "others": others, "scores": scores})
+                z_names = [f"z_h{h}_x{x}_{a}" for x in others]
+                # the new hypothesis: the first (in order) whose score ties the maximum
+                best = cases([(f"{z} >= zmax_h{h}_{a} - {prism_number(TOLERANCE)}", str(x))
+                              for z, x in zip(z_names[:-1], others[:-1])], str(others[-1])
+                             ) if others else ""
+                rules.append({"h": h, "action": a, "others": others, "scores": scores,
+                              "zmax": maximum(z_names) if others else "", "next": best})
         context = dict(
             ts_state=ts_state_expression(ts), ratio_formulas=ratio_formulas, inference_rules=rules,
             switch_threshold=prism_number(self.threshold - TOLERANCE),

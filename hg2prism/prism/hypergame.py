@@ -25,7 +25,7 @@ from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.model.world import World
-from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
+from hg2prism.prism.rendering import cases, lookup, prism_number, region_labels, render_template
 
 PROPERTY = 'Pmax=? [F "goal"]'
 
@@ -86,13 +86,17 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
         shape = (n_cells,)
     trap_tables = [lookup(g.trap_choice[:-1].reshape(shape), trap_keys) for g in games]
     observer = inference.prism(ts, ACTION_LABELS)
+    # The trap set in force: P2's choice under her current hypothesis (while she may move them).
+    by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
+                          f"trap_choice_x{len(games) - 1}")
+    trap_set = f"countdown>0 ? traps : ({by_hypothesis})" if ts.delay else by_hypothesis
 
     model_text = render_template(
         "hypergame.prism.j2",
         version=__version__, world=world, ts=ts, task=task, games=games, inference=inference,
         actions=ACTIONS, labels=ACTION_LABELS, cell_map=cell_map(world, ts), trapped=trapped,
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
-        trap_tables=trap_tables, observer=observer,
+        trap_tables=trap_tables, trap_set=trap_set, observer=observer,
         robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
         start_traps=ts.decode(ts.start_state)[1], slip=prism_number(world.slip),

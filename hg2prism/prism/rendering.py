@@ -53,6 +53,17 @@ def lookup(table: np.ndarray, keys: list[tuple[str, int]]) -> str:
     return node(np.asarray(table), 0, 0)
 
 
+def cases(branches: list[tuple[str, str]], otherwise: str) -> str:
+    """`t0 ? v0 : t1 ? v1 : ... : otherwise` (PRISM's conditional, right-associative):
+    the first value whose test holds."""
+    return "".join(f"{test} ? {value} : " for test, value in branches) + otherwise
+
+
+def maximum(terms: list[str]) -> str:
+    """max(t0, t1, ...), or the one term itself."""
+    return terms[0] if len(terms) == 1 else f"max({', '.join(terms)})"
+
+
 def _template_source(name: str) -> str:
     """Templates ship as the package `hg2prism.templates` (the repository's templates/ folder);
     running from a checkout without installing reads that folder directly."""
