@@ -746,7 +746,7 @@ class World:
             recs.append(rec)
         return recs
 
-    def _rec_ts(self, cell, traps, countdown):
+    def record_ts_state(self, cell, traps, countdown):
         if self.delay == 0:
             return (int(cell[0]), int(cell[1]))
         return (int(cell[0]), int(cell[1]), self.norm_traps(traps), int(countdown))
@@ -754,8 +754,8 @@ class World:
     def strategy_value(self, records):
         table = {}
         for rec in records:
-            v = self._rec_ts(rec["cell"], rec.get("traps"), rec.get("countdown"))
-            B = tuple((self._rec_ts(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
+            v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
+            B = tuple((self.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
                       for o in rec["window"])
             key = (v, int(rec["q"]), (int(rec["hypothesis"]), B))
             a = rec["action"]
@@ -785,11 +785,11 @@ class World:
         for s in order:
             succ = self.hyper_successors(s, table[s])
             succs.append([(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()])
-        x = _dtmc_reach(succs)
+        x = dtmc_reach(succs)
         return min(1.0, max(0.0, float(x[0])))
 
 
-def _dtmc_reach(succs):
+def dtmc_reach(succs):
     """Exact P(F goal) in a DTMC: graph search for probability-0 states, then a linear solve."""
     n = len(succs)
     preds = [[] for _ in range(n)]

@@ -134,8 +134,8 @@ def reference_chain(path: Path, records: list[dict]):
     world = reference.World(path)
     table = {}
     for rec in records:
-        v = world._rec_ts(rec["cell"], rec.get("traps"), rec.get("countdown"))
-        window = tuple((world._rec_ts(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
+        v = world.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
+        window = tuple((world.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
                        for o in rec["window"])
         table[(v, int(rec["q"]), (int(rec["hypothesis"]), window))] = rec["action"]
     s0 = world.initial()
@@ -178,8 +178,8 @@ def bounded_goal_probability(succs, horizon: int) -> float:
 def test_world1_rate_matches_the_bounded_probability_of_the_induced_dtmc(world1) -> None:
     world, order, index, succs = reference_chain(WORLD1, world1.records)
     # docs/semantics.md §8: P=? [F "goal"] of the induced DTMC is the deceptive value (linear solve) ...
-    unbounded = float(reference._dtmc_reach(succs)[0])
-    assert unbounded == pytest.approx(world1.results["deceptive_value"], abs=1e-6)
+    unbounded = float(reference.dtmc_reach(succs)[0])
+    assert unbounded == pytest.approx(world1.results.deceptive_value, abs=1e-6)
     # ... and the bounded probability grows to it.
     exact = bounded_goal_probability(succs, HORIZON)
     assert 0.0 < exact <= unbounded + 1e-12
@@ -300,7 +300,7 @@ def test_bad_records_are_rejected(world1) -> None:
 # ---------------------------------------------------------------------------------------------
 
 def test_p2_deviation_changes_the_completion_rate(tiny) -> None:
-    assert tiny.results["deceptive_value"] == pytest.approx(0.0, abs=1e-9)
+    assert tiny.results.deceptive_value == pytest.approx(0.0, abs=1e-9)
     modelled = run(tiny, 1000, seed=1)
     assert modelled.completed == 0
     ts = tiny.analysis.ts
