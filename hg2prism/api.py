@@ -16,8 +16,13 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hg2prism.model.world import World, load_world, world_from_toml
+from hg2prism.results import CheckResults
+
+if TYPE_CHECKING:
+    from hg2prism.pipeline import CheckResult
 
 __all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "Solution",
            "DeceptiveStrategy", "Baselines", "Simulation"]
@@ -85,12 +90,12 @@ class Solution:
     storm_method: str
     sound: bool                     # False for the "fast" method: the value is not certified
     strategy: DeceptiveStrategy
-    results: dict = field(repr=False)   # results.json's content
-    _checked: object = field(repr=False, default=None)
+    results: CheckResults = field(repr=False)   # everything `check` computes (hg2prism.results)
+    _checked: CheckResult | None = field(repr=False, default=None)
 
     def to_json(self) -> dict:
         """The content of results.json."""
-        return dict(self.results)
+        return self.results.to_json()
 
 
 def solve(world: World | str | Path, *, out: str | Path | None = None,
@@ -115,9 +120,9 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
             checked = pipeline.check(world, Path(scratch), storm_method)
             records = tuple(checked.records)
     r = checked.results
-    return Solution(world=world, deceptive_value=r["deceptive_value"], v_lead=r["v_lead"],
-                    states=r["states"], transitions=r["transitions"], storm_method=storm_method,
-                    sound=r["sound"], strategy=DeceptiveStrategy(records), results=dict(r),
+    return Solution(world=world, deceptive_value=r.deceptive_value, v_lead=r.v_lead,
+                    states=r.states, transitions=r.transitions, storm_method=storm_method,
+                    sound=r.sound, strategy=DeceptiveStrategy(records), results=r,
                     _checked=checked)
 
 

@@ -167,7 +167,8 @@ def _command(args: argparse.Namespace) -> int:
                                       storm_method=args.storm_method)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
-        print(tables.summary(results, out, files) if results else tables.written(out, files))
+        print(tables.summary(results, out, files) if results is not None
+              else tables.written(out, files))
         if table:
             print()
             print(table)

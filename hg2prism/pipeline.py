@@ -7,7 +7,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
+from typing import TYPE_CHECKING, Iterator
 
 import numpy as np
 
@@ -23,6 +23,10 @@ from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_mo
 from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
 from hg2prism.model.world import World
+from hg2prism.results import CheckResults, Parameters, RunResults, SimulatedRow, Simulations
+
+if TYPE_CHECKING:
+    from hg2prism.analyses import simulation
 
 
 @contextmanager
@@ -84,7 +88,7 @@ class CheckResult:
     checked: storm.CheckedModel
     decoded: storm.DecodedStates
     strategy: storm.Strategy
-    results: dict
+    results: CheckResults           # results.json's content: results.to_json()
     out: Path                       # the folder holding hypergame.prism, strategy.json, ...
 
     @functools.cached_property
@@ -111,30 +115,26 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     strategy = storm.deceptive_strategy(decoded, checked, moves)
     strategy_text = storm.strategy_json(decoded, strategy, moves, analysis.ts)
     analysis.timings["export"] = time.perf_counter() - start
-    results = {
-        "world": world.name,
-        "world_file": str(world.path),
-        "hg2prism_version": __version__,
-        "deceptive_value": checked.value,
-        "storm_method": storm_method,
-        "sound": storm_method in storm.SOUND_METHODS,
-        "v_lead": analysis.v_lead,
-        "states": states,
-        "transitions": transitions,
-        "storm_states": checked.model.nr_states,
-        "storm_transitions": checked.model.nr_transitions,
-        "storm_choices": checked.model.nr_choices,
-        "model_commands": prism.commands,
-        "parameters": {
-            "formula": world.formula, "slip": world.slip, "traps": world.traps, "delay": world.delay,
-            "hypotheses": list(world.hypotheses), "initial_hypothesis": world.initial_hypothesis,
-            "window": world.window, "threshold": world.threshold, "rationality": world.rationality,
-        },
-        "timings": {k: round(v, 4) for k, v in analysis.timings.items()},
-    }
+    results = CheckResults(
+        world=world.name,
+        world_file=str(world.path),
+        hg2prism_version=__version__,
+        deceptive_value=checked.value,
+        storm_method=storm_method,
+        sound=storm_method in storm.SOUND_METHODS,
+        v_lead=analysis.v_lead,
+        states=states,
+        transitions=transitions,
+        storm_states=checked.model.nr_states,
+        storm_transitions=checked.model.nr_transitions,
+        storm_choices=checked.model.nr_choices,
+        model_commands=dict(prism.commands),
+        parameters=Parameters.of(world),
+        timings=dict(analysis.timings),   # a snapshot: run() goes on timing its own stages
+    )
     # One record per line: compact for millions of states, still easy to grep and diff.
     write_text(out / "strategy.json", strategy_text)
-    write_json(out / "results.json", results)
+    write_json(out / "results.json", results.to_json())
     say(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
     return CheckResult(analysis, prism, checked, decoded, strategy, results, out)
@@ -143,8 +143,8 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
 @dataclass(frozen=True, eq=False)
 class RunResult:
     check: CheckResult
-    results: dict
-    table: str
+    results: RunResults             # results.json's content: results.to_json()
+    table: str                      # table.md's content
 
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
@@ -205,26 +205,23 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         episode, outcome = _illustrative_episode(analysis, strategy, horizon, seed)
         plots.world_figure(world, analysis.ts, episode, outcome, out / "world.png")
 
-    results = dict(checked.results)
-    results["v_ne"] = nash.v_ne
-    results["v_ne_p1_guaranteed"] = nash.v_ne_p1_guaranteed
-    results["v_ne_bounds"] = list(nash.v_ne_bounds)
-    results["simulation"] = {
-        "horizon": horizon, "seed": seed,
-        "deceptive": _simulated(deceptive, within["deceptive"]),
-        "nash": _simulated(nash_sim, within["nash"]),
-        "leader": _simulated(leader_sim, within["leader"]),
-    }
-    results["timings"] = {k: round(v, 4) for k, v in timings.items()}
+    results = RunResults.extending(
+        checked.results,
+        timings=dict(timings),
+        v_ne=nash.v_ne,
+        v_ne_p1_guaranteed=nash.v_ne_p1_guaranteed,
+        v_ne_bounds=nash.v_ne_bounds,
+        simulation=Simulations(
+            horizon=horizon, seed=seed,
+            deceptive=SimulatedRow.of(deceptive, within["deceptive"]),
+            nash=SimulatedRow.of(nash_sim, within["nash"]),
+            leader=SimulatedRow.of(leader_sim, within["leader"]),
+        ),
+    )
     table = tables.completion_table(results)
     write_text(out / "table.md", table)
-    write_json(out / "results.json", results)
+    write_json(out / "results.json", results.to_json())
     return RunResult(checked, results, table)
-
-
-def _simulated(summary, exact_within_horizon: float) -> dict:
-    return {"rate": summary.rate, "ci95": list(summary.ci95), "episodes": summary.episodes,
-            "truncated": summary.truncated, "exact_within_horizon": exact_within_horizon}
 
 
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
@@ -236,7 +233,8 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
 
 
-def _illustrative_episode(analysis: Analysis, strategy, horizon: int, seed: int) -> tuple[list, str]:
+def _illustrative_episode(analysis: Analysis, strategy: simulation.Strategy, horizon: int,
+                          seed: int) -> tuple[list, str]:
     """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
     clearest picture of the strategy), else the first one."""
     from hg2prism.analyses import simulation

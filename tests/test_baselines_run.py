@@ -46,18 +46,21 @@ def test_run_simulations_agree_with_exact_bounded_probabilities(name: str, tmp_p
     out = tmp_path / "out"
     result = pipeline.run(world, out, episodes=3000, horizon=60, seed=7, show_progress=False)
     r = result.results
-    assert r["v_ne"] <= r["v_lead"] + 1e-6 <= r["deceptive_value"] + 2e-6
+    assert r.v_ne <= r.v_lead + 1e-6 <= r.deceptive_value + 2e-6
     for row in ("deceptive", "nash", "leader"):
-        sim = r["simulation"][row]
-        successes = round(sim["rate"] * sim["episodes"])
-        low, high = wilson_interval(successes, sim["episodes"], 0.999)
-        assert low <= sim["exact_within_horizon"] <= high, (row, sim)
-        assert sim["exact_within_horizon"] <= {"deceptive": r["deceptive_value"], "nash": 1.0,
-                                              "leader": r["v_lead"]}[row] + 1e-6
+        sim = getattr(r.simulation, row)
+        successes = round(sim.rate * sim.episodes)
+        low, high = wilson_interval(successes, sim.episodes, 0.999)
+        assert low <= sim.exact_within_horizon <= high, (row, sim)
+        assert sim.exact_within_horizon <= {"deceptive": r.deceptive_value, "nash": 1.0,
+                                            "leader": r.v_lead}[row] + 1e-6
     saved = json.loads((out / "results.json").read_text())
     for key in ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states", "transitions",
                 "storm_states", "storm_transitions", "storm_choices", "timings", "simulation"):
         assert key in saved
+    # results.json is the typed results' to_json(), keys in the same order
+    assert saved == result.results.to_json()
+    assert list(saved) == list(result.results.to_json())
     for name_ in ("table.md", "world.png", "symmetric.prism", "symmetric.props",
                   "perceptual_0.prism", "perceptual_0.props", "strategy.json", "hypergame.prism"):
         assert (out / name_).stat().st_size > 0
@@ -68,5 +71,5 @@ def test_run_is_reproducible(tmp_path: Path) -> None:
     world = load_world(MODELS / "world1.toml")
     a = pipeline.run(world, tmp_path / "a", episodes=500, horizon=50, seed=3, show_progress=False)
     b = pipeline.run(world, tmp_path / "b", episodes=500, horizon=50, seed=3, show_progress=False)
-    assert a.results["simulation"] == b.results["simulation"]
+    assert a.results.simulation == b.results.simulation
     assert (tmp_path / "a" / "table.md").read_text() == (tmp_path / "b" / "table.md").read_text()

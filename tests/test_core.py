@@ -62,18 +62,18 @@ def load_world_text(text: str) -> dict:
 
 def test_deceptive_value_matches_reference(case) -> None:
     result, ref = case
-    assert result.results["deceptive_value"] == pytest.approx(ref.value, abs=TOL)
+    assert result.results.deceptive_value == pytest.approx(ref.value, abs=TOL)
 
 
 def test_leader_value_matches_reference_and_bounds_deception(case) -> None:
     result, ref = case
-    assert result.results["v_lead"] == pytest.approx(ref.v_lead, abs=TOL)
-    assert result.results["v_lead"] <= result.results["deceptive_value"] + TOL
+    assert result.results.v_lead == pytest.approx(ref.v_lead, abs=TOL)
+    assert result.results.v_lead <= result.results.deceptive_value + TOL
 
 
 def test_canonical_size_matches_reference(case) -> None:
     result, ref = case
-    assert (result.results["states"], result.results["transitions"]) == (ref.states, ref.transitions)
+    assert (result.results.states, result.results.transitions) == (ref.states, ref.transitions)
 
 
 def test_trap_strategy_matches_reference(case) -> None:
@@ -93,7 +93,7 @@ def test_trap_strategy_matches_reference(case) -> None:
 
 def test_exported_strategy_is_optimal(case) -> None:
     result, ref = case
-    value = result.results["deceptive_value"]
+    value = result.results.deceptive_value
     # The DTMC Storm's scheduler induces, checked by Storm ...
     assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(value, abs=TOL)
     # ... and the exported JSON strategy, evaluated by the independent solver.
@@ -106,7 +106,7 @@ def test_strategy_file_holds_the_records(case) -> None:
     written = json.loads((result.out / "strategy.json").read_text())
     assert written == result.records
     absorbing = int(result.decoded.goal.any()) + int(result.decoded.fail.any())
-    assert len(written) == result.results["states"] - absorbing   # one per canonical state
+    assert len(written) == result.results.states - absorbing   # one per canonical state
 
 
 def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
@@ -173,8 +173,8 @@ def test_single_hypothesis_equal_to_a_one_step_task_gives_v_lead(world_dir: Path
         single = dataclasses.replace(world, formula="!obs U A", hypotheses=("!obs U A",),
                                      initial_hypothesis=0, window=window)
         result = pipeline.check(single, world_dir / f"single_w{window}")
-        assert result.results["deceptive_value"] == pytest.approx(result.results["v_lead"], abs=TOL)
-        assert 0 < result.results["v_lead"] < 1
+        assert result.results.deceptive_value == pytest.approx(result.results.v_lead, abs=TOL)
+        assert 0 < result.results.v_lead < 1
 
 
 def test_command_count_does_not_grow_with_the_product(world_dir: Path) -> None:
@@ -206,7 +206,7 @@ def test_storm_builds_more_states_with_longer_windows(world_dir: Path) -> None:
     """The product grows with the window while the command count above does not."""
     world = load_world(MODELS / "world1.toml")
     sizes = [pipeline.check(dataclasses.replace(world, window=w), world_dir / f"size_w{w}")
-             .results["states"] for w in (1, 2, 3)]
+             .results.states for w in (1, 2, 3)]
     assert sizes[0] < sizes[1] < sizes[2]
 
 

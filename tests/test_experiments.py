@@ -210,10 +210,10 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
         assert row["initial_traps"] == ([[2, 5]] if k else [])
         single_path = write_world(tmp_path, f"world2_k{k}", text.replace("delay = 0\n", f"delay = {k}\n"))
         single = pipeline.check(load_world(single_path), tmp_path / f"single_{k}")
-        assert row["deceptive_value"] == pytest.approx(single.results["deceptive_value"], abs=1e-9)
-        assert row["v_lead"] == pytest.approx(single.results["v_lead"], abs=1e-9)
-        assert row["states"] == single.results["states"]
-        assert row["transitions"] == single.results["transitions"]
+        assert row["deceptive_value"] == pytest.approx(single.results.deceptive_value, abs=1e-9)
+        assert row["v_lead"] == pytest.approx(single.results.v_lead, abs=1e-9)
+        assert row["states"] == single.results.states
+        assert row["transitions"] == single.results.transitions
         # docs/semantics.md §7: V_NE <= V_lead <= deceptive value at the initial state
         assert row["v_ne"] <= row["v_lead"] + 1e-6 <= row["deceptive_value"] + 2e-6
     values = [r["deceptive_value"] for r in rows]
@@ -249,7 +249,7 @@ def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsy
     for row in rows:
         single = pipeline.check(sweep.sweep_world(world, "window", row["window"]),
                                 tmp_path / f"single_w{row['window']}")
-        assert row["deceptive_value"] == pytest.approx(single.results["deceptive_value"], abs=1e-9)
+        assert row["deceptive_value"] == pytest.approx(single.results.deceptive_value, abs=1e-9)
     capsys.readouterr()
     rows = sweep.sweep(world, "threshold", [0.5, 2], tmp_path / "t", show_progress=False)
     assert [r["threshold"] for r in rows] == [0.5, 2.0]

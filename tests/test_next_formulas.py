@@ -67,12 +67,12 @@ def test_next_formula_values_are_the_hand_computed_ones(name: str, tmp_path: Pat
     path = tmp_path / f"{name}.toml"
     path.write_text(world_text(rows, formula))
     result = pipeline.check(load_world(path), tmp_path / name)
-    assert result.results["deceptive_value"] == pytest.approx(expected, abs=1e-9)
-    assert result.results["v_lead"] == pytest.approx(expected, abs=1e-9)
+    assert result.results.deceptive_value == pytest.approx(expected, abs=1e-9)
+    assert result.results.v_lead == pytest.approx(expected, abs=1e-9)
     assert reference.solve(path).value == pytest.approx(expected, abs=1e-9)
     if expected == 0.0:
         # every move from the start leads to failure: the start and the merged failure state
-        assert result.results["states"] == 2
+        assert result.results.states == 2
 
 
 def test_world1_map_with_a_next_task(tmp_path: Path) -> None:
@@ -87,5 +87,5 @@ def test_world1_map_with_a_next_task(tmp_path: Path) -> None:
     path = tmp_path / "world1_xxa.toml"
     path.write_text(text)
     result = pipeline.check(load_world(path), tmp_path / "out")
-    assert result.results["deceptive_value"] == pytest.approx(MOVE * MOVE, abs=1e-9)
+    assert result.results.deceptive_value == pytest.approx(MOVE * MOVE, abs=1e-9)
     assert reference.solve(path).value == pytest.approx(MOVE * MOVE, abs=1e-9)

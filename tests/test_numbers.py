@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -75,9 +76,12 @@ def test_nash_bracket(name: str, tmp_path: Path) -> None:
 def test_deceptive_value_invariants(name: str, tmp_path: Path) -> None:
     checked = pipeline.check(_world(name, tmp_path), tmp_path / "out")
     results = checked.results
-    assert 0.0 <= results["deceptive_value"] <= 1.0
-    assert results["v_lead"] <= results["deceptive_value"] + 1e-6
-    assert results["sound"] is True
+    assert 0.0 <= results.deceptive_value <= 1.0
+    assert results.v_lead <= results.deceptive_value + 1e-6
+    assert results.sound is True
+    # results.json (from check) is the typed results' to_json(), keys in the same order
+    saved = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert saved == results.to_json() and list(saved) == list(results.to_json())
 
 
 def test_probability_clamps_rounding_and_refuses_the_rest() -> None:

@@ -111,7 +111,7 @@ def test_hypergame_pmax(solved) -> None:
     text = (out / "hypergame.prism").read_text()
     # The labels PRISM would reject (keywords) are not used; regions are "reg_<letter>".
     assert not re.search(r'label "[ACEFGIPRSUWX]"', text)
-    assert abs(prism_value(out / "hypergame.prism") - checked.results["deceptive_value"]) <= TOL
+    assert abs(prism_value(out / "hypergame.prism") - checked.results.deceptive_value) <= TOL
 
 
 def test_perceptual_games(solved) -> None:

@@ -52,7 +52,7 @@ def test_estimate_bounds_the_canonical_size(name: str, world_dir: Path) -> None:
     path = world_path(name, str(world_dir))
     world = load_world(path)
     estimate = sizeguard.estimate_states(world)
-    states = pipeline.check(world, world_dir / f"{name}_scale").results["states"]
+    states = pipeline.check(world, world_dir / f"{name}_scale").results.states
     assert states <= estimate <= FACTOR * states, (states, estimate)
 
 

@@ -173,6 +173,7 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     from hg2prism import pipeline
     from hg2prism.model import sizeguard
     from hg2prism.model.world import load_world
+    from hg2prism.results import TIMING_DIGITS
 
     world = load_world(world_path)
     estimate = sizeguard.estimate_states(world)
@@ -180,18 +181,17 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     result = pipeline.check(world, out, storm_method)
     total = time.perf_counter() - start
     res = result.results
-    timings = res["timings"]
     row = {
         "cells": result.analysis.ts.n_cells,
         "estimate": estimate,
-        "states": res["states"], "transitions": res["transitions"],
-        "storm_states": res["storm_states"], "storm_transitions": res["storm_transitions"],
-        "storm_choices": res["storm_choices"],
-        "deceptive_value": res["deceptive_value"], "v_lead": res["v_lead"],
+        "states": res.states, "transitions": res.transitions,
+        "storm_states": res.storm_states, "storm_transitions": res.storm_transitions,
+        "storm_choices": res.storm_choices,
+        "deceptive_value": res.deceptive_value, "v_lead": res.v_lead,
         "time_total": total,
     }
-    for stage in STAGES:
-        row[f"time_{stage}"] = float(timings.get(stage, 0.0))
+    for stage in STAGES:    # as results.json has them, rounded to 0.1 ms
+        row[f"time_{stage}"] = round(float(res.timings.get(stage, 0.0)), TIMING_DIGITS)
     # Whatever check() spends outside its timed stages (writing the JSON outputs).
     row["time_write"] = max(0.0, total - sum(row[f"time_{s}"] for s in STAGES))
     row["time_python"] = sum(row[f"time_{s}"] for s in ("games", "generate", "export", "write"))

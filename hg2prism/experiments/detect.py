@@ -20,11 +20,18 @@ from __future__ import annotations
 import contextlib
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hg2prism.errors import InputError
 from hg2prism.model.world import World
 from hg2prism import progress
 from hg2prism.outputs import write_json
+
+if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
+    from hg2prism.analyses.simulation import P2Policy, SimulationSummary, StepRecord, Strategy
+    from hg2prism.opponent.inference import InferenceModel
+    from hg2prism.opponent.observer import Observer
+    from hg2prism.pipeline import Analysis, CheckResult
 
 __all__ = ["DetectionBatch", "detection_batch", "detection_experiment", "detect",
            "detection_summary_lines"]
@@ -53,7 +60,7 @@ class DetectionBatch:
     """
 
     def __init__(self, alpha: float, epsilon: float, keep_steps: bool = False,
-                 scores_of=None) -> None:
+                 scores_of: InferenceModel | None = None) -> None:
         from hg2prism.analyses.detection import MismatchDetector
 
         self._make = lambda: MismatchDetector(alpha, epsilon)
@@ -71,7 +78,7 @@ class DetectionBatch:
         self._episode: int | None = None
         self._detector = None
 
-    def __call__(self, record) -> None:
+    def __call__(self, record: StepRecord) -> None:
         episode = record.episode
         if episode != self._episode:
             self._episode = episode
@@ -101,9 +108,11 @@ class DetectionBatch:
         return [self.first_rejection.get(e) for e in range(episodes)]
 
 
-def detection_batch(analysis, strategy, episodes: int, horizon: int, seed: int, alpha: float,
-                    epsilon: float, p2_policy=None, p2_inference=None, keep_steps: bool = False,
-                    progress: bool = False, track_scores: bool = False):
+def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horizon: int,
+                    seed: int, alpha: float, epsilon: float, p2_policy: P2Policy | None = None,
+                    p2_inference: Observer | None = None, keep_steps: bool = False,
+                    progress: bool = False, track_scores: bool = False
+                    ) -> tuple[SimulationSummary, DetectionBatch]:
     """Simulate `episodes` deceptive episodes with P1's detector running in each.
     Returns (SimulationSummary, DetectionBatch). With `track_scores` the batch records the
     largest CUSUM score of P1's model of P2's inference (DetectionBatch.max_score)."""
@@ -116,7 +125,7 @@ def detection_batch(analysis, strategy, episodes: int, horizon: int, seed: int, 
     return summary, batch
 
 
-def _completion(summary) -> dict:
+def _completion(summary: SimulationSummary) -> dict:
     return {"rate": summary.rate, "ci95": list(summary.ci95), "episodes": summary.episodes,
             "completed": summary.completed, "failed": summary.failed,
             "truncated": summary.truncated, "off_record_steps": summary.off_record_steps,
@@ -145,8 +154,9 @@ def _distribution(rejections: list[int | None], deviate_after: int | None = None
     return result
 
 
-def _find_seeded_episode(analysis, strategy, horizon: int, seed: int, alpha: float,
-                         epsilon: float, deviate_after: int, p2_policy) -> tuple[int, object, object]:
+def _find_seeded_episode(analysis: Analysis, strategy: Strategy, horizon: int, seed: int,
+                         alpha: float, epsilon: float, deviate_after: int, p2_policy: P2Policy
+                         ) -> tuple[int, SimulationSummary, DetectionBatch]:
     """The first seed from `seed` upward whose deviating episode lasts more than
     deviate_after + STEPS_AFTER_DEVIATION steps (else the longest of SEED_SEARCH seeds)."""
     best = None
@@ -170,7 +180,7 @@ def _check_positive(value: int | None, key: str, minimum: int) -> None:
         raise InputError(_CLI, key, f"must be an integer >= {minimum}, got {value!r}")
 
 
-def detection_experiment(world: World, check_result, out: Path, episodes: int | None = None,
+def detection_experiment(world: World, check_result: CheckResult, out: Path, episodes: int | None = None,
                          seed: int | None = None, show_progress: bool = True,
                          horizon: int | None = None) -> dict:
     """docs/semantics.md §9's experiment and the other mismatch (see the module docstring).
@@ -331,9 +341,9 @@ def detection_experiment(world: World, check_result, out: Path, episodes: int | 
         "horizon": horizon,
         "seed": seed,
         "episodes": episodes,
-        "deceptive_value": check_result.results.get("deceptive_value"),
-        "storm_method": check_result.results.get("storm_method"),
-        "sound": check_result.results.get("sound"),
+        "deceptive_value": check_result.results.deceptive_value,
+        "storm_method": check_result.results.storm_method,
+        "sound": check_result.results.sound,
         "p1_model": {"window": world.window, "threshold": world.threshold},
         "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
                   "exceeds the free parameters, so the test is conservative. P1 plays its "

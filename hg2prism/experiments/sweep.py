@@ -29,6 +29,7 @@ from hg2prism.errors import InputError
 from hg2prism.model.world import Cell, World
 from hg2prism import progress
 from hg2prism.outputs import write_json, write_text
+from hg2prism.results import Parameters
 
 __all__ = ["SWEEP_PARAMETERS", "parse_sweep_values", "sweep_world", "delay_initial_traps", "sweep",
            "sweep_summary_lines"]
@@ -211,15 +212,15 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
         results = checked.results
         row = {
             parameter: value,
-            "deceptive_value": results["deceptive_value"],
-            "v_lead": results["v_lead"],
+            "deceptive_value": results.deceptive_value,
+            "v_lead": results.v_lead,
             "v_ne": nash.v_ne,
             "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
             "v_ne_bounds": list(nash.v_ne_bounds),
-            "states": results["states"],
-            "transitions": results["transitions"],
-            "storm_states": results["storm_states"],
-            "storm_transitions": results["storm_transitions"],
+            "states": results.states,
+            "transitions": results.transitions,
+            "storm_states": results.storm_states,
+            "storm_transitions": results.storm_transitions,
             "initial_traps": [list(c) for c in w.initial_traps],
             "seconds": round(seconds, 3),
         }
@@ -233,10 +234,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
                              f"{row['v_ne']:.4f}, {row['states']} states ({seconds:.1f} s){warn}\n")
             sys.stderr.flush()
 
-    fixed = {"formula": world.formula, "slip": world.slip, "traps": world.traps,
-             "delay": world.delay, "hypotheses": list(world.hypotheses),
-             "initial_hypothesis": world.initial_hypothesis, "window": world.window,
-             "threshold": world.threshold, "rationality": world.rationality}
+    fixed = Parameters.of(world).to_json()
     fixed.pop(parameter)
     summary = {
         "world": world.name,

@@ -4,31 +4,33 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hg2prism.results import CheckResults, RunResults
 
-def completion_table(results: dict) -> str:
-    """The paper's Table I, with the leader row added."""
-    sim = results["simulation"]
+
+def completion_table(results: RunResults) -> str:
+    """The paper's Table I, with the leader row added (docs/semantics.md §8, table.md)."""
+    sim = results.simulation
     rows = [
-        ("Asymmetric", "deceptive π1*", "inference-driven π2", results["deceptive_value"], sim["deceptive"]),
-        ("Symmetric, Nash", "π1^NE", "π2^NE", results["v_ne"], sim["nash"]),
-        ("Symmetric, leader", "best response", "leader π2", results["v_lead"], sim["leader"]),
+        ("Asymmetric", "deceptive π1*", "inference-driven π2", results.deceptive_value, sim.deceptive),
+        ("Symmetric, Nash", "π1^NE", "π2^NE", results.v_ne, sim.nash),
+        ("Symmetric, leader", "best response", "leader π2", results.v_lead, sim.leader),
     ]
     lines = [
-        f"Completion of the task `{results['parameters']['formula']}` in {results['world']} "
-        f"(simulation: horizon {sim['horizon']}, seed {sim['seed']})",
+        f"Completion of the task `{results.parameters.formula}` in {results.world} "
+        f"(simulation: horizon {sim.horizon}, seed {sim.seed})",
         "",
         "| information | P1 policy | P2 policy | exact value | exact within horizon | simulated completion (95% CI) | episodes | cut by horizon |",
         "|---|---|---|---|---|---|---|---|",
     ]
     for info, p1, p2, exact, s in rows:
-        low, high = s["ci95"]
-        lines.append(f"| {info} | {p1} | {p2} | {exact:.4f} | {s['exact_within_horizon']:.4f} "
-                     f"| {s['rate']:.4f} [{low:.4f}, {high:.4f}] | {s['episodes']} | {s['truncated']} |")
+        low, high = s.ci95
+        lines.append(f"| {info} | {p1} | {p2} | {exact:.4f} | {s.exact_within_horizon:.4f} "
+                     f"| {s.rate:.4f} [{low:.4f}, {high:.4f}] | {s.episodes} | {s.truncated} |")
     lines.append("")
     lines.append(f"Exact value: the probability of ever completing the task (Pmax for the asymmetric "
                  f"row, V_NE and V_lead for the symmetric ones; P1's extracted Nash strategy "
-                 f"guarantees {results['v_ne_p1_guaranteed']:.4f}). Exact within horizon: the "
-                 f"probability of completing it within {sim['horizon']} steps when both play the "
+                 f"guarantees {results.v_ne_p1_guaranteed:.4f}). Exact within horizon: the "
+                 f"probability of completing it within {sim.horizon} steps when both play the "
                  f"strategies simulated, which the simulated rate estimates.")
     return "\n".join(lines) + "\n"
 
@@ -37,17 +39,19 @@ def written(out: Path, files: list[str]) -> str:
     return f"wrote {out}/{{{', '.join(files)}}}"
 
 
-def summary(results: dict, out: Path, files: list[str]) -> str:
+def summary(results: CheckResults, out: Path, files: list[str]) -> str:
+    """What `check` and `run` print: the values, the hypergame's size and the files written
+    (with `run`, `results` is a RunResults and V_NE is shown too)."""
     return "\n".join([
-        f"{results['world']}:",
-        f"  deceptive value  {results['deceptive_value']:.6f}   P1 against P2's inference (Pmax, Storm)",
-        f"  v_lead           {results['v_lead']:.6f}   P2 knows the task and commits first each step",
-    ] + ([f"  v_ne             {results['v_ne']:.6f}   in [{results['v_ne_bounds'][0]:.10f}, "
-          f"{results['v_ne_bounds'][1]:.10f}], both players mixing, P2 knowing the task"]
-         if "v_ne_bounds" in results else []) + [
-        f"  hypergame        {results['states']} states, {results['transitions']} transitions (canonical); "
-        f"Storm: {results['storm_states']} states, {results['storm_transitions']} transitions, "
-        f"{results['storm_choices']} choices",
+        f"{results.world}:",
+        f"  deceptive value  {results.deceptive_value:.6f}   P1 against P2's inference (Pmax, Storm)",
+        f"  v_lead           {results.v_lead:.6f}   P2 knows the task and commits first each step",
+    ] + ([f"  v_ne             {results.v_ne:.6f}   in [{results.v_ne_bounds[0]:.10f}, "
+          f"{results.v_ne_bounds[1]:.10f}], both players mixing, P2 knowing the task"]
+         if isinstance(results, RunResults) else []) + [
+        f"  hypergame        {results.states} states, {results.transitions} transitions (canonical); "
+        f"Storm: {results.storm_states} states, {results.storm_transitions} transitions, "
+        f"{results.storm_choices} choices",
         f"  wrote            {out}/{{{', '.join(files)}}}",
-    ] + ([f"  warning          Storm method {results['storm_method']!r} is not sound: the values "
-          f"above are not certified to 1e-10"] if not results.get("sound", True) else []))
+    ] + ([f"  warning          Storm method {results.storm_method!r} is not sound: the values "
+          f"above are not certified to 1e-10"] if not results.sound else []))
