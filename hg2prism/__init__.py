@@ -13,8 +13,8 @@ docs/semantics.md.
 
 __version__ = "0.1.0"
 
-from hg2prism.api import (Baselines, DeceptiveStrategy, Simulation, Solution,  # noqa: E402
+from hg2prism.api import (Baselines, Simulation, Solution, Strategy,  # noqa: E402
                           baselines, load_world, simulate, solve, world_from_toml)
 
 __all__ = ["__version__", "load_world", "world_from_toml", "solve", "baselines", "simulate",
-           "Solution", "DeceptiveStrategy", "Baselines", "Simulation"]
+           "Solution", "Strategy", "Baselines", "Simulation"]

@@ -20,62 +20,15 @@ from typing import TYPE_CHECKING
 
 from hg2prism.model.world import World, load_world, world_from_toml
 from hg2prism.results import CheckResults
+from hg2prism.strategy.records import Strategy
 
 if TYPE_CHECKING:
     from hg2prism.pipeline import CheckResult
 
 __all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "Solution",
-           "DeceptiveStrategy", "Baselines", "Simulation"]
+           "Strategy", "Baselines", "Simulation"]
 
 _MOVES = ("N", "E", "S", "W")
-
-
-@dataclass(frozen=True)
-class DeceptiveStrategy:
-    """P1's deceptive strategy: its move in every reachable hypergame state that is neither
-    goal nor failure (docs/semantics.md §6), as written to strategy.json."""
-
-    records: tuple[dict, ...] = field(repr=False)
-
-    def __len__(self) -> int:
-        return len(self.records)
-
-    def move(self, cell: tuple[int, int], q: int, hypothesis: int,
-             window: tuple[tuple[tuple[int, int], str], ...] = (),
-             traps: tuple[tuple[int, int], ...] | None = None,
-             countdown: int | None = None) -> str:
-        """P1's move ("N", "E", "S" or "W") when the robot is at `cell`, the task DFA is in `q`
-        (after reading the cell's label), P2 holds `hypothesis` and remembers `window`
-        ((cell, move) pairs, oldest first). With delay > 0, `traps` and `countdown` describe the
-        standing traps, and each window entry is (cell, move, traps, countdown).
-        Raises KeyError when the state is not one the strategy reaches."""
-        key = _key(cell, traps, countdown, q, hypothesis, window)
-        try:
-            return self._table[key]
-        except KeyError:
-            raise KeyError(f"no move recorded for {key}") from None
-
-    @property
-    def _table(self) -> dict:
-        table = self.__dict__.get("_cached_table")
-        if table is None:
-            table = {}
-            for r in self.records:
-                window = tuple((tuple(o["cell"]), o["action"]) if o["traps"] is None else
-                               (tuple(o["cell"]), o["action"], tuple(map(tuple, o["traps"])),
-                                o["countdown"]) for o in r["window"])
-                traps = None if r["traps"] is None else tuple(map(tuple, r["traps"]))
-                table[_key(tuple(r["cell"]), traps, r["countdown"], r["q"], r["hypothesis"],
-                           window)] = r["action"]
-            object.__setattr__(self, "_cached_table", table)
-        return table
-
-
-def _key(cell, traps, countdown, q, hypothesis, window) -> tuple:
-    normal = tuple((tuple(o[0]), o[1]) + tuple((tuple(map(tuple, o[2])), o[3]) if len(o) > 2 else ())
-                   for o in window)
-    return (tuple(cell), None if traps is None else tuple(map(tuple, traps)), countdown, int(q),
-            int(hypothesis), normal)
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +42,7 @@ class Solution:
     transitions: int
     storm_method: str
     sound: bool                     # False for the "fast" method: the value is not certified
-    strategy: DeceptiveStrategy
+    strategy: Strategy              # P1's move in every reachable hypergame state
     results: CheckResults = field(repr=False)   # everything `check` computes (hg2prism.results)
     _checked: CheckResult | None = field(repr=False, default=None)
 
@@ -122,7 +75,7 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
     r = checked.results
     return Solution(world=world, deceptive_value=r.deceptive_value, v_lead=r.v_lead,
                     states=r.states, transitions=r.transitions, storm_method=storm_method,
-                    sound=r.sound, strategy=DeceptiveStrategy(records), results=r,
+                    sound=r.sound, strategy=Strategy.from_records(records, checked.analysis.ts), results=r,
                     _checked=checked)
 
 
@@ -166,12 +119,11 @@ class Simulation:
 def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int = 200,
              seed: int = 0) -> Simulation:
     """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps."""
-    from hg2prism.analyses.simulation import Strategy, simulate_deceptive
+    from hg2prism.analyses.simulation import simulate_deceptive
 
-    checked = solution._checked
-    analysis = checked.analysis
-    strategy = Strategy.from_records(solution.strategy.records, analysis.ts)
-    summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, progress=False)
+    analysis = solution._checked.analysis
+    summary = simulate_deceptive(analysis, solution.strategy, episodes, horizon, seed,
+                                 progress=False)
     return Simulation(episodes=summary.episodes, horizon=horizon, seed=seed,
                       completed=summary.completed, failed=summary.failed,
                       truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95))

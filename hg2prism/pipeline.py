@@ -7,7 +7,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator
+from typing import Iterator
 
 import numpy as np
 
@@ -19,14 +19,13 @@ from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, fa
                             solve_game)
 from hg2prism.errors import probability
 from hg2prism.progress import say, warn
+from hg2prism.strategy.deceptive import StormChoices, deceptive_strategy
+from hg2prism.strategy.records import Strategy, strategy_json, strategy_records
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import CheckResults, Parameters, RunResults, SimulatedRow, Simulations
-
-if TYPE_CHECKING:
-    from hg2prism.analyses import simulation
 
 
 @contextmanager
@@ -87,7 +86,7 @@ class CheckResult:
     prism: PrismModel
     checked: storm.CheckedModel
     decoded: storm.DecodedStates
-    strategy: storm.Strategy
+    strategy: StormChoices          # P1's choice in each of Storm's states
     results: CheckResults           # results.json's content: results.to_json()
     out: Path                       # the folder holding hypergame.prism, strategy.json, ...
 
@@ -95,7 +94,7 @@ class CheckResult:
     def records(self) -> list[dict]:
         """The strategy's records (strategy.json's content), built on first use: writing the
         file does not need them, and they cost seconds on million-state models."""
-        return storm.strategy_records(self.decoded, self.strategy, storm.transitions(
+        return strategy_records(self.decoded, self.strategy, storm.transitions(
             self.checked.model), self.analysis.ts)
 
 
@@ -112,8 +111,8 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     moves = storm.transitions(checked.model)
     decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task)
     states, transitions = storm.canonical_size(decoded, moves)
-    strategy = storm.deceptive_strategy(decoded, checked, moves)
-    strategy_text = storm.strategy_json(decoded, strategy, moves, analysis.ts)
+    strategy = deceptive_strategy(decoded, checked, moves)
+    strategy_text = strategy_json(decoded, strategy, moves, analysis.ts)
     analysis.timings["export"] = time.perf_counter() - start
     results = CheckResults(
         world=world.name,
@@ -180,7 +179,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
 
     with _timed(timings, "simulation"):
-        strategy = simulation.Strategy.from_records(checked.records, analysis.ts)
+        strategy = Strategy.from_records(checked.records, analysis.ts)
         deceptive = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed,
                                                   progress=show_progress)
         n_q = analysis.task.n_states
@@ -233,7 +232,7 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
 
 
-def _illustrative_episode(analysis: Analysis, strategy: simulation.Strategy, horizon: int,
+def _illustrative_episode(analysis: Analysis, strategy: Strategy, horizon: int,
                           seed: int) -> tuple[list, str]:
     """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
     clearest picture of the strategy), else the first one."""

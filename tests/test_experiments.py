@@ -15,7 +15,8 @@ from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
 from hg2prism.model.dynamics import ACTIONS, build_transition_system
 from hg2prism.errors import InputError
-from hg2prism.analyses.simulation import Strategy, deviating_policy, leader_fallback
+from hg2prism.analyses.simulation import deviating_policy, leader_fallback
+from hg2prism.strategy.records import Strategy
 from hg2prism.model.world import load_world
 
 WORLD2 = MODELS / "world2.toml"

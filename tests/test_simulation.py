@@ -19,9 +19,10 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.model.dynamics import ACTIONS
 from hg2prism.opponent.inference import build_inference
-from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary, Strategy,
-                                 StrategyError, deviating_policy, leader_fallback, model_policy,
-                                 simulate_deceptive, simulate_nash, wilson_interval)
+from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary,
+                                          deviating_policy, leader_fallback, model_policy,
+                                          simulate_deceptive, simulate_nash, wilson_interval)
+from hg2prism.strategy.records import Strategy, StrategyError
 from hg2prism.model.world import load_world
 
 WORLD1 = MODELS / "world1.toml"

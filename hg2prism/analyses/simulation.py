@@ -25,12 +25,10 @@ Runs are reproducible: every random number comes from ``numpy.random.default_rng
 
 from __future__ import annotations
 
-import json
 import math
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -41,13 +39,12 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.progress import Bar
+from hg2prism.strategy.records import Fallback, StrategyError
 from hg2prism.opponent.inference import Memory
 from hg2prism.opponent.observer import Observer
 
 __all__ = [
     "FAIL", "GOAL", "TRUNCATED",
-    "StrategyError",
-    "Strategy",
     "StepRecord",
     "SimulationSummary",
     "wilson_interval",
@@ -67,10 +64,6 @@ P2Policy = Callable[[np.random.Generator, int, int, int, Memory], int]
 StepCallback = Callable[["StepRecord"], object]   # sees every step of every episode
 
 _RANDOM_BLOCK = 8192
-
-
-class StrategyError(LookupError):
-    """The strategy has no (or an unreadable) record for a hypergame state."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -191,121 +184,6 @@ class _Uniforms:
 # ---------------------------------------------------------------------------------------------
 # P1's strategy
 # ---------------------------------------------------------------------------------------------
-
-def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
-    """The TS state of a record's (or window entry's) cell, traps and countdown."""
-    try:
-        cell = tuple(int(c) for c in record["cell"])
-    except (KeyError, TypeError, ValueError) as err:
-        raise StrategyError(f"{where}: bad or missing 'cell' ({err})") from None
-    if cell not in ts.cell_index:
-        raise StrategyError(f"{where}: cell {list(cell)} is not a free cell of the world")
-    index = ts.cell_index[cell]
-    if ts.delay == 0:
-        return ts.state(index)
-    traps = record.get("traps")
-    countdown = record.get("countdown")
-    if traps is None or countdown is None:
-        raise StrategyError(f"{where}: 'traps' and 'countdown' are required when delay > 0")
-    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
-    try:
-        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
-                               for t in traps))
-        trap_set = ts.trap_sets.index(members)
-    except (KeyError, ValueError, TypeError):
-        raise StrategyError(f"{where}: traps {traps} are not a P2 action of the world") from None
-    countdown = int(countdown)
-    if not 0 <= countdown <= ts.delay:
-        raise StrategyError(f"{where}: countdown {countdown} outside 0..{ts.delay}")
-    return ts.state(index, trap_set, countdown)
-
-
-def _action_index(name: object, where: str) -> int:
-    if name not in ACTIONS:
-        raise StrategyError(f"{where}: action {name!r} is not one of {', '.join(ACTIONS)}")
-    return ACTIONS.index(name)
-
-
-Fallback = Callable[[int, int, Memory], int]
-
-
-class Strategy:
-    """P1's memoryless deterministic strategy on hypergame states ``(ts_state, q, Memory)``.
-
-    The exported records cover the states reachable when P2 behaves as modelled. An experiment
-    in which P2 deviates can lead P1 elsewhere (for instance onto a trap candidate the model
-    would have trapped it on); there `action` raises StrategyError unless a `fallback`
-    ``(ts_state, q, memory) -> action index`` is given (see `leader_fallback`).
-    """
-
-    def __init__(self, table: Mapping[tuple[int, int, Memory], int],
-                 ts: TransitionSystem | None = None, fallback: Fallback | None = None) -> None:
-        self.table = dict(table)
-        self.ts = ts
-        self.fallback = fallback
-
-    @classmethod
-    def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
-                     fallback: Fallback | None = None) -> "Strategy":
-        """Read the exported records ``{cell, traps, countdown, q, hypothesis, window, action}``."""
-        table: dict[tuple[int, int, Memory], int] = {}
-        for i, record in enumerate(records):
-            where = f"strategy record {i}"
-            v = _record_ts_state(ts, record, where)
-            try:
-                q, hypothesis = int(record["q"]), int(record["hypothesis"])
-                entries = list(record["window"])
-            except (KeyError, TypeError, ValueError) as err:
-                raise StrategyError(f"{where}: bad or missing field ({err})") from None
-            window = tuple((_record_ts_state(ts, entry, f"{where}, window entry {j}"),
-                            _action_index(entry.get("action"), f"{where}, window entry {j}"))
-                           for j, entry in enumerate(entries))
-            action = _action_index(record.get("action"), where)
-            key = (v, q, Memory(hypothesis, window))
-            if table.setdefault(key, action) != action:
-                raise StrategyError(f"{where}: conflicting actions {ACTIONS[table[key]]} and "
-                                    f"{ACTIONS[action]} for the same state")
-        return cls(table, ts, fallback)
-
-    @classmethod
-    def load(cls, path: str | Path, ts: TransitionSystem,
-             fallback: Fallback | None = None) -> "Strategy":
-        """Read a strategy.json file."""
-        with open(path, encoding="utf-8") as handle:
-            return cls.from_records(json.load(handle), ts, fallback)
-
-    def __len__(self) -> int:
-        return len(self.table)
-
-    def __contains__(self, key: object) -> bool:
-        return key in self.table
-
-    def action(self, ts_state: int, q: int, memory: Memory) -> int:
-        """P1's action index (into dynamics.ACTIONS); for a state without a record the
-        fallback's action, or StrategyError when there is no fallback."""
-        try:
-            return self.table[(ts_state, q, memory)]
-        except KeyError:
-            if self.fallback is not None:
-                return int(self.fallback(ts_state, q, memory))
-            raise StrategyError(
-                f"the strategy has no record for the hypergame state "
-                f"{self.describe(ts_state, q, memory)}") from None
-
-    def describe(self, ts_state: int, q: int, memory: Memory) -> str:
-        if self.ts is None:
-            return f"(ts_state={ts_state}, q={q}, {memory})"
-
-        def where(state: int) -> str:
-            d = self.ts.describe_state(state)
-            text = f"cell {d['cell']}"
-            if d["traps"] is not None:
-                text += f" traps {d['traps']} countdown {d['countdown']}"
-            return text
-
-        window = ", ".join(f"{where(s)} {ACTIONS[a]}" for s, a in memory.window)
-        return f"{where(ts_state)}, q={q}, hypothesis={memory.hypothesis}, window=[{window}]"
-
 
 def leader_fallback(analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model

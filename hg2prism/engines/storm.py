@@ -12,10 +12,10 @@ import tarfile
 import tempfile
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 import stormpy
 import stormpy.environments as environments
 from stormpy import developer
@@ -25,6 +25,9 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.errors import StormError, probability
 from hg2prism.prism.hypergame import Layout
+
+if TYPE_CHECKING:
+    from hg2prism.strategy.deceptive import StormChoices
 
 PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
 
@@ -271,122 +274,7 @@ def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int
     return decoded.n_canonical, n_triples + loops
 
 
-@dataclass(frozen=True, eq=False)
-class Strategy:
-    """P1's deceptive strategy on canonical states: the chosen Storm choice of each."""
-
-    representative: np.ndarray   # [n_canonical] a Storm state of each canonical state
-    choice: np.ndarray           # [n_storm_states] global choice index P1 takes in each Storm state
-
-
-OPTIMAL_SLACK = 1e-8   # Storm's values are sound to 1e-10; choices within this are optimal
-DISCOUNT = 0.9         # how strongly P1 prefers finishing soon among optimal moves
-MAX_DISCOUNT_SWEEPS = 1000
-
-
-def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Transitions) -> Strategy:
-    """An optimal strategy that does not stall, computed on canonical states from Storm's values.
-
-    Storm's own scheduler is optimal in the limit but may dither (push into a wall) for a long
-    time: on world1 it completes within 200 steps with probability 0.02 for a value of 0.95.
-    Its copies of one canonical state (differing in the DFA's previous state) may also pick
-    different optimal moves, which mixed together need not be optimal. Here every canonical
-    state takes, among its value-optimal moves, the one that maximises the discounted
-    probability of reaching the goal (lexicographically: value first, then speed).
-    """
-    n_states = len(decoded.canonical)
-    canonical = decoded.canonical
-    n_canonical = decoded.n_canonical
-    representative = np.full(n_canonical, -1, dtype=np.int64)
-    representative[canonical[::-1]] = np.arange(n_states)[::-1]     # first Storm state of each
-    values = np.zeros(n_canonical)
-    values[canonical] = checked.values
-
-    # Choices of the representatives, and their entries.
-    counts = np.diff(moves.row_start)
-    is_rep = representative[canonical[moves.source]] == moves.source
-    choices = np.flatnonzero(is_rep & (moves.action >= 0))
-    entry_choice = np.repeat(np.arange(len(moves.source)), counts)
-    entries = np.flatnonzero(is_rep[entry_choice] & (moves.action[entry_choice] >= 0))
-    e_choice = entry_choice[entries]
-    e_target = canonical[moves.target[entries]]
-    e_prob = moves.probability[entries]
-    q_value = np.bincount(e_choice, weights=e_prob * values[e_target], minlength=len(moves.source))
-    source_c = canonical[moves.source]
-    optimal = np.zeros(len(moves.source), dtype=bool)
-    optimal[choices] = q_value[choices] >= values[source_c[choices]] - OPTIMAL_SLACK
-
-    # Among optimal choices, prefer reaching the goal soon: the discounted probability
-    # W(s) = max over optimal choices of E[DISCOUNT^steps; reach goal]. A choice that stalls
-    # scores 0 there, so the greedy choice keeps moving, and every state of positive value
-    # keeps a positive chance of reaching the goal: the strategy stays optimal.
-    goal = np.zeros(n_canonical, dtype=bool)
-    goal[canonical[decoded.goal]] = True
-    opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by source
-    keep = optimal[e_choice]
-    k_choice, k_target, k_prob = e_choice[keep], e_target[keep], e_prob[keep]
-    # The optimal choices of each canonical state that has some form a column of a
-    # [width, states] table (padded with -1, below every score), so that a sweep is one sparse
-    # product and a maximum over the table's few contiguous rows.
-    group_start = np.flatnonzero(np.diff(np.r_[-1, source_c[opt_choices]]) != 0)
-    group_size = np.diff(np.r_[group_start, len(opt_choices)])
-    n_groups, width = len(group_start), int(group_size.max(initial=1))
-    group_of = np.full(n_canonical, -1, dtype=np.int64)
-    group_of[source_c[opt_choices[group_start]]] = np.arange(n_groups)
-    group_of_slot = np.repeat(np.arange(n_groups), group_size)
-    rank_in_group = np.arange(len(opt_choices)) - np.repeat(group_start, group_size)
-    cell_of_slot = rank_in_group * n_groups + group_of_slot
-    k_cell = cell_of_slot[(np.cumsum(optimal) - 1)[k_choice]]
-    n_cells = n_groups * width
-    reached = np.full(n_cells, -1.0)
-    reached[cell_of_slot] = 0.0
-    reached += np.bincount(k_cell, weights=k_prob * goal[k_target], minlength=n_cells)
-    # Onward entries lead to states that still have choices (goal counts in `reached`, and
-    # failure adds nothing).
-    onward = (group_of[k_target] >= 0) & ~goal[k_target]
-    onward_matrix = sp.csr_matrix(
-        (k_prob[onward] * DISCOUNT, (k_cell[onward], group_of[k_target[onward]])),
-        shape=(n_cells, n_groups))
-    w = np.zeros(n_groups)
-    for _ in range(MAX_DISCOUNT_SWEEPS):
-        table = (onward_matrix @ w).reshape(width, n_groups)
-        table += reached.reshape(width, n_groups)
-        new = np.max(table, axis=0) if width > 1 else table[0]
-        done = np.abs(new - w).max(initial=0.0) < 1e-9   # enough to rank the moves
-        w = new
-        if done:
-            break
-    soon = np.zeros(len(moves.source))
-    soon[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]
-    score = np.where(optimal, soon, -1.0)
-    score[moves.action < 0] = -2.0
-    # Best choice per Storm state's row group (representatives' choices; others copy them).
-    # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
-    # wins whatever order the sums were taken in.
-    best_of_state = _argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
-    chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
-    action_rep = moves.action[chosen_rep]
-    # Every Storm state takes the move its canonical state takes.
-    wanted = action_rep[canonical]
-    match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
-    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
-    return Strategy(representative=representative, choice=choice)
-
-
-def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
-                     relative_tie: float = 0.0) -> np.ndarray:
-    """Index of the first score in each group within `relative_tie` (relative) of the group's
-    maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
-    choice)."""
-    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    if len(start) != n_groups:
-        raise ValueError("every group needs at least one member")
-    best = np.repeat(np.maximum.reduceat(score, start), np.diff(np.r_[start, len(score)]))
-    candidates = np.flatnonzero(score >= best - relative_tie * np.abs(best))
-    return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]
-
-
-def _induced_dtmc(checked: CheckedModel, strategy: Strategy) -> object:
+def _induced_dtmc(checked: CheckedModel, strategy: StormChoices) -> object:
     matrix = checked.model.transition_matrix
     scheduler = checked.scheduler
     for s in range(checked.model.nr_states):
@@ -401,7 +289,7 @@ def _dtmc_value(dtmc: object, prop: str) -> float:
     return float(result.get_value_vector()[dtmc.initial_states[0]])
 
 
-def induced_probability(checked: CheckedModel, strategy: Strategy,
+def induced_probability(checked: CheckedModel, strategy: StormChoices,
                         prop: str = 'P=? [F "goal"]') -> float:
     """A property of the DTMC that P1's strategy induces, checked by Storm."""
     return _dtmc_value(_induced_dtmc(checked, strategy), prop)
@@ -410,7 +298,7 @@ def induced_probability(checked: CheckedModel, strategy: Strategy,
 CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
 
 
-def induced_within(checked: CheckedModel, strategy: Strategy, horizon: int) -> float:
+def induced_within(checked: CheckedModel, strategy: StormChoices, horizon: int) -> float:
     """P(goal within `horizon` steps) under P1's strategy. Storm's bounded reachability costs
     one sweep per step, so the bound doubles from 1024 and stops at the horizon or as soon as
     the bounded probability is within CONVERGED of the unbounded one (it only increases
@@ -423,58 +311,3 @@ def induced_within(checked: CheckedModel, strategy: Strategy, horizon: int) -> f
         if bound == horizon or value >= unbounded - CONVERGED:
             return value
         bound = min(2 * bound, horizon)
-
-
-def strategy_records(decoded: DecodedStates, strategy: Strategy, moves: Transitions,
-                     ts: TransitionSystem) -> list[dict]:
-    """P1's deceptive strategy: one record per reachable non-absorbing canonical state."""
-    records = []
-    described: dict[int, dict] = {}     # a few hundred TS states describe millions of records
-
-    def describe(state: int) -> dict:
-        if state not in described:
-            described[state] = ts.describe_state(state)
-        return dict(described[state])
-
-    cells, traps, countdowns = decoded.cell.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
-    qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
-    windows = decoded.window.tolist()
-    chosen = moves.action[strategy.choice].tolist()
-    absorbing = (decoded.goal | decoded.fail).tolist()
-    for s in strategy.representative.tolist():
-        if absorbing[s]:
-            continue
-        record = describe(ts.state(cells[s], traps[s], countdowns[s]))
-        record["q"] = qs[s]
-        record["hypothesis"] = hypotheses[s]
-        record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
-        record["action"] = ACTIONS[chosen[s]]
-        records.append(record)
-    return records
-
-
-def strategy_json(decoded: DecodedStates, strategy: Strategy, moves: Transitions,
-                  ts: TransitionSystem) -> str:
-    """strategy.json: the records of `strategy_records`, one compact JSON object per line.
-
-    Built from JSON fragments cached per TS state (and per observed move), because a few
-    hundred TS states describe millions of records: the same text as json.dumps of each record,
-    without creating the records."""
-    states = strategy.representative
-    states = states[~(decoded.goal | decoded.fail)[states]]
-    compact = {"separators": (",", ":")}
-    ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
-    prefix = {v: json.dumps(ts.describe_state(v), **compact)[:-1] + ',"q":'
-              for v in np.unique(ts_state).tolist()}
-    window = decoded.window[states]                                   # [n, slots, 2]
-    observed = np.unique(window[..., 0][window[..., 0] >= 0]).tolist()
-    fragment = {v * 4 + a: json.dumps(dict(ts.describe_state(v), action=ACTIONS[a]), **compact)
-                for v in observed for a in range(len(ACTIONS))}
-    codes = np.where(window[..., 0] >= 0, window[..., 0] * 4 + window[..., 1], -1).tolist()
-    tails = [f'],"action":"{a}"}}' for a in ACTIONS]
-    chosen = moves.action[strategy.choice[states]].tolist()
-    lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
-             + ",".join([fragment[c] for c in slots if c >= 0]) + tails[a]
-             for v, q, h, slots, a in zip(ts_state.tolist(), decoded.q[states].tolist(),
-                                          decoded.hypothesis[states].tolist(), codes, chosen)]
-    return "[\n" + ",\n".join(lines) + "\n]\n"

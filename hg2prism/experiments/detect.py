@@ -28,7 +28,8 @@ from hg2prism import progress
 from hg2prism.outputs import write_json
 
 if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
-    from hg2prism.analyses.simulation import P2Policy, SimulationSummary, StepRecord, Strategy
+    from hg2prism.analyses.simulation import P2Policy, SimulationSummary, StepRecord
+    from hg2prism.strategy.records import Strategy
     from hg2prism.opponent.inference import InferenceModel
     from hg2prism.opponent.observer import Observer
     from hg2prism.pipeline import Analysis, CheckResult
@@ -191,8 +192,8 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     """
     from hg2prism.report import plots
     from hg2prism.opponent.inference import build_inference
-    from hg2prism.analyses.simulation import (Strategy, deviating_policy, leader_fallback,
-                                     wilson_interval)
+    from hg2prism.analyses.simulation import deviating_policy, leader_fallback, wilson_interval
+    from hg2prism.strategy.records import Strategy
 
     _check_positive(episodes, "--episodes", 1)
     _check_positive(seed, "--seed", 0)

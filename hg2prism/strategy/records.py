@@ -1,0 +1,225 @@
+"""strategy.json: P1's deceptive strategy as records, one per reachable hypergame state that is
+neither goal nor failure (docs/semantics.md §6), and `Strategy`, the one type that holds it:
+read from the records (or the file), asked for P1's move in a hypergame state.
+
+Writers: `strategy_records` (the records as dicts) and `strategy_json` (the file's text, built
+from cached fragments: the same text as json.dumps of each record, for millions of records).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from hg2prism.engines.storm import DecodedStates, Transitions
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.opponent.inference import Memory
+from hg2prism.strategy.deceptive import StormChoices
+
+
+class StrategyError(LookupError):
+    """The strategy has no (or an unreadable) record for a hypergame state."""
+
+
+def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
+                     ts: TransitionSystem) -> list[dict]:
+    """P1's deceptive strategy: one record per reachable non-absorbing canonical state."""
+    records = []
+    described: dict[int, dict] = {}     # a few hundred TS states describe millions of records
+
+    def describe(state: int) -> dict:
+        if state not in described:
+            described[state] = ts.describe_state(state)
+        return dict(described[state])
+
+    cells, traps, countdowns = decoded.cell.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
+    qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
+    windows = decoded.window.tolist()
+    chosen = moves.action[choices.choice].tolist()
+    absorbing = (decoded.goal | decoded.fail).tolist()
+    for s in choices.representative.tolist():
+        if absorbing[s]:
+            continue
+        record = describe(ts.state(cells[s], traps[s], countdowns[s]))
+        record["q"] = qs[s]
+        record["hypothesis"] = hypotheses[s]
+        record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
+        record["action"] = ACTIONS[chosen[s]]
+        records.append(record)
+    return records
+
+
+def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
+                  ts: TransitionSystem) -> str:
+    """strategy.json: the records of `strategy_records`, one compact JSON object per line.
+
+    Built from JSON fragments cached per TS state (and per observed move), because a few
+    hundred TS states describe millions of records: the same text as json.dumps of each record,
+    without creating the records."""
+    states = choices.representative
+    states = states[~(decoded.goal | decoded.fail)[states]]
+    compact = {"separators": (",", ":")}
+    ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
+    prefix = {v: json.dumps(ts.describe_state(v), **compact)[:-1] + ',"q":'
+              for v in np.unique(ts_state).tolist()}
+    window = decoded.window[states]                                   # [n, slots, 2]
+    observed = np.unique(window[..., 0][window[..., 0] >= 0]).tolist()
+    fragment = {v * 4 + a: json.dumps(dict(ts.describe_state(v), action=ACTIONS[a]), **compact)
+                for v in observed for a in range(len(ACTIONS))}
+    codes = np.where(window[..., 0] >= 0, window[..., 0] * 4 + window[..., 1], -1).tolist()
+    tails = [f'],"action":"{a}"}}' for a in ACTIONS]
+    chosen = moves.action[choices.choice[states]].tolist()
+    lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
+             + ",".join([fragment[c] for c in slots if c >= 0]) + tails[a]
+             for v, q, h, slots, a in zip(ts_state.tolist(), decoded.q[states].tolist(),
+                                          decoded.hypothesis[states].tolist(), codes, chosen)]
+    return "[\n" + ",\n".join(lines) + "\n]\n"
+
+
+def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
+    """The TS state of a record's (or window entry's) cell, traps and countdown."""
+    try:
+        cell = tuple(int(c) for c in record["cell"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise StrategyError(f"{where}: bad or missing 'cell' ({err})") from None
+    if cell not in ts.cell_index:
+        raise StrategyError(f"{where}: cell {list(cell)} is not a free cell of the world")
+    index = ts.cell_index[cell]
+    if ts.delay == 0:
+        return ts.state(index)
+    traps = record.get("traps")
+    countdown = record.get("countdown")
+    if traps is None or countdown is None:
+        raise StrategyError(f"{where}: 'traps' and 'countdown' are required when delay > 0")
+    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
+    try:
+        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
+                               for t in traps))
+        trap_set = ts.trap_sets.index(members)
+    except (KeyError, ValueError, TypeError):
+        raise StrategyError(f"{where}: traps {traps} are not a P2 action of the world") from None
+    countdown = int(countdown)
+    if not 0 <= countdown <= ts.delay:
+        raise StrategyError(f"{where}: countdown {countdown} outside 0..{ts.delay}")
+    return ts.state(index, trap_set, countdown)
+
+
+def _action_index(name: object, where: str) -> int:
+    if name not in ACTIONS:
+        raise StrategyError(f"{where}: action {name!r} is not one of {', '.join(ACTIONS)}")
+    return ACTIONS.index(name)
+
+
+Fallback = Callable[[int, int, Memory], int]
+
+
+class Strategy:
+    """P1's memoryless deterministic strategy on hypergame states ``(ts_state, q, Memory)``.
+
+    The exported records cover the states reachable when P2 behaves as modelled. An experiment
+    in which P2 deviates can lead P1 elsewhere (for instance onto a trap candidate the model
+    would have trapped it on); there `action` raises StrategyError unless a `fallback`
+    ``(ts_state, q, memory) -> action index`` is given (see `leader_fallback`).
+    """
+
+    def __init__(self, table: Mapping[tuple[int, int, Memory], int],
+                 ts: TransitionSystem | None = None, fallback: Fallback | None = None,
+                 records: tuple[dict, ...] = ()) -> None:
+        self.table = dict(table)
+        self.ts = ts
+        self.fallback = fallback
+        self.records = records          # the records read (strategy.json's content), if any
+
+    @classmethod
+    def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
+                     fallback: Fallback | None = None) -> "Strategy":
+        """Read the exported records ``{cell, traps, countdown, q, hypothesis, window, action}``."""
+        table: dict[tuple[int, int, Memory], int] = {}
+        records = tuple(records)
+        for i, record in enumerate(records):
+            where = f"strategy record {i}"
+            v = _record_ts_state(ts, record, where)
+            try:
+                q, hypothesis = int(record["q"]), int(record["hypothesis"])
+                entries = list(record["window"])
+            except (KeyError, TypeError, ValueError) as err:
+                raise StrategyError(f"{where}: bad or missing field ({err})") from None
+            window = tuple((_record_ts_state(ts, entry, f"{where}, window entry {j}"),
+                            _action_index(entry.get("action"), f"{where}, window entry {j}"))
+                           for j, entry in enumerate(entries))
+            action = _action_index(record.get("action"), where)
+            key = (v, q, Memory(hypothesis, window))
+            if table.setdefault(key, action) != action:
+                raise StrategyError(f"{where}: conflicting actions {ACTIONS[table[key]]} and "
+                                    f"{ACTIONS[action]} for the same state")
+        return cls(table, ts, fallback, records=tuple(records))
+
+    @classmethod
+    def load(cls, path: str | Path, ts: TransitionSystem,
+             fallback: Fallback | None = None) -> "Strategy":
+        """Read a strategy.json file."""
+        with open(path, encoding="utf-8") as handle:
+            return cls.from_records(json.load(handle), ts, fallback)
+
+    def __len__(self) -> int:
+        return len(self.table)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.table
+
+    def action(self, ts_state: int, q: int, memory: Memory) -> int:
+        """P1's action index (into dynamics.ACTIONS); for a state without a record the
+        fallback's action, or StrategyError when there is no fallback."""
+        try:
+            return self.table[(ts_state, q, memory)]
+        except KeyError:
+            if self.fallback is not None:
+                return int(self.fallback(ts_state, q, memory))
+            raise StrategyError(
+                f"the strategy has no record for the hypergame state "
+                f"{self.describe(ts_state, q, memory)}") from None
+
+    def move(self, cell: tuple[int, int], q: int, hypothesis: int,
+             window: Iterable[tuple] = (), traps: Iterable[tuple[int, int]] | None = None,
+             countdown: int | None = None) -> str:
+        """P1's move ("N", "E", "S" or "W") when the robot is at `cell` (x, y), the task DFA is
+        in `q` (after reading the cell's label), P2 holds `hypothesis` and remembers `window`:
+        (cell, move) pairs, oldest first. With delay > 0, `traps` (cells) and `countdown` give
+        the standing traps, and each window entry is (cell, move, traps, countdown).
+        Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
+        if self.ts is None:
+            raise ValueError("move() needs the strategy's transition system")
+        where = "move()"
+
+        def state(cell, traps, countdown) -> int:
+            return _record_ts_state(self.ts, {"cell": cell, "traps": traps,
+                                              "countdown": countdown}, where)
+
+        try:
+            v = state(cell, traps, countdown)
+            observed = tuple(
+                (state(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None))),
+                 _action_index(entry[1], where)) for entry in window)
+        except StrategyError as err:
+            raise KeyError(str(err)) from None
+        key = (v, int(q), Memory(int(hypothesis), observed))
+        if key not in self.table:
+            raise KeyError(f"no record for {self.describe(*key)}")
+        return ACTIONS[self.table[key]]
+
+    def describe(self, ts_state: int, q: int, memory: Memory) -> str:
+        if self.ts is None:
+            return f"(ts_state={ts_state}, q={q}, {memory})"
+
+        def where(state: int) -> str:
+            d = self.ts.describe_state(state)
+            text = f"cell {d['cell']}"
+            if d["traps"] is not None:
+                text += f" traps {d['traps']} countdown {d['countdown']}"
+            return text
+
+        window = ", ".join(f"{where(s)} {ACTIONS[a]}" for s, a in memory.window)
+        return f"{where(ts_state)}, q={q}, hypothesis={memory.hypothesis}, window=[{window}]"
