@@ -49,7 +49,8 @@ def main(argv: list[str] | None = None) -> int:
         ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
         ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
                 "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
-                "the completion table (table.md) and a picture of one episode (world.png)."),
+                "the completion table (table.md), the figures (world, belief, completion; PNG "
+                "and SVG) and the replay of one episode (replay.gif)."),
     ):
         p = add(name, help + " OUT defaults to the folder next to the world file named after it "
                 "(models/world1.toml -> models/world1/).")
@@ -64,9 +65,14 @@ def main(argv: list[str] | None = None) -> int:
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
             p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+            p.add_argument("--episode", metavar="RULE", default="median",
+                           help="the episode world.png, belief.png and replay.gif draw: median "
+                                "(default: a median-length completed episode of the seeds "
+                                "SEED..SEED+49), shortest (the shortest of them) or seed=N "
+                                "(the episode of seed N)")
 
     p = add("sweep", "Re-solve the world for each value of one parameter and compare the deceptive "
-            "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png and "
+            "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png, sweep.svg and "
             "OUT/<param>_<value>/ (each value's model and strategy).")
     p.add_argument("--param", required=True, metavar="NAME",
                    help="delay, window, threshold or rationality")
@@ -76,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     p = add("detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded episode where P2 deviates "
             "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
             "rate, and P2 running another window or threshold; writes OUT/detection.json and "
-            "OUT/detection.png.")
+            "OUT/detection.png and detection.svg.")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
     p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
@@ -146,6 +152,10 @@ def _command(args: argparse.Namespace) -> int:
                                      f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
             if args.seed is not None and args.seed < 0:
                 raise InputError("command line", "--seed", "must be at least 0")
+        if args.command == "run":
+            from hg2prism.analyses.episodes import parse_episode_rule
+
+            parse_episode_rule(args.episode)
         table = None
         with staged(out, owns=OWNED[args.command]) as stage:
             if args.command == "emit":
@@ -164,7 +174,7 @@ def _command(args: argparse.Namespace) -> int:
                 results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
-                                      storm_method=args.storm_method)
+                                      storm_method=args.storm_method, episode=args.episode)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
         print(tables.summary(results, out, files) if results is not None

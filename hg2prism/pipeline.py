@@ -25,7 +25,8 @@ from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_mo
 from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
 from hg2prism.model.world import World
-from hg2prism.results import CheckResults, Parameters, RunResults, SimulatedRow, Simulations
+from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
+                              Simulations)
 
 
 @contextmanager
@@ -148,18 +149,22 @@ class RunResult:
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
         seed: int | None = None, show_progress: bool = True,
-        storm_method: str = "sound") -> RunResult:
+        storm_method: str = "sound", episode: str | None = None) -> RunResult:
     """Everything computed for a world: the check, the baselines (docs/semantics.md §7), the PRISM-games
-    exports, the online simulations (docs/semantics.md §8), the completion table and the world picture."""
+    exports, the online simulations (docs/semantics.md §8), the completion table, the figures
+    and the replay of the episode `episode` names ("median", the default, "shortest" or
+    "seed=N": docs/semantics.md §8 "The episode drawn")."""
     from hg2prism.analyses import baselines
+    from hg2prism.analyses.episodes import belief_trace, choose_episode, parse_episode_rule
     from hg2prism.prism import game_models
-    from hg2prism.report import plots
+    from hg2prism.report import plots, replay
     from hg2prism.report import tables
     from hg2prism.analyses import simulation
 
-    episodes = episodes or world.simulation.episodes
+    n_episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
     seed = world.simulation.seed if seed is None else seed
+    rule = parse_episode_rule(episode)     # before any work: a bad rule is one line
     checked = check(world, out, storm_method)
     analysis, timings = checked.analysis, checked.analysis.timings
 
@@ -180,16 +185,16 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
 
     with _timed(timings, "simulation"):
         strategy = Strategy.from_records(checked.records, analysis.ts)
-        deceptive = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed,
+        deceptive = simulation.simulate_deceptive(analysis, strategy, n_episodes, horizon, seed,
                                                   progress=show_progress)
         n_q = analysis.task.n_states
         nash_sim = simulation.simulate_nash(
             analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
-            nash.p2.reshape(analysis.ts.n_states * n_q, -1), episodes, horizon, seed,
+            nash.p2.reshape(analysis.ts.n_states * n_q, -1), n_episodes, horizon, seed,
             progress=show_progress)
         leader_p1, leader_p2 = _leader_strategies(analysis)
         leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
-                                              episodes, horizon, seed, progress=show_progress,
+                                              n_episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
         within = {
             "deceptive": storm.induced_within(checked.checked, checked.strategy, horizon),
@@ -201,8 +206,18 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         }
 
     with _timed(timings, "plots"):
-        episode, outcome = _illustrative_episode(analysis, strategy, horizon, seed)
-        plots.world_figure(world, analysis.ts, episode, outcome, out / "world.png")
+        drawn = choose_episode(analysis, strategy, horizon, seed, rule)
+        trace = belief_trace(analysis.inference, drawn.steps)
+        plots.world_figure(world, analysis.ts, drawn, out / "world.png")
+        plots.belief_figure(world, trace, drawn, out / "belief.png")
+        plots.completion_figure(world.name, [
+            ("deceptive vs inference-driven P2", deceptive, within["deceptive"]),
+            ("symmetric, Nash", nash_sim, within["nash"]),
+            ("symmetric, leader", leader_sim, within["leader"])], out / "completion.png")
+    say(f"plots: {drawn.describe()}: seed {drawn.seed}, {drawn.n_steps} steps, {drawn.outcome}")
+    with _timed(timings, "replay"):
+        frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")
+    say(f"replay: replay.gif, {frames} frames ({timings['replay']:.2f} s)")
 
     results = RunResults.extending(
         checked.results,
@@ -216,6 +231,11 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
             nash=SimulatedRow.of(nash_sim, within["nash"]),
             leader=SimulatedRow.of(leader_sim, within["leader"]),
         ),
+        episode=DrawnEpisode(
+            rule=str(drawn.rule), seed=drawn.seed, steps=drawn.n_steps, outcome=drawn.outcome,
+            chosen_as=drawn.describe(), seed_set=drawn.seeds,
+            completed_in_seed_set=len(drawn.completed_lengths) if drawn.seeds else None,
+            replay_frames=frames),
     )
     table = tables.completion_table(results)
     write_text(out / "table.md", table)
@@ -230,24 +250,3 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     p2 = analysis.leader.p2_strategy
     p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
     return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
-
-
-def _illustrative_episode(analysis: Analysis, strategy: Strategy, horizon: int,
-                          seed: int) -> tuple[list, str]:
-    """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
-    clearest picture of the strategy), else the first one."""
-    from hg2prism.analyses import simulation
-
-    first: tuple[list, str] | None = None
-    best: tuple[list, str] | None = None
-    for attempt in range(50):
-        steps: list = []
-        summary = simulation.simulate_deceptive(analysis, strategy, 1, horizon, seed + attempt,
-                                                observer=steps.append, progress=False)
-        outcome = {simulation.GOAL: "task completed", simulation.FAIL: "failed"}.get(
-            int(summary.outcomes[0]), "cut by the horizon")
-        if first is None:
-            first = (steps, f"{outcome}, seed {seed + attempt}")
-        if summary.completed and (best is None or len(steps) < len(best[0])):
-            best = (steps, f"{outcome}, seed {seed + attempt}")
-    return best or first

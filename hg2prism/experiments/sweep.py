@@ -2,7 +2,7 @@
 
 :func:`sweep` re-solves the world for each value of one parameter (``delay``, ``window``,
 ``threshold`` or ``rationality``) and records the deceptive value, V_lead and V_NE at the
-initial state (docs/semantics.md §§6–7). Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``;
+initial state (docs/semantics.md §§6–7). Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.{png,svg}``;
 each value's model, strategy and results stay in ``OUT/<parameter>_<value>/``.
 
 Sweeping ``delay`` needs the traps standing at the start when the delay is positive
@@ -179,7 +179,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
     transitions, storm_states, storm_transitions, initial_traps, seconds}`` per value.
 
     Each value is checked into ``out/<parameter>_<value>/`` (hypergame.prism, strategy.json,
-    results.json); ``out/sweep.json``, ``out/sweep.csv`` and ``out/sweep.png`` summarise them.
+    results.json); ``out/sweep.json``, ``out/sweep.csv`` and ``out/sweep.{png,svg}`` summarise them.
     Progress: one line per value on stderr (the stages' own messages are not shown).
     """
     from hg2prism import pipeline
@@ -258,7 +258,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
                                             for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)
     write_text(out / "sweep.csv", buffer.getvalue())
-    plots.sweep_figure(parameter, rows, out / "sweep.png")
+    plots.sweep_figure(parameter, rows, out / "sweep.png", world.name)
     return rows
 
 

@@ -9,9 +9,9 @@ decoding, the strategy export and the simulations use only this interface, so a 
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from hg2prism.model.dynamics import TransitionSystem
 
@@ -51,3 +51,21 @@ class Observer(Protocol):
     def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
         """The observer written into the hypergame model over `ts`; `labels` maps each move
         to its synchronisation label."""
+
+
+@runtime_checkable
+class ReportsBelief(Protocol):
+    """An observer that can show, step by step, the per-hypothesis numbers its decision rests
+    on (the replay and `belief.png` draw them; docs/semantics.md §8 "The episode drawn"). The
+    CUSUM observer reports its scores Z_x, compared with its threshold; a Bayesian observer
+    would report its posterior p(x | W), with no threshold."""
+
+    belief_name: str           # what the numbers are, for axis labels ("CUSUM score Z_x")
+
+    @property
+    def belief_threshold(self) -> float | None:
+        """The level at which P2 changes her mind (None when the rule has no threshold)."""
+
+    def belief(self, memory: Hashable, observation: Observation) -> Sequence[float]:
+        """One number per hypothesis: what P2 computes when she reads `observation` with
+        memory `memory` (before her update)."""
