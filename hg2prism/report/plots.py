@@ -65,6 +65,7 @@ def _save(fig: plt.Figure, path: Path) -> list[Path]:
         fmt = target.suffix[1:]
         metadata = {"Date": None} if fmt == "svg" else None
         fig.savefig(buffer, format=fmt, dpi=FIGURE_DPI, metadata=metadata)
+        fig.set_layout_engine("none")     # laid out once: the other formats reuse it
         write_bytes(target, buffer.getvalue())
         written.append(target)
     plt.close(fig)
