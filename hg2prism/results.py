@@ -79,7 +79,7 @@ class CheckResults:
     model_commands: dict[str, int]  # hypergame.prism: module name -> number of commands
     parameters: Parameters
     # Seconds per stage, in the order the stages ran: games, generate, parse, build, check,
-    # export (and with `run`: exports, nash, simulation, plots). Unrounded here, rounded in
+    # export (and with `run`: exports, nash, simulation, plots, replay). Unrounded here, rounded in
     # to_json(); a copy, not the pipeline's live dict.
     timings: dict[str, float]
 

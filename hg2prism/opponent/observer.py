@@ -5,6 +5,8 @@ task. An observer says what that memory is, how one observation updates it, whic
 acts on, and how all of it is written into the hypergame's PRISM model. The hypergame, Storm's
 decoding, the strategy export and the simulations use only this interface, so a new observer
 (the Bayesian one of §12) is one new module beside `inference.py` (CUSUM) and its template.
+An observer may also implement `ReportsBelief`, the per-hypothesis numbers its decisions rest
+on, which the figures and the replay of an episode show (§8 "The episode drawn").
 """
 
 from __future__ import annotations

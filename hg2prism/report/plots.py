@@ -182,7 +182,9 @@ def draw_move(ax: plt.Axes, move, colour: str, label: str = "", offset: float = 
     if move.trapped:
         ax.plot(*move.landing, marker="X", ms=16, color=_TRAPPED_COLOUR, zorder=4)
     if label:
+        # along the arrow: labels of vertical moves side by side would collide
         ax.text(*text_at, label, fontsize=6.5, color=colour, ha="center", va="center", zorder=5,
+                rotation=90 if dx == 0 else 0,
                 bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75))
 
 
@@ -225,7 +227,7 @@ def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> lis
         handles.append(plt.Line2D([], [], color=_TRAPPED_COLOUR, marker="X", ms=9, ls="",
                                   label="robot trapped"))
     ax.legend(handles=handles + cell_handles, loc="upper left", bbox_to_anchor=(1.02, 1),
-              fontsize=7, frameon=False)
+              fontsize=7, frameon=False, handlelength=3.2)
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
                  f"task {world.formula}", fontsize=8.5, loc="left")
