@@ -301,9 +301,9 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
     ax.set_xlim(0, horizon)
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("step n")
-    ax.set_ylabel("share of episodes completed within n steps")
+    ax.set_ylabel("share completed within n steps")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="lower right")
+    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
     ax.set_title(f"{world_name}: completion against time, simulated", fontsize=9)
     return _save(fig, path)
 
