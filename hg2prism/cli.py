@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
 
     sub.add_parser("bench", add_help=False,
                    help="Scaling benchmark: worlds of growing size through every stage; writes "
-                        "bench/results.csv and bench/scaling.png (see `hg2prism bench --help`).")
+                        "bench/results.csv and bench/scaling.png and .svg (see `hg2prism bench --help`).")
 
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["bench"]:

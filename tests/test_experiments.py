@@ -397,5 +397,6 @@ def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: P
     world = load_world(write_world(tmp_path, "small", SMALL))
     result = detect.detect(world, tmp_path / "out", episodes=50, show_progress=False)
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["detection.json",
-                                                                     "detection.png"]
+                                                                     "detection.png",
+                                                                     "detection.svg"]
     assert result["compliant"]["false_alarms"] == 0

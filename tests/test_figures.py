@@ -26,7 +26,7 @@ from hg2prism.strategy.records import Strategy
 DPI = 150
 EPISODE_SEEDS = 50
 SIZES = {"belief": (8.0, 3.8), "completion": (6.4, 4.4), "sweep": (6.4, 4.4),
-         "detection": (10.0, 4.2)}
+         "detection": (10.0, 4.2), "scaling": (8.5, 4.8)}
 
 
 def world_inches(width: int, height: int) -> tuple[float, float]:
@@ -180,6 +180,10 @@ def test_sweep_and_detection_figures(tmp_path: Path) -> None:
                            world_name="worldY", seed=3)
     text = assert_figure(tmp_path, "detection", SIZES["detection"])
     assert "worldY" in text and "steps 1–12" in text
+    rows = [{"states": n, "time_games": 0.01 * n ** 0.5, "time_total": 1e-4 * n}
+            for n in (1000, 10000, 100000)]
+    plots.scaling_figure(rows, ("games",), tmp_path / "scaling.png", "bench title")
+    assert "bench title" in assert_figure(tmp_path, "scaling", SIZES["scaling"])
 
 
 @pytest.mark.parametrize("value", ["longest", "seed=", "seed=-1", "seed=x", "median,shortest"])
