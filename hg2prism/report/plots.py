@@ -8,7 +8,6 @@ advance (README "Figures")."""
 from __future__ import annotations
 
 import io
-import math
 from collections.abc import Sequence
 from pathlib import Path
 
