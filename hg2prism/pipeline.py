@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from contextlib import contextmanager
@@ -27,6 +28,7 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_e
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
 from hg2prism.strategy.records import Strategy, record_extras, strategy_json, strategy_records
+from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
@@ -238,9 +240,12 @@ class RunResult:
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
         seed: int | None = None, show_progress: bool = True,
-        storm_method: str = "sound") -> RunResult:
+        storm_method: str = "sound", objective: str = "pmax",
+        bound: int | None = None) -> RunResult:
     """Everything computed for a world: the check, the baselines (docs/semantics.md §7), the PRISM-games
-    exports, the online simulations (docs/semantics.md §8), the completion table and the world picture."""
+    exports, the online simulations (docs/semantics.md §8), the completion table and the world picture.
+    With the bounded objective the bound is the simulation's horizon (the default), so that the
+    simulated rate estimates the bounded value."""
     from hg2prism.analyses import baselines
     from hg2prism.prism import game_models
     from hg2prism.report import plots
@@ -250,7 +255,13 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
     seed = world.simulation.seed if seed is None else seed
-    checked = check(world, out, storm_method)
+    if objective == "bounded":
+        if bound is not None and bound != horizon:
+            raise InputError("command line", "--bound",
+                             f"with run, the bound is the simulation horizon ({horizon}); "
+                             f"got {bound}")
+        bound = horizon
+    checked = check(world, out, storm_method, objective, bound)
     analysis, timings = checked.analysis, checked.analysis.timings
 
     with _timed(timings, "exports"):
@@ -269,8 +280,17 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
 
     with _timed(timings, "simulation"):
-        strategy = Strategy.from_records(checked.records, analysis.ts)
-        deceptive = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed,
+        played = analysis
+        if checked.bounded is None:
+            strategy = Strategy.from_records(checked.records, analysis.ts)
+            deceptive_within = storm.induced_within(checked.checked, checked.strategy, horizon)
+        else:
+            # P1's move depends on the steps taken: P1 tracks them beside P2's memory.
+            strategy = SteppedStrategy(checked.records, analysis.ts, checked.bounded.bound)
+            played = dataclasses.replace(analysis, inference=StepCounter(
+                analysis.inference, checked.bounded.bound - 1))
+            deceptive_within = checked.results.objective.goal_probability
+        deceptive = simulation.simulate_deceptive(played, strategy, episodes, horizon, seed,
                                                   progress=show_progress)
         n_q = analysis.task.n_states
         nash_sim = simulation.simulate_nash(
@@ -282,7 +302,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                                               episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
         within = {
-            "deceptive": storm.induced_within(checked.checked, checked.strategy, horizon),
+            "deceptive": deceptive_within,
             "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
                                                 nash.p2.reshape(analysis.ts.n_states * n_q, -1),
                                                 horizon),
@@ -291,7 +311,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         }
 
     with _timed(timings, "plots"):
-        episode, outcome = _illustrative_episode(analysis, strategy, horizon, seed)
+        episode, outcome = _illustrative_episode(played, strategy, horizon, seed)
         plots.world_figure(world, analysis.ts, episode, outcome, out / "world.png")
 
     results = RunResults.extending(
