@@ -27,7 +27,7 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_e
                                        stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
-from hg2prism.strategy.records import Strategy, record_extras, strategy_json, strategy_records
+from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
 from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.inference import InferenceModel, build_inference
@@ -102,7 +102,7 @@ class CheckResult:
     strategy: StormChoices          # P1's choice in each of Storm's states
     results: CheckResults           # results.json's content: results.to_json()
     out: Path                       # the folder holding hypergame.prism, strategy.json, ...
-    extras: list[dict] | None = None       # keys the records gain after "action", per canonical state
+    extras: RecordExtras | None = None     # keys the records gain after "action"
     dtmc: InducedDTMC | None = None        # the DTMC the exported strategy induces (induced.*)
     bounded: Bounded | None = None         # the step-dependent strategy of --objective bounded
 
@@ -127,7 +127,7 @@ def automata_files(analysis: Analysis) -> dict[str, str]:
 def _objective_strategy(objective: str, bound: int | None, decoded: storm.DecodedStates,
                         checked: storm.CheckedModel, moves: storm.Transitions,
                         ts: TransitionSystem, default: StormChoices
-                        ) -> tuple[StormChoices, list[dict], InducedDTMC, Bounded | None, float]:
+                        ) -> tuple[StormChoices, RecordExtras, InducedDTMC, Bounded | None, float]:
     """P1's strategy for the objective, the records' extra keys, its induced DTMC, the
     step-dependent strategy (bounded only) and the objective's value (docs/semantics.md §6)."""
     mdp = canonical_mdp(decoded, moves)
@@ -137,12 +137,12 @@ def _objective_strategy(objective: str, bound: int | None, decoded: storm.Decode
     action = canonical_actions(default, moves)
     if objective == "pmax":
         dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
-        return default, record_extras(move_values), dtmc, None, checked.value
+        return default, RecordExtras(move_values), dtmc, None, checked.value
     if objective == "lexicographic":
         action = lexicographic_actions(mdp, values, action).action
         strategy = storm_choices(decoded, moves, default.representative, action)
         dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
-        return strategy, record_extras(move_values), dtmc, None, checked.value
+        return strategy, RecordExtras(move_values), dtmc, None, checked.value
     if mdp.n * bound > MAX_BOUNDED_PAIRS:
         raise InputError("command line", "--bound",
                          f"{mdp.n:,} hypergame states x {bound:,} steps is more than the "
@@ -154,7 +154,7 @@ def _objective_strategy(objective: str, bound: int | None, decoded: storm.Decode
                              MAX_BOUNDED_PAIRS)
     except ValueError as err:
         raise InputError("command line", "--bound", str(err)) from None
-    extras = record_extras(move_values, bounded.schedules(), bounded.move_values)
+    extras = RecordExtras(move_values, bounded.schedules(), bounded.move_values)
     return strategy, extras, dtmc, bounded, bounded.value
 
 

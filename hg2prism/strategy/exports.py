@@ -197,18 +197,21 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
 # Writers
 # ---------------------------------------------------------------------------------------------
 
-def _number(p: float) -> str:
-    return repr(float(p))
+def _valuation_lines(dtmc: InducedDTMC, template: str) -> list[str]:
+    """One line per state from `template` ("{}" for the state number, then one per variable),
+    formatted column-wise: far faster than joining each row's fields."""
+    rows = dtmc.valuations.tolist()
+    return [template.format(i, *row) for i, row in enumerate(rows)]
 
 
 def prism_explicit(dtmc: InducedDTMC) -> dict[str, str]:
     """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}. PRISM reads them with
     `prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab -dtmc`."""
     tra = [f"{dtmc.n} {len(dtmc.source)}"]
-    tra += [f"{s} {t} {_number(p)}" for s, t, p in
+    tra += [f"{s} {t} {p!r}" for s, t, p in
             zip(dtmc.source.tolist(), dtmc.target.tolist(), dtmc.probability.tolist())]
     sta = ["(" + ",".join(dtmc.variables) + ")"]
-    sta += [f"{i}:(" + ",".join(map(str, row)) + ")" for i, row in enumerate(dtmc.valuations.tolist())]
+    sta += _valuation_lines(dtmc, "{}:(" + ",".join(["{}"] * len(dtmc.variables)) + ")")
     names = ["init", "deadlock"] + list(dtmc.labels)
     lab = [" ".join(f'{k}="{name}"' for k, name in enumerate(names))]
     members: dict[int, list[int]] = {dtmc.initial: [0]}
@@ -226,19 +229,21 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> str:
     lines = [f"// {line}" for line in comment.splitlines()] + [
         "@type: DTMC", "@value_type: double", "@parameters", "", "@reward_models", "",
         "@nr_states", str(dtmc.n), "@nr_choices", str(dtmc.n), "@model"]
-    starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1))
-    targets, probs = dtmc.target.tolist(), dtmc.probability.tolist()
-    labelled = {name: mask.tolist() for name, mask in dtmc.labels.items()}
-    valuations = dtmc.valuations.tolist()
-    actions = dtmc.action.tolist()
-    for i in range(dtmc.n):
-        names = (["init"] if i == dtmc.initial else []) + [n for n, m in labelled.items() if m[i]]
-        lines.append(f"state {i}" + "".join(f" {n}" for n in names))
-        lines.append("//[" + ", ".join(f"{v}={x}" for v, x in zip(dtmc.variables, valuations[i]))
-                     + "]")
-        move = ACTION_LABELS[ACTIONS[actions[i]]] if actions[i] >= 0 else "absorbing"
-        lines.append(f"\taction {move}")
-        lines += [f"\t\t{targets[k]} : {_number(probs[k])}" for k in range(starts[i], starts[i + 1])]
+    named = ["" for _ in range(dtmc.n)]
+    named[dtmc.initial] = " init"
+    for name, mask in dtmc.labels.items():
+        for i in np.flatnonzero(mask).tolist():
+            named[i] += f" {name}"
+    moves = [ACTION_LABELS[a] for a in ACTIONS]
+    actions = [moves[a] if a >= 0 else "absorbing" for a in dtmc.action.tolist()]
+    headers = _valuation_lines(dtmc, "{}\n//[" + ", ".join(f"{v}={{}}" for v in dtmc.variables)
+                               + "]")
+    branches = [f"\t\t{t} : {p!r}" for t, p in zip(dtmc.target.tolist(),
+                                                     dtmc.probability.tolist())]
+    starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1)).tolist()
+    lines += [f"state {header.replace(chr(10), names + chr(10), 1)}\n\taction {action}\n"
+              + "\n".join(branches[starts[i]:starts[i + 1]])
+              for i, (header, names, action) in enumerate(zip(headers, named, actions))]
     return "\n".join(lines) + "\n"
 
 

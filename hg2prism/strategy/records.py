@@ -25,11 +25,10 @@ class StrategyError(LookupError):
 
 
 def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                     ts: TransitionSystem, extras: Sequence[dict] | None = None) -> list[dict]:
+                     ts: TransitionSystem, extras: RecordExtras | None = None) -> list[dict]:
     """P1's deceptive strategy: one record per reachable non-absorbing canonical state.
 
-    `extras[c]` (see `record_extras`) holds keys added after ``action`` to the record of
-    canonical state c."""
+    `extras` (RecordExtras) adds keys after ``action``."""
     records = []
     described: dict[int, dict] = {}     # a few hundred TS states describe millions of records
 
@@ -53,7 +52,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
         record["action"] = ACTIONS[chosen[s]]
         if extras is not None:
-            record.update(extras[canonical[s]])
+            record.update(extras.fields(canonical[s]))
         records.append(record)
     return records
 
@@ -62,25 +61,40 @@ def _json_number(x: float) -> float | None:
     return None if x != x else x          # NaN (a move without a choice) is written null
 
 
-def record_extras(move_values: np.ndarray, schedules: Sequence[list] | None = None,
-                  bounded_values: np.ndarray | None = None) -> list[dict]:
-    """The keys strategy.json's records gain after ``action``, per canonical state:
-    ``values``, the value of every move ``{"N": ..., "E": ..., "S": ..., "W": ...}`` (from
-    `move_values` [canonical states, 4], clamped into [0, 1], docs/semantics.md §10); for the
-    step-bounded objective also ``schedule`` (runs ``[first step, last step, move]``) and
+class RecordExtras:
+    """The keys strategy.json's records gain after ``action`` (docs/semantics.md §6): ``values``,
+    the value of every move ``{"N": ..., "E": ..., "S": ..., "W": ...}`` (from `move_values`
+    [canonical states, 4], clamped into [0, 1], §10); for the step-bounded objective also
+    ``schedule`` (per canonical state, runs ``[first step, last step, move]``) and
     ``bounded_values`` (each move's probability of the goal within the bound)."""
-    rows = np.clip(move_values, 0.0, 1.0).tolist()
-    extras = [{"values": {m: _json_number(x) for m, x in zip(ACTIONS, row)}} for row in rows]
-    if schedules is not None:
-        bounded = np.clip(bounded_values, 0.0, 1.0).tolist()
-        for extra, schedule, row in zip(extras, schedules, bounded):
-            extra["schedule"] = schedule
-            extra["bounded_values"] = {m: _json_number(x) for m, x in zip(ACTIONS, row)}
-    return extras
+
+    def __init__(self, move_values: np.ndarray, schedules: Sequence[list] | None = None,
+                 bounded_values: np.ndarray | None = None) -> None:
+        self.values = np.clip(move_values, 0.0, 1.0)
+        self.schedules = schedules
+        self.bounded = None if bounded_values is None else np.clip(bounded_values, 0.0, 1.0)
+
+    def fields(self, state: int) -> dict:
+        """The added keys of canonical state `state`'s record."""
+        fields = {"values": {m: _json_number(x) for m, x in zip(ACTIONS, self.values[state].tolist())}}
+        if self.schedules is not None:
+            fields["schedule"] = self.schedules[state]
+            fields["bounded_values"] = {m: _json_number(x)
+                                        for m, x in zip(ACTIONS, self.bounded[state].tolist())}
+        return fields
+
+    def json_tails(self, states: Sequence[int]) -> list[str]:
+        """The added keys of each state's record as compact JSON, ending the record: the text
+        json.dumps gives, built without dumping a dict per record (millions of records)."""
+        if self.schedules is not None or np.isnan(self.values).any():
+            compact = {"separators": (",", ":")}
+            return [json.dumps(self.fields(c), **compact)[1:] for c in states]
+        template = '"values":{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}"
+        return [template.format(*row) for row in self.values[np.asarray(states, dtype=np.int64)].tolist()]
 
 
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                  ts: TransitionSystem, extras: Sequence[dict] | None = None) -> str:
+                  ts: TransitionSystem, extras: RecordExtras | None = None) -> str:
     """strategy.json: the records of `strategy_records`, one compact JSON object per line.
 
     Built from JSON fragments cached per TS state (and per observed move), because a few
@@ -103,8 +117,8 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
         ends = [tails[a] for a in chosen]
     else:
         tails = [f'],"action":"{a}",' for a in ACTIONS]
-        ends = [tails[a] + json.dumps(extras[c], **compact)[1:]
-                for a, c in zip(chosen, decoded.canonical[states].tolist())]
+        ends = [tails[a] + extra for a, extra in
+                zip(chosen, extras.json_tails(decoded.canonical[states].tolist()))]
     lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
              + ",".join([fragment[c] for c in slots if c >= 0]) + end
              for v, q, h, slots, end in zip(ts_state.tolist(), decoded.q[states].tolist(),
