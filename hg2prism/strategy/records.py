@@ -76,7 +76,8 @@ class RecordExtras:
 
     def fields(self, state: int) -> dict:
         """The added keys of canonical state `state`'s record."""
-        fields = {"values": {m: _json_number(x) for m, x in zip(ACTIONS, self.values[state].tolist())}}
+        row = self.values[state].tolist()
+        fields = {"values": {m: _json_number(x) for m, x in zip(ACTIONS, row)}}
         if self.schedules is not None:
             fields["schedule"] = self.schedules[state]
             fields["bounded_values"] = {m: _json_number(x)
@@ -90,7 +91,8 @@ class RecordExtras:
             compact = {"separators": (",", ":")}
             return [json.dumps(self.fields(c), **compact)[1:] for c in states]
         template = '"values":{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}"
-        return [template.format(*row) for row in self.values[np.asarray(states, dtype=np.int64)].tolist()]
+        rows = self.values[np.asarray(states, dtype=np.int64)].tolist()
+        return [template.format(*row) for row in rows]
 
 
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
