@@ -47,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
                             "not sound: flagged in the outputs)")
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
-        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
+        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too, "
+                  "the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) and the DTMC P1's "
+                  "strategy induces (induced.tra/.sta/.lab for PRISM, induced.drn for Storm)."),
         ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
                 "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
                 "the completion table (table.md) and a picture of one episode (world.png)."),
