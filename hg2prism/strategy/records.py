@@ -87,12 +87,12 @@ class RecordExtras:
     def json_tails(self, states: Sequence[int]) -> list[str]:
         """The added keys of each state's record as compact JSON, ending the record: the text
         json.dumps gives, built without dumping a dict per record (millions of records)."""
-        if self.schedules is not None or np.isnan(self.values).any():
+        values = self.values[np.asarray(states, dtype=np.int64)]
+        if self.schedules is not None or np.isnan(values).any():
             compact = {"separators": (",", ":")}
             return [json.dumps(self.fields(c), **compact)[1:] for c in states]
-        template = '"values":{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}"
-        rows = self.values[np.asarray(states, dtype=np.int64)].tolist()
-        return [template.format(*row) for row in rows]
+        template = '"values":{{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}}}"
+        return [template.format(*row) for row in values.tolist()]
 
 
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
