@@ -23,6 +23,7 @@ import reference_exports
 import worldgen
 from conftest import MODELS
 from hg2prism import cli, pipeline
+from hg2prism.analyses import simulation
 from hg2prism.engines import storm
 from hg2prism.model.world import load_world
 
@@ -278,3 +279,21 @@ def test_exports_are_owned_by_check(folder: str, tmp_path: Path, capsys) -> None
     assert json.loads((out / "results.json").read_text())["objective"]["name"] == "lexicographic"
     assert cli.main(["emit", world, "--out", str(out)]) == 0
     assert {p.name for p in out.iterdir()} == {"hypergame.prism", "hypergame.props"}
+
+
+def test_run_simulates_the_bounded_strategy(folder: str, tmp_path: Path) -> None:
+    """`run --objective bounded` plays the step-dependent schedule (P1 counts the steps): the
+    simulated completion within the horizon is consistent with the bounded value."""
+    world = load_world(world_path("gen_d1", folder))
+    result = pipeline.run(world, tmp_path / "out", episodes=4000, horizon=7, seed=11,
+                          show_progress=False, objective="bounded")
+    row = result.results.simulation.deceptive
+    objective = result.results.objective
+    assert objective.bound == 7
+    assert row.exact_within_horizon == pytest.approx(objective.value, abs=TOL)
+    completed = round(row.rate * row.episodes)
+    low, high = simulation.wilson_interval(completed, row.episodes, 0.999)
+    assert low <= objective.value <= high
+    # the same world under the default strategy completes less within 7 steps, or as much
+    default = checked("gen_d1", "pmax", folder)
+    assert storm.induced_within(default.checked, default.strategy, 7) <= objective.value + TOL
