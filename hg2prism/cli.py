@@ -12,6 +12,7 @@ from hg2prism.engines.storm import STORM_METHODS
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.model import sizeguard
 from hg2prism.outputs import OWNED, check_writable, staged
+from hg2prism.strategy.objectives import OBJECTIVES
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -46,7 +47,9 @@ def main(argv: list[str] | None = None) -> int:
                             "not sound: flagged in the outputs)")
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
-        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
+        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too, "
+                  "the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) and the DTMC P1's "
+                  "strategy induces (induced.tra/.sta/.lab for PRISM, induced.drn for Storm)."),
         ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
                 "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
                 "the completion table (table.md), the figures (world, belief, completion; PNG "
@@ -61,6 +64,14 @@ def main(argv: list[str] | None = None) -> int:
                                 f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
         else:
             solver_options(p)
+            p.add_argument("--objective", choices=OBJECTIVES, default="pmax",
+                           help="what P1's exported strategy optimises (docs/semantics.md §6): "
+                                "pmax (default: Pmax, the fastest optimal moves by a discounted "
+                                "score), lexicographic (Pmax, then the fewest expected steps) or "
+                                "bounded (Pmax of reaching the goal within --bound steps; a "
+                                "strategy that depends on the steps taken)")
+            p.add_argument("--bound", type=int, metavar="H",
+                           help="steps of the bounded objective (default: the simulation horizon)")
         if name == "run":
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
@@ -156,13 +167,26 @@ def _command(args: argparse.Namespace) -> int:
             from hg2prism.analyses.episodes import parse_episode_rule
 
             parse_episode_rule(args.episode)
+        if args.command in ("check", "run") and args.bound is not None:
+            if args.objective != "bounded":
+                raise InputError("command line", "--bound", "needs --objective bounded")
+            if args.bound < 1:
+                raise InputError("command line", "--bound", "must be at least 1")
+            if args.bound > world_mod.MAX_HORIZON:
+                raise InputError("command line", "--bound",
+                                 f"must be at most {world_mod.MAX_HORIZON:,}, got {args.bound:,}")
+            if (args.command == "run"
+                    and args.bound != (args.horizon or world.simulation.horizon)):
+                raise InputError("command line", "--bound", "with run, the bound is the "
+                                 "simulation horizon; use --horizon instead")
         table = None
         with staged(out, owns=OWNED[args.command]) as stage:
             if args.command == "emit":
                 pipeline.emit(world, stage)
                 results = None
             elif args.command == "check":
-                results = pipeline.check(world, stage, args.storm_method).results
+                results = pipeline.check(world, stage, args.storm_method, args.objective,
+                                         args.bound).results
             elif args.command == "sweep":
                 rows = sweep.sweep(world, args.param, args.values, stage,
                                          storm_method=args.storm_method)
@@ -174,7 +198,8 @@ def _command(args: argparse.Namespace) -> int:
                 results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
-                                      storm_method=args.storm_method, episode=args.episode)
+                                      storm_method=args.storm_method, episode=args.episode,
+                                      objective=args.objective, bound=args.bound)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
         print(tables.summary(results, out, files) if results is not None

@@ -45,6 +45,7 @@ def write_bytes(path: Path, data: bytes) -> None:
 # a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
 _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
           r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif"
+          r"|task\.(hoa|dot)|hypothesis_\d+\.(hoa|dot)|induced\.(tra|sta|lab|drn)"
           r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,

@@ -18,7 +18,8 @@ if TYPE_CHECKING:
     from hg2prism.analyses.simulation import SimulationSummary
     from hg2prism.model.world import World
 
-__all__ = ["Parameters", "CheckResults", "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults"]
+__all__ = ["Parameters", "StrategyObjective", "CheckResults", "SimulatedRow", "Simulations", "DrawnEpisode",
+           "RunResults"]
 
 TIMING_DIGITS = 4
 """Timings are written to results.json rounded to this many decimals (0.1 ms)."""
@@ -55,6 +56,26 @@ class Parameters:
         }
 
 
+@dataclass(frozen=True)
+class StrategyObjective:
+    """The objective P1's exported strategy optimises and its timing (docs/semantics.md §6
+    "Objectives"), read off the DTMC the strategy induces (induced.tra/.drn): results.json's
+    ``objective``."""
+
+    name: str                       # "pmax" (the default), "bounded" or "lexicographic"
+    bound: int | None               # H of the bounded objective, else None
+    value: float                    # the objective's value: Pmax, or Pmax=? [F<=H "goal"] when bounded
+    goal_probability: float         # P(F "goal") in the strategy's induced DTMC
+    expected_steps: float | None    # E[steps until goal or failure (or the bound)]; None: infinite
+    expected_steps_to_goal: float | None   # E[steps | goal reached]; None: the goal is never reached
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "bound": self.bound, "value": self.value,
+                "goal_probability": self.goal_probability,
+                "expected_steps": self.expected_steps,
+                "expected_steps_to_goal": self.expected_steps_to_goal}
+
+
 def _timings_json(timings: dict[str, float]) -> dict[str, float]:
     return {stage: round(seconds, TIMING_DIGITS) for stage, seconds in timings.items()}
 
@@ -82,6 +103,7 @@ class CheckResults:
     # export (and with `run`: exports, nash, simulation, plots, replay). Unrounded here, rounded in
     # to_json(); a copy, not the pipeline's live dict.
     timings: dict[str, float]
+    objective: StrategyObjective    # what the exported strategy optimises, and its timing
 
     def to_json(self) -> dict:
         """The content of results.json written by `check`."""
@@ -101,6 +123,7 @@ class CheckResults:
             "model_commands": dict(self.model_commands),
             "parameters": self.parameters.to_json(),
             "timings": _timings_json(self.timings),
+            "objective": self.objective.to_json(),
         }
 
 
