@@ -101,6 +101,34 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path) -> None:
     _save(fig, path)
 
 
+def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Path) -> None:
+    """A sweep over several parameters: the deceptive value (solid) and V_lead (dashed) against
+    the first parameter, one colour per combination of the others' values."""
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    first, others = parameters[0], list(parameters[1:])
+    series: dict[tuple, list[dict]] = {}
+    for row in rows:
+        series.setdefault(tuple(row[p] for p in others), []).append(row)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for n, (key, members) in enumerate(series.items()):
+        members = sorted(members, key=lambda r: r[first])
+        xs = [r[first] for r in members]
+        label = ", ".join(f"{p}={v:g}" if isinstance(v, float) else f"{p}={v}"
+                          for p, v in zip(others, key))
+        colour = colours[n % len(colours)]
+        ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour,
+                label=f"deceptive, {label}")
+        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
+                label=f"V_lead, {label}")
+    ax.set_xlabel(first)
+    ax.set_ylabel("P1's completion probability")
+    ax.set_ylim(0, 1.02)
+    ax.set_xticks(sorted({row[first] for row in rows}))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    _save(fig, path)
+
+
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
                      deviate_after: int, detected_at: int | None, path: Path) -> None:
     """The likelihood-ratio statistic G per step against the chi-square threshold."""
