@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     p = add("sweep", "Re-solve the world at every point of a grid of parameter values and "
             "compare the deceptive value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, "
             "sweep.png and a folder per point (its model and strategy). Points run in parallel "
-            "on Dask (docs/semantics.md §14).")
+            "on Dask (docs/semantics.md §7, Sweeps).")
     p.add_argument("--param", required=True, action="append", metavar="NAME",
                    help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
                         + "; repeat --param NAME --values V... to sweep the grid of several")

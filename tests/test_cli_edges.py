@@ -111,7 +111,7 @@ def test_sweep_and_detect_refuse_a_world_above_max_states(tmp_path: Path) -> Non
 
 def test_a_sweep_reports_a_refused_point_and_solves_the_others(tmp_path: Path) -> None:
     # window 1 fits in 2,000 states, window 3 does not: window 1 is solved and written, window 3
-    # is reported with its parameter (exit status 1); docs/semantics.md §14
+    # is reported with its parameter (exit status 1); docs/semantics.md §7, Sweeps
     proc = run_cli(["sweep", WORLD1, "--param", "window", "--values", "1", "3", "--out",
                     str(tmp_path / "out"), "--max-states", "2000", "--workers", "1"], tmp_path)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr

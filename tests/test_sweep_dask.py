@@ -1,5 +1,5 @@
-"""Sweeps over a grid of parameters on Dask (docs/semantics.md §14): a 2-worker LocalCluster gives
-byte-identical outputs (timings aside) to the serial run, every solved point equals the
+"""Sweeps over a grid of parameters on Dask (docs/semantics.md §7, Sweeps): a 2-worker
+LocalCluster gives byte-identical outputs (timings aside) to the serial run, every solved point equals the
 independent reference (tests/reference.py) on the world rewritten by hand, the points the size
 guard refuses are reported with their parameters while the others complete, no worker process
 outlives the sweep and nothing but the progress lines reaches stderr.
@@ -63,7 +63,7 @@ def rewritten(text: str, point: dict) -> str:
 
 
 def folder_of(point: dict) -> str:
-    """`delay_1__traps_2__slip_0.1__window_1`, as docs/semantics.md §14 names a point's folder."""
+    """`delay_1__traps_2__slip_0.1__window_1`, as docs/semantics.md §7 names a point's folder."""
     return "__".join(f"{k}_{v:g}" if isinstance(v, float) else f"{k}_{v}" for k, v in point.items())
 
 

@@ -3,9 +3,9 @@
 :func:`sweep_grid` re-solves the world at every point of the cartesian product of one or more
 parameters' values (the table :data:`SWEEP_PARAMETERS`: ``delay``, ``window``, ``threshold``,
 ``rationality``, ``slip``, ``traps``) and records the deceptive value, V_lead and V_NE at the
-initial state (docs/semantics.md §§6-7, §14). :func:`sweep` is the one-parameter case. Writes
-``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``; each point's model, strategy and
-results stay in ``OUT/<parameter>_<value>/`` (one parameter) or
+initial state (docs/semantics.md §§6-7; the sweep itself: §7, Sweeps). :func:`sweep` is the
+one-parameter case. Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``; each
+point's model, strategy and results stay in ``OUT/<parameter>_<value>/`` (one parameter) or
 ``OUT/<p1>_<v1>__<p2>_<v2>/`` (several).
 
 The points run serially in this process (``workers=1``, the library's default) or on Dask
@@ -19,7 +19,7 @@ A point that fails (the size guard, a solver or Storm error, a worker lost) is r
 parameters and the others go on; only when the size guard refuses every point is the sweep
 refused as a whole, before anything is solved.
 
-The traps standing at the start when a point has a positive delay (docs/semantics.md §2, §14):
+The traps standing at the start when a point has a positive delay (docs/semantics.md §2 and §7, Sweeps):
 the world's own ``initial_traps`` when it has them (a world loaded with delay > 0); otherwise the
 ``[adversary] initial_traps`` written in the world file (the loader drops them when delay = 0;
 here they are checked as if delay were positive, and an empty list counts as none); otherwise
@@ -69,7 +69,7 @@ class SweepParameter:
     """One sweepable parameter. `parse` turns a value as given (a command-line string or a
     Python value) into the parameter's value, raising ValueError with what is expected; `apply`
     returns the world with that value (InputError when the value does not fit this world);
-    `moves_traps` says the standing traps must be worked out again (docs/semantics.md §14)."""
+    `moves_traps` says the standing traps must be worked out again (docs/semantics.md §7, Sweeps)."""
 
     name: str
     expected: str
@@ -343,7 +343,7 @@ def _world_of(task: PointTask) -> World:
 
 
 def solve_point(task: PointTask) -> PointOutcome:
-    """Solve one point (docs/semantics.md §14): the size guard, `check` into a private
+    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, `check` into a private
     temporary folder, the Nash baseline; the row and the folder's files come back. Every error
     becomes the outcome's one-line `error`, so that one point's failure loses no other."""
     from hg2prism import pipeline
@@ -556,7 +556,7 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     Points run serially here when ``workers == 1`` and no `scheduler` is given, otherwise on
     Dask (module docstring). Each point is checked into ``out/<folder>/`` (hypergame.prism,
     strategy.json, results.json); ``out/sweep.json``, ``sweep.csv`` and ``sweep.png`` summarise
-    them (docs/semantics.md §14 gives their format). Progress: one line per finished point on
+    them (docs/semantics.md §7, Sweeps, gives their format). Progress: one line per finished point on
     stderr, with the count of points done. Raises InputError for a bad parameter or value, or
     when the size guard (`max_states`) refuses every point; other failures are per point.
     """
