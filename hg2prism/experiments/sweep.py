@@ -463,6 +463,7 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
     import logging
     import warnings
 
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
 
     # The workers' and the scheduler's logs (start-up, shutdown, heartbeats) are noise here;
@@ -477,8 +478,12 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             if scheduler is None:
-                cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.CRITICAL)
+                # A worker lost on a point (its share of the memory exceeded) fails that point
+                # at once rather than after Dask's retries of the same heavy point.
+                with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+                    cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                           processes=True, dashboard_address=None,
+                                           silence_logs=logging.CRITICAL)
                 client = Client(cluster)
             else:
                 try:
@@ -559,6 +564,8 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     them (docs/semantics.md §7, Sweeps, gives their format). Progress: one line per finished point on
     stderr, with the count of points done. Raises InputError for a bad parameter or value, or
     when the size guard (`max_states`) refuses every point; other failures are per point.
+    A script that calls this with ``workers > 1`` needs the ``if __name__ == "__main__":``
+    guard, as any program starting processes by spawning does.
     """
     if workers < 1:
         raise InputError(_CLI, "--workers", f"must be at least 1, got {workers}")
