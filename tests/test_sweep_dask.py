@@ -8,10 +8,11 @@ outlives the sweep and nothing but the progress lines reaches stderr.
 from __future__ import annotations
 
 import contextlib
-import io
 import itertools
 import json
+import os
 import re
+import sys
 from pathlib import Path
 
 import psutil
@@ -78,6 +79,22 @@ def children() -> list[psutil.Process]:
             if "multiprocessing.resource_tracker" not in " ".join(p.cmdline())]
 
 
+@contextlib.contextmanager
+def stderr_to(path: Path):
+    """sys.stderr and file descriptor 2 (which the worker processes inherit) appended to `path`."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with open(path, "a") as handle:
+        os.dup2(handle.fileno(), 2)
+        try:
+            with contextlib.redirect_stderr(handle):
+                yield
+        finally:
+            handle.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory):
     """The grid swept serially and on a 2-worker LocalCluster (stderr of the Dask run kept)."""
@@ -88,12 +105,12 @@ def runs(tmp_path_factory: pytest.TempPathFactory):
     before = children()
     serial = sweep.sweep_grid(world, GRID, base / "serial", show_progress=False,
                               max_states=LIMIT)
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err):
+    log = base / "stderr.txt"
+    with stderr_to(log):
         dask = sweep.sweep_grid(world, GRID, base / "dask", show_progress=True, workers=2,
                                 max_states=LIMIT)
     after = children()
-    return path, world, serial, dask, base, err.getvalue(), before, after
+    return path, world, serial, dask, base, log.read_text(), before, after
 
 
 def points() -> list[dict]:
