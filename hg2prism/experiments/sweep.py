@@ -315,6 +315,7 @@ class PointTask:
     folder: str
     storm_method: str
     max_states: int | None
+    estimate: int = 0                       # the size guard's estimate: bigger starts earlier
 
 
 @dataclass(frozen=True)
@@ -420,6 +421,8 @@ def _world_text(world: World) -> str | None:
 
 def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
            max_states: int | None) -> list[PointTask]:
+    from hg2prism.model import sizeguard
+
     text = _world_text(world)
     tasks = []
     for index, assignment in enumerate(points):
@@ -429,7 +432,8 @@ def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
                         if f.name in ("name", "path") or getattr(point, f.name) != getattr(world, f.name))
         tasks.append(PointTask(index, tuple(assignment.items()), text,
                                None if text is not None else world, str(world.path), changes,
-                               _folder(assignment), storm_method, max_states))
+                               _folder(assignment), storm_method, max_states,
+                               min(sizeguard.estimate_states(point), 2**62)))
     return tasks
 
 
@@ -492,8 +496,11 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
                     raise InputError(_CLI, "--scheduler", f"cannot reach a Dask scheduler at "
                                                           f"{scheduler}: {err}") from None
         try:
-            futures = client.map(solve_point, tasks, pure=False)
-            index_of = {future.key: task.index for future, task in zip(futures, tasks)}
+            # largest first (by the size estimate), so that a big point does not start last
+            # and leave the other workers idle; the scheduler hands out tasks as they arrive
+            by_size = sorted(tasks, key=lambda task: (-task.estimate, task.index))
+            futures = client.map(solve_point, by_size, pure=False)
+            index_of = {future.key: task.index for future, task in zip(futures, by_size)}
             for future in as_completed(futures):
                 try:
                     yield future.result()
