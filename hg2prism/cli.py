@@ -11,8 +11,12 @@ from hg2prism import __version__, progress
 from hg2prism.engines.storm import STORM_METHODS
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.model import sizeguard
+from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
+from hg2prism.experiments.sweep import SWEEP_PARAMETERS
 from hg2prism.outputs import OWNED, check_writable, staged
 from hg2prism.strategy.objectives import OBJECTIVES
+
+SWEEP_PARAMETER_NAMES = tuple(SWEEP_PARAMETERS)
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -82,13 +86,22 @@ def main(argv: list[str] | None = None) -> int:
                                 "SEED..SEED+49), shortest (the shortest of them) or seed=N "
                                 "(the episode of seed N)")
 
-    p = add("sweep", "Re-solve the world for each value of one parameter and compare the deceptive "
-            "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png, sweep.svg and "
-            "OUT/<param>_<value>/ (each value's model and strategy).")
-    p.add_argument("--param", required=True, metavar="NAME",
-                   help="delay, window, threshold or rationality")
-    p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
+    p = add("sweep", "Re-solve the world at every point of a grid of parameter values and "
+            "compare the deceptive value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, "
+            "sweep.png/.svg and a folder per point (its model and strategy). Points run in parallel "
+            "on Dask (docs/semantics.md §7, Sweeps).")
+    p.add_argument("--param", required=True, action="append", metavar="NAME",
+                   help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
+                        + "; repeat --param NAME --values V... to sweep the grid of several")
+    p.add_argument("--values", required=True, action="append", nargs="+", metavar="V",
+                   help="the values of the --param before it")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: the number of "
+                        "cores); 1 solves the points one after another in this process")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the points on the Dask cluster whose scheduler is at ADDRESS "
+                        "(e.g. tcp://host:8786) instead of a local one")
     solver_options(p)
     p = add("detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded episode where P2 deviates "
             "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
@@ -145,10 +158,17 @@ def _command(args: argparse.Namespace) -> int:
         if args.max_states is not None and args.max_states < 1:
             raise InputError("command line", "--max-states", "must be at least 1")
         if args.command == "sweep":
-            # every swept world is guarded before the first is solved
-            for value in sweep.parse_sweep_values(args.param, args.values):
-                swept = sweep.sweep_world(world, args.param, value)
-                sizeguard.check_size(swept, args.max_states)
+            if len(args.param) != len(args.values):
+                raise InputError("command line", "--values", "each --param needs its own "
+                                 "--values, right after it")
+            grid = list(zip(args.param, args.values))
+            if args.workers is not None and args.workers < 1:
+                raise InputError("command line", "--workers", "must be at least 1")
+            if args.workers is not None and args.scheduler is not None:
+                raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
+                                 "its own workers; leave out --workers")
+            # every point is guarded before the first is solved: all refused refuses the sweep
+            sweep.check_grid(world, grid, args.max_states)
         else:
             sizeguard.check_size(world, args.max_states)
         check_writable(out)
@@ -180,7 +200,9 @@ def _command(args: argparse.Namespace) -> int:
                 raise InputError("command line", "--bound", "with run, the bound is the "
                                  "simulation horizon; use --horizon instead")
         table = None
-        with staged(out, owns=OWNED[args.command]) as stage:
+        failed: tuple[dict, ...] = ()
+        owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
+        with staged(out, owns=owns) as stage:
             if args.command == "emit":
                 pipeline.emit(world, stage)
                 results = None
@@ -188,10 +210,14 @@ def _command(args: argparse.Namespace) -> int:
                 results = pipeline.check(world, stage, args.storm_method, args.objective,
                                          args.bound).results
             elif args.command == "sweep":
-                rows = sweep.sweep(world, args.param, args.values, stage,
-                                         storm_method=args.storm_method)
-                results, table = None, "\n".join(
-                    sweep.sweep_summary_lines(args.param, rows, world.name))
+                workers = (args.workers if args.workers is not None
+                           else sweep.default_workers())
+                run = sweep.sweep_grid(world, grid, stage, storm_method=args.storm_method,
+                                       workers=workers, scheduler=args.scheduler,
+                                       max_states=args.max_states)
+                failed = run.failed
+                results, table = None, "\n".join(sweep.sweep_summary_lines(
+                    [name for name, _ in run.parameters], run.rows, world.name))
             elif args.command == "detect":
                 detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
                                                storm_method=args.storm_method)
@@ -207,7 +233,11 @@ def _command(args: argparse.Namespace) -> int:
         if table:
             print()
             print(table)
-        return 0
+        for point in failed:     # the other points' outputs are written; these have none
+            where = sweep.point_label({k: v for k, v in point.items() if k != "error"})
+            print(f"hg2prism: error: {args.world}: sweep point {where}: {point['error']}",
+                  file=sys.stderr)
+        return 1 if failed else 0
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2

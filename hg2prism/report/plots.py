@@ -347,6 +347,45 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
 DETECTION_ZOOM = 6      # steps shown either side of the detection in the zoomed panel
 
 
+def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Path,
+                      world_name: str | None = None) -> list[Path]:
+    """A sweep over several parameters: the deceptive value (solid) and V_lead (dashed) against
+    the first parameter, one colour per combination of the others' values; the same axis and
+    legend rules as :func:`sweep_figure`."""
+    fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    first, others = parameters[0], list(parameters[1:])
+    series: dict[tuple, list[dict]] = {}
+    for row in rows:
+        series.setdefault(tuple(row[p] for p in others), []).append(row)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for n, (key, members) in enumerate(series.items()):
+        members = sorted(members, key=lambda r: r[first])
+        xs = [r[first] for r in members]
+        label = ", ".join(f"{p}={_value_text(v)}" if isinstance(v, float) else f"{p}={v}"
+                          for p, v in zip(others, key))
+        colour = colours[n % len(colours)]
+        ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour,
+                label=f"deceptive, {label}")
+        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
+                label=f"V_lead, {label}")
+    xs = sorted({row[first] for row in rows})
+    if first in LOG_PARAMETERS:
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xlabel(f"{first} (log scale)")
+    else:
+        ax.set_xlabel(first)
+    ax.set_xticks(xs, [_value_text(x) for x in xs])
+    ax.set_ylabel("P1's completion probability")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    title = f"completion probability at the initial state against {' x '.join(parameters)}"
+    ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
+    return _save(fig, path)
+
+
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
                      deviate_after: int, detected_at: int | None, path: Path,
                      world_name: str | None = None, seed: int | None = None) -> list[Path]:
