@@ -44,6 +44,7 @@ ANSWER_TIE = 1e-9       # leader-game moves this close to the best answer to a2 
 DISCOUNT = 0.9          # the fastest-first rule's discount (docs/semantics.md §6, §7)
 SCORE_TIE = 1e-12       # relative tie between discounted scores (docs/semantics.md §6)
 RESIDUAL = 1e-11        # accepted residual of a solved value vector (docs/semantics.md §10)
+STRICT = 1e-12          # policy iteration switches a move only when it gains more than this
 
 GOAL, FAIL = 0, 1       # the merged absorbing states of an InducedChain
 
@@ -70,7 +71,7 @@ def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
     trap_choice = np.asarray(games[first_guess].trap_choice)
     p2 = np.repeat(trap_choice, n_q)                                   # [G]
     game = concurrent_game(ts, task)
-    values = best_response_value(game, np.eye(ts.n_sets)[p2])
+    values = best_response_value(game, np.eye(ts.n_sets)[p2], improvement=STRICT)
     _certify_mdp(game, p2, values)
     moves = fastest_moves(ts, task, values, p2, DISCOUNT)
     arena = product(ts, task)
