@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 test bench clean
+.PHONY: world1 world2 world3 test bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,9 @@ world2: $(STAMP)
 	$(BIN)/hg2prism run models/world2.toml
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
 	$(BIN)/hg2prism detect models/world2.toml
+
+world3: $(STAMP)
+	$(BIN)/hg2prism run models/world3.toml
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench
