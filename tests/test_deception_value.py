@@ -1,7 +1,7 @@
 """What the deception is worth (docs/semantics.md §11).
 
 * V_static and V_naive equal an independent computation (tests/reference_deception.py, written
-  from the semantics alone) within 1e-6, on world1 and 33 generated worlds;
+  from the semantics alone) within 1e-6, on world1, world3 and 35 generated worlds;
 * invariants: V_naive <= deceptive value (the naive strategy is one of P1's strategies in the
   hypergame), V_lead <= V_static (P2's fixed policy is one of her leader-game strategies), and
   V_static = deceptive value when P2 has a single hypothesis (she can never revise it);
@@ -10,7 +10,8 @@
   within-horizon probabilities (99.9 % Wilson interval);
 * the simulated share of episodes in which P2 changes her hypothesis agrees with the exact
   probability of a change within the horizon, computed by the reference on the chain the
-  exported strategy induces (99.9 % Wilson interval).
+  exported strategy induces (99.9 % Wilson interval);
+* world3 has the properties it was designed for (README, "What deception is worth").
 """
 
 from __future__ import annotations
@@ -48,8 +49,8 @@ def solved(tmp_path_factory: pytest.TempPathFactory):
 
     def get(name: str):
         if name not in cache:
-            if name == "world1":
-                path = MODELS / "world1.toml"
+            if name in ("world1", "world3"):
+                path = MODELS / f"{name}.toml"
             else:
                 path = folder / f"{name}.toml"
                 path.write_text(FAMILY[name])
@@ -67,7 +68,7 @@ def test_family_size() -> None:
     assert len(NAMES) >= 33 and SINGLE <= set(NAMES)
 
 
-@pytest.mark.parametrize("name", ["world1"] + NAMES)
+@pytest.mark.parametrize("name", ["world1", "world3"] + NAMES)
 def test_values_match_reference_and_invariants(name: str, solved) -> None:
     path, checked, worth = solved(name)
     deceptive, v_lead = checked.results.deceptive_value, checked.results.v_lead
@@ -197,3 +198,24 @@ def test_simulated_switches_agree_with_exact(name: str, solved) -> None:
     assert low <= exact <= high, (sim.p2_switched, exact)
     assert sim.p2_switches >= sim.p2_switched
     assert 0.01 < exact < 0.99
+
+
+def test_world3_deception_steers_belief(solved) -> None:
+    """world3 is what the README says: the deceptive value exceeds V_static and V_naive by at
+    least 0.1, and P2 changes her mind in at least half of the deceptive episodes (simulated,
+    and exactly within the horizon by the reference)."""
+    path, checked, worth = solved("world3")
+    deceptive = checked.results.deceptive_value
+    assert deceptive - max(worth.v_static, worth.v_naive) >= 0.1
+    analysis = checked.analysis
+    horizon, episodes = 50, 2000
+    strategy = Strategy.from_records(checked.records, analysis.ts)
+    sim = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed=3,
+                                        progress=False)
+    ref = reference_deception.Deception(path)
+    numbering = _dfa_numbering(checked, ref)
+    records = [dict(record, q=numbering[record["q"]]) for record in checked.records]
+    exact = reference_deception.switch_probability(ref.w, records, horizon)
+    low, high = simulation.wilson_interval(sim.p2_switched, episodes, 0.999)
+    assert low <= exact <= high
+    assert sim.p2_switched >= episodes / 2 and exact >= 0.5
