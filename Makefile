@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 sweep-demo test bench clean
+.PHONY: world1 world2 world3 sweep-demo test bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,9 @@ world2: $(STAMP)
 sweep-demo: $(STAMP)
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3 \
 		--param window --values 1 2 --out models/world2_grid
+
+world3: $(STAMP)
+	$(BIN)/hg2prism run models/world3.toml
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

@@ -243,12 +243,13 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         storm_method: str = "sound", episode: str | None = None, objective: str = "pmax",
         bound: int | None = None) -> RunResult:
     """Everything computed for a world: the check, the baselines (docs/semantics.md §7), the PRISM-games
-    exports, the online simulations (docs/semantics.md §8), the completion table, the figures
-    and the replay of the episode `episode` names ("median", the default, "shortest" or
-    "seed=N": docs/semantics.md §8 "The episode drawn").
+    exports, V_static and V_naive (docs/semantics.md §11), the online simulations
+    (docs/semantics.md §8), the completion table, the figures and the replay of the episode
+    `episode` names ("median", the default, "shortest" or "seed=N": docs/semantics.md §8
+    "The episode drawn").
     With the bounded objective the bound is the simulation's horizon (the default), so that the
     simulated rate estimates the bounded value."""
-    from hg2prism.analyses import baselines
+    from hg2prism.analyses import baselines, deception_value
     from hg2prism.analyses.episodes import belief_trace, choose_episode, parse_episode_rule
     from hg2prism.prism import game_models
     from hg2prism.report import plots, replay
@@ -283,6 +284,12 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         warn(f"P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
 
+    with _timed(timings, "deception"):
+        worth = deception_value.deception_values(analysis, checked.results.deceptive_value)
+    say(f"deception: V_static = {worth.v_static:.6f}, V_naive = {worth.v_naive:.6f} "
+        f"({worth.naive_chain.size} states), value of deception "
+        f"{worth.value_of_deception:.6f} ({timings['deception']:.2f} s)")
+
     with _timed(timings, "simulation"):
         played = analysis
         if checked.bounded is None:
@@ -305,6 +312,12 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
                                               n_episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
+        static_p1, static_p2 = np.eye(4)[worth.static.p1], np.eye(analysis.ts.n_sets)[worth.static.p2]
+        static_sim = simulation.simulate_nash(analysis.ts, analysis.task, static_p1, static_p2,
+                                              n_episodes, horizon, seed, progress=show_progress,
+                                              label="simulate static")
+        naive_sim = simulation.simulate_deceptive(analysis, worth.naive, n_episodes, horizon, seed,
+                                                  progress=show_progress, label="simulate naive")
         within = {
             "deceptive": deceptive_within,
             "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
@@ -312,6 +325,9 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                                                 horizon),
             "leader": simulation.exact_completion(analysis.ts, analysis.task, leader_p1, leader_p2,
                                                   horizon),
+            "static": simulation.exact_completion(analysis.ts, analysis.task, static_p1, static_p2,
+                                                  horizon),
+            "naive": worth.naive_chain.within(horizon),
         }
 
     with _timed(timings, "plots"):
@@ -334,11 +350,16 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         v_ne=nash.v_ne,
         v_ne_p1_guaranteed=nash.v_ne_p1_guaranteed,
         v_ne_bounds=nash.v_ne_bounds,
+        v_static=worth.v_static,
+        v_naive=worth.v_naive,
+        value_of_deception=worth.value_of_deception,
         simulation=Simulations(
             horizon=horizon, seed=seed,
-            deceptive=SimulatedRow.of(deceptive, within["deceptive"]),
+            deceptive=SimulatedRow.of(deceptive, within["deceptive"], switches=True),
             nash=SimulatedRow.of(nash_sim, within["nash"]),
             leader=SimulatedRow.of(leader_sim, within["leader"]),
+            static=SimulatedRow.of(static_sim, within["static"]),
+            naive=SimulatedRow.of(naive_sim, within["naive"], switches=True),
         ),
         episode=DrawnEpisode(
             rule=str(drawn.rule), seed=drawn.seed, steps=drawn.n_steps, outcome=drawn.outcome,

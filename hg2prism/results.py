@@ -1,8 +1,8 @@
 """What `check` and `run` compute for one world, as typed values (docs/semantics.md §§6–8).
 
 :func:`hg2prism.pipeline.check` returns a :class:`CheckResults`, :func:`hg2prism.pipeline.run`
-a :class:`RunResults` (the check's fields, the symmetric baselines of §7 and the simulations of
-§8). Each ``to_json()`` returns the content of ``results.json``: the keys in the order the file
+a :class:`RunResults` (the check's fields, the symmetric baselines of §7, V_static and V_naive of §11 and the
+simulations of §8). Each ``to_json()`` returns the content of ``results.json``: the keys in the order the file
 lists them, the numbers unchanged except the timings, rounded to 0.1 ms. The report
 (:mod:`hg2prism.report.tables`), the experiments and the Python API read the attributes.
 
@@ -136,15 +136,27 @@ class SimulatedRow:
     episodes: int
     truncated: int                  # episodes cut by the horizon (not completed)
     exact_within_horizon: float     # P(goal within `horizon` steps) for the pair simulated (§8)
+    # Rows played against P2's inference (§11): the share of episodes in which her hypothesis
+    # changed at least once, and the mean number of changes per episode; None for the others.
+    p2_switched: float | None = None
+    p2_switches_mean: float | None = None
 
     @classmethod
-    def of(cls, summary: SimulationSummary, exact_within_horizon: float) -> SimulatedRow:
+    def of(cls, summary: SimulationSummary, exact_within_horizon: float,
+           switches: bool = False) -> SimulatedRow:
+        """The row of a simulation; with `switches`, P2's changes of hypothesis too."""
         return cls(rate=summary.rate, ci95=tuple(summary.ci95), episodes=summary.episodes,
-                   truncated=summary.truncated, exact_within_horizon=exact_within_horizon)
+                   truncated=summary.truncated, exact_within_horizon=exact_within_horizon,
+                   p2_switched=summary.p2_switched / summary.episodes if switches else None,
+                   p2_switches_mean=summary.p2_switches / summary.episodes if switches else None)
 
     def to_json(self) -> dict:
-        return {"rate": self.rate, "ci95": list(self.ci95), "episodes": self.episodes,
-                "truncated": self.truncated, "exact_within_horizon": self.exact_within_horizon}
+        row = {"rate": self.rate, "ci95": list(self.ci95), "episodes": self.episodes,
+               "truncated": self.truncated, "exact_within_horizon": self.exact_within_horizon}
+        if self.p2_switched is not None:
+            row["p2_switched"] = self.p2_switched
+            row["p2_switches_mean"] = self.p2_switches_mean
+        return row
 
 
 @dataclass(frozen=True)
@@ -157,11 +169,14 @@ class Simulations:
     deceptive: SimulatedRow         # P1's deceptive strategy against P2's inference (§6, §8)
     nash: SimulatedRow              # both players' extracted Nash strategies (§7)
     leader: SimulatedRow            # P2's leader strategy and P1's answer to it (§7)
+    static: SimulatedRow            # P2 keeps her first guess, P1's best response to it (§11)
+    naive: SimulatedRow             # P1's leader-game answers against P2's inference (§11)
 
     def to_json(self) -> dict:
         return {"horizon": self.horizon, "seed": self.seed,
                 "deceptive": self.deceptive.to_json(), "nash": self.nash.to_json(),
-                "leader": self.leader.to_json()}
+                "leader": self.leader.to_json(), "static": self.static.to_json(),
+                "naive": self.naive.to_json()}
 
 
 @dataclass(frozen=True)
@@ -189,33 +204,41 @@ class DrawnEpisode:
 @dataclass(frozen=True)
 class RunResults(CheckResults):
     """What `hg2prism run` computes: the check's results (with the timings of every stage of
-    the run), the Nash baseline with its sound bracket (docs/semantics.md §7) and the online
-    simulations (§8)."""
+    the run), the Nash baseline with its sound bracket (docs/semantics.md §7), what the
+    deception is worth (§11) and the online simulations (§8)."""
 
     v_ne: float                     # V_NE at the initial state, inside v_ne_bounds (§7)
     v_ne_p1_guaranteed: float       # what P1's extracted Nash strategy guarantees: the lower end (§7)
     v_ne_bounds: tuple[float, float]  # sound bracket (lower, upper) around V_NE (§7)
+    v_static: float                 # P2 never revises her first guess; P1 knows it (§11)
+    v_naive: float                  # P1 plays the leader game against P2's inference (§11)
+    value_of_deception: float       # deceptive_value - v_naive (§11)
     simulation: Simulations
     episode: DrawnEpisode | None = None     # the episode world.png and replay.gif draw
 
     @classmethod
     def extending(cls, check: CheckResults, *, timings: dict[str, float], v_ne: float,
                   v_ne_p1_guaranteed: float, v_ne_bounds: tuple[float, float],
+                  v_static: float, v_naive: float, value_of_deception: float,
                   simulation: Simulations, episode: DrawnEpisode | None = None) -> RunResults:
         """The check's results, with the run's timings and the run's additions."""
         inherited = {f.name: getattr(check, f.name) for f in fields(CheckResults)}
         inherited["timings"] = timings
         return cls(**inherited, v_ne=v_ne, v_ne_p1_guaranteed=v_ne_p1_guaranteed,
-                   v_ne_bounds=tuple(v_ne_bounds), simulation=simulation, episode=episode)
+                   v_ne_bounds=tuple(v_ne_bounds), v_static=v_static, v_naive=v_naive,
+                   value_of_deception=value_of_deception, simulation=simulation, episode=episode)
 
     def to_json(self) -> dict:
         """The content of results.json written by `run`: the check's keys (``timings`` keeps
-        its place), then the baselines and the simulations."""
+        its place), then the baselines, what the deception is worth and the simulations."""
         return {
             **super().to_json(),
             "v_ne": self.v_ne,
             "v_ne_p1_guaranteed": self.v_ne_p1_guaranteed,
             "v_ne_bounds": list(self.v_ne_bounds),
+            "v_static": self.v_static,
+            "v_naive": self.v_naive,
+            "value_of_deception": self.value_of_deception,
             "simulation": self.simulation.to_json(),
             **({"episode": self.episode.to_json()} if self.episode is not None else {}),
         }

@@ -47,16 +47,22 @@ def test_run_simulations_agree_with_exact_bounded_probabilities(name: str, tmp_p
     result = pipeline.run(world, out, episodes=3000, horizon=60, seed=7, show_progress=False)
     r = result.results
     assert r.v_ne <= r.v_lead + 1e-6 <= r.deceptive_value + 2e-6
-    for row in ("deceptive", "nash", "leader"):
+    assert r.v_naive <= r.deceptive_value + 1e-6 and r.v_lead <= r.v_static + 1e-6
+    assert r.value_of_deception == r.deceptive_value - r.v_naive
+    for row in ("deceptive", "nash", "leader", "static", "naive"):
         sim = getattr(r.simulation, row)
         successes = round(sim.rate * sim.episodes)
         low, high = wilson_interval(successes, sim.episodes, 0.999)
         assert low <= sim.exact_within_horizon <= high, (row, sim)
         assert sim.exact_within_horizon <= {"deceptive": r.deceptive_value, "nash": 1.0,
-                                            "leader": r.v_lead}[row] + 1e-6
+                                            "leader": r.v_lead, "static": r.v_static,
+                                            "naive": r.v_naive}[row] + 1e-6
+    assert 0.0 <= r.simulation.deceptive.p2_switched <= 1.0
+    assert r.simulation.deceptive.p2_switches_mean >= r.simulation.deceptive.p2_switched
     saved = json.loads((out / "results.json").read_text())
     for key in ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states", "transitions",
-                "storm_states", "storm_transitions", "storm_choices", "timings", "simulation"):
+                "storm_states", "storm_transitions", "storm_choices", "timings", "simulation",
+                "v_static", "v_naive", "value_of_deception"):
         assert key in saved
     # results.json is the typed results' to_json(), keys in the same order
     assert saved == result.results.to_json()

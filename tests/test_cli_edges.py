@@ -155,7 +155,8 @@ def test_simulation_progress_names_the_simulation(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     lines = [line for line in proc.stderr.splitlines() if "episodes in" in line]
     assert [line.split(":")[0] for line in lines] == [
-        "simulate deceptive", "simulate nash", "simulate leader"], lines
+        "simulate deceptive", "simulate nash", "simulate leader", "simulate static",
+        "simulate naive"], lines
 
 
 # ----------------------------------------------------------------------------- extreme values

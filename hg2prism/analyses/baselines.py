@@ -391,13 +391,18 @@ def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     raise SolverError("policy iteration for P1's guaranteed value did not converge")
 
 
-def best_response_value(game: ConcurrentGame, p2: np.ndarray) -> np.ndarray:
+def best_response_value(game: ConcurrentGame, p2: np.ndarray,
+                        improvement: float = 1e-14) -> np.ndarray:
     """[G] P1's maximal reach probability against P2's stationary mixed strategy p2 (an MDP).
     Solved exactly: the states from which no move of P1 can reach the goal get 0; on the others
     policy iteration starts from an attractor policy (each move gives a positive chance of
     getting closer to the goal, so the goal or a zero-value state is reached with probability
-    1) and switches a move only on a strict improvement, so every policy stays of that kind and
-    each evaluation is one sparse linear system."""
+    1) and switches a move only on a strict improvement (by more than `improvement`), so every
+    policy stays of that kind and each evaluation is one sparse linear system.
+
+    Where values are within rounding of 1, a linear solve can make a move that stalls look
+    better by a few 1e-13; switching to it would leave the goal unreachable, and the iteration
+    would cycle. V_static (docs/semantics.md §11) therefore asks for an improvement of 1e-12."""
     g, n1, n2, k = game.next.shape
     # Outcomes of (g, a1) with P2 mixing: [G, A1, A2*K].
     nxt = game.next.reshape(g, n1, n2 * k)
@@ -426,7 +431,7 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray) -> np.ndarray:
         x = _evaluate(nxt, weight, game.goal, solve, policy)
         q = q_of(x)
         best = q.argmax(axis=1)
-        improve = solve & (q[rows, best] > q[rows, policy] + 1e-14)
+        improve = solve & (q[rows, best] > q[rows, policy] + improvement)
         if not improve.any():
             return x
         policy = np.where(improve, best, policy)

@@ -119,6 +119,11 @@ class SimulationSummary:
     lengths: np.ndarray = field(repr=False)
     outcomes: np.ndarray = field(repr=False)
     off_record_steps: int = 0        # deceptive runs: steps where P1 had no record (fallback)
+    # Runs against P2's inference: episodes in which her hypothesis changed at least once, and
+    # the number of changes over all episodes (docs/semantics.md §11). A change at an episode's
+    # last step counts: P2 updates her memory from P1's move whatever the robot reached.
+    p2_switched: int = 0
+    p2_switches: int = 0
 
     def interval(self, confidence: float = 0.95) -> tuple[float, float]:
         """Wilson score interval of the completion rate at another confidence level."""
@@ -143,14 +148,16 @@ class SimulationSummary:
 
 
 def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
-             seconds: float, off_record_steps: int = 0) -> SimulationSummary:
+             seconds: float, off_record_steps: int = 0, p2_switched: int = 0,
+             p2_switches: int = 0) -> SimulationSummary:
     episodes = len(outcomes)
     completed = int((outcomes == GOAL).sum())
     return SimulationSummary(
         episodes=episodes, completed=completed, failed=int((outcomes == FAIL).sum()),
         truncated=int((outcomes == TRUNCATED).sum()), rate=completed / episodes,
         ci95=wilson_interval(completed, episodes, 0.95), horizon=horizon, seed=seed,
-        seconds=seconds, lengths=lengths, outcomes=outcomes, off_record_steps=off_record_steps)
+        seconds=seconds, lengths=lengths, outcomes=outcomes, off_record_steps=off_record_steps,
+        p2_switched=p2_switched, p2_switches=p2_switches)
 
 
 def _check_run(episodes: int, horizon: int) -> None:
@@ -287,6 +294,7 @@ class _Chain:
         self.index: dict[tuple, int] = {}
         self.nodes: list[tuple[int, int, Memory, Memory]] = []
         self.status: list[int] = []      # -1 running, GOAL, FAIL
+        self.p2_hypothesis: list[int] = []   # the hypothesis of P2's real memory
         self.a1: list[int] = []          # -1 until first visited
         self.moves: dict[tuple[int, int], tuple[list[float], list[int]]] = {}
         self.updates: dict[tuple[int, Memory, tuple[int, int]], Memory] = {}
@@ -307,6 +315,8 @@ class _Chain:
             else:
                 status = -1
             self.status.append(status)
+            p2 = self.p1_model if self.p2_model is None else self.p2_model
+            self.p2_hypothesis.append(p2.hypothesis(m2))
             self.a1.append(-1)
         return i
 
@@ -348,7 +358,8 @@ class _Chain:
 def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: int,
                        p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
-                       p2_inference: Observer | None = None) -> SimulationSummary:
+                       p2_inference: Observer | None = None,
+                       label: str = "simulate deceptive") -> SimulationSummary:
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
     `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
@@ -359,7 +370,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     (n = 1, 2, ... within each episode). It must return an allowed trap set of v.
     `p2_inference` runs P2's real inference with another model than P1's (analysis.inference);
     P1 still tracks its own model's memory to choose actions and predict traps.
-    `observer(StepRecord)` is called once per transition.
+    `observer(StepRecord)` is called once per transition; `label` names the progress bar.
     """
     _check_run(episodes, horizon)
     start_time = time.perf_counter()
@@ -379,14 +390,17 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
 
     outcomes = np.empty(episodes, dtype=np.int8)
     lengths = np.empty(episodes, dtype=np.int64)
-    bar = Bar("simulate deceptive", episodes, progress)
+    bar = Bar(label, episodes, progress)
     status, a1_of, nodes = chain.status, chain.a1, chain.nodes
     recorded = getattr(strategy, "table", None)
     off_record: set[int] = set()
     off_record_steps = 0
+    p2_hypothesis = chain.p2_hypothesis
+    p2_switched = p2_switches = 0
     for episode in range(episodes):
         node = root
         steps = 0
+        switches = 0
         outcome = status[node]
         while outcome < 0 and steps < horizon:
             steps += 1
@@ -424,14 +438,19 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                 observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1,
                                     a1=a1, a2=a2, predicted_a2=predicted, n_a2=n_allowed[v],
                                     p2_memory=m2, next_state=w, next_q=q2))
+            if p2_hypothesis[nxt] != p2_hypothesis[node]:
+                switches += 1
             node = nxt
             outcome = status[node]
         outcomes[episode] = TRUNCATED if outcome < 0 else outcome
         lengths[episode] = steps
+        p2_switches += switches
+        p2_switched += switches > 0
         bar.update(episode + 1)
     seconds = time.perf_counter() - start_time
     bar.close(seconds)
-    return _summary(outcomes, lengths, horizon, seed, seconds, off_record_steps)
+    return _summary(outcomes, lengths, horizon, seed, seconds, off_record_steps,
+                    p2_switched, p2_switches)
 
 
 # ---------------------------------------------------------------------------------------------

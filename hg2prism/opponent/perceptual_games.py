@@ -266,10 +266,32 @@ def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
     optimal up to its 1e-6 ties): among P1's value-optimal moves,
     the one maximising the discounted probability of reaching the goal, so that P1 never
     stalls (any optimal answer keeps the value, but some dither for a long time)."""
+    return fastest_moves(ts, dfa, solution.values.reshape(-1), solution.p2_strategy,
+                         discount).answers
+
+
+@dataclass(frozen=True, eq=False)
+class FastestMoves:
+    """P1's fastest value-optimal moves against a fixed trap policy of P2, and the discounted
+    reach scores they are ranked by (docs/semantics.md §§6-7: value first, then speed)."""
+
+    answers: np.ndarray       # [G] P1's move: among the optimal ones, the largest score
+    scores: np.ndarray        # [G] W(g): discounted probability of reaching the goal
+
+
+def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.ndarray,
+                  discount: float = 0.9) -> FastestMoves:
+    """P1's fastest optimal moves on TS x DFA when P2 plays the trap set p2[g] at every game
+    state g and `values` [G] are P1's optimal values there (the leader pair of
+    docs/semantics.md §7 when p2 is P2's leader strategy and `values` V_lead).
+
+    A move is optimal when its one-step value is within 1e-9 of values[g]. The scores are
+    W(g) = max over optimal a1 of sum_k P(k) * (1 if the outcome is a goal else discount *
+    W(next_k)), iterated from 0 until the change is below 1e-12 (0 on absorbing states); P1
+    plays the optimal move with the largest score, exact ties to the first in N, E, S, W."""
     game = TurnBasedGame(ts, dfa)
-    v = solution.values.reshape(-1)
+    v = np.asarray(values, dtype=float)
     rows = np.arange(game.size)
-    p2 = solution.p2_strategy
     nxt = game.next[rows, :, p2]                                      # [G, 4, 3]
     prob = game.prob[rows, :, p2]
     optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - 1e-9
@@ -280,7 +302,7 @@ def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
         if np.abs(new - w).max() < 1e-12:
             break
         w = new
-    return np.where(optimal, gain, -1.0).argmax(axis=1)
+    return FastestMoves(answers=np.where(optimal, gain, -1.0).argmax(axis=1), scores=w)
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:

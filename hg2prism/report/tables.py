@@ -8,10 +8,15 @@ from hg2prism.results import CheckResults, RunResults
 
 
 def completion_table(results: RunResults) -> str:
-    """The paper's Table I, with the leader row added (docs/semantics.md §8, table.md)."""
+    """The paper's Table I, with the leader row and the two rows of docs/semantics.md §11 added
+    (docs/semantics.md §8, table.md)."""
     sim = results.simulation
     rows = [
         ("Asymmetric", "deceptive π1*", "inference-driven π2", results.deceptive_value, sim.deceptive),
+        ("Asymmetric, P2 never revises", "best response", "π2 of her first guess",
+         results.v_static, sim.static),
+        ("Asymmetric, P1 ignores P2's misperception", "leader-game answer", "inference-driven π2",
+         results.v_naive, sim.naive),
         ("Symmetric, Nash", "π1^NE", "π2^NE", results.v_ne, sim.nash),
         ("Symmetric, leader", "best response", "leader π2", results.v_lead, sim.leader),
     ]
@@ -28,10 +33,16 @@ def completion_table(results: RunResults) -> str:
                      f"| {s.rate:.4f} [{low:.4f}, {high:.4f}] | {s.episodes} | {s.truncated} |")
     lines.append("")
     lines.append(f"Exact value: the probability of ever completing the task (Pmax for the asymmetric "
-                 f"row, V_NE and V_lead for the symmetric ones; P1's extracted Nash strategy "
+                 f"row, V_static and V_naive for the two below it, V_NE and V_lead for the "
+                 f"symmetric ones; P1's extracted Nash strategy "
                  f"guarantees {results.v_ne_p1_guaranteed:.4f}). Exact within horizon: the "
                  f"probability of completing it within {sim.horizon} steps when both play the "
                  f"strategies simulated, which the simulated rate estimates.")
+    lines.append("")
+    lines.append(f"Value of deception (deceptive value - V_naive): {results.value_of_deception:.4f}. "
+                 f"P2 changed her hypothesis in {sim.deceptive.p2_switched:.1%} of the deceptive "
+                 f"episodes ({sim.deceptive.p2_switches_mean:.2f} changes per episode on average) "
+                 f"and in {sim.naive.p2_switched:.1%} of the naive ones.")
     return "\n".join(lines) + "\n"
 
 
@@ -60,7 +71,10 @@ def summary(results: CheckResults, out: Path, files: list[str]) -> str:
         f"  deceptive value  {results.deceptive_value:.6f}   P1 against P2's inference (Pmax, Storm)",
         f"  v_lead           {results.v_lead:.6f}   P2 knows the task and commits first each step",
     ] + ([f"  v_ne             {results.v_ne:.6f}   in [{results.v_ne_bounds[0]:.10f}, "
-          f"{results.v_ne_bounds[1]:.10f}], both players mixing, P2 knowing the task"]
+          f"{results.v_ne_bounds[1]:.10f}], both players mixing, P2 knowing the task",
+          f"  v_static         {results.v_static:.6f}   P2 never revises her first guess",
+          f"  v_naive          {results.v_naive:.6f}   P1 plays the leader game against P2's inference",
+          f"  deception worth  {results.value_of_deception:.6f}   deceptive value - v_naive"]
          if isinstance(results, RunResults) else []) + [
         _objective_line(results),
         f"  hypergame        {results.states} states, {results.transitions} transitions (canonical); "

@@ -1,0 +1,309 @@
+"""What the deception is worth (docs/semantics.md §11): V_static and V_naive.
+
+* **V_static**: P2 never revises her first guess x0 and plays pi2_x0(v) forever. P1 knows it, so
+  it plays in an MDP on TS x DFA(phi) (DFA state tracked). The value is P1's best response to
+  that stationary trap policy, computed by policy iteration with exact (sparse linear)
+  evaluation, as the upper end of V_NE's bracket (docs/semantics.md §7, §10), and certified: a
+  fixed point of the MDP's operator that is 0 wherever no move sequence reaches the goal.
+* **V_naive**: P1 ignores P2's misperception. It answers the trap set in force with its move of
+  the leader game G(phi) (docs/semantics.md §7), while P2 runs her real inference. The pair is a
+  Markov chain on the hypergame's states (v, q, M); it is explored here explicitly, from the
+  initial state, with the observer's own `initial_memory`, `update` and `hypothesis`, so it works
+  for every observer without Storm. The chain has one successor list per state (not four, as
+  the MDP), and its value is one sparse linear solve.
+
+Why not Storm with P1's choices fixed: the naive strategy needs P2's trap set at each state,
+which Storm's state encoding holds only implicitly (for an observer whose hypothesis is a
+function of its window). The explicit chain needs nothing but the Observer interface, visits
+only the states the naive pair reaches, and its solve is exact up to rounding.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
+import scipy.sparse.linalg as spla
+
+from hg2prism.analyses.baselines import ConcurrentGame, best_response_value, concurrent_game
+from hg2prism.errors import SolverError, probability
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.model.product import product
+from hg2prism.opponent.observer import Observer
+from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
+                                                fastest_moves)
+
+__all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
+           "induced_chain", "DeceptionValues", "deception_values"]
+
+ANSWER_TIE = 1e-9       # leader-game moves this close to the best answer to a2 are maximising
+DISCOUNT = 0.9          # the fastest-first rule's discount (docs/semantics.md §6, §7)
+SCORE_TIE = 1e-12       # relative tie between discounted scores (docs/semantics.md §6)
+RESIDUAL = 1e-11        # accepted residual of a solved value vector (docs/semantics.md §10)
+STRICT = 1e-12          # policy iteration switches a move only when it gains more than this
+
+GOAL, FAIL = 0, 1       # the merged absorbing states of an InducedChain
+
+
+# ---------------------------------------------------------------------------------------------
+# V_static
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class StaticValue:
+    """P1 against a P2 who keeps her first guess x0 forever, on TS x DFA(phi) (g = s * n_q + q)."""
+
+    first_guess: int          # x0: the hypothesis P2 acts on before any observation
+    values: np.ndarray        # [G] P1's maximal probability of reaching the goal
+    p1: np.ndarray            # [G] P1's fastest optimal move (docs/semantics.md §§6-7's rule)
+    p2: np.ndarray            # [G] the trap set pi2_x0(v) of each game state
+    value: float              # V_static at the initial state
+
+
+def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
+                 first_guess: int) -> StaticValue:
+    """V_static (docs/semantics.md §11) with P2 playing pi2 of hypothesis `first_guess`."""
+    n_q = task.n_states
+    trap_choice = np.asarray(games[first_guess].trap_choice)
+    p2 = np.repeat(trap_choice, n_q)                                   # [G]
+    game = concurrent_game(ts, task)
+    values = best_response_value(game, np.eye(ts.n_sets)[p2], improvement=STRICT)
+    _certify_mdp(game, p2, values)
+    moves = fastest_moves(ts, task, values, p2, DISCOUNT)
+    arena = product(ts, task)
+    return StaticValue(first_guess=first_guess, values=values, p1=moves.answers, p2=p2,
+                       value=probability(values[arena.start], "V_static"))
+
+
+def _certify_mdp(game: ConcurrentGame, p2: np.ndarray, values: np.ndarray) -> None:
+    """Certify that `values` is the maximal reach probability of the MDP where P2 plays p2[g]
+    (docs/semantics.md §10). Policy iteration returned the value of one of P1's strategies, a
+    lower bound of the maximum; it must also be a fixed point of the MDP's operator (residual at
+    most 1e-11), hence above the least fixed point, which is the maximum, and 0 wherever no
+    sequence of moves reaches the goal."""
+    rows = np.arange(game.size)
+    nxt, prob = game.next[rows, :, p2], game.prob[rows, :, p2]        # [G, 4, K]
+    best = (prob * values[nxt]).sum(-1).max(axis=1)
+    free = game.free
+    residual = np.abs(best - values)[free].max(initial=0.0)
+    if residual > RESIDUAL:
+        raise SolverError(f"V_static: the MDP operator moves the values by {residual:.2e}")
+    # The positive attractor: states from which some sequence of moves reaches the goal.
+    can = game.goal.copy()
+    while True:
+        new = can | (free & ((prob > 0) & can[nxt]).any(axis=-1).any(axis=1))
+        if (new == can).all():
+            break
+        can = new
+    if (values[~can] > 1e-12).any():
+        raise SolverError("V_static: positive value where the goal cannot be reached")
+
+
+# ---------------------------------------------------------------------------------------------
+# The naive strategy
+# ---------------------------------------------------------------------------------------------
+
+def naive_answers(ts: TransitionSystem, task: DFA, leader: GameSolution) -> np.ndarray:
+    """[G, n_sets]: P1's leader-game move at game state g against trap set a2
+    (docs/semantics.md §11): among the moves with `Q_phi(g, a1, a2) >= max_b Q_phi(g, b, a2) -
+    1e-9`, the largest discounted score `sum_k P(k) * (1 if goal else 0.9 * W(next_k))`, W the
+    leader pair's scores (docs/semantics.md §7); scores within a relative 1e-12 of the best
+    tie, and ties go to the first move in N, E, S, W order. Rows of absorbing states are 0."""
+    game = TurnBasedGame(ts, task)
+    lead = leader.values.reshape(-1)
+    q = game.q_values(lead)                                            # [G, 4, A2]
+    maximising = q >= q.max(axis=1, keepdims=True) - ANSWER_TIE
+    w = fastest_moves(ts, task, lead, leader.p2_strategy, DISCOUNT).scores
+    reached = np.where(game.goal[game.next], 1.0, DISCOUNT * w[game.next])
+    score = (game.prob * reached).sum(-1)                              # [G, 4, A2]
+    score = np.where(maximising, score, -np.inf)
+    top = score.max(axis=1, keepdims=True)
+    tied = score >= top - SCORE_TIE * np.abs(top)
+    answers = tied.argmax(axis=1)
+    answers[~game.free] = 0
+    return answers
+
+
+class NaiveStrategy:
+    """P1's naive strategy on hypergame states: the leader-game answer (`naive_answers`) to
+    the trap set in force, pi2 of the hypothesis P2 acts on. It has the `action` method the
+    simulation asks a strategy for."""
+
+    def __init__(self, answers: np.ndarray, games: list[PerceptualGame], observer: Observer,
+                 n_q: int) -> None:
+        self.answers = answers
+        self.trap_choice = [[int(a) for a in g.trap_choice] for g in games]
+        self.observer = observer
+        self.n_q = n_q
+
+    def trap_set(self, ts_state: int, memory: Hashable) -> int:
+        """The trap set P2 plays at `ts_state` with `memory`."""
+        return self.trap_choice[self.observer.hypothesis(memory)][ts_state]
+
+    def action(self, ts_state: int, q: int, memory: Hashable) -> int:
+        return int(self.answers[ts_state * self.n_q + q, self.trap_set(ts_state, memory)])
+
+
+# ---------------------------------------------------------------------------------------------
+# The Markov chain a strategy induces on the hypergame
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class InducedChain:
+    """The Markov chain a deterministic memoryless P1 strategy induces on the hypergame MDP
+    (docs/semantics.md §6), over the states reachable from the initial one. States 0 and 1 are
+    the merged goal and failure (absorbing); the others are (v, q, M)."""
+
+    states: list[tuple[int, int, Hashable] | None]   # None for GOAL and FAIL
+    matrix: sp.csr_matrix     # one-step probabilities (absorbing rows empty)
+    hypothesis: np.ndarray    # P2's hypothesis in each state (-1 for GOAL and FAIL)
+    action: np.ndarray        # P1's move in each state (-1 for GOAL and FAIL)
+    start: int                # the initial state (GOAL or FAIL when already absorbing)
+
+    @property
+    def size(self) -> int:
+        return len(self.states)
+
+    @property
+    def goal(self) -> np.ndarray:
+        return np.arange(self.size) == GOAL
+
+    @property
+    def stop(self) -> np.ndarray:
+        return np.arange(self.size) <= FAIL
+
+    def reach(self) -> np.ndarray:
+        """[states] the probability of reaching the goal from each state, exact up to rounding:
+        0 where the goal cannot be reached, one sparse linear system elsewhere, checked by its
+        residual."""
+        matrix = self.matrix
+        goal = self.goal
+        # States that reach the goal with positive probability: breadth-first backwards.
+        order = csgraph.breadth_first_order(matrix.T.tocsr(), GOAL, directed=True,
+                                            return_predecessors=False)
+        live = np.zeros(self.size, dtype=bool)
+        live[order] = True
+        live[:FAIL + 1] = False
+        x = goal.astype(float)
+        idx = np.flatnonzero(live)
+        if idx.size:
+            sub = matrix[idx][:, idx]
+            rhs = np.asarray(matrix[idx][:, [GOAL]].todense()).ravel()
+            system = (sp.identity(idx.size, format="csc") - sub).tocsc()
+            solution = np.atleast_1d(spla.spsolve(system, rhs))
+            # One step of iterative refinement, then the residual must be at rounding level.
+            solution = solution + np.atleast_1d(spla.spsolve(system, rhs - system @ solution))
+            residual = np.abs(system @ solution - rhs).max(initial=0.0)
+            if residual > RESIDUAL:
+                raise SolverError(f"the induced chain's linear system has residual {residual:.2e}")
+            x[idx] = solution
+        return x
+
+    def value(self, what: str) -> float:
+        """The probability of reaching the goal from the initial state."""
+        return probability(self.reach()[self.start], what)
+
+    def within(self, horizon: int) -> float:
+        """The probability of reaching the goal within `horizon` steps (docs/semantics.md §8)."""
+        from hg2prism.analyses.simulation import bounded_reach
+
+        return bounded_reach(self.matrix, self.goal, self.stop, self.start, horizon)
+
+
+def induced_chain(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
+                  observer: Observer, strategy) -> InducedChain:
+    """The chain P1's `strategy` (``action(ts_state, q, memory) -> move``, deterministic)
+    induces on the hypergame of docs/semantics.md §6 against P2's inference `observer`: from
+    (v, q, M), P2 plays pi2 of `observer.hypothesis(M)`, the robot moves, the DFA reads the new
+    cell's label and P2's memory becomes `observer.update(M, (v, a1))`. Goal and failure
+    (trapped, or q in Sink) are merged into states GOAL and FAIL."""
+    trap_choice = [[int(a) for a in g.trap_choice] for g in games]
+    label = ts.state_label().tolist()
+    delta = task.delta.tolist()
+    accepting, sink, trapped = task.accepting, task.sink, ts.trapped
+    succ, prob = ts.succ, ts.prob
+    states: list[tuple[int, int, Hashable] | None] = [None, None]
+    index: dict[tuple[int, int, Hashable], int] = {}
+    updates: dict[tuple[Hashable, tuple[int, int]], Hashable] = {}
+
+    def node(v: int, q: int, memory: Hashable) -> int:
+        if v == trapped:
+            return FAIL
+        if q in accepting:
+            return GOAL
+        if q in sink:
+            return FAIL
+        key = (v, q, memory)
+        i = index.get(key)
+        if i is None:
+            i = index[key] = len(states)
+            states.append(key)
+        return i
+
+    v0 = ts.start_state
+    start = node(v0, delta[task.initial][label[v0]], observer.initial_memory())
+    rows, cols, values = [], [], []
+    hypothesis, action = [-1, -1], [-1, -1]
+    i = FAIL + 1
+    while i < len(states):          # states grows as successors are found: breadth-first
+        v, q, memory = states[i]
+        xh = observer.hypothesis(memory)
+        a2 = trap_choice[xh][v]
+        a1 = int(strategy.action(v, q, memory))
+        key = (memory, (v, a1))
+        new_memory = updates.get(key)
+        if new_memory is None:
+            new_memory = updates[key] = observer.update(memory, (v, a1))
+        merged: dict[int, float] = {}
+        for k in range(succ.shape[-1]):
+            p = float(prob[v, a1, a2, k])
+            if p > 0.0:
+                w = int(succ[v, a1, a2, k])
+                j = node(w, delta[q][label[w]], new_memory)
+                merged[j] = merged.get(j, 0.0) + p
+        for j, p in merged.items():
+            rows.append(i)
+            cols.append(j)
+            values.append(p)
+        hypothesis.append(xh)
+        action.append(a1)
+        i += 1
+    n = len(states)
+    matrix = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+    return InducedChain(states=states, matrix=matrix, hypothesis=np.array(hypothesis),
+                        action=np.array(action), start=start)
+
+
+# ---------------------------------------------------------------------------------------------
+# Both values
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class DeceptionValues:
+    """docs/semantics.md §11 at the initial state, with what the simulations need."""
+
+    v_static: float
+    v_naive: float
+    value_of_deception: float     # deceptive value - V_naive
+    static: StaticValue
+    naive: NaiveStrategy
+    naive_chain: InducedChain
+
+
+def deception_values(analysis, deceptive_value: float) -> DeceptionValues:
+    """V_static, V_naive and the value of deception of a pipeline.Analysis, given the
+    deceptive value Storm computed for it."""
+    ts, task, games, observer = analysis.ts, analysis.task, analysis.games, analysis.inference
+    first_guess = observer.hypothesis(observer.initial_memory())
+    static = static_value(ts, task, games, first_guess)
+    naive = NaiveStrategy(naive_answers(ts, task, analysis.leader), games, observer,
+                          task.n_states)
+    chain = induced_chain(ts, task, games, observer, naive)
+    v_naive = chain.value("V_naive")
+    return DeceptionValues(v_static=static.value, v_naive=v_naive,
+                           value_of_deception=deceptive_value - v_naive, static=static,
+                           naive=naive, naive_chain=chain)
