@@ -73,7 +73,7 @@ DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
 SLOPE_RANGE = (1e4, 1e6)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
 
-COLUMNS = ("name", "side", "window", "hypotheses", "traps", "storm_method", "cells", "estimate",
+COLUMNS = ("name", "side", "window", "hypotheses", "traps", "delay", "storm_method", "cells", "estimate",
            "states",
            "transitions", "storm_states", "storm_transitions", "storm_choices",
            "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
@@ -93,13 +93,15 @@ def _reachable(grid: list[list[str]], start: tuple[int, int]) -> set[tuple[int, 
     return seen
 
 
-def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0) -> str:
+def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0,
+                delay: int = 0) -> str:
     """TOML text of a side x side world (plus border): the fixed core in the top right corner,
     the start in the bottom left one, 1/12 of the other cells walls and 1/25 obstacles (none
     next to the start; cells the start cannot reach are walled in).
 
     `hypotheses` (1-5) takes P2's candidate tasks from "!obs U A", "!obs U B", ... in that
-    order; `traps` (1-2) among the core's 8 candidates (the core fixes them)."""
+    order; `traps` (1-2) among the core's 8 candidates (the core fixes them); with `delay` > 0
+    the traps start on the first candidates in reading order."""
     if side < CORE_SIZE:
         raise ValueError(f"side must be at least {CORE_SIZE} (the core)")
     if not 1 <= hypotheses <= len(HYPOTHESIS_POOL):
@@ -134,9 +136,14 @@ def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int =
     rows = ["#" * (side + 2)] + ["#" + "".join(row) + "#" for row in grid] + ["#" * (side + 2)]
     hyps = ", ".join(f'"{h}"' for h in HYPOTHESIS_POOL[:hypotheses])
     newline = "\n"
-    return f'''name = "{world_name(side, window, hypotheses, traps)}"
+    height = len(rows)
+    candidates = [(x, height - 1 - r) for r, row in enumerate(rows)
+                  for x, char in enumerate(row) if char == "t"]
+    initial = ", ".join(f"[{x}, {y}]" for x, y in candidates[:traps])
+    delay_lines = f"delay = {delay}\ninitial_traps = [{initial}]\n" if delay else ""
+    return f'''name = "{world_name(side, window, hypotheses, traps, delay)}"
 description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, \
-{traps} trap(s)"
+{traps} trap(s){f", delay {delay}" if delay else ""}"
 
 [grid]
 map = """
@@ -151,7 +158,7 @@ formula = "{TASK}"
 
 [adversary]
 traps = {traps}
-hypotheses = [{hyps}]
+{delay_lines}hypotheses = [{hyps}]
 
 [inference]
 window = {window}
@@ -160,8 +167,8 @@ rationality = 5.0
 '''
 
 
-def world_name(side: int, window: int, hypotheses: int, traps: int) -> str:
-    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}"
+def world_name(side: int, window: int, hypotheses: int, traps: int, delay: int = 0) -> str:
+    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}" + (f"_d{delay}" if delay else "")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,6 +317,9 @@ def summary(rows: list[dict]) -> str:
         lines.append(f"Python stages (games + generate + export + write) within Storm's build, "
                      f"worlds of {lo:.0e} states or more: "
                      + ("all" if not slower else "not for " + ", ".join(slower)))
+        slow_checks = [r["name"] for r in good if r["time_check"] > r["time_build"]]
+        lines.append("check within Storm's build: "
+                     + ("all worlds" if not slow_checks else "not for " + ", ".join(slow_checks)))
         ratios = [r["estimate"] / r["states"] for r in good if r["states"]]
         lines.append(f"size estimate / canonical states: {min(ratios):.2f} .. {max(ratios):.2f}")
     failed = [r["name"] for r in rows if r.get("error")]
@@ -336,13 +346,14 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               f"with Storm method {storm_method!r} (times in seconds; 'write' is check's JSON "
               f"output outside the timed stages)",
               flush=True)
-    for side, window, hypotheses, traps in sizes:
-        name = world_name(side, window, hypotheses, traps)
+    for side, window, hypotheses, traps, *rest in sizes:
+        delay = rest[0] if rest else 0
+        name = world_name(side, window, hypotheses, traps, delay)
         world_path = out_dir / "worlds" / f"{name}.toml"
-        write_text(world_path, bench_world(side, window, hypotheses, traps))
+        write_text(world_path, bench_world(side, window, hypotheses, traps, delay=delay))
         run_dir = out_dir / "runs" / name
         row = {"name": name, "side": side, "window": window, "hypotheses": hypotheses,
-               "traps": traps, "storm_method": storm_method}
+               "traps": traps, "delay": delay, "storm_method": storm_method}
         row.update(measure_world(world_path, run_dir, storm_method))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
