@@ -53,7 +53,7 @@ STAGES = ("games", "generate", "parse", "build", "check", "export")
 
 # (side, window, hypotheses, traps): small worlds with windows 1 and 2, varied hypotheses and
 # traps, then window 3 with a growing field up to about 1e6 canonical states.
-DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
+DEFAULT_SIZES: tuple[tuple[int, ...], ...] = (
     (12, 1, 3, 1),
     (24, 1, 5, 1),
     (12, 2, 2, 1),
@@ -68,6 +68,11 @@ DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
     (24, 3, 3, 1),
     (28, 3, 3, 1),
     (31, 3, 3, 1),
+    # delay (the fifth number): one trap with delay 1 and 2 (deceptive value 0.9 against v_lead
+    # 0.64), and two traps with delay 1 (0.576 against 0; without delay two traps give 0)
+    (12, 1, 3, 1, 1),
+    (12, 1, 3, 1, 2),
+    (12, 2, 3, 2, 1),
 )
 
 SLOPE_RANGE = (1e4, 1e6)
@@ -330,7 +335,7 @@ def summary(rows: list[dict]) -> str:
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               keep_outputs: bool = False, storm_method: str = "sound") -> list[dict]:
-    """Runs every world of `sizes` ((side, window, hypotheses, traps) each) through
+    """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv and out_dir/scaling.png and prints the summary.
 
@@ -384,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
-                        help="only the worlds below 2e5 states (about a minute)")
+                        help="only the worlds below 2e5 states without delay (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
     parser.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
@@ -394,7 +399,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     sizes = DEFAULT_SIZES
     if args.quick:
-        sizes = tuple(s for s in DEFAULT_SIZES if s[1] < 3 or s[0] <= 12)
+        sizes = tuple(s for s in DEFAULT_SIZES
+                      if (s[1] < 3 or s[0] <= 12) and not (len(s) > 4 and s[4]))
     run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs,
               storm_method=args.storm_method)
     return 0
