@@ -100,10 +100,11 @@ def strategy_value(matrix: sp.csr_matrix, choice: np.ndarray, target: np.ndarray
 def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.ndarray,
                      estimate: np.ndarray, slack: float = SLACK) -> np.ndarray:
     """A strategy (a global choice index per state) from approximate values: among the choices
-    within `slack` of the best by `estimate`, one with a successor closer to the target (a
-    breadth-first search backwards from the target along those choices' edges). Greedy choices
-    alone may stall where several look equally good (a push into a wall keeps the value), and
-    each stalling state would cost a round of improvement."""
+    within `slack` of the best by `estimate`, the first that maximises the probability of moving
+    strictly closer to the target, distances counted in the graph of those choices' edges.
+    Greedy choices alone may stall where several look equally good (a push into a wall keeps
+    the value), and a choice that moves closer only by slipping makes the strategy's chain
+    slow and badly conditioned: either costs a round of improvement."""
     n = len(target)
     counts = np.diff(group_start)
     source = np.repeat(np.arange(n), counts)
@@ -116,17 +117,21 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     edge = good[entry_choice] & ~target[entry_source] & (matrix.data > 0)
     rows, columns = entry_source[edge], matrix.indices[edge]
     targets = np.flatnonzero(target)
+    # distances to the target: from an extra node n, linked to every target state, backwards
     reverse = sp.csr_matrix(
-        (np.ones(rows.size + targets.size, dtype=np.int8),
+        (np.ones(rows.size + targets.size),
          (np.concatenate([columns, np.full(targets.size, n)]), np.concatenate([rows, targets]))),
         shape=(n + 1, n + 1))
-    _, closer = csgraph.breadth_first_order(reverse, n, directed=True, return_predecessors=True)
-    # the first good choice of each state, replaced by one leading to its `closer` state
+    distance = csgraph.dijkstra(reverse, directed=True, indices=n, unweighted=True)[:n]
+    closer = edge & (distance[matrix.indices] < distance[entry_source])
+    mass = np.bincount(entry_choice[closer], weights=matrix.data[closer],
+                       minlength=matrix.shape[0])
+    score = np.where(good, mass, -1.0)
+    top = np.full(n, -np.inf)
+    top[counts > 0] = np.maximum.reduceat(score, group_start[:-1][counts > 0])
+    picked = np.flatnonzero(score >= top[source])[::-1]
     choice = np.full(n, -1, dtype=np.int64)
-    first_good = np.flatnonzero(good)[::-1]
-    choice[source[first_good]] = first_good
-    progress = np.flatnonzero(edge)[(closer[:n][rows] == columns)][::-1]
-    choice[entry_source[progress]] = entry_choice[progress]
+    choice[source[picked]] = picked          # reversed: the first of each state's ties wins
     return choice
 
 
