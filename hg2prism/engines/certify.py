@@ -112,10 +112,15 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     best = np.full(n, -np.inf)
     best[counts > 0] = np.maximum.reduceat(q, group_start[:-1][counts > 0])
     good = q >= best[source] - slack
-    entry_choice = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
+    # only the entries of good choices of non-target states matter below
+    useful = good & ~target[source]
+    entries = np.flatnonzero(np.repeat(useful, np.diff(matrix.indptr)))
+    entry_choice = np.repeat(np.flatnonzero(useful), np.diff(matrix.indptr)[useful])
     entry_source = source[entry_choice]
-    edge = good[entry_choice] & ~target[entry_source] & (matrix.data > 0)
-    rows, columns = entry_source[edge], matrix.indices[edge]
+    positive = matrix.data[entries] > 0
+    entries, entry_choice, entry_source = (entries[positive], entry_choice[positive],
+                                           entry_source[positive])
+    rows, columns = entry_source, matrix.indices[entries]
     targets = np.flatnonzero(target)
     # distances to the target: from an extra node n, linked to every target state, backwards
     reverse = sp.csr_matrix(
@@ -123,8 +128,8 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
          (np.concatenate([columns, np.full(targets.size, n)]), np.concatenate([rows, targets]))),
         shape=(n + 1, n + 1))
     distance = csgraph.dijkstra(reverse, directed=True, indices=n, unweighted=True)[:n]
-    closer = edge & (distance[matrix.indices] < distance[entry_source])
-    mass = np.bincount(entry_choice[closer], weights=matrix.data[closer],
+    closer = distance[columns] < distance[rows]
+    mass = np.bincount(entry_choice[closer], weights=matrix.data[entries[closer]],
                        minlength=matrix.shape[0])
     score = np.where(good, mass, -1.0)
     top = np.full(n, -np.inf)
