@@ -4,12 +4,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 test bench clean
+.PHONY: world1 world2 sweep-demo test bench clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -c constraints.txt -e '.[test]'
 	touch $(STAMP)
 
 world1: $(STAMP)
@@ -19,6 +19,11 @@ world2: $(STAMP)
 	$(BIN)/hg2prism run models/world2.toml
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
 	$(BIN)/hg2prism detect models/world2.toml
+
+# A 2-D sweep on Dask (a local cluster, one worker per core): world2 over delay x window.
+sweep-demo: $(STAMP)
+	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3 \
+		--param window --values 1 2 --out models/world2_grid
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

@@ -54,8 +54,8 @@ class Solution:
 def solve(world: World | str | Path, *, out: str | Path | None = None,
           storm_method: str = "sound") -> Solution:
     """Build the hypergame of `world` (a World or the path of a world file), check it with
-    Storm and extract P1's deceptive strategy. With `out`, the model, strategy.json and
-    results.json are written there (atomically); without, nothing is written (the model passes
+    Storm and extract P1's deceptive strategy. With `out`, what `hg2prism check` writes (the
+    model, strategy.json, results.json, the automata and the induced DTMC) goes there (atomically); without, nothing is written (the model passes
     through a temporary folder Storm reads, removed before returning)."""
     from hg2prism import pipeline
     from hg2prism.model import sizeguard

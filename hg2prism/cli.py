@@ -11,7 +11,12 @@ from hg2prism import __version__, progress
 from hg2prism.engines.storm import STORM_METHODS
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.model import sizeguard
+from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
+from hg2prism.experiments.sweep import SWEEP_PARAMETERS
 from hg2prism.outputs import OWNED, check_writable, staged
+from hg2prism.strategy.objectives import OBJECTIVES
+
+SWEEP_PARAMETER_NAMES = tuple(SWEEP_PARAMETERS)
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -47,10 +52,13 @@ def main(argv: list[str] | None = None) -> int:
                             "(plain value iteration to 1e-12, not sound: flagged in the outputs)")
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
-        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too."),
+        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too, "
+                  "the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) and the DTMC P1's "
+                  "strategy induces (induced.tra/.sta/.lab for PRISM, induced.drn for Storm)."),
         ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
                 "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
-                "the completion table (table.md) and a picture of one episode (world.png)."),
+                "the completion table (table.md), the figures (world, belief, completion; PNG "
+                "and SVG) and the replay of one episode (replay.gif)."),
     ):
         p = add(name, help + " OUT defaults to the folder next to the world file named after it "
                 "(models/world1.toml -> models/world1/).")
@@ -61,23 +69,45 @@ def main(argv: list[str] | None = None) -> int:
                                 f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
         else:
             solver_options(p)
+            p.add_argument("--objective", choices=OBJECTIVES, default="pmax",
+                           help="what P1's exported strategy optimises (docs/semantics.md §6): "
+                                "pmax (default: Pmax, the fastest optimal moves by a discounted "
+                                "score), lexicographic (Pmax, then the fewest expected steps) or "
+                                "bounded (Pmax of reaching the goal within --bound steps; a "
+                                "strategy that depends on the steps taken)")
+            p.add_argument("--bound", type=int, metavar="H",
+                           help="steps of the bounded objective (default: the simulation horizon)")
         if name == "run":
             p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
             p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
             p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+            p.add_argument("--episode", metavar="RULE", default="median",
+                           help="the episode world.png, belief.png and replay.gif draw: median "
+                                "(default: a median-length completed episode of the seeds "
+                                "SEED..SEED+49), shortest (the shortest of them) or seed=N "
+                                "(the episode of seed N)")
 
-    p = add("sweep", "Re-solve the world for each value of one parameter and compare the deceptive "
-            "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png and "
-            "OUT/<param>_<value>/ (each value's model and strategy).")
-    p.add_argument("--param", required=True, metavar="NAME",
-                   help="delay, window, threshold or rationality")
-    p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
+    p = add("sweep", "Re-solve the world at every point of a grid of parameter values and "
+            "compare the deceptive value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, "
+            "sweep.png/.svg and a folder per point (its model and strategy). Points run in parallel "
+            "on Dask (docs/semantics.md §7, Sweeps).")
+    p.add_argument("--param", required=True, action="append", metavar="NAME",
+                   help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
+                        + "; repeat --param NAME --values V... to sweep the grid of several")
+    p.add_argument("--values", required=True, action="append", nargs="+", metavar="V",
+                   help="the values of the --param before it")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: the number of "
+                        "cores); 1 solves the points one after another in this process")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the points on the Dask cluster whose scheduler is at ADDRESS "
+                        "(e.g. tcp://host:8786) instead of a local one")
     solver_options(p)
     p = add("detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded episode where P2 deviates "
             "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
             "rate, and P2 running another window or threshold; writes OUT/detection.json and "
-            "OUT/detection.png.")
+            "OUT/detection.png and detection.svg.")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
     p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
@@ -86,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
 
     sub.add_parser("bench", add_help=False,
                    help="Scaling benchmark: worlds of growing size through every stage; writes "
-                        "bench/results.csv and bench/scaling.png (see `hg2prism bench --help`).")
+                        "bench/results.csv and bench/scaling.png and .svg (see `hg2prism bench --help`).")
 
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["bench"]:
@@ -129,10 +159,17 @@ def _command(args: argparse.Namespace) -> int:
         if args.max_states is not None and args.max_states < 1:
             raise InputError("command line", "--max-states", "must be at least 1")
         if args.command == "sweep":
-            # every swept world is guarded before the first is solved
-            for value in sweep.parse_sweep_values(args.param, args.values):
-                swept = sweep.sweep_world(world, args.param, value)
-                sizeguard.check_size(swept, args.max_states)
+            if len(args.param) != len(args.values):
+                raise InputError("command line", "--values", "each --param needs its own "
+                                 "--values, right after it")
+            grid = list(zip(args.param, args.values))
+            if args.workers is not None and args.workers < 1:
+                raise InputError("command line", "--workers", "must be at least 1")
+            if args.workers is not None and args.scheduler is not None:
+                raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
+                                 "its own workers; leave out --workers")
+            # every point is guarded before the first is solved: all refused refuses the sweep
+            sweep.check_grid(world, grid, args.max_states)
         else:
             sizeguard.check_size(world, args.max_states)
         check_writable(out)
@@ -147,25 +184,49 @@ def _command(args: argparse.Namespace) -> int:
                                      f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
             if args.seed is not None and args.seed < 0:
                 raise InputError("command line", "--seed", "must be at least 0")
+        if args.command == "run":
+            from hg2prism.analyses.episodes import parse_episode_rule
+
+            parse_episode_rule(args.episode)
+        if args.command in ("check", "run") and args.bound is not None:
+            if args.objective != "bounded":
+                raise InputError("command line", "--bound", "needs --objective bounded")
+            if args.bound < 1:
+                raise InputError("command line", "--bound", "must be at least 1")
+            if args.bound > world_mod.MAX_HORIZON:
+                raise InputError("command line", "--bound",
+                                 f"must be at most {world_mod.MAX_HORIZON:,}, got {args.bound:,}")
+            if (args.command == "run"
+                    and args.bound != (args.horizon or world.simulation.horizon)):
+                raise InputError("command line", "--bound", "with run, the bound is the "
+                                 "simulation horizon; use --horizon instead")
         table = None
-        with staged(out, owns=OWNED[args.command]) as stage:
+        failed: tuple[dict, ...] = ()
+        owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
+        with staged(out, owns=owns) as stage:
             if args.command == "emit":
                 pipeline.emit(world, stage)
                 results = None
             elif args.command == "check":
-                results = pipeline.check(world, stage, args.storm_method).results
+                results = pipeline.check(world, stage, args.storm_method, args.objective,
+                                         args.bound).results
             elif args.command == "sweep":
-                rows = sweep.sweep(world, args.param, args.values, stage,
-                                         storm_method=args.storm_method)
-                results, table = None, "\n".join(
-                    sweep.sweep_summary_lines(args.param, rows, world.name))
+                workers = (args.workers if args.workers is not None
+                           else sweep.default_workers())
+                run = sweep.sweep_grid(world, grid, stage, storm_method=args.storm_method,
+                                       workers=workers, scheduler=args.scheduler,
+                                       max_states=args.max_states)
+                failed = run.failed
+                results, table = None, "\n".join(sweep.sweep_summary_lines(
+                    [name for name, _ in run.parameters], run.rows, world.name))
             elif args.command == "detect":
                 detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
                                                storm_method=args.storm_method)
                 results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
-                                      storm_method=args.storm_method)
+                                      storm_method=args.storm_method, episode=args.episode,
+                                      objective=args.objective, bound=args.bound)
                 results, table = result.results, result.table
             files = sorted(p.name for p in stage.iterdir())
         print(tables.summary(results, out, files) if results is not None
@@ -173,7 +234,11 @@ def _command(args: argparse.Namespace) -> int:
         if table:
             print()
             print(table)
-        return 0
+        for point in failed:     # the other points' outputs are written; these have none
+            where = sweep.point_label({k: v for k, v in point.items() if k != "error"})
+            print(f"hg2prism: error: {args.world}: sweep point {where}: {point['error']}",
+                  file=sys.stderr)
+        return 1 if failed else 0
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2

@@ -43,11 +43,13 @@ def write_bytes(path: Path, data: bytes) -> None:
 # did not write this time are stale (emit after run: the old strategy.json, results.json and
 # world.png would describe another model) and are removed. Commands with different outputs share
 # a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
-_MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md|world\.(png|svg|pdf)"
+# The sweep's pattern is built from its parameter table: experiments.sweep.OWNED_PATTERN.
+_MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
+          r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif"
+          r"|task\.(hoa|dot)|hypothesis_\d+\.(hoa|dot)|induced\.(tra|sta|lab|drn)"
           r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,
-    "sweep": r"sweep\.(json|csv|png|svg|pdf)|(delay|window|threshold|rationality)_[0-9][0-9.e+-]*",
     "detect": r"detection\.(json|png|svg|pdf)",
 }
 

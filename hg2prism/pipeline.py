@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import time
 from contextlib import contextmanager
@@ -13,19 +14,31 @@ import numpy as np
 
 from hg2prism import __version__
 from hg2prism.engines import storm
-from hg2prism.model.automata import DFA, translate
+from hg2prism.model.automata import DFA, to_dot, to_hoa, translate
 from hg2prism.model.dynamics import TransitionSystem, build_transition_system
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
                             solve_game)
-from hg2prism.errors import probability
+from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
-from hg2prism.strategy.deceptive import StormChoices, deceptive_strategy
-from hg2prism.strategy.records import Strategy, strategy_json, strategy_records
+from hg2prism.strategy.canonical import canonical_mdp, canonical_values
+from hg2prism.strategy.deceptive import (StormChoices, canonical_actions, deceptive_strategy,
+                                         storm_choices)
+from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_explicit,
+                                       stationary_dtmc, unfolded_dtmc)
+from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
+                                          lexicographic_actions)
+from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
+from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.inference import InferenceModel, build_inference
 from hg2prism.outputs import write_json, write_text
 from hg2prism.model.world import World
-from hg2prism.results import CheckResults, Parameters, RunResults, SimulatedRow, Simulations
+from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
+                              Simulations, StrategyObjective)
+
+# The step-bounded objective keeps a move per (state, step): this many at most (about 50 MB),
+# and as many states in its induced DTMC.
+MAX_BOUNDED_PAIRS = 50_000_000
 
 
 @contextmanager
@@ -89,16 +102,76 @@ class CheckResult:
     strategy: StormChoices          # P1's choice in each of Storm's states
     results: CheckResults           # results.json's content: results.to_json()
     out: Path                       # the folder holding hypergame.prism, strategy.json, ...
+    extras: RecordExtras | None = None     # keys the records gain after "action"
+    dtmc: InducedDTMC | None = None        # the DTMC the exported strategy induces (induced.*)
+    bounded: Bounded | None = None         # the step-dependent strategy of --objective bounded
 
     @functools.cached_property
     def records(self) -> list[dict]:
         """The strategy's records (strategy.json's content), built on first use: writing the
         file does not need them, and they cost seconds on million-state models."""
         return strategy_records(self.decoded, self.strategy, storm.transitions(
-            self.checked.model), self.analysis.ts)
+            self.checked.model), self.analysis.ts, self.extras)
 
 
-def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
+def automata_files(analysis: Analysis) -> dict[str, str]:
+    """task.hoa/.dot and hypothesis_<i>.hoa/.dot: every DFA, numbered as hg2prism numbers it."""
+    names = analysis.ts.label_names
+    files = {"task.hoa": to_hoa(analysis.task, names), "task.dot": to_dot(analysis.task, names)}
+    for i, game in enumerate(analysis.games):
+        files[f"hypothesis_{i}.hoa"] = to_hoa(game.dfa, names)
+        files[f"hypothesis_{i}.dot"] = to_dot(game.dfa, names)
+    return files
+
+
+def _objective_strategy(objective: str, bound: int | None, decoded: storm.DecodedStates,
+                        checked: storm.CheckedModel, moves: storm.Transitions,
+                        ts: TransitionSystem, default: StormChoices
+                        ) -> tuple[StormChoices, RecordExtras, InducedDTMC, Bounded | None, float]:
+    """P1's strategy for the objective, the records' extra keys, its induced DTMC, the
+    step-dependent strategy (bounded only) and the objective's value (docs/semantics.md §6)."""
+    mdp = canonical_mdp(decoded, moves)
+    values = canonical_values(decoded, checked.values)
+    initial = int(decoded.canonical[checked.model.initial_states[0]])
+    move_values = mdp.by_state(mdp.choice_values(values))
+    action = canonical_actions(default, moves)
+    if objective == "pmax":
+        dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
+        return default, RecordExtras(move_values), dtmc, None, checked.value
+    if objective == "lexicographic":
+        action = lexicographic_actions(mdp, values, action).action
+        strategy = storm_choices(decoded, moves, default.representative, action)
+        dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
+        return strategy, RecordExtras(move_values), dtmc, None, checked.value
+    if mdp.n * bound > MAX_BOUNDED_PAIRS:
+        raise InputError("command line", "--bound",
+                         f"{mdp.n:,} hypergame states x {bound:,} steps is more than the "
+                         f"{MAX_BOUNDED_PAIRS:,} (state, step) pairs the bounded objective keeps")
+    bounded = bounded_actions(mdp, action, initial, bound)
+    strategy = storm_choices(decoded, moves, default.representative, bounded.action_at(0))
+    try:
+        dtmc = unfolded_dtmc(mdp, bounded.action_at, decoded, ts, initial, bound,
+                             MAX_BOUNDED_PAIRS)
+    except ValueError as err:
+        raise InputError("command line", "--bound", str(err)) from None
+    extras = RecordExtras(move_values, bounded.schedules(), bounded.move_values)
+    return strategy, extras, dtmc, bounded, bounded.value
+
+
+def check(world: World, out: Path, storm_method: str = "sound", objective: str = "pmax",
+          bound: int | None = None) -> CheckResult:
+    """Emit, check with Storm and export P1's strategy for `objective` (docs/semantics.md §6:
+    "pmax", the default, "lexicographic" or "bounded" with `bound` steps, by default the
+    world's simulation horizon)."""
+    if objective not in OBJECTIVES:
+        raise InputError("command line", "--objective",
+                         f"must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    if objective == "bounded":
+        bound = world.simulation.horizon if bound is None else bound
+        if bound < 1:
+            raise InputError("command line", "--bound", "must be at least 1")
+    else:
+        bound = None
     analysis = analyse(world)
     prism = generate(analysis, out)
     say(f"storm: building and checking {PROPERTY} ({storm_method})")
@@ -111,9 +184,18 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
     moves = storm.transitions(checked.model)
     decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task)
     states, transitions = storm.canonical_size(decoded, moves)
-    strategy = deceptive_strategy(decoded, checked, moves)
-    strategy_text = strategy_json(decoded, strategy, moves, analysis.ts)
+    default = deceptive_strategy(decoded, checked, moves)
+    strategy, extras, dtmc, bounded, objective_value = _objective_strategy(
+        objective, bound, decoded, checked, moves, analysis.ts, default)
+    strategy_text = strategy_json(decoded, strategy, moves, analysis.ts, extras)
+    steps = expected_steps(dtmc)
+    explicit = prism_explicit(dtmc)
+    drn_text = drn(dtmc, f"the DTMC P1's strategy ({objective}) induces on the hypergame of "
+                         f"{world.name}; states as in induced.sta")
     analysis.timings["export"] = time.perf_counter() - start
+    if abs(steps.goal_probability - objective_value) > 1e-6:
+        warn(f"the exported strategy reaches the goal with probability "
+             f"{steps.goal_probability:.9f}, not the {objective} value {objective_value:.9f}")
     results = CheckResults(
         world=world.name,
         world_file=str(world.path),
@@ -130,13 +212,23 @@ def check(world: World, out: Path, storm_method: str = "sound") -> CheckResult:
         model_commands=dict(prism.commands),
         parameters=Parameters.of(world),
         timings=dict(analysis.timings),   # a snapshot: run() goes on timing its own stages
+        objective=StrategyObjective(
+            name=objective, bound=bound, value=objective_value,
+            goal_probability=steps.goal_probability, expected_steps=steps.to_end,
+            expected_steps_to_goal=steps.to_goal),
     )
     # One record per line: compact for millions of states, still easy to grep and diff.
     write_text(out / "strategy.json", strategy_text)
     write_json(out / "results.json", results.to_json())
+    for suffix, text in explicit.items():
+        write_text(out / f"induced.{suffix}", text)
+    write_text(out / "induced.drn", drn_text)
+    for name, text in automata_files(analysis).items():
+        write_text(out / name, text)
     say(f"storm: {checked.model.nr_states} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
-    return CheckResult(analysis, prism, checked, decoded, strategy, results, out)
+    return CheckResult(analysis, prism, checked, decoded, strategy, results, out,
+                       extras=extras, dtmc=dtmc, bounded=bounded)
 
 
 @dataclass(frozen=True, eq=False)
@@ -148,19 +240,32 @@ class RunResult:
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
         seed: int | None = None, show_progress: bool = True,
-        storm_method: str = "sound") -> RunResult:
+        storm_method: str = "sound", episode: str | None = None, objective: str = "pmax",
+        bound: int | None = None) -> RunResult:
     """Everything computed for a world: the check, the baselines (docs/semantics.md §7), the PRISM-games
-    exports, the online simulations (docs/semantics.md §8), the completion table and the world picture."""
+    exports, the online simulations (docs/semantics.md §8), the completion table, the figures
+    and the replay of the episode `episode` names ("median", the default, "shortest" or
+    "seed=N": docs/semantics.md §8 "The episode drawn").
+    With the bounded objective the bound is the simulation's horizon (the default), so that the
+    simulated rate estimates the bounded value."""
     from hg2prism.analyses import baselines
+    from hg2prism.analyses.episodes import belief_trace, choose_episode, parse_episode_rule
     from hg2prism.prism import game_models
-    from hg2prism.report import plots
+    from hg2prism.report import plots, replay
     from hg2prism.report import tables
     from hg2prism.analyses import simulation
 
-    episodes = episodes or world.simulation.episodes
+    n_episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
     seed = world.simulation.seed if seed is None else seed
-    checked = check(world, out, storm_method)
+    rule = parse_episode_rule(episode)     # before any work: a bad rule is one line
+    if objective == "bounded":
+        if bound is not None and bound != horizon:
+            raise InputError("command line", "--bound",
+                             f"with run, the bound is the simulation horizon ({horizon}); "
+                             f"got {bound}")
+        bound = horizon
+    checked = check(world, out, storm_method, objective, bound)
     analysis, timings = checked.analysis, checked.analysis.timings
 
     with _timed(timings, "exports"):
@@ -179,20 +284,29 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
 
     with _timed(timings, "simulation"):
-        strategy = Strategy.from_records(checked.records, analysis.ts)
-        deceptive = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed,
+        played = analysis
+        if checked.bounded is None:
+            strategy = Strategy.from_records(checked.records, analysis.ts)
+            deceptive_within = storm.induced_within(checked.checked, checked.strategy, horizon)
+        else:
+            # P1's move depends on the steps taken: P1 tracks them beside P2's memory.
+            strategy = SteppedStrategy(checked.records, analysis.ts, checked.bounded.bound)
+            played = dataclasses.replace(analysis, inference=StepCounter(
+                analysis.inference, checked.bounded.bound - 1))
+            deceptive_within = checked.results.objective.goal_probability
+        deceptive = simulation.simulate_deceptive(played, strategy, n_episodes, horizon, seed,
                                                   progress=show_progress)
         n_q = analysis.task.n_states
         nash_sim = simulation.simulate_nash(
             analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
-            nash.p2.reshape(analysis.ts.n_states * n_q, -1), episodes, horizon, seed,
+            nash.p2.reshape(analysis.ts.n_states * n_q, -1), n_episodes, horizon, seed,
             progress=show_progress)
         leader_p1, leader_p2 = _leader_strategies(analysis)
         leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
-                                              episodes, horizon, seed, progress=show_progress,
+                                              n_episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
         within = {
-            "deceptive": storm.induced_within(checked.checked, checked.strategy, horizon),
+            "deceptive": deceptive_within,
             "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
                                                 nash.p2.reshape(analysis.ts.n_states * n_q, -1),
                                                 horizon),
@@ -201,8 +315,18 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         }
 
     with _timed(timings, "plots"):
-        episode, outcome = _illustrative_episode(analysis, strategy, horizon, seed)
-        plots.world_figure(world, analysis.ts, episode, outcome, out / "world.png")
+        drawn = choose_episode(played, strategy, horizon, seed, rule)
+        trace = belief_trace(analysis.inference, drawn.steps)
+        plots.world_figure(world, analysis.ts, drawn, out / "world.png")
+        plots.belief_figure(world, trace, drawn, out / "belief.png")
+        plots.completion_figure(world.name, [
+            ("deceptive vs inference-driven P2", deceptive, within["deceptive"]),
+            ("symmetric, Nash", nash_sim, within["nash"]),
+            ("symmetric, leader", leader_sim, within["leader"])], out / "completion.png")
+    say(f"plots: {drawn.describe()}: seed {drawn.seed}, {drawn.n_steps} steps, {drawn.outcome}")
+    with _timed(timings, "replay"):
+        frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")
+    say(f"replay: replay.gif, {frames} frames ({timings['replay']:.2f} s)")
 
     results = RunResults.extending(
         checked.results,
@@ -216,6 +340,11 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
             nash=SimulatedRow.of(nash_sim, within["nash"]),
             leader=SimulatedRow.of(leader_sim, within["leader"]),
         ),
+        episode=DrawnEpisode(
+            rule=str(drawn.rule), seed=drawn.seed, steps=drawn.n_steps, outcome=drawn.outcome,
+            chosen_as=drawn.describe(), seed_set=drawn.seeds,
+            completed_in_seed_set=len(drawn.completed_lengths) if drawn.seeds else None,
+            replay_frames=frames),
     )
     table = tables.completion_table(results)
     write_text(out / "table.md", table)
@@ -230,24 +359,3 @@ def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     p2 = analysis.leader.p2_strategy
     p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
     return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
-
-
-def _illustrative_episode(analysis: Analysis, strategy: Strategy, horizon: int,
-                          seed: int) -> tuple[list, str]:
-    """The shortest episode that completes the task among the seeds `seed`..`seed+49` (the
-    clearest picture of the strategy), else the first one."""
-    from hg2prism.analyses import simulation
-
-    first: tuple[list, str] | None = None
-    best: tuple[list, str] | None = None
-    for attempt in range(50):
-        steps: list = []
-        summary = simulation.simulate_deceptive(analysis, strategy, 1, horizon, seed + attempt,
-                                                observer=steps.append, progress=False)
-        outcome = {simulation.GOAL: "task completed", simulation.FAIL: "failed"}.get(
-            int(summary.outcomes[0]), "cut by the horizon")
-        if first is None:
-            first = (steps, f"{outcome}, seed {seed + attempt}")
-        if summary.completed and (best is None or len(steps) < len(best[0])):
-            best = (steps, f"{outcome}, seed {seed + attempt}")
-    return best or first

@@ -70,6 +70,32 @@ def quiet() -> Iterator[None]:
         LOGGER.setLevel(level)
 
 
+@contextmanager
+def collected_warnings() -> Iterator[list[str]]:
+    """Warnings given inside are collected into the yielded list instead of shown (a sweep's
+    point, possibly in another process, hands them back to be shown with `replay_warning`)."""
+    collected: list[str] = []
+
+    class _Collect(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            collected.append(record.getMessage())
+
+    handler = _Collect(level=logging.WARNING)
+    handlers, propagate = LOGGER.handlers[:], LOGGER.propagate
+    LOGGER.handlers = [handler]
+    LOGGER.propagate = False
+    try:
+        yield collected
+    finally:
+        LOGGER.handlers = handlers
+        LOGGER.propagate = propagate
+
+
+def replay_warning(message: str) -> None:
+    """Show a warning collected by `collected_warnings`, as it was given."""
+    LOGGER.warning(message)
+
+
 class Bar:
     """A text progress bar of episodes on stderr, redrawn at most ~20 times on a terminal; a
     log (not a terminal) gets the final line alone."""

@@ -18,7 +18,8 @@ if TYPE_CHECKING:
     from hg2prism.analyses.simulation import SimulationSummary
     from hg2prism.model.world import World
 
-__all__ = ["Parameters", "CheckResults", "SimulatedRow", "Simulations", "RunResults"]
+__all__ = ["Parameters", "StrategyObjective", "CheckResults", "SimulatedRow", "Simulations", "DrawnEpisode",
+           "RunResults"]
 
 TIMING_DIGITS = 4
 """Timings are written to results.json rounded to this many decimals (0.1 ms)."""
@@ -55,6 +56,26 @@ class Parameters:
         }
 
 
+@dataclass(frozen=True)
+class StrategyObjective:
+    """The objective P1's exported strategy optimises and its timing (docs/semantics.md §6
+    "Objectives"), read off the DTMC the strategy induces (induced.tra/.drn): results.json's
+    ``objective``."""
+
+    name: str                       # "pmax" (the default), "bounded" or "lexicographic"
+    bound: int | None               # H of the bounded objective, else None
+    value: float                    # the objective's value: Pmax, or Pmax=? [F<=H "goal"] when bounded
+    goal_probability: float         # P(F "goal") in the strategy's induced DTMC
+    expected_steps: float | None    # E[steps until goal or failure (or the bound)]; None: infinite
+    expected_steps_to_goal: float | None   # E[steps | goal reached]; None: the goal is never reached
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "bound": self.bound, "value": self.value,
+                "goal_probability": self.goal_probability,
+                "expected_steps": self.expected_steps,
+                "expected_steps_to_goal": self.expected_steps_to_goal}
+
+
 def _timings_json(timings: dict[str, float]) -> dict[str, float]:
     return {stage: round(seconds, TIMING_DIGITS) for stage, seconds in timings.items()}
 
@@ -79,9 +100,10 @@ class CheckResults:
     model_commands: dict[str, int]  # hypergame.prism: module name -> number of commands
     parameters: Parameters
     # Seconds per stage, in the order the stages ran: games, generate, parse, build, check,
-    # export (and with `run`: exports, nash, simulation, plots). Unrounded here, rounded in
+    # export (and with `run`: exports, nash, simulation, plots, replay). Unrounded here, rounded in
     # to_json(); a copy, not the pipeline's live dict.
     timings: dict[str, float]
+    objective: StrategyObjective    # what the exported strategy optimises, and its timing
 
     def to_json(self) -> dict:
         """The content of results.json written by `check`."""
@@ -101,6 +123,7 @@ class CheckResults:
             "model_commands": dict(self.model_commands),
             "parameters": self.parameters.to_json(),
             "timings": _timings_json(self.timings),
+            "objective": self.objective.to_json(),
         }
 
 
@@ -142,6 +165,28 @@ class Simulations:
 
 
 @dataclass(frozen=True)
+class DrawnEpisode:
+    """The deceptive episode the figures and the replay draw, and the rule that chose it
+    (docs/semantics.md §8 "The episode drawn"): results.json's ``episode``."""
+
+    rule: str                       # "median", "shortest" or "seed=N"
+    seed: int                       # the seed it was simulated with (one episode)
+    steps: int                      # its transitions
+    outcome: str                    # "task completed", "failed" or "cut by the horizon"
+    chosen_as: str                  # the rule applied, in words
+    seed_set: tuple[int, int] | None    # first and last seed searched (None for seed=N)
+    completed_in_seed_set: int | None   # how many of them completed
+    replay_frames: int              # frames of replay.gif
+
+    def to_json(self) -> dict:
+        return {"rule": self.rule, "seed": self.seed, "steps": self.steps,
+                "outcome": self.outcome, "chosen_as": self.chosen_as,
+                "seed_set": list(self.seed_set) if self.seed_set else None,
+                "completed_in_seed_set": self.completed_in_seed_set,
+                "replay_frames": self.replay_frames}
+
+
+@dataclass(frozen=True)
 class RunResults(CheckResults):
     """What `hg2prism run` computes: the check's results (with the timings of every stage of
     the run), the Nash baseline with its sound bracket (docs/semantics.md §7) and the online
@@ -151,16 +196,17 @@ class RunResults(CheckResults):
     v_ne_p1_guaranteed: float       # what P1's extracted Nash strategy guarantees: the lower end (§7)
     v_ne_bounds: tuple[float, float]  # sound bracket (lower, upper) around V_NE (§7)
     simulation: Simulations
+    episode: DrawnEpisode | None = None     # the episode world.png and replay.gif draw
 
     @classmethod
     def extending(cls, check: CheckResults, *, timings: dict[str, float], v_ne: float,
                   v_ne_p1_guaranteed: float, v_ne_bounds: tuple[float, float],
-                  simulation: Simulations) -> RunResults:
+                  simulation: Simulations, episode: DrawnEpisode | None = None) -> RunResults:
         """The check's results, with the run's timings and the run's additions."""
         inherited = {f.name: getattr(check, f.name) for f in fields(CheckResults)}
         inherited["timings"] = timings
         return cls(**inherited, v_ne=v_ne, v_ne_p1_guaranteed=v_ne_p1_guaranteed,
-                   v_ne_bounds=tuple(v_ne_bounds), simulation=simulation)
+                   v_ne_bounds=tuple(v_ne_bounds), simulation=simulation, episode=episode)
 
     def to_json(self) -> dict:
         """The content of results.json written by `run`: the check's keys (``timings`` keeps
@@ -171,4 +217,5 @@ class RunResults(CheckResults):
             "v_ne_p1_guaranteed": self.v_ne_p1_guaranteed,
             "v_ne_bounds": list(self.v_ne_bounds),
             "simulation": self.simulation.to_json(),
+            **({"episode": self.episode.to_json()} if self.episode is not None else {}),
         }

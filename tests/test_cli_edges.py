@@ -109,12 +109,19 @@ def test_sweep_and_detect_refuse_a_world_above_max_states(tmp_path: Path) -> Non
         assert not (tmp_path / "out").exists()
 
 
-def test_a_sweep_guards_every_value_before_solving(tmp_path: Path) -> None:
-    # window 1 fits in 2,000 states, window 3 does not: nothing is solved, nothing written
+def test_a_sweep_reports_a_refused_point_and_solves_the_others(tmp_path: Path) -> None:
+    # window 1 fits in 2,000 states, window 3 does not: window 1 is solved and written, window 3
+    # is reported with its parameter (exit status 1); docs/semantics.md §7, Sweeps
     proc = run_cli(["sweep", WORLD1, "--param", "window", "--values", "1", "3", "--out",
-                    str(tmp_path / "out"), "--max-states", "2000"], tmp_path)
-    assert_one_line_error(proc, "size", "window 3")
-    assert not (tmp_path / "out").exists()
+                    str(tmp_path / "out"), "--max-states", "2000", "--workers", "1"], tmp_path)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    errors = [line for line in proc.stderr.splitlines() if line.startswith("hg2prism: error: ")]
+    assert len(errors) == 1 and "sweep point window=3: size:" in errors[0]
+    assert "window 3" in errors[0]
+    only(tmp_path / "out", "sweep.csv", "sweep.json", "sweep.png", "sweep.svg", "window_1")
+    summary = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert [row["window"] for row in summary["rows"]] == [1]
+    assert [point["window"] for point in summary["failed"]] == [3]
 
 
 def test_fast_method_is_flagged(tmp_path: Path) -> None:

@@ -260,7 +260,9 @@ def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsy
 
 
 @pytest.mark.parametrize("parameter, values, key, fragment", [
-    ("slip", [0.1], "--param", "unknown parameter 'slip'"),
+    ("colour", [0.1], "--param", "unknown parameter 'colour'"),
+    ("slip", [0.5], "--values", "slip value 0.5 must be a number in [0, 0.5)"),
+    ("traps", [0], "--values", "traps value 0 must be an integer >= 1"),
     ("window", [0], "--values", "window value 0 must be an integer >= 1"),
     ("window", ["two"], "--values", "is not an integer >= 1"),
     ("delay", [-1], "--values", "delay value -1 must be an integer >= 0"),
@@ -397,5 +399,6 @@ def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: P
     world = load_world(write_world(tmp_path, "small", SMALL))
     result = detect.detect(world, tmp_path / "out", episodes=50, show_progress=False)
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["detection.json",
-                                                                     "detection.png"]
+                                                                     "detection.png",
+                                                                     "detection.svg"]
     assert result["compliant"]["false_alarms"] == 0

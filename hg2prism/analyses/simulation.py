@@ -241,6 +241,11 @@ class StepRecord:
         """s~_n = (v_n, q_n, M_n): the key the mismatch detector counts on."""
         return (self.ts_state, self.q, self.memory)
 
+    @property
+    def observation(self) -> tuple[int, int]:
+        """What P2's inference reads at this step (observer.Observation)."""
+        return (self.ts_state, self.a1)
+
 
 def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int,
                  memory: Memory) -> int:

@@ -1,6 +1,6 @@
 """Scaling benchmark (`hg2prism bench`, `make bench`): a family of generated worlds of growing
 size, each run through every stage of `hg2prism check` in its own process, with the time of each
-stage, Storm's sizes and the peak memory. Writes OUT/results.csv and OUT/scaling.png.
+stage, Storm's sizes and the peak memory. Writes OUT/results.csv and OUT/scaling.{png,svg}.
 
 The worlds share one 12 x 12 core — the regions A-E, eight trap candidates next to them and a
 few walls and obstacles, fixed — in the top right corner of a side x side field of open cells
@@ -339,7 +339,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               keep_outputs: bool = False, storm_method: str = "sound") -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
-    writes out_dir/results.csv and out_dir/scaling.png and prints the summary.
+    writes out_dir/results.csv and out_dir/scaling.{png,svg} and prints the summary.
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
     and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
@@ -379,7 +379,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         scaling_figure(good, STAGES + ("write",), out_dir / "scaling.png", title)
     if show_progress:
         print(summary(rows), flush=True)
-        print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'}", flush=True)
+        print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'} (and .svg)", flush=True)
     return rows
 
 

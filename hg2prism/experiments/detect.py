@@ -4,7 +4,7 @@
 model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.analyses.detection`):
 
 (a) one seeded episode in which P2 follows the model for ``deviate_after`` steps, then plays
-    uniformly at random (the G-per-step picture, ``OUT/detection.png``);
+    uniformly at random (the G-per-step picture, ``OUT/detection.{png,svg}``);
 (b) many such episodes: the distribution of detection steps and the share not detected;
 (c) as many episodes in which P2 follows the model: the false-alarm rate;
 (d) the paper's other mismatch: P2's real inference runs with another window or threshold
@@ -12,7 +12,7 @@ model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.analyses.detectio
     :func:`hg2prism.analyses.simulation.leader_fallback` on states they do not cover, counted
     as ``off_record_steps``); the detector compares P2's traps with P1's prediction.
 
-Writes ``OUT/detection.json`` and ``OUT/detection.png``.
+Writes ``OUT/detection.json`` and ``OUT/detection.{png,svg}``.
 """
 
 from __future__ import annotations
@@ -188,7 +188,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
 
     `check_result` is pipeline.check(world, ...). `episodes` defaults to
     min(world.simulation.episodes, 2000) per batch, `seed` and `horizon` to the world's.
-    Writes out/detection.json and out/detection.png and returns the JSON's content.
+    Writes out/detection.json and out/detection.{png,svg} and returns the JSON's content.
     """
     from hg2prism.report import plots
     from hg2prism.opponent.inference import build_inference
@@ -247,7 +247,8 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         "per_step": per_step,
     }
     plots.detection_figure([s.statistic for s in steps], [s.threshold for s in steps],
-                           deviate_after, detected_at, out / "detection.png")
+                           deviate_after, detected_at, out / "detection.png",
+                           world_name=world.name, seed=chosen)
     say(f"detection: seeded episode (seed {chosen}, {seeded['steps']} steps): "
         + (f"mismatch detected at step {detected_at}" if detected_at is not None
            else "mismatch not detected"))

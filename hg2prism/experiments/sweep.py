@@ -1,85 +1,161 @@
-"""Parameter sweeps (the paper's Fig. 4): the world re-solved for each value of one parameter.
+"""Parameter sweeps (the paper's Fig. 4): the world re-solved at every point of a parameter grid.
 
-:func:`sweep` re-solves the world for each value of one parameter (``delay``, ``window``,
-``threshold`` or ``rationality``) and records the deceptive value, V_lead and V_NE at the
-initial state (docs/semantics.md §§6–7). Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.png``;
-each value's model, strategy and results stay in ``OUT/<parameter>_<value>/``.
+:func:`sweep_grid` re-solves the world at every point of the cartesian product of one or more
+parameters' values (the table :data:`SWEEP_PARAMETERS`: ``delay``, ``window``, ``threshold``,
+``rationality``, ``slip``, ``traps``) and records the deceptive value, V_lead and V_NE at the
+initial state (docs/semantics.md §§6-7; the sweep itself: §7, Sweeps). :func:`sweep` is the
+one-parameter case. Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.{png,svg}``; each
+point's model, strategy and results stay in ``OUT/<parameter>_<value>/`` (one parameter) or
+``OUT/<p1>_<v1>__<p2>_<v2>/`` (several).
 
-Sweeping ``delay`` needs the traps standing at the start when the delay is positive
-(docs/semantics.md §2). The rule: the world's own ``initial_traps`` when it has them (a world loaded with
-delay > 0); otherwise the ``[adversary] initial_traps`` written in the world file (the loader
-drops them when delay = 0; here they are checked as if delay were positive, and an empty list
-counts as none); otherwise the first ``traps`` trap candidates in map reading order. A delay of
-0 has no initial traps.
+The points run serially in this process (``workers=1``, the library's default) or on Dask
+(``dask.distributed``): a LocalCluster of ``workers`` worker processes, or the cluster whose
+scheduler is at ``scheduler``. Each point travels as the world file's text plus the fields the
+point changes (:class:`PointTask`); the worker parses the text, solves, and sends back the
+point's row and the bytes of its files, so that no stormpy object crosses processes and workers
+need not share this machine's disk. Serial and Dask runs give the same rows in grid order.
+
+A point that fails (the size guard, a solver or Storm error, a worker lost) is reported with its
+parameters and the others go on; only when the size guard refuses every point is the sweep
+refused as a whole, before anything is solved.
+
+The traps standing at the start when a point has a positive delay (docs/semantics.md §2 and §7, Sweeps):
+the world's own ``initial_traps`` when it has them (a world loaded with delay > 0); otherwise the
+``[adversary] initial_traps`` written in the world file (the loader drops them when delay = 0;
+here they are checked as if delay were positive, and an empty list counts as none); otherwise
+the first ``traps`` trap candidates in map reading order. When ``traps`` is swept to k, the
+standing traps are the first k of those (in candidate order), followed, when k exceeds them, by
+the first other candidates in map reading order. A delay of 0 has no initial traps.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import itertools
 import math
+import os
 import sys
+import tempfile
 import time
 import tomllib
-from collections.abc import Sequence
-from dataclasses import replace
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
+from typing import Any
 
 from hg2prism.errors import InputError
 from hg2prism.model.world import Cell, World
 from hg2prism import progress
-from hg2prism.outputs import write_json, write_text
+from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.results import Parameters
 
-__all__ = ["SWEEP_PARAMETERS", "parse_sweep_values", "sweep_world", "delay_initial_traps", "sweep",
-           "sweep_summary_lines"]
-
-# parameter -> (type, minimum, minimum is exclusive, what is expected)
-SWEEP_PARAMETERS: dict[str, tuple[type, float, bool, str]] = {
-    "delay": (int, 0, False, "an integer >= 0"),
-    "window": (int, 1, False, "an integer >= 1"),
-    "threshold": (float, 0.0, True, "a number > 0"),
-    "rationality": (float, 0.0, True, "a number > 0"),
-}
+__all__ = ["SweepParameter", "SWEEP_PARAMETERS", "OWNED_PATTERN", "parse_sweep_values",
+           "parse_sweep_grid", "sweep_world", "sweep_point", "delay_initial_traps",
+           "standing_traps", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
+           "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
 _CLI = "command line"
 
+Value = Any     # int | float today; a parameter's parser decides (e.g. a name, later)
+
 
 # ---------------------------------------------------------------------------------------------
-# Sweep
+# The parameters: how each is parsed and how it rewrites the world
 # ---------------------------------------------------------------------------------------------
 
-def _parse_value(parameter: str, value: object) -> int | float:
-    kind, minimum, exclusive, expected = SWEEP_PARAMETERS[parameter]
+@dataclass(frozen=True)
+class SweepParameter:
+    """One sweepable parameter. `parse` turns a value as given (a command-line string or a
+    Python value) into the parameter's value, raising ValueError with what is expected; `apply`
+    returns the world with that value (InputError when the value does not fit this world);
+    `moves_traps` says the standing traps must be worked out again (docs/semantics.md §7, Sweeps)."""
+
+    name: str
+    expected: str
+    parse: Callable[[object], Value]
+    apply: Callable[[World, Value], World]
+    moves_traps: bool = False
+
+
+def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None
+            ) -> Callable[[object], int | float]:
+    """A parser of ints or floats >= minimum (> when exclusive), and < below when given."""
+    def parse(value: object) -> int | float:
+        if isinstance(value, bool):
+            raise ValueError("must be")
+        number: float
+        if isinstance(value, (int, float)):
+            number = value
+        elif isinstance(value, str):
+            text = value.strip()
+            try:
+                number = int(text) if kind is int else float(text)
+            except ValueError:
+                raise ValueError("is not") from None
+        else:
+            raise ValueError("must be")
+        if kind is int:
+            if isinstance(number, float):
+                raise ValueError("must be")
+            number = int(number)
+        else:
+            number = float(number)
+            if not math.isfinite(number):
+                raise ValueError("must be")
+        if number < minimum or (exclusive and number == minimum) or (
+                below is not None and number >= below):
+            raise ValueError("must be")
+        return number
+    return parse
+
+
+def _field(name: str) -> Callable[[World, Value], World]:
+    return lambda world, value: replace(world, **{name: value})
+
+
+def _with_traps(world: World, traps: int) -> World:
+    candidates = len(world.grid.trap_candidates)
+    if traps > candidates:
+        raise InputError(_CLI, "--values", f"traps value {traps} must be at most the world's "
+                                           f"{candidates} trap candidates")
+    return replace(world, traps=traps)
+
+
+SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
+    SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
+                   moves_traps=True),
+    SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
+    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True), _field("threshold")),
+    SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
+                   _field("rationality")),
+    SweepParameter("slip", "a number in [0, 0.5)", _number(float, 0.0, False, below=0.5),
+                   _field("slip")),
+    SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
+                   _number(int, 1, False), _with_traps, moves_traps=True),
+)}
+
+# The per-point folders a sweep owns in its output folder (outputs.staged removes stale ones):
+# <name>_<value> joined by "__", names from the table.
+_NAME = "(?:" + "|".join(SWEEP_PARAMETERS) + ")"
+_POINT = _NAME + r"_[0-9A-Za-z][0-9A-Za-z.+-]*"
+OWNED_PATTERN = r"sweep\.(json|csv|png|svg|pdf)|" + _POINT + "(?:__" + _POINT + ")*"
+
+
+def _parse_value(parameter: str, value: object) -> Value:
+    spec = SWEEP_PARAMETERS[parameter]
     shown = repr(value) if not isinstance(value, str) else value
-    if isinstance(value, bool):
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    number: float
-    if isinstance(value, (int, float)):
-        number = value
-    elif isinstance(value, str):
-        text = value.strip()
-        try:
-            number = int(text) if kind is int else float(text)
-        except ValueError:
+    try:
+        return spec.parse(value)
+    except ValueError as err:
+        if str(err) == "is not":
             raise InputError(_CLI, "--values",
-                             f"{parameter} value {shown!r} is not {expected}") from None
-    else:
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    if kind is int:
-        if isinstance(number, float):
-            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-        number = int(number)
-    else:
-        number = float(number)
-        if not math.isfinite(number):
-            raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    if number < minimum or (exclusive and number == minimum):
-        raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
-    return number
+                             f"{parameter} value {shown!r} is not {spec.expected}") from None
+        raise InputError(_CLI, "--values",
+                         f"{parameter} value {shown} must be {spec.expected}") from None
 
 
-def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[int | float]:
+def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     """Validate a sweep: a known parameter and a non-empty list of distinct valid values
     (strings as typed on the command line are parsed). Raises InputError (key --param or
     --values)."""
@@ -88,12 +164,27 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[int | f
                                           + ", ".join(SWEEP_PARAMETERS))
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(_CLI, "--values", f"expected at least one value of {parameter} "
-                                           f"({SWEEP_PARAMETERS[parameter][3]})")
+                                           f"({SWEEP_PARAMETERS[parameter].expected})")
     parsed = [_parse_value(parameter, v) for v in values]
     for i, v in enumerate(parsed):
         if v in parsed[:i]:
             raise InputError(_CLI, "--values", f"{parameter} value {v} is repeated; expected "
                                                "distinct values")
+    return parsed
+
+
+def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
+                     ) -> list[tuple[str, list[Value]]]:
+    """Validate several (parameter, values) pairs: each as in :func:`parse_sweep_values`, and
+    no parameter twice."""
+    if not grid:
+        raise InputError(_CLI, "--param", "expected at least one parameter to sweep")
+    parsed: list[tuple[str, list[Value]]] = []
+    for parameter, values in grid:
+        if any(parameter == seen for seen, _ in parsed):
+            raise InputError(_CLI, "--param", f"{parameter} is given twice; give all its values "
+                                              "after one --values")
+        parsed.append((parameter, parse_sweep_values(parameter, values)))
     return parsed
 
 
@@ -143,17 +234,50 @@ def delay_initial_traps(world: World) -> tuple[Cell, ...]:
     return tuple(world.grid.trap_candidates[:world.traps])
 
 
+def standing_traps(world: World, traps: int) -> tuple[Cell, ...]:
+    """The traps standing at the start of a point with a positive delay and `traps` traps (the
+    rule in the module docstring)."""
+    numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
+    chosen = list(delay_initial_traps(world))[:traps]
+    for cell in world.grid.trap_candidates:
+        if len(chosen) >= traps:
+            break
+        if cell not in chosen:
+            chosen.append(cell)
+    return tuple(sorted(chosen, key=numbering.__getitem__))
+
+
+def sweep_point(world: World, assignment: dict[str, Value]) -> World:
+    """The world at one point of a sweep: each parameter of `assignment` (already parsed)
+    applied in the table's order, then the standing traps worked out again when the delay or
+    the number of traps is swept."""
+    point = world
+    for name in SWEEP_PARAMETERS:
+        if name in assignment:
+            point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
+    if any(SWEEP_PARAMETERS[name].moves_traps for name in assignment):
+        traps = standing_traps(world, point.traps) if point.delay > 0 else ()
+        point = replace(point, initial_traps=traps)
+    return point
+
+
 def sweep_world(world: World, parameter: str, value: object) -> World:
     """The world with one parameter replaced (validated as in :func:`parse_sweep_values`)."""
     (value,) = parse_sweep_values(parameter, [value])
-    if parameter == "delay":
-        traps = delay_initial_traps(world) if value > 0 else ()
-        return replace(world, delay=value, initial_traps=traps)
-    return replace(world, **{parameter: value})
+    return sweep_point(world, {parameter: value})
 
 
-def _value_text(value: int | float) -> str:
-    return str(value) if isinstance(value, int) else f"{value:g}"
+def _value_text(value: Value) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def point_label(assignment: dict[str, Value]) -> str:
+    """``delay=1 window=2``: a point as the progress lines and error messages show it."""
+    return " ".join(f"{name}={_value_text(value)}" for name, value in assignment.items())
+
+
+def _folder(assignment: dict[str, Value]) -> str:
+    return "__".join(f"{name}_{_value_text(value)}" for name, value in assignment.items())
 
 
 def _bar(done: int, total: int, width: int = 20) -> str:
@@ -172,106 +296,392 @@ def results_sound(storm_method: str) -> bool:
     return storm_method in SOUND_METHODS
 
 
-def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
-          show_progress: bool = True, storm_method: str = "sound") -> list[dict]:
-    """Solve the world for each value of `parameter` and record the values at the initial
-    state: ``{parameter: value, deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, states,
-    transitions, storm_states, storm_transitions, initial_traps, seconds}`` per value.
+# ---------------------------------------------------------------------------------------------
+# One point, solved where it runs (this process or a Dask worker)
+# ---------------------------------------------------------------------------------------------
 
-    Each value is checked into ``out/<parameter>_<value>/`` (hypergame.prism, strategy.json,
-    results.json); ``out/sweep.json``, ``out/sweep.csv`` and ``out/sweep.png`` summarise them.
-    Progress: one line per value on stderr (the stages' own messages are not shown).
-    """
+@dataclass(frozen=True)
+class PointTask:
+    """What a worker needs to solve one point: the world file's text (or, for a world that has
+    no file giving it, the World value itself; both are plain data) and the World fields the
+    point changes."""
+
+    index: int                              # position in the grid (rows come back in order)
+    assignment: tuple[tuple[str, Value], ...]
+    world_text: str | None
+    world: World | None
+    world_file: str
+    changes: tuple[tuple[str, object], ...]  # World field -> value at this point
+    folder: str
+    storm_method: str
+    max_states: int | None
+    estimate: int = 0                       # the size guard's estimate: bigger starts earlier
+
+
+@dataclass(frozen=True)
+class PointOutcome:
+    """A point's row (or the one-line reason it failed), its files as bytes (path relative to
+    its folder -> content) and the warnings its stages gave."""
+
+    index: int
+    row: dict | None
+    files: tuple[tuple[str, bytes], ...]
+    error: str | None
+    warnings: tuple[str, ...]
+    note: str | None = None                 # shown after the point's progress line
+
+
+def _world_of(task: PointTask) -> World:
+    from hg2prism.model.world import world_from_toml
+
+    if task.world is not None:
+        base = task.world
+    else:
+        # world_from_toml names the world after the "file" it is given when the text has no
+        # name; the changes below restore the name and path the world was loaded with.
+        base = world_from_toml(task.world_text, name=task.world_file)
+    return replace(base, **dict(task.changes))
+
+
+def solve_point(task: PointTask) -> PointOutcome:
+    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, `check` into a private
+    temporary folder, the Nash baseline; the row and the folder's files come back. Every error
+    becomes the outcome's one-line `error`, so that one point's failure loses no other."""
     from hg2prism import pipeline
     from hg2prism.analyses import baselines
+    from hg2prism.errors import SolverError, StormError
+    from hg2prism.model import sizeguard
+
+    assignment = dict(task.assignment)
+    with progress.collected_warnings() as warnings:
+        try:
+            world = _world_of(task)
+            sizeguard.check_size(world, task.max_states)
+            start = time.perf_counter()
+            with progress.quiet(), tempfile.TemporaryDirectory(prefix="hg2prism-point-") as tmp:
+                folder = Path(tmp) / task.folder
+                checked = pipeline.check(world, folder, task.storm_method)
+                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
+                files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
+                                     for p in folder.rglob("*") if p.is_file()))
+            seconds = time.perf_counter() - start
+        except InputError as err:
+            return PointOutcome(task.index, None, (), f"{err.key}: {err.reason}", tuple(warnings))
+        except (SolverError, StormError) as err:
+            stage = "games" if isinstance(err, SolverError) else "storm"
+            first = (str(err).strip().splitlines() or [type(err).__name__])[0]
+            return PointOutcome(task.index, None, (), f"{stage}: {first}", tuple(warnings))
+        except Exception as err:     # a bug or the machine (MemoryError): still one point
+            return PointOutcome(task.index, None, (), f"{type(err).__name__}: {err}",
+                                tuple(warnings))
+    results = checked.results
+    row = {
+        **assignment,
+        "deceptive_value": results.deceptive_value,
+        "v_lead": results.v_lead,
+        "v_ne": nash.v_ne,
+        "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
+        "v_ne_bounds": list(nash.v_ne_bounds),
+        "states": results.states,
+        "transitions": results.transitions,
+        "storm_states": results.storm_states,
+        "storm_transitions": results.storm_transitions,
+        "initial_traps": [list(c) for c in world.initial_traps],
+        "seconds": round(seconds, 3),
+    }
+    note = (f"P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}" if nash.warn
+            else None)
+    return PointOutcome(task.index, row, files, None, tuple(warnings), note)
+
+
+# ---------------------------------------------------------------------------------------------
+# Running the points
+# ---------------------------------------------------------------------------------------------
+
+def default_workers() -> int:
+    """The cores this process may use: the default number of Dask workers."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:      # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _world_text(world: World) -> str | None:
+    """The world file's text when it gives exactly `world` (less name, path and the swept
+    fields, which travel as changes); None for a world built in Python."""
+    from hg2prism.model.world import world_from_toml
+
+    try:
+        text = Path(world.path).read_text(encoding="utf-8")
+        parsed = world_from_toml(text, name=str(world.path))
+    except (OSError, UnicodeDecodeError, InputError):
+        return None
+    return text if replace(parsed, name=world.name, path=world.path) == world else None
+
+
+def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
+           max_states: int | None) -> list[PointTask]:
+    from hg2prism.model import sizeguard
+
+    text = _world_text(world)
+    tasks = []
+    for index, assignment in enumerate(points):
+        point = sweep_point(world, assignment)
+        # name and path always travel: the text alone names the world after its file
+        changes = tuple((f.name, getattr(point, f.name)) for f in fields(World)
+                        if f.name in ("name", "path") or getattr(point, f.name) != getattr(world, f.name))
+        tasks.append(PointTask(index, tuple(assignment.items()), text,
+                               None if text is not None else world, str(world.path), changes,
+                               _folder(assignment), storm_method, max_states,
+                               min(sizeguard.estimate_states(point), 2**62)))
+    return tasks
+
+
+def _closing(outcomes: Iterator[PointOutcome]) -> Iterator[PointOutcome]:
+    """`outcomes`, closed (its cluster shut down) even when the caller stops early."""
+    try:
+        yield from outcomes
+    finally:
+        close = getattr(outcomes, "close", None)
+        if close is not None:
+            close()
+
+
+def _run_serial(tasks: list[PointTask], live: bool,
+                label_of: Callable[[PointTask], str]) -> Iterator[PointOutcome]:
+    for task in tasks:
+        if live:
+            sys.stderr.write(f"sweep {label_of(task)} ...")
+            sys.stderr.flush()
+        outcome = solve_point(task)
+        if live:
+            sys.stderr.write("\r")
+        yield outcome
+
+
+def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
+              ) -> Iterator[PointOutcome]:
+    """The points on a Dask cluster, as they complete. A LocalCluster of `workers` processes
+    (one thread each: Storm is single-threaded) unless `scheduler` names a running one; the
+    cluster this starts is closed on the way out, whatever happens."""
+    import logging
+    import warnings
+
+    import dask
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    # The workers' and the scheduler's logs (start-up, shutdown, heartbeats) are noise here;
+    # what matters reaches the user as the points' outcomes.
+    quiet_loggers = [logging.getLogger(name) for name in ("distributed", "tornado", "bokeh")]
+    levels = [logger.level for logger in quiet_loggers]
+    for logger in quiet_loggers:
+        logger.setLevel(logging.CRITICAL)
+    cluster = None
+    futures: list = []
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            if scheduler is None:
+                # A worker lost on a point (its share of the memory exceeded) fails that point
+                # at once rather than after Dask's retries of the same heavy point.
+                with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+                    cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                           processes=True, dashboard_address=None,
+                                           silence_logs=logging.CRITICAL)
+                client = Client(cluster)
+            else:
+                try:
+                    client = Client(scheduler, timeout="10s")
+                except (OSError, TimeoutError, ValueError) as err:
+                    raise InputError(_CLI, "--scheduler", f"cannot reach a Dask scheduler at "
+                                                          f"{scheduler}: {err}") from None
+        try:
+            # largest first (by the size estimate), so that a big point does not start last
+            # and leave the other workers idle; the scheduler hands out tasks as they arrive
+            by_size = sorted(tasks, key=lambda task: (-task.estimate, task.index))
+            futures = client.map(solve_point, by_size, pure=False)
+            index_of = {future.key: task.index for future, task in zip(futures, by_size)}
+            for future in as_completed(futures):
+                try:
+                    yield future.result()
+                except Exception as err:    # the worker died (KilledWorker) or was cancelled
+                    yield PointOutcome(index_of[future.key], None, (),
+                                       f"dask: {type(err).__name__}: {err}", ())
+        finally:
+            for future in futures:
+                future.cancel()
+            client.close()
+    finally:
+        if cluster is not None:
+            cluster.close()
+        for logger, level in zip(quiet_loggers, levels):
+            logger.setLevel(level)
+
+
+# ---------------------------------------------------------------------------------------------
+# The sweep
+# ---------------------------------------------------------------------------------------------
+
+def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
+               max_states: int | None = None
+               ) -> tuple[list[tuple[str, list[Value]]], list[dict[str, Value]]]:
+    """Everything a sweep checks before solving: the parameters and values, every point's world
+    (InputError for a value that does not fit the world, or bad initial traps in the file), and
+    the size guard, which refuses the sweep only when it refuses every point (a single refused
+    point fails alone when it is reached). Returns the parsed grid and its points in grid order
+    (the first parameter varies slowest)."""
+    from hg2prism.model import sizeguard
+
+    parsed = parse_sweep_grid(grid)
+    names = [name for name, _ in parsed]
+    points = [dict(zip(names, combination))
+              for combination in itertools.product(*(values for _, values in parsed))]
+    refusals = []
+    for point in points:
+        try:
+            sizeguard.check_size(sweep_point(world, point), max_states)
+        except InputError as err:
+            refusals.append(err)
+    if len(refusals) == len(points):
+        raise refusals[0]
+    return parsed, points
+
+
+@dataclass(frozen=True)
+class SweepRun:
+    """A finished sweep: the swept parameters with their values, the rows of the points that
+    were solved (grid order) and the points that failed (their parameters and ``error``)."""
+
+    parameters: tuple[tuple[str, tuple[Value, ...]], ...]
+    rows: tuple[dict, ...]
+    failed: tuple[dict, ...]
+
+
+def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: Path,
+               show_progress: bool = True, storm_method: str = "sound", *, workers: int = 1,
+               scheduler: str | None = None, max_states: int | None = None) -> SweepRun:
+    """Solve the world at every point of the cartesian product of `grid`'s values (the first
+    parameter varies slowest) and record the values at the initial state: per point
+    ``{<parameter>: value, ..., deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, v_ne_bounds,
+    states, transitions, storm_states, storm_transitions, initial_traps, seconds}``.
+
+    Points run serially here when ``workers == 1`` and no `scheduler` is given, otherwise on
+    Dask (module docstring). Each point is checked into ``out/<folder>/`` (hypergame.prism,
+    strategy.json, results.json); ``out/sweep.json``, ``sweep.csv`` and ``sweep.png`` summarise
+    them (docs/semantics.md §7, Sweeps, gives their format). Progress: one line per finished point on
+    stderr, with the count of points done. Raises InputError for a bad parameter or value, or
+    when the size guard (`max_states`) refuses every point; other failures are per point.
+    A script that calls this with ``workers > 1`` needs the ``if __name__ == "__main__":``
+    guard, as any program starting processes by spawning does.
+    """
+    if workers < 1:
+        raise InputError(_CLI, "--workers", f"must be at least 1, got {workers}")
+    parsed, points = check_grid(world, grid, max_states)
+    tasks = _tasks(world, points, storm_method, max_states)
+    out = Path(out)
+    total_start = time.perf_counter()
+    serial = workers == 1 and scheduler is None
+    live = show_progress and serial and sys.stderr.isatty()
+
+    def label_of(task: PointTask) -> str:
+        return point_label(dict(task.assignment))
+
+    outcomes: dict[int, PointOutcome] = {}
+    running = (_run_serial(tasks, live, label_of) if serial
+               else _run_dask(tasks, min(workers, len(tasks)), scheduler))
+    for outcome in _closing(running):
+        outcomes[outcome.index] = outcome
+        task = tasks[outcome.index]
+        for name, data in outcome.files:
+            write_bytes(out / task.folder / name, data)
+        for message in outcome.warnings:
+            progress.replay_warning(message)
+        if show_progress:
+            done = len(outcomes)
+            head = f"sweep {label_of(task)} ({done}/{len(tasks)}) [{_bar(done, len(tasks))}]"
+            row = outcome.row
+            if row is None:
+                line = f"{head}: failed: {outcome.error}"
+            else:
+                line = (f"{head}: deceptive {row['deceptive_value']:.4f}, V_lead "
+                        f"{row['v_lead']:.4f}, V_NE {row['v_ne']:.4f}, {row['states']} states "
+                        f"({row['seconds']:.1f} s)"
+                        + (f"; warning: {outcome.note}" if outcome.note else ""))
+            sys.stderr.write(line + "\n")
+            sys.stderr.flush()
+
+    rows = tuple(outcomes[i].row for i in range(len(tasks)) if outcomes[i].row is not None)
+    failed = tuple({**dict(tasks[i].assignment), "error": outcomes[i].error}
+                   for i in range(len(tasks)) if outcomes[i].row is None)
+    run = SweepRun(tuple((name, tuple(values)) for name, values in parsed), rows, failed)
+    _write_summary(world, run, out, storm_method, time.perf_counter() - total_start)
+    return run
+
+
+def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
+                   seconds: float) -> None:
     from hg2prism.report import plots
 
-    parsed = parse_sweep_values(parameter, values)
-    worlds = [sweep_world(world, parameter, v) for v in parsed]   # all errors before any work
-    out = Path(out)
-    rows: list[dict] = []
-    total_start = time.perf_counter()
-    for i, (value, w) in enumerate(zip(parsed, worlds), start=1):
-        label = f"sweep {parameter}={_value_text(value)} ({i}/{len(parsed)}) [{_bar(i - 1, len(parsed))}]"
-        live = show_progress and sys.stderr.isatty()
-        if live:
-            sys.stderr.write(label + " ...")
-            sys.stderr.flush()
-        start = time.perf_counter()
-        finished = False
-        try:
-            with progress.quiet():     # one line per value, not every stage's
-                checked = pipeline.check(w, out / f"{parameter}_{_value_text(value)}", storm_method)
-                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
-            finished = True
-        finally:
-            if live and not finished:
-                sys.stderr.write(" failed\n")
-                sys.stderr.flush()
-        seconds = time.perf_counter() - start
-        results = checked.results
-        row = {
-            parameter: value,
-            "deceptive_value": results.deceptive_value,
-            "v_lead": results.v_lead,
-            "v_ne": nash.v_ne,
-            "v_ne_p1_guaranteed": nash.v_ne_p1_guaranteed,
-            "v_ne_bounds": list(nash.v_ne_bounds),
-            "states": results.states,
-            "transitions": results.transitions,
-            "storm_states": results.storm_states,
-            "storm_transitions": results.storm_transitions,
-            "initial_traps": [list(c) for c in w.initial_traps],
-            "seconds": round(seconds, 3),
-        }
-        rows.append(row)
-        if show_progress:
-            warn = (f"; warning: P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}"
-                    if nash.warn else "")
-            sys.stderr.write(f"{chr(13) if live else ''}{label.rsplit(' [', 1)[0]} "
-                             f"[{_bar(i, len(parsed))}]: deceptive "
-                             f"{row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
-                             f"{row['v_ne']:.4f}, {row['states']} states ({seconds:.1f} s){warn}\n")
-            sys.stderr.flush()
-
+    names = [name for name, _ in run.parameters]
     fixed = Parameters.of(world).to_json()
-    fixed.pop(parameter)
-    summary = {
-        "world": world.name,
-        "world_file": str(world.path),
-        "parameter": parameter,
-        "values": parsed,
+    for name in names:
+        fixed.pop(name, None)
+    summary: dict[str, object] = {"world": world.name, "world_file": str(world.path)}
+    if len(names) == 1:        # the one-parameter format, as before grids existed
+        summary.update(parameter=names[0], values=list(run.parameters[0][1]))
+    else:
+        summary["grid"] = {name: list(values) for name, values in run.parameters}
+    summary.update({
+        "parameters": names,
         "fixed_parameters": fixed,
         "storm_method": storm_method,
         "sound": results_sound(storm_method),
         "initial_traps_rule": ("delay > 0: the world's initial_traps, else the file's "
                                "[adversary] initial_traps, else the first `traps` candidates"
-                               if parameter == "delay" else None),
-        "rows": rows,
-        "seconds": round(time.perf_counter() - total_start, 3),
-    }
+                               + ("; traps = k keeps the first k of them, then the first other "
+                                  "candidates" if "traps" in names else "")
+                               if any(SWEEP_PARAMETERS[n].moves_traps for n in names) else None),
+        "rows": list(run.rows),
+        "failed": list(run.failed),
+        "seconds": round(seconds, 3),
+    })
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow((parameter,) + _CSV_COLUMNS)
-    for row in rows:
-        writer.writerow([row[parameter]] + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                                            for c in _CSV_COLUMNS])
+    writer.writerow(tuple(names) + _CSV_COLUMNS)
+    for row in run.rows:
+        writer.writerow([row[n] for n in names]
+                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
+                           for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)
     write_text(out / "sweep.csv", buffer.getvalue())
-    plots.sweep_figure(parameter, rows, out / "sweep.png")
-    return rows
+    if len(names) == 1:
+        plots.sweep_figure(names[0], list(run.rows), out / "sweep.png", world.name)
+    else:
+        plots.sweep_grid_figure(names, list(run.rows), out / "sweep.png", world.name)
 
 
-def sweep_summary_lines(parameter: str, rows: Sequence[dict], world_name: str | None = None) -> list[str]:
-    """The sweep as a Markdown table."""
-    title = f"Completion probability at the initial state against {parameter}"
+def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
+          show_progress: bool = True, storm_method: str = "sound", *, workers: int = 1,
+          scheduler: str | None = None, max_states: int | None = None) -> list[dict]:
+    """:func:`sweep_grid` over one parameter; returns the solved points' rows (the failed ones
+    are in ``out/sweep.json`` under ``failed``)."""
+    return list(sweep_grid(world, [(parameter, values)], out, show_progress, storm_method,
+                           workers=workers, scheduler=scheduler, max_states=max_states).rows)
+
+
+def sweep_summary_lines(parameter: str | Sequence[str], rows: Sequence[dict],
+                        world_name: str | None = None) -> list[str]:
+    """The sweep as a Markdown table (one column per swept parameter)."""
+    names = [parameter] if isinstance(parameter, str) else list(parameter)
+    title = f"Completion probability at the initial state against {' and '.join(names)}"
     if world_name:
         title += f" ({world_name})"
     lines = [title, "",
-             f"| {parameter} | deceptive value | V_lead | V_NE | hypergame states | transitions |",
-             "|---|---|---|---|---|---|"]
+             "| " + " | ".join(names) + " | deceptive value | V_lead | V_NE | hypergame states "
+             "| transitions |",
+             "|" + "---|" * (len(names) + 5)]
     for row in rows:
-        lines.append(f"| {_value_text(row[parameter])} | {row['deceptive_value']:.4f} "
-                     f"| {row['v_lead']:.4f} | {row['v_ne']:.4f} | {row['states']} "
-                     f"| {row['transitions']} |")
+        lines.append("| " + " | ".join(_value_text(row[n]) for n in names)
+                     + f" | {row['deceptive_value']:.4f} | {row['v_lead']:.4f} "
+                     f"| {row['v_ne']:.4f} | {row['states']} | {row['transitions']} |")
     return lines

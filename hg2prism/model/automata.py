@@ -102,3 +102,76 @@ def _can_reach(delta: np.ndarray, targets: frozenset[int]) -> frozenset[int]:
                 reached.add(p)
                 stack.append(p)
     return frozenset(reached)
+
+
+# ---------------------------------------------------------------------------------------------
+# Exports: the DFA as HOA (for Spot and other omega-automata tools) and as DOT (for Graphviz)
+# ---------------------------------------------------------------------------------------------
+
+def to_hoa(dfa: DFA, label_names: tuple[str, ...]) -> str:
+    """The DFA in the Hanoi Omega-Automata format, states numbered as hg2prism numbers them.
+
+    The edges are Spot's (complete and deterministic over every valuation of the formula's
+    propositions); the acceptance set is the DFA's final states F instead of Spot's Büchi marks
+    (docs/semantics.md §3): F is closed under the world's letters, so over them a run is
+    Büchi-accepted exactly when it reaches F. A comment in the header names the sink states and
+    the transition table over the world's label classes, which is what hg2prism reads.
+    """
+    if dfa.automaton is None:
+        raise ValueError("the DFA has no Spot automaton to export")
+    copy = spot.make_twa_graph(dfa.automaton, spot.twa_prop_set.all())
+    copy.set_buchi()
+    copy.prop_state_acc(True)
+    # The edges (hence determinism and completeness) are Spot's; properties that depend on the
+    # acceptance marks are no longer known.
+    for prop in (copy.prop_terminal, copy.prop_weak, copy.prop_very_weak,
+                 copy.prop_inherently_weak, copy.prop_stutter_invariant):
+        prop(spot.trival_maybe())
+    final = spot.mark_t([0])
+    for edge in copy.edges():
+        edge.acc = final if edge.src in dfa.accepting else spot.mark_t([])
+    copy.set_name(f"DFA of {dfa.formula}")
+    text = copy.to_str("hoa")
+    # Spot writes the numbering it holds (make_twa_graph copies without renumbering); a
+    # renumbered export would no longer match the q of strategy.json and of the PRISM model.
+    if copy.num_states() != dfa.n_states or copy.get_init_state_number() != dfa.initial:
+        raise AssertionError("Spot renumbered the DFA's states")
+    def name(k: int) -> str:
+        return label_names[k] or "{}"
+
+    table = "; ".join(f"{q}: " + ", ".join(f"{name(k)}->{int(dfa.delta[q, k])}"
+                                           for k in range(len(label_names)))
+                      for q in range(dfa.n_states))
+    comment = (f"hg2prism DFA of {dfa.formula!r}. States are the q of strategy.json and of "
+               f"the PRISM models. Final (good-prefix) states: {sorted(dfa.accepting)}; sink "
+               f"states: {sorted(dfa.sink)}. On the world's label classes: {table}.")
+    comment = "/* " + comment.replace("*/", "* /") + " */"
+    return text.replace("HOA: v1\n", f"HOA: v1\n{comment}\n", 1) + "\n"
+
+
+def to_dot(dfa: DFA, label_names: tuple[str, ...]) -> str:
+    """The DFA as a Graphviz digraph over the world's label classes: one edge per (state,
+    successor) labelled with the classes leading there ("{}" = no proposition), final states
+    double-circled, sink states grey, the initial state pointed at."""
+    def quoted(text: str) -> str:
+        return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+    lines = [f"digraph {quoted('DFA of ' + dfa.formula)} {{", "  rankdir=LR",
+             f"  label={quoted(dfa.formula + ' (states = q of strategy.json)')}",
+             '  labelloc="t"', '  node [shape="circle"]',
+             '  init [label="", shape=none, width=0]', f"  init -> {dfa.initial}"]
+    for q in range(dfa.n_states):
+        style = []
+        if q in dfa.accepting:
+            style.append("peripheries=2")
+        if q in dfa.sink:
+            style.append('style=filled, fillcolor="lightgrey"')
+        kind = " (final)" if q in dfa.accepting else " (sink)" if q in dfa.sink else ""
+        lines.append(f"  {q} [label={quoted(f'{q}{kind}')}{''.join(', ' + s for s in style)}]")
+        by_target: dict[int, list[str]] = {}
+        for k, name in enumerate(label_names):
+            by_target.setdefault(int(dfa.delta[q, k]), []).append(name or "{}")
+        for target, names in by_target.items():
+            lines.append(f"  {q} -> {target} [label={quoted(', '.join(names))}]")
+    lines.append("}")
+    return "\n".join(lines) + "\n"

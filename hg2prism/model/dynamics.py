@@ -23,6 +23,13 @@ _PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", 
 OUTCOMES = 3  # intended direction, then the two perpendicular slips
 
 
+def outcome_directions(action: int) -> tuple[int, int, int]:
+    """The directions (indices into ACTIONS) of a move's outcomes: the move itself, then its two
+    slips, in the order of the `succ`/`prob` tables' last axis."""
+    name = ACTIONS[action]
+    return (action, *(ACTIONS.index(p) for p in _PERPENDICULAR[name]))
+
+
 @dataclass(frozen=True, eq=False)
 class TransitionSystem:
     cells: tuple[Cell, ...]

@@ -39,6 +39,15 @@ class InferenceModel:
         return self.ratios.shape[0]
 
     kind = "cusum"
+    belief_name = "CUSUM score Z_x"
+
+    @property
+    def belief_threshold(self) -> float:
+        return self.threshold
+
+    def belief(self, memory: Memory, observation: Observation) -> list[float]:
+        """The CUSUM scores P2 compares with the threshold at this step (observer.ReportsBelief)."""
+        return self.scores(memory, observation).tolist()
 
     def initial_memory(self) -> Memory:
         return Memory(self.initial_hypothesis, ())

@@ -5,13 +5,15 @@ task. An observer says what that memory is, how one observation updates it, whic
 acts on, and how all of it is written into the hypergame's PRISM model. The hypergame, Storm's
 decoding, the strategy export and the simulations use only this interface, so a new observer
 (the Bayesian one of §12) is one new module beside `inference.py` (CUSUM) and its template.
+An observer may also implement `ReportsBelief`, the per-hypothesis numbers its decisions rest
+on, which the figures and the replay of an episode show (§8 "The episode drawn").
 """
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from hg2prism.model.dynamics import TransitionSystem
 
@@ -51,3 +53,21 @@ class Observer(Protocol):
     def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
         """The observer written into the hypergame model over `ts`; `labels` maps each move
         to its synchronisation label."""
+
+
+@runtime_checkable
+class ReportsBelief(Protocol):
+    """An observer that can show, step by step, the per-hypothesis numbers its decision rests
+    on (the replay and `belief.png` draw them; docs/semantics.md §8 "The episode drawn"). The
+    CUSUM observer reports its scores Z_x, compared with its threshold; a Bayesian observer
+    would report its posterior p(x | W), with no threshold."""
+
+    belief_name: str           # what the numbers are, for axis labels ("CUSUM score Z_x")
+
+    @property
+    def belief_threshold(self) -> float | None:
+        """The level at which P2 changes her mind (None when the rule has no threshold)."""
+
+    def belief(self, memory: Hashable, observation: Observation) -> Sequence[float]:
+        """One number per hypothesis: what P2 computes when she reads `observation` with
+        memory `memory` (before her update)."""

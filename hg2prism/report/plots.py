@@ -1,4 +1,9 @@
-"""Figures a researcher opens: the world with one episode, the sweep, the detector, scaling."""
+"""Figures a researcher opens: the world with one episode, P2's belief along it, completion
+against time, the sweep, the detector, scaling.
+
+Every figure is written twice, as PNG (FIGURE_DPI dots per inch) and as SVG (text kept as text),
+at a fixed size in inches: no tight bounding box, so that a figure's pixel size is known in
+advance (README "Figures")."""
 
 from __future__ import annotations
 
@@ -10,120 +15,427 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from hg2prism.model.dynamics import TransitionSystem  # noqa: E402
-from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.model.world import World  # noqa: E402
+from hg2prism.outputs import write_bytes  # noqa: E402
 
-_HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+__all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_figure_inches", "world_figure",
+           "belief_figure", "completion_figure", "sweep_figure",
+           "detection_figure", "scaling_figure", "SWEEP_INCHES", "DETECTION_INCHES",
+           "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS", "CELL_STYLE",
+           "draw_grid", "draw_move", "LOG_PARAMETERS"]
+
+FIGURE_DPI = 150
+FIGURE_FORMATS = ("png", "svg")
+SWEEP_INCHES = (6.4, 4.4)
+DETECTION_INCHES = (10.0, 4.2)
+COMPLETION_INCHES = (6.4, 4.4)
+BELIEF_INCHES = (8.0, 3.8)
+WORLD_CELL_INCHES = 0.85     # one grid cell
+WORLD_LEGEND_INCHES = 4.2    # the legend column right of the grid
+WORLD_MIN_HEIGHT = 5.0       # room for the legend on small grids
+
+HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+# cell kind -> (face colour, legend text)
+CELL_STYLE = {
+    "wall": ("0.35", "wall (moves into it bounce)"),
+    "free": ("white", "free cell"),
+    "obstacle": ("black", "obstacle (label obs)"),
+    "region": ("#f4a6a6", "region (its letter is its label)"),
+    "candidate": ("#c8ecc8", "trap candidate (t)"),
+}
+
+# Deterministic SVG output (no random ids, no date) with searchable text.
+plt.rcParams["svg.hashsalt"] = "hg2prism"
+plt.rcParams["svg.fonttype"] = "none"
 
 
-def _save(fig: plt.Figure, path: Path) -> None:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=130, bbox_inches="tight")
+def figure_paths(path: Path) -> list[Path]:
+    """The files a figure named `path` (any suffix) is written to: one per FIGURE_FORMATS."""
+    return [Path(path).with_suffix(f".{fmt}") for fmt in FIGURE_FORMATS]
+
+
+def _save(fig: plt.Figure, path: Path) -> list[Path]:
+    written = []
+    for target in figure_paths(path):
+        buffer = io.BytesIO()
+        fmt = target.suffix[1:]
+        metadata = {"Date": None} if fmt == "svg" else None
+        fig.savefig(buffer, format=fmt, dpi=FIGURE_DPI, metadata=metadata)
+        fig.set_layout_engine("none")     # laid out once: the other formats reuse it
+        write_bytes(target, buffer.getvalue())
+        written.append(target)
     plt.close(fig)
-    write_bytes(path, buffer.getvalue())
+    return written
 
 
-def world_figure(world: World, ts: TransitionSystem, steps: Sequence, outcome: str, path: Path) -> None:
-    """The grid, and one simulated deceptive episode: the robot's path coloured by P2's
-    hypothesis, the trap P2 set at each step, and where P2 changed her mind."""
+def _hypothesis_colour(x: int) -> str:
+    return HYPOTHESIS_COLOURS[x % len(HYPOTHESIS_COLOURS)]
+
+
+def _steps_text(numbers: Sequence[int]) -> str:
+    """Step numbers, shortened when many: "3,5,7" or "2…40 (20×)" (first, last, count)."""
+    if len(numbers) <= 3:
+        return ",".join(str(n) for n in numbers)
+    return f"{numbers[0]}…{numbers[-1]} ({len(numbers)}×)"
+
+
+_DIRECTION = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
+_TRAPPED_COLOUR = "red"
+_TRAP_COLOUR = "darkgreen"
+
+
+def world_figure_inches(world: World) -> tuple[float, float]:
+    """The world figure's size in inches: the grid at WORLD_CELL_INCHES a cell, and the legend."""
     grid = world.grid
-    fig, ax = plt.subplots(figsize=(0.75 * grid.width + 3.5, 0.75 * grid.height + 0.6))
+    return (WORLD_CELL_INCHES * grid.width + WORLD_LEGEND_INCHES,
+            max(WORLD_CELL_INCHES * grid.height + 1.0, WORLD_MIN_HEIGHT))
+
+
+def draw_grid(ax: plt.Axes, world: World) -> list:
+    """The map, every cell coloured by its kind; returns legend handles for the kinds present."""
+    grid = world.grid
+    regions = {cell: letter for letter, cells in grid.regions for cell in cells}
+    present = {"wall", "free"}
     for x in range(grid.width):
         for y in range(grid.height):
             cell = (x, y)
-            colour, text = "white", ""
+            kind, text, text_colour = "free", "", "black"
             if cell in grid.walls:
-                colour = "0.45"
+                kind = "wall"
             elif cell in grid.obstacles:
-                colour, text = "black", ""
+                kind, text, text_colour = "obstacle", "obs", "white"
+            elif cell in regions:
+                kind, text = "region", regions[cell]
             elif cell in grid.trap_candidates:
-                colour = "#b8e6b8"
-            for letter, cells in grid.regions:
-                if cell in cells:
-                    colour, text = "#f4a6a6", letter
-            ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, facecolor=colour, edgecolor="0.8"))
+                kind = "candidate"
+            present.add(kind)
+            ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, facecolor=CELL_STYLE[kind][0],
+                                       edgecolor="0.8", lw=0.8, zorder=0))
             if text:
-                ax.text(x, y, text, ha="center", va="center", fontsize=14, weight="bold")
+                ax.text(x, y, text, ha="center", va="center", color=text_colour, zorder=1,
+                        fontsize=13 if kind == "region" else 8, weight="bold")
+            if cell in grid.trap_candidates:
+                ax.text(x + 0.42, y - 0.42, "t", ha="right", va="bottom", fontsize=7,
+                        color=_TRAP_COLOUR, zorder=1)
     sx, sy = grid.start
-    ax.text(sx, sy - 0.3, "start", ha="center", va="center", fontsize=7)
-
-    trap_counts: dict[tuple[int, int], int] = {}
-    for i, step in enumerate(steps):
-        x0, y0 = ts.cells[ts.decode(step.ts_state)[0]]
-        if step.next_state == ts.trapped:
-            x1, y1 = x0, y0
-        else:
-            x1, y1 = ts.cells[ts.decode(step.next_state)[0]]
-        colour = _HYPOTHESIS_COLOURS[step.p2_memory.hypothesis % len(_HYPOTHESIS_COLOURS)]
-        ax.annotate("", xy=(x1, y1), xytext=(x0, y0),
-                    arrowprops=dict(arrowstyle="->", color=colour, lw=2.2))
-        for cell in ts.trap_cells(step.a2):
-            trap_counts[cell] = trap_counts.get(cell, 0) + 1
-        if i == 0 or steps[i - 1].p2_memory.hypothesis != step.p2_memory.hypothesis:
-            ax.text(x0 + 0.12, y0 + 0.28, f"n={step.n}: x{step.p2_memory.hypothesis}",
-                    fontsize=7, color=colour, weight="bold")
-    for (x, y), count in trap_counts.items():
-        ax.plot(x, y, marker="X", color="darkgreen", markersize=9 + min(count, 10))
-        ax.text(x + 0.3, y - 0.35, f"{count}×", fontsize=7, color="darkgreen")
-
-    handles = [plt.Line2D([], [], color=_HYPOTHESIS_COLOURS[i % len(_HYPOTHESIS_COLOURS)], lw=2.2,
-                          label=f"P2 believes x{i}: {h}") for i, h in enumerate(world.hypotheses)]
-    handles.append(plt.Line2D([], [], color="darkgreen", marker="X", ls="", label="trap set by P2 (× steps)"))
-    handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="#b8e6b8", label="trap candidate"))
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1), fontsize=8)
+    ax.plot(sx, sy, marker="o", ms=20, mfc="none", mec="black", mew=1.2, ls="", zorder=1)
     ax.set_xlim(-0.5, grid.width - 0.5)
     ax.set_ylim(-0.5, grid.height - 0.5)
     ax.set_aspect("equal")
     ax.set_xticks(range(grid.width))
     ax.set_yticks(range(grid.height))
-    ax.set_title(f"{world.name}: task {world.formula} — one deceptive episode ({outcome}, "
-                 f"{len(steps)} steps)", fontsize=9)
-    _save(fig, path)
+    ax.tick_params(labelsize=7)
+    handles = [plt.Rectangle((0, 0), 1, 1, facecolor=CELL_STYLE[k][0], edgecolor="0.6",
+                             label=CELL_STYLE[k][1]) for k in CELL_STYLE if k in present]
+    handles.append(plt.Line2D([], [], marker="o", ms=10, mfc="none", mec="black", ls="",
+                              label="start cell"))
+    return handles
 
 
-def sweep_figure(parameter: str, rows: Sequence[dict], path: Path) -> None:
-    """Completion probability against a swept parameter, one line per value."""
-    fig, ax = plt.subplots(figsize=(6, 4))
+def _move_handles(world: World, hypotheses: Sequence[int]) -> list:
+    handles = [plt.Line2D([], [], color=_hypothesis_colour(i), lw=2.2,
+                          label=f"P2 believes x{i}: {world.hypotheses[i]}")
+               for i in range(len(world.hypotheses)) if i in hypotheses]
+    handles += [
+        plt.Line2D([], [], color="0.2", lw=1.8, marker=">", label="move as chosen (step numbers n=…)"),
+        plt.Line2D([], [], color="0.2", lw=1.8, ls="--", marker=">", label="slip: the realised move"),
+        plt.Line2D([], [], color="0.5", lw=1.2, ls=":", marker=">", label="slip: the chosen move"),
+        plt.Line2D([], [], color="0.2", lw=1.8, marker="|", ms=9, label="bump into a wall (stays)"),
+        plt.Line2D([], [], color=_TRAP_COLOUR, marker="X", ms=9, ls="", label="trap set by P2 (k× = steps)"),
+    ]
+    return handles
+
+
+def _arrow(ax: plt.Axes, start: tuple[float, float], end: tuple[float, float], colour: str,
+           style: str = "-", width: float = 1.8, head: str = "-|>") -> None:
+    ax.annotate("", xy=end, xytext=start, zorder=3,
+                arrowprops=dict(arrowstyle=head, color=colour, lw=width, ls=style,
+                                shrinkA=0, shrinkB=0, mutation_scale=11))
+
+
+def draw_move(ax: plt.Axes, move, colour: str, label: str = "", offset: float = 0.14) -> None:
+    """One step (episodes.Move): the realised move as an arrow (dashed for a slip, ending in a
+    bar for a bump), the chosen one as a grey dotted stub when they differ, a red X when the
+    robot is trapped; `label` beside it. Arrows run `offset` to the right of their direction,
+    so that moves back and forth do not overlap."""
+    dx, dy = _DIRECTION[move.realised]
+    ox, oy = dy * offset, -dx * offset
+    x0, y0 = move.start[0] + ox, move.start[1] + oy
+    style = "--" if move.slip else "-"
+    if move.bump:
+        end = (x0 + 0.46 * dx, y0 + 0.46 * dy)
+        _arrow(ax, (x0 + 0.1 * dx, y0 + 0.1 * dy), end, colour, style, head="-[")
+        text_at = (x0 + 0.25 * dx + 1.3 * ox, y0 + 0.25 * dy + 1.3 * oy)
+    else:
+        x1, y1 = move.landing[0] + ox, move.landing[1] + oy
+        _arrow(ax, (x0 + 0.22 * dx, y0 + 0.22 * dy), (x1 - 0.22 * dx, y1 - 0.22 * dy),
+               _TRAPPED_COLOUR if move.trapped else colour, style)
+        text_at = ((x0 + x1) / 2 + 1.4 * ox, (y0 + y1) / 2 + 1.4 * oy)
+    if move.slip:
+        cx, cy = _DIRECTION[move.chosen]
+        _arrow(ax, move.start, (move.start[0] + 0.38 * cx, move.start[1] + 0.38 * cy), "0.45",
+               ":", width=1.2, head="->")
+    if move.trapped:
+        ax.plot(*move.landing, marker="X", ms=16, color=_TRAPPED_COLOUR, zorder=4)
+    if label:
+        # along the arrow: labels of vertical moves side by side would collide
+        ax.text(*text_at, label, fontsize=6.5, color=colour, ha="center", va="center", zorder=5,
+                rotation=90 if dx == 0 else 0,
+                bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75))
+
+
+def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> list[Path]:
+    """The grid and one deceptive episode (episodes.ChosenEpisode): every distinct step drawn
+    once, coloured by P2's hypothesis, labelled with its step numbers; slips, bumps and a trap
+    marked; the traps P2 set (k× = the number of steps she set each); where P2 changed her
+    mind. Returns the files written (PNG and SVG)."""
+    from hg2prism.analyses.episodes import episode_moves
+
+    fig = plt.figure(figsize=world_figure_inches(world), layout="constrained")
+    ax = fig.add_subplot()
+    cell_handles = draw_grid(ax, world)
+    moves = episode_moves(ts, episode.steps)
+    groups: dict[tuple, list[int]] = {}
+    first_of: dict[tuple, object] = {}
+    for move in moves:
+        key = (move.start, move.landing, move.chosen, move.realised, move.trapped, move.hypothesis)
+        groups.setdefault(key, []).append(move.n)
+        first_of.setdefault(key, move)
+    for key, numbers in groups.items():
+        move = first_of[key]
+        draw_move(ax, move, _hypothesis_colour(move.hypothesis), "n=" + _steps_text(numbers))
+    trap_counts: dict[tuple[int, int], int] = {}
+    for move in moves:
+        for cell in move.traps:
+            trap_counts[cell] = trap_counts.get(cell, 0) + 1
+    for (x, y), count in trap_counts.items():
+        ax.plot(x - 0.3, y + 0.3, marker="X", color=_TRAP_COLOUR, ms=9, ls="", zorder=2)
+        ax.text(x - 0.3, y + 0.08, f"{count}×", fontsize=6.5, color=_TRAP_COLOUR, ha="center",
+                va="top", zorder=2)
+    for i, move in enumerate(moves):
+        if i > 0 and moves[i - 1].hypothesis != move.hypothesis:
+            ax.text(move.start[0], move.start[1] + 0.38, f"n={move.n}: P2 now x{move.hypothesis}",
+                    fontsize=6.5, color=_hypothesis_colour(move.hypothesis), weight="bold",
+                    ha="center", zorder=5)
+    used = sorted({m.hypothesis for m in moves}) or [world.initial_hypothesis]
+    handles = _move_handles(world, used)
+    if any(m.trapped for m in moves):
+        handles.append(plt.Line2D([], [], color=_TRAPPED_COLOUR, marker="X", ms=9, ls="",
+                                  label="robot trapped"))
+    ax.legend(handles=handles + cell_handles, loc="upper left", bbox_to_anchor=(1.02, 1),
+              fontsize=7, frameon=False, handlelength=3.2)
+    ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
+                 f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
+                 f"task {world.formula}", fontsize=8.5, loc="left")
+    return _save(fig, path)
+
+
+def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
+    """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
+    reports per hypothesis against the step, her threshold, and, shaded, the hypothesis she
+    acted on at each step."""
+    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    n = len(trace.acted)
+    steps = np.arange(1, n + 1)
+    for i, x in enumerate(trace.acted):
+        ax.axvspan(i + 0.5, i + 1.5, color=_hypothesis_colour(x), alpha=0.10, lw=0)
+    if trace.values is not None and n:
+        values = np.array(trace.values)
+        for x in range(values.shape[1]):
+            ax.plot(steps, values[:, x], "o-", ms=2.5, lw=1.1, color=_hypothesis_colour(x),
+                    label=f"x{x}: {world.hypotheses[x]}")
+        if trace.threshold is not None:
+            ax.axhline(trace.threshold, color="black", ls="--", lw=1,
+                       label=f"threshold {trace.threshold:g}")
+        ax.set_ylabel(trace.name, fontsize=8)
+    else:
+        ax.step(steps, trace.acted, where="mid", color="black", label="P2's hypothesis")
+        ax.set_ylabel("P2's hypothesis", fontsize=8)
+    switches = [i + 1 for i in range(n) if trace.after[i] != trace.acted[i]]
+    for s in switches:
+        ax.axvline(s, color="red", lw=0.8, alpha=0.6)
+    shading = ", ".join(f"x{x}" for x in sorted(set(trace.acted)))
+    ax.set_xlabel(f"step n (shaded: the hypothesis P2 acts on: {shading}; "
+                  f"{len(switches)} change(s) of mind)", fontsize=8)
+    ax.set_xlim(0.5, max(n, 1) + 0.5)
+    ax.grid(alpha=0.3)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
+    ax.set_title(f"{world.name}: P2's belief along the drawn episode (seed {episode.seed}, "
+                 f"{episode.n_steps} steps)", fontsize=9)
+    return _save(fig, path)
+
+
+def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
+                      path: Path) -> list[Path]:
+    """Completion by step n of each simulated strategy pair: `rows` holds (label,
+    simulation.SimulationSummary, exact within-horizon probability or None). Each curve is the
+    share of episodes completed within n steps with its 95 % Wilson band; the exact value at
+    the horizon is marked."""
+    from hg2prism.analyses.simulation import GOAL, wilson_interval
+
+    fig = plt.figure(figsize=COMPLETION_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    styles = ("-", "--", ":")
+    horizon = 1
+    for i, (label, summary, exact) in enumerate(rows):
+        horizon = max(horizon, summary.horizon)
+        done = np.sort(summary.lengths[summary.outcomes == GOAL])
+        steps = np.arange(0, summary.horizon + 1)
+        counts = np.searchsorted(done, steps, side="right")
+        rate = counts / summary.episodes
+        band = np.array([wilson_interval(int(k), summary.episodes) for k in counts])
+        colour = f"C{i}"
+        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.25, lw=0)
+        ax.plot(steps, rate, styles[i % len(styles)], color=colour, lw=1.4,
+                label=f"{label} ({summary.episodes} episodes)")
+        if exact is not None:
+            ax.plot([summary.horizon], [exact], marker="D", color=colour, ms=5, ls="")
+    ax.plot([], [], marker="D", color="0.3", ls="", label="exact at the horizon")
+    ax.fill_between([], [], [], color="0.3", alpha=0.25, label="95 % Wilson band")
+    ax.set_xlim(0, horizon)
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("step n")
+    ax.set_ylabel("share completed within n steps")
+    ax.grid(alpha=0.3)
+    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    ax.set_title(f"{world_name}: completion against time, simulated", fontsize=9)
+    return _save(fig, path)
+
+
+def _value_text(value: float) -> str:
+    return str(value) if isinstance(value, int) else f"{value:g}"
+
+
+LOG_PARAMETERS = ("rationality", "threshold")
+
+
+def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
+                 world_name: str | None = None) -> list[Path]:
+    """Completion probability against a swept parameter, one line per value; a logarithmic
+    axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes."""
+    fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
+    ax = fig.add_subplot()
     xs = [row[parameter] for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
                               ("v_lead", "symmetric, leader", "s--"),
                               ("v_ne", "symmetric, Nash", "^:")):
         if all(key in row for row in rows):
             ax.plot(xs, [row[key] for row in rows], style, label=label)
-    ax.set_xlabel(parameter)
+    if parameter in LOG_PARAMETERS:
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xlabel(f"{parameter} (log scale)")
+    else:
+        ax.set_xlabel(parameter)
+    ax.set_xticks(xs, [_value_text(x) for x in xs])
+    if len(xs) > 8:
+        ax.tick_params(axis="x", labelrotation=45)
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
-    ax.set_xticks(xs)
     ax.grid(alpha=0.3)
-    ax.legend()
-    _save(fig, path)
+    fig.legend(loc="outside lower center", ncol=3, fontsize=8, frameon=False)
+    title = f"completion probability at the initial state against {parameter}"
+    ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
+    return _save(fig, path)
+
+
+DETECTION_ZOOM = 6      # steps shown either side of the detection in the zoomed panel
+
+
+def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Path,
+                      world_name: str | None = None) -> list[Path]:
+    """A sweep over several parameters: the deceptive value (solid) and V_lead (dashed) against
+    the first parameter, one colour per combination of the others' values; the same axis and
+    legend rules as :func:`sweep_figure`."""
+    fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    first, others = parameters[0], list(parameters[1:])
+    series: dict[tuple, list[dict]] = {}
+    for row in rows:
+        series.setdefault(tuple(row[p] for p in others), []).append(row)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for n, (key, members) in enumerate(series.items()):
+        members = sorted(members, key=lambda r: r[first])
+        xs = [r[first] for r in members]
+        label = ", ".join(f"{p}={_value_text(v)}" if isinstance(v, float) else f"{p}={v}"
+                          for p, v in zip(others, key))
+        colour = colours[n % len(colours)]
+        ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour,
+                label=f"deceptive, {label}")
+        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
+                label=f"V_lead, {label}")
+    xs = sorted({row[first] for row in rows})
+    if first in LOG_PARAMETERS:
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xlabel(f"{first} (log scale)")
+    else:
+        ax.set_xlabel(first)
+    ax.set_xticks(xs, [_value_text(x) for x in xs])
+    ax.set_ylabel("P1's completion probability")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    title = f"completion probability at the initial state against {' x '.join(parameters)}"
+    ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
+    return _save(fig, path)
 
 
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
-                     deviate_after: int, detected_at: int | None, path: Path) -> None:
-    """The likelihood-ratio statistic G per step against the chi-square threshold."""
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    steps = list(range(1, len(statistics) + 1))
-    ax.plot(steps, statistics, "o-", label="G = 2 (ln L1 − ln L0)")
-    ax.plot(steps, [t if t is not None else float("nan") for t in thresholds], "s--",
-            label="χ² threshold (1 − α, df)")
-    ax.axvline(deviate_after + 0.5, color="grey", ls=":", label=f"P2 deviates after step {deviate_after}")
-    if detected_at is not None:
-        ax.axvline(detected_at, color="red", alpha=0.5, label=f"mismatch detected at step {detected_at}")
-    ax.set_xlabel("step n")
-    ax.set_ylabel("statistic")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    _save(fig, path)
+                     deviate_after: int, detected_at: int | None, path: Path,
+                     world_name: str | None = None, seed: int | None = None) -> list[Path]:
+    """The likelihood-ratio statistic G per step against the chi-square threshold: the whole
+    episode on the left, and on the right the steps around the detection (DETECTION_ZOOM either
+    side; around the deviation when nothing was detected)."""
+    fig = plt.figure(figsize=DETECTION_INCHES, layout="constrained")
+    full, zoom = fig.subplots(1, 2, width_ratios=(1.5, 1))
+    steps = np.arange(1, len(statistics) + 1)
+    limits = np.array([t if t is not None else np.nan for t in thresholds], dtype=float)
+    centre = detected_at if detected_at is not None else deviate_after
+    low, high = max(1, centre - DETECTION_ZOOM), min(len(statistics), centre + DETECTION_ZOOM)
+    for ax, zoomed in ((full, False), (zoom, True)):
+        ax.plot(steps, statistics, "o-", ms=3 if not zoomed else 5, label="G = 2 (ln L1 − ln L0)")
+        ax.plot(steps, limits, "s--", ms=3 if not zoomed else 5, label="χ² threshold (1 − α, df)")
+        ax.axvline(deviate_after + 0.5, color="grey", ls=":",
+                   label=f"P2 deviates after step {deviate_after}")
+        if detected_at is not None:
+            ax.axvline(detected_at, color="red", alpha=0.5,
+                       label=f"mismatch detected at step {detected_at}")
+        ax.set_xlabel("step n")
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        if zoomed and len(statistics):
+            ax.set_xlim(low - 0.5, high + 0.5)
+            shown = slice(low - 1, high)
+            top = np.nanmax(np.r_[np.asarray(statistics, dtype=float)[shown], limits[shown], 1.0])
+            ax.set_ylim(0, top * 1.1)
+            ax.set_xticks(range(low, high + 1))
+            ax.set_title(f"steps {low}–{high}", fontsize=8)
+    if len(statistics):
+        full.axvspan(low - 0.5, high + 0.5, color="0.85", alpha=0.5, lw=0, zorder=0)
+    full.set_ylabel("statistic")
+    full.set_title("the whole episode (grey: the steps shown on the right)", fontsize=8)
+    zoom.legend(fontsize=7, loc="upper left")
+    where = f"{world_name}: " if world_name else ""
+    which = f" (seed {seed})" if seed is not None else ""
+    fig.suptitle(f"{where}P1's test of its model of P2 along one episode{which}", fontsize=9)
+    return _save(fig, path)
+
+
+SCALING_INCHES = (8.5, 4.8)
 
 
 def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
-                   title: str | None = None) -> None:
+                   title: str | None = None) -> list[Path]:
     """Time per stage against canonical states, log-log, with a slope-1 guide through the
     largest world's total (a stage parallel to it grows linearly)."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    fig = plt.figure(figsize=SCALING_INCHES, layout="constrained")
+    ax = fig.add_subplot()
     rows = sorted(rows, key=lambda r: r["states"])
     xs = [r["states"] for r in rows]
     for stage in stages:
@@ -136,8 +448,7 @@ def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
                   label="slope 1")
     ax.set_xlabel("hypergame states (canonical)")
     ax.set_ylabel("seconds (floor 1 ms)")
-    if title:
-        ax.set_title(title, fontsize=9)
+    ax.set_title(title or "hg2prism: time per stage against hypergame size", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    _save(fig, path)
+    return _save(fig, path)

@@ -39,6 +39,19 @@ def written(out: Path, files: list[str]) -> str:
     return f"wrote {out}/{{{', '.join(files)}}}"
 
 
+def _steps(value: float | None, infinite: str) -> str:
+    return infinite if value is None else f"{value:.2f}"
+
+
+def _objective_line(results: CheckResults) -> str:
+    """The exported strategy's objective and its expected numbers of steps."""
+    o = results.objective
+    what = {"pmax": "Pmax", "lexicographic": "Pmax, then fewest expected steps",
+            "bounded": f"Pmax=? [F<={o.bound} \"goal\"] = {o.value:.6f}"}[o.name]
+    return (f"  strategy         {what}; expected steps {_steps(o.expected_steps, 'infinite')} "
+            f"to the end, {_steps(o.expected_steps_to_goal, 'none')} to the goal when reached")
+
+
 def summary(results: CheckResults, out: Path, files: list[str]) -> str:
     """What `check` and `run` print: the values, the hypergame's size and the files written
     (with `run`, `results` is a RunResults and V_NE is shown too)."""
@@ -49,6 +62,7 @@ def summary(results: CheckResults, out: Path, files: list[str]) -> str:
     ] + ([f"  v_ne             {results.v_ne:.6f}   in [{results.v_ne_bounds[0]:.10f}, "
           f"{results.v_ne_bounds[1]:.10f}], both players mixing, P2 knowing the task"]
          if isinstance(results, RunResults) else []) + [
+        _objective_line(results),
         f"  hypergame        {results.states} states, {results.transitions} transitions (canonical); "
         f"Storm: {results.storm_states} states, {results.storm_transitions} transitions, "
         f"{results.storm_choices} choices",

@@ -105,12 +105,23 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     # wins whatever order the sums were taken in.
     best_of_state = _argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
     chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
-    action_rep = moves.action[chosen_rep]
-    # Every Storm state takes the move its canonical state takes.
-    wanted = action_rep[canonical]
+    return storm_choices(decoded, moves, representative, moves.action[chosen_rep])
+
+
+def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np.ndarray,
+                  action: np.ndarray) -> StormChoices:
+    """The Storm choices of a strategy given per canonical state (`action`, a move index; any
+    value in absorbing states): every Storm state takes the move its canonical state takes."""
+    wanted = action[decoded.canonical]
     match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
-    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
+    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, len(decoded.canonical))
     return StormChoices(representative=representative, choice=choice)
+
+
+def canonical_actions(choices: StormChoices, moves: Transitions) -> np.ndarray:
+    """[n_canonical] the move each canonical state takes (-1 where only the absorbing
+    self-loop is left)."""
+    return moves.action[choices.choice[choices.representative]]
 
 
 def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,

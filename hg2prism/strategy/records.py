@@ -9,7 +9,7 @@ from cached fragments: the same text as json.dumps of each record, for millions 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +25,10 @@ class StrategyError(LookupError):
 
 
 def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                     ts: TransitionSystem) -> list[dict]:
-    """P1's deceptive strategy: one record per reachable non-absorbing canonical state."""
+                     ts: TransitionSystem, extras: RecordExtras | None = None) -> list[dict]:
+    """P1's deceptive strategy: one record per reachable non-absorbing canonical state.
+
+    `extras` (RecordExtras) adds keys after ``action``."""
     records = []
     described: dict[int, dict] = {}     # a few hundred TS states describe millions of records
 
@@ -40,6 +42,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
     windows = decoded.window.tolist()
     chosen = moves.action[choices.choice].tolist()
     absorbing = (decoded.goal | decoded.fail).tolist()
+    canonical = decoded.canonical.tolist()
     for s in choices.representative.tolist():
         if absorbing[s]:
             continue
@@ -48,12 +51,52 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         record["hypothesis"] = hypotheses[s]
         record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
         record["action"] = ACTIONS[chosen[s]]
+        if extras is not None:
+            record.update(extras.fields(canonical[s]))
         records.append(record)
     return records
 
 
+def _json_number(x: float) -> float | None:
+    return None if x != x else x          # NaN (a move without a choice) is written null
+
+
+class RecordExtras:
+    """The keys strategy.json's records gain after ``action`` (docs/semantics.md §6): ``values``,
+    the value of every move ``{"N": ..., "E": ..., "S": ..., "W": ...}`` (from `move_values`
+    [canonical states, 4], clamped into [0, 1], §10); for the step-bounded objective also
+    ``schedule`` (per canonical state, runs ``[first step, last step, move]``) and
+    ``bounded_values`` (each move's probability of the goal within the bound)."""
+
+    def __init__(self, move_values: np.ndarray, schedules: Sequence[list] | None = None,
+                 bounded_values: np.ndarray | None = None) -> None:
+        self.values = np.clip(move_values, 0.0, 1.0)
+        self.schedules = schedules
+        self.bounded = None if bounded_values is None else np.clip(bounded_values, 0.0, 1.0)
+
+    def fields(self, state: int) -> dict:
+        """The added keys of canonical state `state`'s record."""
+        row = self.values[state].tolist()
+        fields = {"values": {m: _json_number(x) for m, x in zip(ACTIONS, row)}}
+        if self.schedules is not None:
+            fields["schedule"] = self.schedules[state]
+            fields["bounded_values"] = {m: _json_number(x)
+                                        for m, x in zip(ACTIONS, self.bounded[state].tolist())}
+        return fields
+
+    def json_tails(self, states: Sequence[int]) -> list[str]:
+        """The added keys of each state's record as compact JSON, ending the record: the text
+        json.dumps gives, built without dumping a dict per record (millions of records)."""
+        values = self.values[np.asarray(states, dtype=np.int64)]
+        if self.schedules is not None or np.isnan(values).any():
+            compact = {"separators": (",", ":")}
+            return [json.dumps(self.fields(c), **compact)[1:] for c in states]
+        template = '"values":{{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}}}"
+        return [template.format(*row) for row in values.tolist()]
+
+
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                  ts: TransitionSystem) -> str:
+                  ts: TransitionSystem, extras: RecordExtras | None = None) -> str:
     """strategy.json: the records of `strategy_records`, one compact JSON object per line.
 
     Built from JSON fragments cached per TS state (and per observed move), because a few
@@ -70,12 +113,18 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
     fragment = {v * 4 + a: json.dumps(dict(ts.describe_state(v), action=ACTIONS[a]), **compact)
                 for v in observed for a in range(len(ACTIONS))}
     codes = np.where(window[..., 0] >= 0, window[..., 0] * 4 + window[..., 1], -1).tolist()
-    tails = [f'],"action":"{a}"}}' for a in ACTIONS]
     chosen = moves.action[choices.choice[states]].tolist()
+    if extras is None:
+        tails = [f'],"action":"{a}"}}' for a in ACTIONS]
+        ends = [tails[a] for a in chosen]
+    else:
+        tails = [f'],"action":"{a}",' for a in ACTIONS]
+        ends = [tails[a] + extra for a, extra in
+                zip(chosen, extras.json_tails(decoded.canonical[states].tolist()))]
     lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
-             + ",".join([fragment[c] for c in slots if c >= 0]) + tails[a]
-             for v, q, h, slots, a in zip(ts_state.tolist(), decoded.q[states].tolist(),
-                                          decoded.hypothesis[states].tolist(), codes, chosen)]
+             + ",".join([fragment[c] for c in slots if c >= 0]) + end
+             for v, q, h, slots, end in zip(ts_state.tolist(), decoded.q[states].tolist(),
+                                            decoded.hypothesis[states].tolist(), codes, ends)]
     return "[\n" + ",\n".join(lines) + "\n]\n"
 
 

@@ -1,0 +1,210 @@
+"""The one deceptive episode the figures and the replay draw, chosen by a stated rule
+(docs/semantics.md §8 "The episode drawn").
+
+The candidates are the *seed set*: seeds ``seed, seed+1, ..., seed+EPISODE_SEEDS-1`` (``seed``
+is the simulation's seed), each simulated as one episode with ``numpy.random.default_rng`` of
+that seed. Rules:
+
+- ``median`` (the default): among the completed candidates sorted by (length, seed), the one at
+  position ``(k - 1) // 2`` of ``k`` (the lower median), so that the picture shows a typical
+  completed episode rather than a lucky one;
+- ``shortest``: the first of that order;
+- ``seed=N``: the episode simulated with seed N, whatever its outcome.
+
+When no candidate completes, ``median`` and ``shortest`` draw the first candidate (seed
+``seed``) and say so.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from hg2prism.errors import InputError
+
+__all__ = ["EPISODE_SEEDS", "EpisodeRule", "ChosenEpisode", "parse_episode_rule", "choose_episode",
+           "outcome_text", "Move", "episode_moves", "BeliefTrace", "belief_trace"]
+
+EPISODE_SEEDS = 50
+RULES = ("median", "shortest")
+_SEED_RULE = re.compile(r"seed=(\d+)")
+
+
+@dataclass(frozen=True)
+class EpisodeRule:
+    """How the drawn episode is chosen: ``kind`` is "median", "shortest" or "seed"; ``seed`` is
+    N for "seed=N"."""
+
+    kind: str = "median"
+    seed: int | None = None
+
+    def __str__(self) -> str:
+        return f"seed={self.seed}" if self.kind == "seed" else self.kind
+
+
+def parse_episode_rule(text: str | EpisodeRule | None) -> EpisodeRule:
+    """`--episode`'s value: "median", "shortest" or "seed=N" with N >= 0 (None: "median").
+    Raises InputError (key --episode) otherwise."""
+    if text is None:
+        return EpisodeRule()
+    if isinstance(text, EpisodeRule):
+        return text
+    value = str(text).strip()
+    if value in RULES:
+        return EpisodeRule(value)
+    match = _SEED_RULE.fullmatch(value)
+    if match:
+        return EpisodeRule("seed", int(match.group(1)))
+    raise InputError("command line", "--episode",
+                     f"expected median, shortest or seed=N with N an integer >= 0, got {value!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class ChosenEpisode:
+    """The episode drawn: its steps (simulation.StepRecord, in order) and how it was chosen."""
+
+    steps: list
+    seed: int                   # the seed it was simulated with (one episode)
+    outcome: str                # "task completed", "failed" or "cut by the horizon"
+    rule: EpisodeRule
+    seeds: tuple[int, int] | None       # the seed set searched (first, last), None for seed=N
+    completed_lengths: tuple[int, ...]  # lengths of the completed candidates, sorted
+    fallback: bool = False              # no candidate completed: the first one is drawn
+
+    @property
+    def n_steps(self) -> int:
+        return len(self.steps)
+
+    def describe(self) -> str:
+        """How the episode was chosen, in words (figure titles, results.json)."""
+        if self.rule.kind == "seed":
+            return f"the episode of seed {self.seed}"
+        first, last = self.seeds
+        if self.fallback:
+            return f"no episode of seeds {first}..{last} completed: the first (seed {first})"
+        which = "median-length" if self.rule.kind == "median" else "shortest"
+        return f"the {which} completed episode of seeds {first}..{last}"
+
+    def to_json(self) -> dict:
+        return {"rule": str(self.rule), "seed": self.seed, "steps": self.n_steps,
+                "outcome": self.outcome, "chosen_as": self.describe(),
+                "seed_set": list(self.seeds) if self.seeds else None,
+                "completed_in_seed_set": len(self.completed_lengths)
+                if self.seeds else None}
+
+
+def outcome_text(code: int) -> str:
+    from hg2prism.analyses import simulation
+
+    return {simulation.GOAL: "task completed", simulation.FAIL: "failed"}.get(
+        int(code), "cut by the horizon")
+
+
+def _one_episode(analysis, strategy, horizon: int, seed: int) -> tuple[list, int]:
+    from hg2prism.analyses import simulation
+
+    steps: list = []
+    summary = simulation.simulate_deceptive(analysis, strategy, 1, horizon, seed,
+                                            observer=steps.append, progress=False)
+    return steps, int(summary.outcomes[0])
+
+
+def choose_episode(analysis, strategy, horizon: int, seed: int,
+                   rule: EpisodeRule | str | None = None) -> ChosenEpisode:
+    """The deceptive episode `rule` names (module docstring); `analysis` is a
+    pipeline.Analysis, `strategy` a records.Strategy, `seed` the simulation's seed."""
+    from hg2prism.analyses import simulation
+
+    rule = parse_episode_rule(rule)
+    if rule.kind == "seed":
+        steps, code = _one_episode(analysis, strategy, horizon, rule.seed)
+        return ChosenEpisode(steps, rule.seed, outcome_text(code), rule, None, ())
+    candidates = []
+    for candidate in range(seed, seed + EPISODE_SEEDS):
+        steps, code = _one_episode(analysis, strategy, horizon, candidate)
+        candidates.append((steps, code, candidate))
+    completed = sorted((c for c in candidates if c[1] == simulation.GOAL),
+                       key=lambda c: (len(c[0]), c[2]))
+    lengths = tuple(len(c[0]) for c in completed)
+    seeds = (seed, seed + EPISODE_SEEDS - 1)
+    if not completed:
+        steps, code, first = candidates[0]
+        return ChosenEpisode(steps, first, outcome_text(code), rule, seeds, lengths, True)
+    index = (len(completed) - 1) // 2 if rule.kind == "median" else 0
+    steps, code, chosen = completed[index]
+    return ChosenEpisode(steps, chosen, outcome_text(code), rule, seeds, lengths)
+
+
+@dataclass(frozen=True)
+class Move:
+    """One step of an episode as drawn: where the robot was, the move it chose, the direction
+    it actually went (a slip when they differ) and where it landed. A bump (into a wall) lands
+    where it started; a trapped robot lands on the trap. When two outcomes lead to the same
+    cell (both bump), the chosen direction is reported before a slip."""
+
+    n: int
+    start: tuple[int, int]
+    chosen: str                 # "N", "E", "S" or "W"
+    realised: str               # the direction taken
+    landing: tuple[int, int]
+    hypothesis: int             # P2's hypothesis when she set the traps of this step
+    traps: tuple[tuple[int, int], ...]   # the cells P2 trapped at this step
+
+    @property
+    def slip(self) -> bool:
+        return self.chosen != self.realised
+
+    @property
+    def bump(self) -> bool:
+        return self.landing == self.start
+
+    trapped: bool = False
+
+
+def episode_moves(ts, steps) -> list[Move]:
+    """The steps (simulation.StepRecord) of an episode on `ts` as Moves."""
+    from hg2prism.model.dynamics import ACTIONS, outcome_directions
+
+    moves = []
+    for step in steps:
+        cell = ts.decode(step.ts_state)[0]
+        directions = outcome_directions(step.a1)
+        targets = [int(ts.move[cell, d]) for d in directions]
+        trapped = step.next_state == ts.trapped
+        if trapped:
+            hits = [k for k, t in enumerate(targets) if ts.set_cells[step.a2, t]]
+            k = hits[0] if hits else 0
+        else:
+            landed = ts.decode(step.next_state)[0]
+            k = targets.index(landed)
+        moves.append(Move(n=step.n, start=ts.cells[cell], chosen=ACTIONS[step.a1],
+                          realised=ACTIONS[directions[k]], landing=ts.cells[targets[k]],
+                          hypothesis=step.p2_memory.hypothesis,
+                          traps=ts.trap_cells(step.a2), trapped=trapped))
+    return moves
+
+
+@dataclass(frozen=True, eq=False)
+class BeliefTrace:
+    """P2's side of an episode, step by step: the hypothesis she set her traps for, the one she
+    holds after reading P1's move, and (when her observer reports them, observer.ReportsBelief)
+    the per-hypothesis numbers her update rests on."""
+
+    acted: tuple[int, ...]          # [n-1]: hypothesis P2 acted on at step n
+    after: tuple[int, ...]          # [n-1]: her hypothesis after step n's update
+    name: str | None                # what `values` are ("CUSUM score Z_x"), None if unreported
+    threshold: float | None         # the level at which she changes her mind, if any
+    values: tuple[tuple[float, ...], ...] | None    # [n-1][x]
+
+
+def belief_trace(observer, steps) -> BeliefTrace:
+    """P2's belief along `steps` (simulation.StepRecord) under `observer` (her inference)."""
+    from hg2prism.opponent.observer import ReportsBelief
+
+    acted = tuple(observer.hypothesis(s.p2_memory) for s in steps)
+    after = tuple(observer.hypothesis(observer.update(s.p2_memory, s.observation)) for s in steps)
+    if not isinstance(observer, ReportsBelief):
+        return BeliefTrace(acted, after, None, None, None)
+    values = tuple(tuple(float(b) for b in observer.belief(s.p2_memory, s.observation))
+                   for s in steps)
+    return BeliefTrace(acted, after, observer.belief_name, observer.belief_threshold, values)

@@ -1,0 +1,162 @@
+"""A replay of the drawn episode as an animated GIF (`replay.gif`): per frame the robot, the
+traps P2 set, the step's move (chosen and realised), P2's hypothesis and the numbers her
+observer reports (CUSUM scores, or whatever observer.ReportsBelief gives).
+
+Frames are rendered with matplotlib's Agg canvas and assembled with Pillow (which matplotlib
+depends on), in memory, so that the file is written atomically like every output. An episode
+of N steps has the states 0..N (0: before the first move); the replay shows them all when
+there are at most REPLAY_MAX_FRAMES, else every k-th with k = ceil(N / (REPLAY_MAX_FRAMES - 1)),
+and always the last (`replay_frames`).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.model.world import World
+from hg2prism.outputs import write_bytes
+from hg2prism.report import plots
+
+__all__ = ["REPLAY_MAX_FRAMES", "REPLAY_FRAME_MS", "REPLAY_DPI", "replay_frames", "replay_inches",
+           "replay_gif"]
+
+REPLAY_MAX_FRAMES = 100
+REPLAY_FRAME_MS = 600        # each frame shows for this long
+REPLAY_DPI = 72
+_plt = plots.plt
+
+
+def replay_frames(n_steps: int) -> list[int]:
+    """The episode states (0 = the start, n = after step n) the replay shows, in order."""
+    if n_steps + 1 <= REPLAY_MAX_FRAMES:
+        return list(range(n_steps + 1))
+    stride = math.ceil(n_steps / (REPLAY_MAX_FRAMES - 1))
+    frames = list(range(0, n_steps + 1, stride))
+    if frames[-1] != n_steps:
+        frames.append(n_steps)
+    return frames
+
+
+def replay_inches(world: World) -> tuple[float, float]:
+    """The replay's frame size in inches: the grid at 0.55 in a cell beside a 4.5 in panel."""
+    grid = world.grid
+    return (0.55 * grid.width + 4.5, max(0.55 * grid.height + 1.2, 4.0))
+
+
+def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -> int:
+    """Write the replay of `episode` (episodes.ChosenEpisode) with P2's `trace`
+    (episodes.BeliefTrace) to `path`; returns the number of frames."""
+    from hg2prism.analyses.episodes import episode_moves
+
+    moves = episode_moves(ts, episode.steps)
+    n_steps = len(moves)
+    n_x = len(world.hypotheses)
+    positions = [world.grid.start] + [m.landing for m in moves]
+    fig = _plt.figure(figsize=replay_inches(world), dpi=REPLAY_DPI, layout="constrained")
+    grid_ax, belief_ax = fig.subplots(1, 2, width_ratios=(0.55 * world.grid.width, 3.2))
+    plots.draw_grid(grid_ax, world)
+    trail, = grid_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
+    robot, = grid_ax.plot([], [], "o", ms=15, mec="black", mew=1.2, zorder=6)
+    traps, = grid_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
+    caption = grid_ax.set_title("", fontsize=9, loc="left")
+
+    if trace.values is not None:
+        values = np.vstack([np.zeros(n_x), np.array(trace.values, dtype=float).reshape(-1, n_x)])
+        top = max(float(values.max()), trace.threshold or 0.0, 1e-9) * 1.15
+        label = trace.name
+    else:
+        values = None
+        top, label = 1.05, "P2's hypothesis"
+    bars = belief_ax.bar(range(n_x), np.zeros(n_x),
+                         color=[plots.HYPOTHESIS_COLOURS[x % len(plots.HYPOTHESIS_COLOURS)]
+                                for x in range(n_x)])
+    if trace.threshold is not None:
+        belief_ax.axhline(trace.threshold, color="black", ls="--", lw=1)
+        belief_ax.text(n_x - 0.5, trace.threshold, f"threshold {trace.threshold:g}",
+                       ha="right", va="bottom", fontsize=8)
+    belief_ax.set_ylim(0, top)
+    belief_ax.set_xticks(range(n_x), [f"x{x}" for x in range(n_x)])
+    belief_ax.set_ylabel(label, fontsize=8)
+    belief_ax.tick_params(labelsize=8)
+    believes = belief_ax.set_title("", fontsize=9)
+    legend = "\n".join(f"x{x}: {h}" for x, h in enumerate(world.hypotheses))
+    belief_ax.text(0.02, 0.98, legend, transform=belief_ax.transAxes, ha="left", va="top",
+                   fontsize=7)
+    fig.suptitle(f"{world.name}: replay of the drawn episode (seed {episode.seed}, "
+                 f"{n_steps} steps, {episode.outcome})", fontsize=9)
+
+    # Lay the figure out once, with captions as long as any frame's, so that nothing moves
+    # from frame to frame.
+    caption.set_text(f"step {n_steps}/{n_steps}: chose W, went W (bumped into a wall, trapped)")
+    believes.set_text(f"P2 set traps for x{n_x - 1}; now believes x{n_x - 1}")
+    fig.canvas.draw()
+    fig.set_layout_engine("none")
+    # Blitting: the map, axes and labels are drawn once; each frame restores them and draws
+    # only what moves (a full redraw per frame is about ten times slower).
+    moving = [trail, robot, traps, caption, believes, *bars]
+    for artist in moving:
+        artist.set_animated(True)
+    fig.canvas.draw()
+    background = fig.canvas.copy_from_bbox(fig.bbox)
+
+    frames = replay_frames(n_steps)
+    images = []
+    step_artists: list = []
+    for state in frames:
+        for artist in step_artists:
+            artist.remove()
+        xs, ys = zip(*positions[:state + 1])
+        trail.set_data(xs, ys)
+        move = moves[state - 1] if state else None
+        hypothesis_after = trace.after[state - 1] if state else world.initial_hypothesis
+        robot.set_data([positions[state][0]], [positions[state][1]])
+        robot.set_markerfacecolor("red" if move is not None and move.trapped
+                                  else plots.HYPOTHESIS_COLOURS[hypothesis_after
+                                                                % len(plots.HYPOTHESIS_COLOURS)])
+        before = set(grid_ax.get_children())
+        if move is not None:
+            trap_cells = list(move.traps)
+            traps.set_data([c[0] for c in trap_cells], [c[1] for c in trap_cells])
+            plots.draw_move(grid_ax, move, "black", offset=0.0)
+            what = ("bumped into a wall" if move.bump else "slipped" if move.slip else "moved")
+            caption.set_text(f"step {state}/{n_steps}: chose {move.chosen}, went "
+                             f"{move.realised} ({what}{', trapped' if move.trapped else ''})")
+            believes.set_text(f"P2 set traps for x{trace.acted[state - 1]}; "
+                              f"now believes x{hypothesis_after}")
+        else:
+            traps.set_data([], [])
+            caption.set_text(f"start (0/{n_steps})")
+            believes.set_text(f"P2 starts believing x{hypothesis_after}")
+        step_artists = [a for a in grid_ax.get_children() if a not in before]
+        for artist in step_artists:
+            artist.set_animated(True)
+        heights = (values[state] if values is not None
+                   else np.eye(n_x)[hypothesis_after])
+        for x, bar in enumerate(bars):
+            bar.set_height(heights[x])
+            bar.set_edgecolor("black" if x == hypothesis_after else "none")
+            bar.set_linewidth(2.0 if x == hypothesis_after else 0.0)
+        fig.canvas.restore_region(background)
+        for artist in (*step_artists, *moving):
+            fig.draw_artist(artist)
+        images.append(Image.fromarray(np.array(fig.canvas.buffer_rgba())[..., :3]))
+    _plt.close(fig)
+    # One palette for all frames, from a strip of frames spread over the episode (the colours
+    # of traps, slips and hypotheses need not appear in the first frame).
+    sample = images[::max(1, len(images) // 8)] + [images[-1]]
+    strip = Image.new("RGB", (sample[0].width * len(sample), sample[0].height))
+    for i, image in enumerate(sample):
+        strip.paste(image, (i * image.width, 0))
+    palette = strip.quantize(colors=96, method=Image.Quantize.MEDIANCUT)
+    images = [image.quantize(palette=palette, dither=Image.Dither.NONE) for image in images]
+    buffer = io.BytesIO()
+    images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:],
+                   duration=REPLAY_FRAME_MS, loop=0)
+    write_bytes(path, buffer.getvalue())
+    return len(images)

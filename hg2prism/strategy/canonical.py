@@ -1,0 +1,84 @@
+"""The hypergame MDP on canonical states (docs/semantics.md §6), read off Storm's model: each
+canonical state's choices are those of its first Storm state (its representative), their
+successors mapped to canonical states. The objectives other than Pmax's default, the per-move
+values of strategy.json and the induced DTMC are computed on it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from hg2prism.engines.storm import DecodedStates, Transitions
+
+
+@dataclass(frozen=True, eq=False)
+class CanonicalMDP:
+    """Canonical states 0..n-1 (goal states merged into one, failure states into another) and
+    the labelled choices of the non-absorbing ones, grouped by state, in move order."""
+
+    n: int
+    representative: np.ndarray   # [n] the first Storm state of each canonical state
+    goal: np.ndarray             # [n] bool
+    fail: np.ndarray             # [n] bool
+    choice_state: np.ndarray     # [choices] canonical source (non-absorbing states only)
+    choice_action: np.ndarray    # [choices] move index (dynamics.ACTIONS)
+    choice_storm: np.ndarray     # [choices] Storm's global choice index
+    entry_choice: np.ndarray     # [entries] index into the choice arrays
+    entry_target: np.ndarray     # [entries] canonical successor
+    entry_prob: np.ndarray       # [entries]
+
+    @property
+    def absorbing(self) -> np.ndarray:
+        return self.goal | self.fail
+
+    def matrix(self) -> sp.csr_matrix:
+        """[choices, n] successor probabilities of every choice (duplicates summed)."""
+        return sp.csr_matrix((self.entry_prob, (self.entry_choice, self.entry_target)),
+                             shape=(len(self.choice_state), self.n))
+
+    def choice_values(self, values: np.ndarray) -> np.ndarray:
+        """[choices] sum_s' P(s' | s, a) values[s'] of every choice."""
+        return np.bincount(self.entry_choice, weights=self.entry_prob * values[self.entry_target],
+                           minlength=len(self.choice_state))
+
+    def by_state(self, per_choice: np.ndarray, fill: float = np.nan) -> np.ndarray:
+        """[n, 4] a per-choice quantity laid out by (state, move); `fill` where there is none."""
+        table = np.full((self.n, 4), fill, dtype=float)
+        table[self.choice_state, self.choice_action] = per_choice
+        return table
+
+
+def canonical_mdp(decoded: DecodedStates, moves: Transitions) -> CanonicalMDP:
+    """The canonical MDP of Storm's model (see the module docstring)."""
+    canonical = decoded.canonical
+    n_states = len(canonical)
+    n = decoded.n_canonical
+    representative = np.full(n, -1, dtype=np.int64)
+    representative[canonical[::-1]] = np.arange(n_states)[::-1]     # first Storm state of each
+    absorbing = decoded.goal | decoded.fail
+    goal = np.zeros(n, dtype=bool)
+    goal[canonical[decoded.goal]] = True
+    fail = np.zeros(n, dtype=bool)
+    fail[canonical[decoded.fail]] = True
+    is_rep = representative[canonical[moves.source]] == moves.source
+    keep = is_rep & (moves.action >= 0) & ~absorbing[moves.source]
+    chosen = np.flatnonzero(keep)                    # sorted: grouped by state, in move order
+    counts = np.diff(moves.row_start)[chosen]
+    starts = moves.row_start[chosen]
+    entry_choice = np.repeat(np.arange(len(chosen)), counts)
+    offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    entries = np.repeat(starts, counts) + offsets
+    return CanonicalMDP(
+        n=n, representative=representative, goal=goal, fail=fail,
+        choice_state=canonical[moves.source[chosen]], choice_action=moves.action[chosen],
+        choice_storm=chosen, entry_choice=entry_choice,
+        entry_target=canonical[moves.target[entries]], entry_prob=moves.probability[entries])
+
+
+def canonical_values(decoded: DecodedStates, storm_values: np.ndarray) -> np.ndarray:
+    """[n] Storm's value of each canonical state (its Storm copies agree to Storm's precision)."""
+    values = np.zeros(decoded.n_canonical)
+    values[decoded.canonical] = storm_values
+    return values

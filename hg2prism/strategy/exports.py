@@ -1,0 +1,331 @@
+"""P1's strategy in standard forms (docs/semantics.md §6 "Exports"): the DTMC it induces on the
+hypergame, written in PRISM's explicit format (induced.tra, induced.sta, induced.lab) and in
+Storm's DRN format (induced.drn), and the expected numbers of steps read off that DTMC.
+
+State numbering: for a stationary strategy, state 0 is the initial state, then come the other
+records of strategy.json (the non-absorbing canonical states) in the file's order, then one
+state `goal` and one state `fail`. The initial state comes first because PRISM's default
+(symbolic) engine takes state 0 as the initial state of an imported model, whatever the
+"init" label says. For the step-bounded objective the strategy depends on the number of steps taken,
+so the DTMC's states are pairs (record, t) reachable from (initial state, 0), t < H, in
+breadth-first order, then `goal`, `fail` and `horizon` (H steps taken without reaching either).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from hg2prism.engines.storm import DecodedStates
+from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.strategy.canonical import CanonicalMDP
+
+ABSENT = -1     # the value of a state variable that does not apply (an empty window slot)
+# Every variable of the merged absorbing states takes one of these values, so that no two states
+# share a valuation (PRISM's symbolic engine identifies states by their valuations).
+GOAL_VALUE, FAIL_VALUE, HORIZON_VALUE = -1, -2, -3
+
+
+@dataclass(frozen=True, eq=False)
+class InducedDTMC:
+    """A DTMC with integer state variables, labels and, per state, P1's move (-1: absorbing)."""
+
+    variables: tuple[str, ...]
+    valuations: np.ndarray        # [n, variables] int
+    source: np.ndarray            # transitions, sorted by source then target, merged
+    target: np.ndarray
+    probability: np.ndarray
+    initial: int
+    labels: dict[str, np.ndarray]  # label name -> [n] bool ("goal", "fail", ...; not "init")
+    action: np.ndarray            # [n] P1's move index, -1 in absorbing states
+
+    @property
+    def n(self) -> int:
+        return len(self.valuations)
+
+
+def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
+                states: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+    """State variables of canonical states: the robot's cell (x, y), the standing traps and
+    countdown (delay > 0), the DFA state q, P2's hypothesis and her window slots o1 (oldest)..,
+    each slot's TS state as (x, y[, traps, countdown]) and P1's move there (0..3 = N, E, S, W)."""
+    storm = mdp.representative[states]
+    cells = np.asarray(ts.cells, dtype=np.int64)
+    delayed = ts.delay > 0
+
+    def ts_columns(ts_state: np.ndarray, prefix: str) -> tuple[list[str], list[np.ndarray]]:
+        present = ts_state >= 0
+        safe = np.where(present, ts_state, 0)
+        if delayed:
+            cell, rest = np.divmod(safe, ts.n_sets * ts.phases)
+            traps, countdown = np.divmod(rest, ts.phases)
+        else:
+            cell, traps, countdown = safe, safe * 0, safe * 0
+        names = [f"{prefix}x", f"{prefix}y"] + ([f"{prefix}traps", f"{prefix}countdown"]
+                                                  if delayed else [])
+        cols = [cells[cell, 0], cells[cell, 1]] + ([traps, countdown] if delayed else [])
+        return names, [np.where(present, c, ABSENT) for c in cols]
+
+    cell = decoded.cell[storm]
+    here = np.where(cell < ts.n_cells, ts.state(np.minimum(cell, ts.n_cells - 1),
+                                                decoded.traps[storm], decoded.countdown[storm]),
+                    -1)
+    names, columns = ts_columns(here, "")
+    names += ["q", "hyp"]
+    columns += [decoded.q[storm], decoded.hypothesis[storm]]
+    for i in range(decoded.window.shape[1]):
+        slot = decoded.window[storm, i]
+        slot_names, slot_columns = ts_columns(slot[:, 0], f"o{i + 1}_")
+        names += slot_names + [f"o{i + 1}_act"]
+        columns += slot_columns + [np.where(slot[:, 0] >= 0, slot[:, 1], ABSENT)]
+    return tuple(names), np.column_stack(columns).astype(np.int64)
+
+
+def _merged(source: np.ndarray, target: np.ndarray, probability: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Transitions sorted by (source, target) with equal pairs' probabilities summed."""
+    matrix = sp.coo_matrix((probability, (source, target)),
+                           shape=(int(source.max()) + 1, int(target.max()) + 1)).tocsr()
+    matrix.sum_duplicates()
+    matrix.sort_indices()
+    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
+    return rows, matrix.indices.astype(np.int64), matrix.data
+
+
+def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedStates,
+                    ts: TransitionSystem, initial: int) -> InducedDTMC:
+    """The DTMC a memoryless strategy (`action[s]`: a move for every non-absorbing canonical
+    state s) induces: the initial state, the other records in strategy.json's order, then goal
+    and fail."""
+    live = np.flatnonzero(~mdp.absorbing)                 # strategy.json's order ...
+    live = np.r_[live[live == initial], live[live != initial]]   # ... the initial state first
+    n_live = len(live)
+    goal_id, fail_id = n_live, n_live + 1
+    index = np.full(mdp.n, -1, dtype=np.int64)
+    index[live] = np.arange(n_live)
+    index[mdp.goal] = goal_id
+    index[mdp.fail] = fail_id
+    chosen = mdp.choice_action == action[mdp.choice_state]
+    taken = chosen[mdp.entry_choice]
+    source = index[mdp.choice_state[mdp.entry_choice[taken]]]
+    target = index[mdp.entry_target[taken]]
+    source = np.r_[source, goal_id, fail_id]
+    target = np.r_[target, goal_id, fail_id]
+    probability = np.r_[mdp.entry_prob[taken], 1.0, 1.0]
+    names, values = _valuations(mdp, decoded, ts, live)
+    values = np.vstack([values, np.full((1, len(names)), GOAL_VALUE, dtype=np.int64),
+                        np.full((1, len(names)), FAIL_VALUE, dtype=np.int64)])
+    labels = {"goal": np.arange(n_live + 2) == goal_id, "fail": np.arange(n_live + 2) == fail_id}
+    source, target, probability = _merged(source, target, probability)
+    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
+                       probability=probability, initial=int(index[initial]),
+                       labels=labels, action=np.r_[action[live], -1, -1])
+
+
+def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
+                  decoded: DecodedStates, ts: TransitionSystem, initial: int,
+                  horizon: int, max_states: int) -> InducedDTMC:
+    """The DTMC a step-dependent strategy induces over H = `horizon` steps: states (s, t) with
+    t the steps taken, reachable from (initial, 0), then goal, fail and `horizon` (t = H).
+    `action_at(t)` is the [n] move of every canonical state after t steps (t < H). Raises
+    ValueError past `max_states` states."""
+    matrix = mdp.matrix()
+    choice_of = np.full((mdp.n, 4), -1, dtype=np.int64)
+    choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
+    layers: list[np.ndarray] = []          # canonical states alive after t steps
+    blocks: list[sp.csr_matrix] = []       # [layer t, n] transitions out of layer t
+    frontier = np.array([initial], dtype=np.int64)
+    total = 0
+    for t in range(horizon):
+        frontier = frontier[~mdp.absorbing[frontier]]
+        if len(frontier) == 0:
+            break
+        total += len(frontier)
+        if total > max_states:
+            raise ValueError(f"the strategy's DTMC over {horizon} steps has more than "
+                             f"{max_states:,} states")
+        chosen = choice_of[frontier, action_at(t)[frontier]]
+        block = matrix[chosen]
+        layers.append(frontier)
+        blocks.append(block)
+        frontier = np.unique(block.indices)
+    offsets = np.cumsum([0] + [len(layer) for layer in layers])
+    n_live = int(offsets[-1])
+    goal_id, fail_id, cut_id = n_live, n_live + 1, n_live + 2
+    sources, targets, probs = [], [], []
+    for t, (layer, block) in enumerate(zip(layers, blocks)):
+        coo = block.tocoo()
+        succ = coo.col
+        if t + 1 < len(layers):
+            position = np.full(mdp.n, -1, dtype=np.int64)
+            position[layers[t + 1]] = offsets[t + 1] + np.arange(len(layers[t + 1]))
+            live_index = position[succ]
+        else:
+            live_index = np.full(len(succ), cut_id, dtype=np.int64)
+        index = np.where(mdp.goal[succ], goal_id, np.where(mdp.fail[succ], fail_id, live_index))
+        sources.append(offsets[t] + coo.row)
+        targets.append(index)
+        probs.append(coo.data)
+    source = np.concatenate(sources + [[goal_id, fail_id, cut_id]]).astype(np.int64)
+    target = np.concatenate(targets + [[goal_id, fail_id, cut_id]]).astype(np.int64)
+    probability = np.concatenate(probs + [[1.0, 1.0, 1.0]])
+    states = np.concatenate(layers) if layers else np.zeros(0, dtype=np.int64)
+    steps = np.repeat(np.arange(len(layers)), [len(layer) for layer in layers])
+    names, values = _valuations(mdp, decoded, ts, states)
+    values = np.column_stack([values, steps]) if len(states) else np.zeros((0, len(names) + 1),
+                                                                           dtype=np.int64)
+    names = names + ("t",)
+    values = np.vstack([values] + [np.full((1, len(names)), v, dtype=np.int64)
+                                   for v in (GOAL_VALUE, FAIL_VALUE, HORIZON_VALUE)])
+    n = n_live + 3
+    labels = {"goal": np.arange(n) == goal_id, "fail": np.arange(n) == fail_id,
+              "horizon": np.arange(n) == cut_id}
+    moves = (np.concatenate([action_at(t)[layer] for t, layer in enumerate(layers)])
+             if layers else np.zeros(0, dtype=np.int64))
+    start = 0 if n_live else (goal_id if mdp.goal[initial] else fail_id)
+    source, target, probability = _merged(source, target, probability)
+    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
+                       probability=probability, initial=start,
+                       labels=labels, action=np.r_[moves, -1, -1, -1])
+
+
+# ---------------------------------------------------------------------------------------------
+# Writers
+# ---------------------------------------------------------------------------------------------
+
+def _valuation_lines(dtmc: InducedDTMC, template: str) -> list[str]:
+    """One line per state from `template` ("{}" for the state number, then one per variable),
+    formatted column-wise: far faster than joining each row's fields."""
+    rows = dtmc.valuations.tolist()
+    return [template.format(i, *row) for i, row in enumerate(rows)]
+
+
+def prism_explicit(dtmc: InducedDTMC) -> dict[str, str]:
+    """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}. PRISM reads them with
+    `prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab -dtmc`."""
+    tra = [f"{dtmc.n} {len(dtmc.source)}"]
+    tra += [f"{s} {t} {p!r}" for s, t, p in
+            zip(dtmc.source.tolist(), dtmc.target.tolist(), dtmc.probability.tolist())]
+    sta = ["(" + ",".join(dtmc.variables) + ")"]
+    sta += _valuation_lines(dtmc, "{}:(" + ",".join(["{}"] * len(dtmc.variables)) + ")")
+    names = ["init", "deadlock"] + list(dtmc.labels)
+    lab = [" ".join(f'{k}="{name}"' for k, name in enumerate(names))]
+    members: dict[int, list[int]] = {dtmc.initial: [0]}
+    for k, name in enumerate(names[2:], start=2):
+        for i in np.flatnonzero(dtmc.labels[name]).tolist():
+            members.setdefault(i, []).append(k)
+    lab += [f"{i}: " + " ".join(map(str, sorted(members[i]))) for i in sorted(members)]
+    return {"tra": "\n".join(tra) + "\n", "sta": "\n".join(sta) + "\n",
+            "lab": "\n".join(lab) + "\n"}
+
+
+def drn(dtmc: InducedDTMC, comment: str = "") -> str:
+    """Storm's DRN format (stormpy.build_model_from_drn): per state its labels, its valuation
+    as a comment and one choice labelled with P1's move (`absorbing` in absorbing states)."""
+    lines = [f"// {line}" for line in comment.splitlines()] + [
+        "@type: DTMC", "@value_type: double", "@parameters", "", "@reward_models", "",
+        "@nr_states", str(dtmc.n), "@nr_choices", str(dtmc.n), "@model"]
+    named = ["" for _ in range(dtmc.n)]
+    named[dtmc.initial] = " init"
+    for name, mask in dtmc.labels.items():
+        for i in np.flatnonzero(mask).tolist():
+            named[i] += f" {name}"
+    moves = [ACTION_LABELS[a] for a in ACTIONS]
+    actions = [moves[a] if a >= 0 else "absorbing" for a in dtmc.action.tolist()]
+    headers = _valuation_lines(dtmc, "{}\n//[" + ", ".join(f"{v}={{}}" for v in dtmc.variables)
+                               + "]")
+    branches = [f"\t\t{t} : {p!r}" for t, p in zip(dtmc.target.tolist(),
+                                                     dtmc.probability.tolist())]
+    starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1)).tolist()
+    lines += [f"state {header.replace(chr(10), names + chr(10), 1)}\n\taction {action}\n"
+              + "\n".join(branches[starts[i]:starts[i + 1]])
+              for i, (header, names, action) in enumerate(zip(headers, named, actions))]
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
+# Numbers of the DTMC
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Steps:
+    """Expected numbers of steps of the exported strategy from the initial state."""
+
+    goal_probability: float        # P(F "goal")
+    to_end: float | None           # E[steps until goal, failure (or the horizon)]; None if infinite
+    to_goal: float | None          # E[steps | the goal is reached]; None if it is never reached
+
+
+def expected_steps(dtmc: InducedDTMC) -> Steps:
+    """P(F goal), the expected steps until an absorbing state, and the expected steps to the
+    goal given that it is reached (docs/semantics.md §6 "Timing"), by sparse linear solves."""
+    n = dtmc.n
+    absorbing = np.zeros(n, dtype=bool)
+    for mask in dtmc.labels.values():
+        absorbing |= mask
+    goal = dtmc.labels["goal"]
+    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(n, n))
+    transient = np.flatnonzero(~absorbing)
+    inner = matrix[transient][:, transient]
+    to_goal = np.asarray(matrix[transient][:, np.flatnonzero(goal)].sum(axis=1)).ravel()
+    where = np.full(n, -1, dtype=np.int64)
+    where[transient] = np.arange(len(transient))
+    s0 = int(where[dtmc.initial])
+    if s0 < 0:
+        hit = bool(goal[dtmc.initial])
+        return Steps(float(hit), 0.0, 0.0 if hit else None)
+
+    # States that reach an absorbing state with probability 1: those that cannot reach a
+    # closed set of transient states. Backward search from the absorbing ones finds the states
+    # that can reach them; a state that cannot has infinite expected time, and so has every
+    # state that can reach it.
+    reach_prob = _reach(inner, to_goal)
+    exits = np.asarray(matrix[transient][:, np.flatnonzero(absorbing)].sum(axis=1)).ravel()
+    can_end = _backward(inner, exits > 0)
+    stuck = _backward(inner, ~can_end)          # can reach a state that never ends
+    if stuck[s0]:
+        end = None
+    else:
+        keep = np.flatnonzero(~stuck)
+        sub = inner[keep][:, keep]
+        solution = spla.spsolve(sp.identity(len(keep), format="csc") - sub.tocsc(),
+                                np.ones(len(keep)))
+        end = float(np.atleast_1d(solution)[np.searchsorted(keep, s0)])
+    probability = float(np.clip(reach_prob[s0], 0.0, 1.0))
+    if probability <= 0.0:
+        return Steps(probability, end, None)
+    # E[T 1{goal}] = y with y = x + P y on the states that reach the goal, x = P(F goal).
+    live = np.flatnonzero(reach_prob > 0)
+    sub = inner[live][:, live]
+    y = spla.spsolve(sp.identity(len(live), format="csc") - sub.tocsc(), reach_prob[live])
+    weighted = float(np.atleast_1d(y)[np.searchsorted(live, s0)])
+    return Steps(probability, end, weighted / probability)
+
+
+def _backward(inner: sp.csr_matrix, targets: np.ndarray) -> np.ndarray:
+    """States with a path (length >= 0) into `targets` along positive transitions."""
+    reverse = (inner.T > 0).tocsr()
+    reached = targets.copy()
+    frontier = np.flatnonzero(targets)
+    while len(frontier):
+        found = np.unique(reverse[frontier].indices)
+        frontier = found[~reached[found]]
+        reached[frontier] = True
+    return reached
+
+
+def _reach(inner: sp.csr_matrix, to_goal: np.ndarray) -> np.ndarray:
+    """P(F goal) of every transient state: 0 where the goal cannot be reached, elsewhere the
+    unique solution of x = to_goal + P x."""
+    can = _backward(inner, to_goal > 0)
+    x = np.zeros(inner.shape[0])
+    live = np.flatnonzero(can)
+    if len(live):
+        sub = inner[live][:, live]
+        x[live] = np.atleast_1d(spla.spsolve(sp.identity(len(live), format="csc") - sub.tocsc(),
+                                             to_goal[live]))
+    return x

@@ -1,0 +1,192 @@
+"""Timing-aware objectives for P1's strategy (docs/semantics.md §6 "Objectives"), computed on
+the canonical hypergame MDP from Storm's Pmax values:
+
+- "pmax" (the default): Pmax=? [F "goal"], ties among optimal moves broken by the discounted
+  reach score (hg2prism.strategy.deceptive);
+- "lexicographic": among the Pmax-optimal moves, the fewest expected steps until the episode
+  ends (goal or failure); where that expectation is infinite whatever optimal moves P1 plays,
+  the default's choice;
+- "bounded": Pmax=? [F<=H "goal"], a strategy that depends on the number of steps taken.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from hg2prism.strategy.canonical import CanonicalMDP
+from hg2prism.strategy.deceptive import OPTIMAL_SLACK
+
+OBJECTIVES = ("pmax", "bounded", "lexicographic")
+RELATIVE_TIE = 1e-12        # scores this close (relative) are tied, as for the default
+MAX_POLICY_ITERATIONS = 1000
+
+
+def optimal_choices(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
+    """[choices] bool: the Pmax-optimal moves (within OPTIMAL_SLACK of the state's value)."""
+    return mdp.choice_values(values) >= values[mdp.choice_state] - OPTIMAL_SLACK
+
+
+def _pick(table: np.ndarray, preferred: np.ndarray, relative_tie: float, lowest: bool
+          ) -> np.ndarray:
+    """[n] per row of `table` ([n, 4], NaN where a move is not allowed) the preferred move if
+    it is within `relative_tie` of the row's best, else the first such move (N, E, S, W)."""
+    score = -table if lowest else table
+    score = np.where(np.isnan(score), -np.inf, score)
+    best = score.max(axis=1, keepdims=True)
+    tied = score >= best - relative_tie * np.abs(best)
+    first = np.argmax(tied, axis=1)
+    rows = np.arange(len(table))
+    keep = (preferred >= 0) & tied[rows, np.maximum(preferred, 0)]
+    return np.where(keep, preferred, first)
+
+
+# ---------------------------------------------------------------------------------------------
+# Lexicographic: Pmax first, then the fewest expected steps
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Lexicographic:
+    action: np.ndarray          # [n] move of every non-absorbing canonical state (-1 absorbing)
+    finite: np.ndarray          # [n] bool: some optimal strategy ends the episode surely
+    expected: np.ndarray        # [n] least expected steps to the end (inf where not finite)
+
+
+def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
+                          default_action: np.ndarray) -> Lexicographic:
+    """Among the Pmax-optimal moves, those that minimise the expected number of steps until
+    the goal or a failure; ties go to the first move in N, E, S, W order.
+
+    A state is *finite* when some strategy using only optimal moves ends the episode with
+    probability 1 from it (the greatest set of states from which the absorbing states can be
+    reached using optimal moves that never leave the set). Elsewhere every optimal strategy
+    has an infinite expected length, and the state keeps the default's move
+    (`default_action`, the Pmax strategy's). Finite states use moves that stay finite, so the
+    two parts never mix within an episode that has entered a finite state."""
+    optimal = optimal_choices(mdp, values)
+    absorbing = mdp.absorbing
+    finite = ~absorbing.copy()
+    rank = np.full(mdp.n, -1, dtype=np.int64)
+    first_move = np.full(mdp.n, -1, dtype=np.int64)
+    while True:
+        inside = finite | absorbing
+        stays = optimal & (np.bincount(mdp.entry_choice, weights=~inside[mdp.entry_target],
+                                       minlength=len(optimal)) == 0)
+        # Backward search, level by level, from the absorbing states along staying moves.
+        reached = absorbing.copy()
+        rank[:] = -1
+        first_move[:] = -1
+        level = 0
+        while True:
+            hits = np.bincount(mdp.entry_choice, weights=reached[mdp.entry_target],
+                               minlength=len(optimal)) > 0
+            new = stays & hits & ~reached[mdp.choice_state]
+            if not new.any():
+                break
+            level += 1
+            chosen = np.flatnonzero(new)
+            states, first = np.unique(mdp.choice_state[chosen], return_index=True)
+            rank[states] = level
+            first_move[states] = mdp.choice_action[chosen[first]]
+            reached[states] = True
+        now = reached & ~absorbing
+        if (now == finite).all():
+            break
+        finite = now
+    inside = finite | absorbing
+    allowed = optimal & finite[mdp.choice_state] & (np.bincount(
+        mdp.entry_choice, weights=~inside[mdp.entry_target], minlength=len(optimal)) == 0)
+
+    # Policy iteration for the expected steps on the finite states, from the proper strategy
+    # of the backward search (each move gets one level closer with positive probability).
+    states = np.flatnonzero(finite)
+    where = np.full(mdp.n, -1, dtype=np.int64)
+    where[states] = np.arange(len(states))
+    matrix = mdp.matrix()
+    choice_of = np.full((mdp.n, 4), -1, dtype=np.int64)
+    choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
+    policy = first_move.copy()
+    expected = np.zeros(mdp.n)
+    for _ in range(MAX_POLICY_ITERATIONS):
+        rows = matrix[choice_of[states, policy[states]]][:, states]
+        system = sp.identity(len(states), format="csc") - rows.tocsc()
+        solution = np.atleast_1d(spla.spsolve(system, np.ones(len(states)))) if len(states) else []
+        expected[:] = 0.0
+        expected[states] = solution
+        q = 1.0 + matrix @ expected
+        table = mdp.by_state(np.where(allowed, q, np.nan))
+        current = table[states, policy[states]]
+        best = np.nanmin(table[states], axis=1) if len(states) else current
+        improve = best < current - 1e-12 * np.maximum(1.0, current)
+        if not improve.any():
+            break
+        better = np.nanargmin(table[states], axis=1)
+        policy[states[improve]] = better[improve]
+    # Final moves: the first of the (numerically) best, so that exact ties follow move order.
+    action = default_action.copy()
+    if len(states):
+        table = mdp.by_state(np.where(allowed, 1.0 + matrix @ expected, np.nan))
+        action[states] = _pick(table[states], np.full(len(states), -1), 1e-9, lowest=True)
+    expected[~finite & ~absorbing] = np.inf
+    return Lexicographic(action=action, finite=finite, expected=expected)
+
+
+# ---------------------------------------------------------------------------------------------
+# Step-bounded: Pmax=? [F<=H "goal"]
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Bounded:
+    bound: int
+    actions: np.ndarray         # [H, n] int8: P1's move after t steps (t = 0..H-1)
+    value: float                # Pmax=? [F<=H "goal"] at the initial state
+    move_values: np.ndarray     # [n, 4] each move's P(goal within H steps) at t = 0
+
+    def action_at(self, t: int) -> np.ndarray:
+        return self.actions[t].astype(np.int64)
+
+    def schedules(self) -> list[list]:
+        """Per canonical state, its moves over t = 0..H-1 as runs [first t, last t, move]."""
+        from hg2prism.model.dynamics import ACTIONS
+
+        changes = np.flatnonzero(np.diff(self.actions, axis=0).any(axis=1)) + 1
+        starts = np.r_[0, changes]
+        ends = np.r_[changes - 1, self.bound - 1]
+        block = self.actions[starts].T.tolist()       # [n, blocks]
+        schedules = []
+        for row in block:
+            runs: list[list] = []
+            for first, last, a in zip(starts.tolist(), ends.tolist(), row):
+                if a < 0:
+                    continue
+                if runs and runs[-1][2] == ACTIONS[a]:
+                    runs[-1][1] = last
+                else:
+                    runs.append([first, last, ACTIONS[a]])
+            schedules.append(runs)
+        return schedules
+
+
+def bounded_actions(mdp: CanonicalMDP, default_action: np.ndarray, initial: int,
+                    bound: int) -> Bounded:
+    """Pmax=? [F<=bound "goal"] by backward induction, V_0 = [goal] and
+    V_k(s) = max_a sum_s' P(s' | s, a) V_{k-1}(s'), and the strategy that, with k steps left,
+    takes a maximising move: the default's move if it is within a relative 1e-12 of the best,
+    else the first best in N, E, S, W order."""
+    matrix = mdp.matrix()
+    goal = mdp.goal.astype(float)
+    live = ~mdp.absorbing
+    v = goal.copy()
+    actions = np.full((bound, mdp.n), -1, dtype=np.int8)
+    table = mdp.by_state(matrix @ v)
+    for k in range(1, bound + 1):
+        table = mdp.by_state(matrix @ v)
+        pick = _pick(table, default_action, RELATIVE_TIE, lowest=False)
+        actions[bound - k, live] = pick[live]
+        best = table[np.arange(mdp.n), pick]
+        v = np.where(live, best, goal)
+    return Bounded(bound=bound, actions=actions, value=float(np.clip(v[initial], 0.0, 1.0)),
+                   move_values=table)
