@@ -45,10 +45,11 @@ def main(argv: list[str] | None = None) -> int:
                        help="refuse worlds whose estimated hypergame size exceeds N "
                             f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
         p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
-                       help="sound (default, Storm's sound solver, precision 1e-10), sound-ovi "
-                            "(optimistic value iteration, also sound; often much faster on large "
-                            "models, occasionally stuck) or fast (plain value iteration to 1e-12, "
-                            "not sound: flagged in the outputs)")
+                       help="sound (default: a fast solver's strategy, evaluated exactly and "
+                            "certified optimal to 1e-10, else Storm's sound solver), storm-sound "
+                            "(Storm's sound solver alone, precision 1e-10), sound-ovi (Storm's "
+                            "optimistic value iteration, also sound; occasionally stuck) or fast "
+                            "(plain value iteration to 1e-12, not sound: flagged in the outputs)")
     for name, help in (
         ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
         ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too, "

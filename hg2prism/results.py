@@ -89,7 +89,7 @@ class CheckResults:
     world_file: str                 # the world file as given (may be relative)
     hg2prism_version: str
     deceptive_value: float          # Pmax=? [F "goal"] at the hypergame's initial state (§6), by Storm
-    storm_method: str               # "sound", "sound-ovi" or "fast" (§10)
+    storm_method: str               # "sound", "storm-sound", "sound-ovi" or "fast" (§10)
     sound: bool                     # False only for "fast": deceptive_value is then not certified (§10)
     v_lead: float                   # V_lead at the initial state: P2 knows the task, commits first (§7)
     states: int                     # canonical hypergame states, goal and fail merged (§6 "Canonical size")

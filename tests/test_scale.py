@@ -129,3 +129,11 @@ def test_bench_writes_results_and_figure(tmp_path: Path) -> None:
         assert math.isclose(stages, float(saved["time_total"]), rel_tol=1e-2, abs_tol=1e-3)
     assert (tmp_path / "scaling.png").stat().st_size > 0
     assert (tmp_path / "worlds" / f"{rows[0]['name']}.toml").exists()
+
+
+def test_bench_world_with_delay_starts_on_the_first_candidates(tmp_path: Path) -> None:
+    path = tmp_path / "delayed.toml"
+    path.write_text(bench.bench_world(12, 1, 3, 2, delay=2))
+    world = load_world(path)
+    assert world.delay == 2 and world.name == bench.world_name(12, 1, 3, 2, 2)
+    assert world.initial_traps == tuple(world.grid.trap_candidates[:2])

@@ -12,7 +12,7 @@ import tarfile
 import tempfile
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Callable
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +21,7 @@ import stormpy.environments as environments
 from stormpy import developer
 from stormpy.io import export_to_umb
 
+from hg2prism.engines import certify
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.errors import StormError, probability
@@ -60,25 +61,29 @@ class CheckedModel:
         return result.get_scheduler()
 
 
-# How Storm solves Pmax. "sound" is docs/semantics.md §10's setting: Storm's default sound solver
-# (topological, optimistic value iteration per strongly connected component), precision 1e-10.
-# "sound-ovi" runs optimistic value iteration on the whole model, also sound to 1e-10: 15 s
-# instead of 62-70 s on the 982k-state benchmark model and 2.8 s instead of more than three
-# minutes on a 41k-state one, but as stuck as the default on another, so it is a choice, not the
-# default. "fast" is Storm's topological value iteration stopped at an absolute change of 1e-12,
-# which is not sound (7e-6 short on one 42k-state model).
-STORM_METHODS = ("sound", "sound-ovi", "fast")
-SOUND_METHODS = ("sound", "sound-ovi")      # certified to 1e-10 (docs/semantics.md §10); "fast" is not
+# How Pmax is solved (docs/semantics.md §10). "sound" (the default) is certified: Storm's fast
+# topological value iteration proposes a strategy, engines/certify.py evaluates it exactly and
+# improves it until its value is a fixed point of the Bellman operator; should that fail, Storm's
+# sound solver ("storm-sound") answers instead, with a warning. The others run one Storm method:
+# "storm-sound" is Storm's default sound solver (topological, optimistic value iteration per
+# strongly connected component), precision 1e-10: 29x slower between two neighbouring benchmark
+# worlds (1.8 s at 0.8e6 states, 51 s at 1e6) and more than two minutes on a 41k-state one.
+# "sound-ovi" runs optimistic value iteration on the whole model, also sound to 1e-10, faster on
+# some of those models but as stuck on others. "fast" is Storm's topological value iteration
+# stopped at an absolute change of 1e-12, which is not sound (7e-6 short on one 42k-state model).
+STORM_METHODS = ("sound", "storm-sound", "sound-ovi", "fast")
+SOUND_METHODS = ("sound", "storm-sound", "sound-ovi")   # certified to 1e-10; "fast" is not
 
 
 def solver_environment(method: str) -> developer.Environment:
-    if method == "sound":
+    """Storm's solver settings for one of STORM_METHODS ("sound" starts from "fast")."""
+    if method == "storm-sound":
         return sound_environment()
     if method == "sound-ovi":
         env = sound_environment()
         env.solver().min_max().method = environments.MinMaxMethod.OPTIMISTIC_VALUE_ITERATION
         return env
-    if method == "fast":
+    if method in ("fast", "sound"):
         env = developer.Environment()
         env.solver().min_max().method = environments.MinMaxMethod.TOPOLOGICAL
         env.solver().min_max().precision = stormpy.Rational("1/1000000000000")
@@ -88,13 +93,31 @@ def solver_environment(method: str) -> developer.Environment:
 
 
 def check(prism_path: Path, prop: str, method: str = "sound") -> CheckedModel:
+    """Parse, build and solve `prop` (a Pmax reachability property) with one of STORM_METHODS."""
     try:
-        return _check(prism_path, prop, solver_environment(method))
+        return _check(prism_path, prop, method)
     except RuntimeError as err:  # stormpy reports parse and build failures as RuntimeError
         raise StormError(f"{prism_path}: {err}") from err
 
 
-def _check(prism_path: Path, prop: str, environment: developer.Environment) -> CheckedModel:
+def _check(prism_path: Path, prop: str, method: str) -> CheckedModel:
+    solver_environment(method)   # an unknown method fails before the build
+    model, formula, timings = build(prism_path, prop)
+    start = time.perf_counter()
+    values, scheduler = solve(model, formula, method)
+    timings["check"] = time.perf_counter() - start
+    initial = model.initial_states[0]
+    value = probability(values[initial], "Storm's value at the initial state")
+    checked = CheckedModel(model=model, value=value, values=values, formula=formula,
+                           timings=timings)
+    if scheduler is not None:   # the certified route has one already: no second solve for it
+        checked.__dict__["scheduler"] = scheduler
+    return checked
+
+
+def build(prism_path: Path, prop: str) -> tuple[object, object, dict[str, float]]:
+    """Storm's sparse model of a PRISM file, the formula of `prop`, and the parse and build
+    times."""
     timings = {}
     start = time.perf_counter()
     program = stormpy.parse_prism_program(str(prism_path))
@@ -108,15 +131,62 @@ def _check(prism_path: Path, prop: str, environment: developer.Environment) -> C
     options.set_build_all_labels(True)
     model = stormpy.build_model(program, options=options)
     timings["build"] = time.perf_counter() - start
+    return model, properties[0], timings
 
-    start = time.perf_counter()
-    result = stormpy.model_checking(model, properties[0], environment=environment)
-    values = np.asarray(result.get_value_vector())
-    timings["check"] = time.perf_counter() - start
-    initial = model.initial_states[0]
-    value = probability(values[initial], "Storm's value at the initial state")
-    return CheckedModel(model=model, value=value, values=values,
-                        formula=properties[0], timings=timings)
+
+def solve(model: object, formula: object, method: str = "sound") -> tuple[np.ndarray, object]:
+    """The value of every state of `model` for `formula` (Pmax=? [F "goal"] for "sound") by one
+    of STORM_METHODS, and a scheduler object of the model when the method made one (else None)."""
+    if method == "sound":
+        return _certified_values(model, formula)
+    result = stormpy.model_checking(model, formula, environment=solver_environment(method))
+    return np.asarray(result.get_value_vector()), None
+
+
+def certificate(model: object, formula: object, max_rounds: int = certify.MAX_ROUNDS,
+                perturb: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+                ) -> certify.Certificate:
+    """The values of `formula` (a Pmax reachability of the label "goal"), certified by
+    engines/certify.py from the strategy that Storm's fast values suggest
+    (`certify.initial_strategy`). `perturb(choice, group_start)` may replace that first
+    strategy (global choice indices), for tests."""
+    result = stormpy.model_checking(model, formula, environment=_rough_environment())
+    estimate = np.asarray(result.get_value_vector())
+    structure = read_structure(model)
+    group_start = np.searchsorted(structure.source, np.arange(model.nr_states + 1))
+    matrix = certify.choice_matrix(structure.row_start, structure.target, structure.probability,
+                                   model.nr_states)
+    goal = structure.labels["goal"]
+    choice = certify.initial_strategy(matrix, group_start, goal, estimate)
+    if perturb is not None:
+        choice = perturb(choice, group_start)
+    return certify.certify_reachability(matrix, group_start, goal, choice, max_rounds)
+
+
+def _rough_environment() -> developer.Environment:
+    """Value iteration to an absolute change of 1e-3: only a first strategy comes from it
+    (Storm's own scheduler costs more than the values: 2 s at 0.27e6 states). On the 1e6-state
+    benchmark world, 1e-3 and one more round of improvement cost 7.3 s, 1e-6 (topological) and
+    one round 14 s."""
+    env = developer.Environment()
+    env.solver().min_max().method = environments.MinMaxMethod.VALUE_ITERATION
+    env.solver().min_max().precision = stormpy.Rational("1/1000")
+    env.solver().min_max().relative_termination_criterion = False
+    return env
+
+
+def _certified_values(model: object, formula: object) -> tuple[np.ndarray, object]:
+    """The "sound" method: the certified values of `certificate`, or, when they cannot be
+    certified, Storm's sound solver's (with a warning). No scheduler object (None)."""
+    from hg2prism.progress import warn
+
+    certified = certificate(model, formula)
+    if certified.certified:
+        return certified.values, None
+    warn(f"could not certify the fast solver's strategy ({certified.reason}); "
+         f"solving with Storm's sound solver instead")
+    result = stormpy.model_checking(model, formula, environment=sound_environment())
+    return np.asarray(result.get_value_vector()), None
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,6 +10,8 @@ the game is decided, so the values do not depend on the field: with one trap, de
 task P2 would catch P1 for sure, and her inference switches between the hypotheses A, B and C
 — and 0 with two traps. The field makes the hypergame grow: its canonical size is about
 (free cells) x (hypotheses P2 adopts) x (windows of P1's last moves), up to about 1e6 states.
+A few 12 x 12 worlds add delay (traps starting on the first candidates): 0.9 against v_lead 0.64
+with one trap and delay 1 or 2, 0.576 against 0 with two traps and delay 1.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ STAGES = ("games", "generate", "parse", "build", "check", "export")
 
 # (side, window, hypotheses, traps): small worlds with windows 1 and 2, varied hypotheses and
 # traps, then window 3 with a growing field up to about 1e6 canonical states.
-DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
+DEFAULT_SIZES: tuple[tuple[int, ...], ...] = (
     (12, 1, 3, 1),
     (24, 1, 5, 1),
     (12, 2, 2, 1),
@@ -68,12 +70,17 @@ DEFAULT_SIZES: tuple[tuple[int, int, int, int], ...] = (
     (24, 3, 3, 1),
     (28, 3, 3, 1),
     (31, 3, 3, 1),
+    # delay (the fifth number): one trap with delay 1 and 2 (deceptive value 0.9 against v_lead
+    # 0.64), and two traps with delay 1 (0.576 against 0; without delay two traps give 0)
+    (12, 1, 3, 1, 1),
+    (12, 1, 3, 1, 2),
+    (12, 2, 3, 2, 1),
 )
 
 SLOPE_RANGE = (1e4, 1e6)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
 
-COLUMNS = ("name", "side", "window", "hypotheses", "traps", "storm_method", "cells", "estimate",
+COLUMNS = ("name", "side", "window", "hypotheses", "traps", "delay", "storm_method", "cells", "estimate",
            "states",
            "transitions", "storm_states", "storm_transitions", "storm_choices",
            "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
@@ -93,13 +100,15 @@ def _reachable(grid: list[list[str]], start: tuple[int, int]) -> set[tuple[int, 
     return seen
 
 
-def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0) -> str:
+def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0,
+                delay: int = 0) -> str:
     """TOML text of a side x side world (plus border): the fixed core in the top right corner,
     the start in the bottom left one, 1/12 of the other cells walls and 1/25 obstacles (none
     next to the start; cells the start cannot reach are walled in).
 
     `hypotheses` (1-5) takes P2's candidate tasks from "!obs U A", "!obs U B", ... in that
-    order; `traps` (1-2) among the core's 8 candidates (the core fixes them)."""
+    order; `traps` (1-2) among the core's 8 candidates (the core fixes them); with `delay` > 0
+    the traps start on the first candidates in reading order."""
     if side < CORE_SIZE:
         raise ValueError(f"side must be at least {CORE_SIZE} (the core)")
     if not 1 <= hypotheses <= len(HYPOTHESIS_POOL):
@@ -134,9 +143,14 @@ def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int =
     rows = ["#" * (side + 2)] + ["#" + "".join(row) + "#" for row in grid] + ["#" * (side + 2)]
     hyps = ", ".join(f'"{h}"' for h in HYPOTHESIS_POOL[:hypotheses])
     newline = "\n"
-    return f'''name = "{world_name(side, window, hypotheses, traps)}"
+    height = len(rows)
+    candidates = [(x, height - 1 - r) for r, row in enumerate(rows)
+                  for x, char in enumerate(row) if char == "t"]
+    initial = ", ".join(f"[{x}, {y}]" for x, y in candidates[:traps])
+    delay_lines = f"delay = {delay}\ninitial_traps = [{initial}]\n" if delay else ""
+    return f'''name = "{world_name(side, window, hypotheses, traps, delay)}"
 description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, \
-{traps} trap(s)"
+{traps} trap(s){f", delay {delay}" if delay else ""}"
 
 [grid]
 map = """
@@ -151,7 +165,7 @@ formula = "{TASK}"
 
 [adversary]
 traps = {traps}
-hypotheses = [{hyps}]
+{delay_lines}hypotheses = [{hyps}]
 
 [inference]
 window = {window}
@@ -160,8 +174,8 @@ rationality = 5.0
 '''
 
 
-def world_name(side: int, window: int, hypotheses: int, traps: int) -> str:
-    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}"
+def world_name(side: int, window: int, hypotheses: int, traps: int, delay: int = 0) -> str:
+    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}" + (f"_d{delay}" if delay else "")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,6 +324,9 @@ def summary(rows: list[dict]) -> str:
         lines.append(f"Python stages (games + generate + export + write) within Storm's build, "
                      f"worlds of {lo:.0e} states or more: "
                      + ("all" if not slower else "not for " + ", ".join(slower)))
+        slow_checks = [r["name"] for r in good if r["time_check"] > r["time_build"]]
+        lines.append("check within Storm's build: "
+                     + ("all worlds" if not slow_checks else "not for " + ", ".join(slow_checks)))
         ratios = [r["estimate"] / r["states"] for r in good if r["states"]]
         lines.append(f"size estimate / canonical states: {min(ratios):.2f} .. {max(ratios):.2f}")
     failed = [r["name"] for r in rows if r.get("error")]
@@ -320,7 +337,7 @@ def summary(rows: list[dict]) -> str:
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               keep_outputs: bool = False, storm_method: str = "sound") -> list[dict]:
-    """Runs every world of `sizes` ((side, window, hypotheses, traps) each) through
+    """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv and out_dir/scaling.{png,svg} and prints the summary.
 
@@ -336,13 +353,14 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               f"with Storm method {storm_method!r} (times in seconds; 'write' is check's JSON "
               f"output outside the timed stages)",
               flush=True)
-    for side, window, hypotheses, traps in sizes:
-        name = world_name(side, window, hypotheses, traps)
+    for side, window, hypotheses, traps, *rest in sizes:
+        delay = rest[0] if rest else 0
+        name = world_name(side, window, hypotheses, traps, delay)
         world_path = out_dir / "worlds" / f"{name}.toml"
-        write_text(world_path, bench_world(side, window, hypotheses, traps))
+        write_text(world_path, bench_world(side, window, hypotheses, traps, delay=delay))
         run_dir = out_dir / "runs" / name
         row = {"name": name, "side": side, "window": window, "hypotheses": hypotheses,
-               "traps": traps, "storm_method": storm_method}
+               "traps": traps, "delay": delay, "storm_method": storm_method}
         row.update(measure_world(world_path, run_dir, storm_method))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
@@ -373,7 +391,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
-                        help="only the worlds below 2e5 states (about a minute)")
+                        help="only the worlds below 2e5 states without delay (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
     parser.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
@@ -383,7 +401,8 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     sizes = DEFAULT_SIZES
     if args.quick:
-        sizes = tuple(s for s in DEFAULT_SIZES if s[1] < 3 or s[0] <= 12)
+        sizes = tuple(s for s in DEFAULT_SIZES
+                      if (s[1] < 3 or s[0] <= 12) and not (len(s) > 4 and s[4]))
     run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs,
               storm_method=args.storm_method)
     return 0
