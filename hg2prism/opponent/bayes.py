@@ -30,6 +30,10 @@ TOLERANCE = 1e-9          # hypotheses within this of the largest log-posterior 
 E = math.e                # PRISM has no exp(): the posterior is written pow(E, ...)
 
 
+def _exp(value: float) -> float:
+    return math.exp(value) if value < 709.0 else math.inf
+
+
 @dataclass(frozen=True, eq=False)
 class BayesObserver:
     """The Bayesian observer (kind "bayes")."""
@@ -70,14 +74,17 @@ class BayesObserver:
         return next(x for x, s in enumerate(scores) if s >= top - TOLERANCE)
 
     def posterior(self, window: tuple[Observation, ...]) -> list[float]:
-        """p(x | W) for every x, computed from the log-scores relative to their maximum."""
+        """p(x | W) = 1 / sum_y exp(ln p(y | W) - ln p(x | W)) for every x: the normaliser
+        cancels, and a term that overflows only drives p(x | W) to 0 (the PRISM model computes
+        the same expression)."""
         scores = self.log_scores(window)
-        top = max(scores)
-        weights = [math.exp(s - top) for s in scores]
-        total = 0.0
-        for w in weights:
-            total = total + w
-        return [w / total for w in weights]
+        result = []
+        for x, own in enumerate(scores):
+            total = 0.0
+            for y, other in enumerate(scores):
+                total = total + (1.0 if y == x else _exp(other - own))
+            result.append(1.0 / total)
+        return result
 
     # -- the observer interface ----------------------------------------------------------------
 
@@ -116,45 +123,71 @@ class BayesObserver:
     # -- the PRISM part ------------------------------------------------------------------------
 
     def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
-        """The log-likelihood tables, the log-posterior and the decision as formulas over the
-        window's slots o1 (oldest) .. o{w}, and the module p2_inference that shifts the window
-        (4 commands whatever the window, the grid or the hypotheses). With "sample" the robot
-        module draws P2's hypothesis jointly with the move (4 + 1 commands) and also holds the
-        newest slot's trap set and, with delay > 0, the standing traps."""
+        """The window's slots o1 (oldest) .. o{w} and the decision, as formulas and the module
+        p2_inference (4 commands whatever the window, the grid or the hypotheses).
+
+        Storm and PRISM substitute formulas where they are used, so a posterior written over
+        (state, move, trap set) tables would be copied into every expression that reads it. So
+        each slot also holds the *class* of its observation, o<i>_cls: observations with the
+        same log-likelihoods ln pi1_x(a1 | v, a2) for every x share a class (a function of the
+        slot, so it adds no state), and the log-posterior sums small per-class tables. With
+        "map", `hyp` is a variable set with the window (also a function of it). With "sample"
+        the robot module draws P2's hypothesis jointly with the move (4 + 1 commands) and also
+        holds the newest slot's trap set and class and, with delay > 0, the standing traps."""
         n_x, slots = self.n_hypotheses, self.window
         n_obs_states = ts.n_states - 1          # the TRAPPED state is never observed
         n_sets = ts.n_sets
-        tables = []                              # (name, comment, expression)
-        if n_x > 1:
-            for x in range(n_x):
-                table = self.log_likelihood[x, :n_obs_states]                # [states, 4, sets]
-                padded = np.zeros((n_obs_states + 1, 5, n_sets + 1))        # -1 = empty slot
-                padded[1:, 1:, 1:] = table
-                for i in range(1, slots + 1):
-                    tables.append((f"ll_x{x}_o{i}", f"ln pi1_x{x}(a1 | v, a2) of slot o{i}",
-                                   lookup(padded, [(f"o{i}_state", -1), (f"o{i}_act", -1),
-                                                   (f"o{i}_set", -1)])))
-        scores = []
-        for x in range(n_x):
-            terms = [prism_number(float(self.log_prior[x]))]
-            if n_x > 1:
-                terms += [f"ll_x{x}_o{i}" for i in range(1, slots + 1)]
-            scores.append((f"lp_x{x}", "+".join(terms)))
-        lp_names = [name for name, _ in scores]
+        table = self.log_likelihood[:, :n_obs_states]                # [X, states, 4, sets]
+        vectors = np.moveaxis(table, 0, -1).reshape(-1, n_x)         # one row per observation
+        classes, class_of = np.unique(vectors, axis=0, return_inverse=True)
+        class_of = class_of.reshape(n_obs_states, 4, n_sets)
+        n_classes = len(classes)
+        draws = self.decision == "sample"
         tolerance = prism_number(TOLERANCE)
-        decision = cases([(f"{name}>=lpmax-{tolerance}", str(x))
-                          for x, name in enumerate(lp_names[:-1])], str(n_x - 1))
+        # The trap set in force is a function of (TS state, hypothesis): pi2_x(v), the standing
+        # set while the countdown runs. So the move made now is looked up over (ts_state, hyp)
+        # ("map") or over ts_state for each drawn x ("sample"), never over the trap set formula,
+        # which would be copied into every comparison of the table.
+        states = np.arange(n_obs_states)
+        in_force = self.trap_choice[:, :n_obs_states]                   # [X, states]
+        class_now = {a: lookup(class_of[states[:, None], d, in_force.T], [("ts_state", 0), ("hyp", 0)])
+                     for d, a in enumerate(ACTIONS)} if not draws else {}
+        class_drawn = {(a, x): lookup(class_of[states, d, in_force[x]], [("ts_state", 0)])
+                       for d, a in enumerate(ACTIONS) for x in range(n_x)} if draws else {}
+        slot_ll = []                             # (name, expression) ln pi1_x of slot o<i>
+        for x in range(n_x):
+            padded = np.concatenate([[0.0], classes[:, x]])           # class -1 = empty slot
+            first = 1 if draws else 2            # "map" reads the slots that stay in the window
+            for i in range(first, slots + 1):
+                slot_ll.append((f"ll_x{x}_o{i}", lookup(padded, [(f"o{i}_cls", -1)])))
+        rules = []
+        if not draws:
+            # the new window: slots o2 .. o{w} and the move now; the new MAP hypothesis
+            for d, a in enumerate(ACTIONS):
+                scores = []
+                for x in range(n_x):
+                    now = lookup(table[x, states[:, None], d, in_force.T],
+                                 [("ts_state", 0), ("hyp", 0)])
+                    terms = [prism_number(float(self.log_prior[x]))]
+                    terms += [f"ll_x{x}_o{i}" for i in range(2, slots + 1)] + [f"llnow_x{x}_{a}"]
+                    scores.append({"x": x, "now": now, "sum": "+".join(terms)})
+                names = [f"lpn_x{x}_{a}" for x in range(n_x)]
+                best = cases([(f"{name}>=lpnmax_{a}-{tolerance}", str(x))
+                              for x, name in enumerate(names[:-1])], str(n_x - 1))
+                rules.append({"action": a, "scores": scores, "max": maximum(names),
+                              "next": best})
         posterior = []
-        if self.decision == "sample":
-            if n_x == 1:
-                posterior = [("post_x0", "1.0")]
-            else:
-                posterior = [(f"ex_x{x}", f"pow({prism_number(E)}, lp_x{x}-lpmax)")
-                             for x in range(n_x)]
-                total = "+".join(f"ex_x{x}" for x in range(n_x))
-                posterior += [(f"post_x{x}", f"ex_x{x}/({total})") for x in range(n_x)]
+        if draws:
+            for x in range(n_x):
+                terms = [prism_number(float(self.log_prior[x]))]
+                terms += [f"ll_x{x}_o{i}" for i in range(1, slots + 1)]
+                posterior.append((f"lp_x{x}", "+".join(terms)))
+            for x in range(n_x):
+                total = "+".join("1.0" if y == x else f"pow({prism_number(E)}, lp_x{y}-lp_x{x})"
+                                 for y in range(n_x))
+                posterior.append((f"post_x{x}", f"1/({total})" if n_x > 1 else "1.0"))
         robot = []
-        if self.decision == "sample":
+        if draws:
             perpendicular = {"N": "EW", "E": "NS", "S": "EW", "W": "NS"}
             for a in ACTIONS:
                 directions = ([("(1-2*slip)", a)] + [("slip", p) for p in perpendicular[a]]
@@ -164,13 +197,14 @@ class BayesObserver:
         members = np.array([sorted(ts.candidates[c] for c in m) for m in ts.trap_sets],
                            dtype=np.int64).reshape(n_sets, -1)
         set_cells = [[lookup(members[:, j], [(f"set_x{x}", 0)]) for j in range(members.shape[1])]
-                     for x in range(n_x)]
+                     for x in range(n_x)] if draws else []
         context = dict(
-            ts_state=ts_state_expression(ts), tables=tables, scores=scores,
-            lpmax=maximum(lp_names), decision_expr=decision, posterior=posterior,
-            draws=self.decision == "sample", robot_outcomes=robot, set_cells=set_cells,
+            ts_state=ts_state_expression(ts), slot_ll=slot_ll, rules=rules,
+            posterior=posterior, class_now=class_now, class_drawn=class_drawn,
+            draws=draws, robot_outcomes=robot, set_cells=set_cells,
             n_trap_cells=members.shape[1], delay=ts.delay, actions=ACTIONS, labels=labels,
             slots=slots, n_obs_states=n_obs_states, n_sets=n_sets, n_hypotheses=n_x,
+            n_classes=n_classes, initial_hypothesis=self.initial_hypothesis,
             start_cell=ts.decode(ts.start_state)[0], start_traps=ts.decode(ts.start_state)[1])
         header = (f"// inference    Bayesian, window {self.window}, decision {self.decision}, "
                   f"prior " + ", ".join(f"{math.exp(p):.6g}" for p in self.log_prior))
@@ -180,8 +214,8 @@ class BayesObserver:
 
         return ObserverPrism(
             formulas=part("formulas"), module=part("module"), slots=slots,
-            commands=len(ACTIONS), slot_sets=True, hypothesis_variable=False,
-            robot=part("robot") if self.decision == "sample" else "", header=header)
+            commands=len(ACTIONS), slot_sets=True, hypothesis_variable=not draws,
+            robot=part("robot") if draws else "", header=header)
 
 
 def build_bayes(games: list[PerceptualGame], window: int, prior: tuple[float, ...],
