@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
             "value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, sweep.png and "
             "OUT/<param>_<value>/ (each value's model and strategy).")
     p.add_argument("--param", required=True, metavar="NAME",
-                   help="delay, window, threshold or rationality")
+                   help="delay, window, threshold, rationality, inference (cusum or bayes) or prior (comma-separated numbers)")
     p.add_argument("--values", required=True, nargs="+", metavar="V", help="values to try")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
     solver_options(p)

@@ -47,7 +47,7 @@ _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md|worl
           r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,
-    "sweep": r"sweep\.(json|csv|png|svg|pdf)|(delay|window|threshold|rationality)_[0-9][0-9.e+-]*",
+    "sweep": r"sweep\.(json|csv|png|svg|pdf)|(delay|window|threshold|rationality)_[0-9][0-9.e+-]*|inference_(cusum|bayes)|prior_[0-9][0-9.e+,-]*",
     "detect": r"detection\.(json|png|svg|pdf)",
 }
 

@@ -26,7 +26,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from hg2prism.errors import InputError
-from hg2prism.model.world import Cell, World
+from hg2prism.model.world import Cell, World, prior_argmax, uniform_prior
 from hg2prism import progress
 from hg2prism.outputs import write_json, write_text
 from hg2prism.results import Parameters
@@ -40,6 +40,9 @@ SWEEP_PARAMETERS: dict[str, tuple[type, float, bool, str]] = {
     "window": (int, 1, False, "an integer >= 1"),
     "threshold": (float, 0.0, True, "a number > 0"),
     "rationality": (float, 0.0, True, "a number > 0"),
+    # P2's observer (docs/semantics.md §12) and the Bayesian observer's prior
+    "inference": (str, 0, False, '"cusum" or "bayes"'),
+    "prior": (tuple, 0, False, "comma-separated positive numbers, one per hypothesis"),
 }
 
 _CLI = "command line"
@@ -49,9 +52,27 @@ _CLI = "command line"
 # Sweep
 # ---------------------------------------------------------------------------------------------
 
-def _parse_value(parameter: str, value: object) -> int | float:
+def _parse_value(parameter: str, value: object) -> int | float | str | tuple[float, ...]:
     kind, minimum, exclusive, expected = SWEEP_PARAMETERS[parameter]
     shown = repr(value) if not isinstance(value, str) else value
+    if kind is str:
+        if value not in ("cusum", "bayes"):
+            raise InputError(_CLI, "--values", f"{parameter} value {shown!r} must be {expected}")
+        return value
+    if kind is tuple:
+        from hg2prism.model.world import normalise_prior
+
+        parts = value.split(",") if isinstance(value, str) else value
+        try:
+            numbers = [float(p) for p in parts]
+        except (TypeError, ValueError):
+            raise InputError(_CLI, "--values", f"prior {shown!r} must be {expected}") from None
+        if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
+            raise InputError(_CLI, "--values", f"prior {shown!r} must be {expected}")
+        try:
+            return normalise_prior(numbers)
+        except ValueError as err:
+            raise InputError(_CLI, "--values", f"prior {shown!r}: {err}") from None
     if isinstance(value, bool):
         raise InputError(_CLI, "--values", f"{parameter} value {shown} must be {expected}")
     number: float
@@ -149,10 +170,41 @@ def sweep_world(world: World, parameter: str, value: object) -> World:
     if parameter == "delay":
         traps = delay_initial_traps(world) if value > 0 else ()
         return replace(world, delay=value, initial_traps=traps)
+    if parameter == "threshold" and world.inference == "bayes":
+        raise InputError(_CLI, "--param", "the Bayesian observer has no threshold")
+    if parameter == "prior":
+        if world.inference != "bayes":
+            raise InputError(_CLI, "--param", 'sweeping prior needs [inference] kind = "bayes"')
+        if len(value) != len(world.hypotheses):
+            raise InputError(_CLI, "--values", f"prior {_value_text(value)} has {len(value)} "
+                             f"numbers; expected one per hypothesis ({len(world.hypotheses)})")
+        return replace(world, prior=value, initial_hypothesis=prior_argmax(value))
+    if parameter == "inference":
+        return _with_observer(world, value)
     return replace(world, **{parameter: value})
 
 
-def _value_text(value: int | float) -> str:
+def _with_observer(world: World, kind: str) -> World:
+    """The world with P2's observer switched. To "bayes": a uniform prior and the "map"
+    decision, window and rationality kept (so P2's first guess is hypothesis 0). To "cusum":
+    the world's threshold and initial hypothesis, which a Bayesian world does not have."""
+    if kind == world.inference:
+        return world
+    if kind == "bayes":
+        prior = uniform_prior(len(world.hypotheses))
+        return replace(world, inference="bayes", threshold=None, prior=prior, decision="map",
+                       initial_hypothesis=prior_argmax(prior))
+    raise InputError(_CLI, "--values", "switching a Bayesian world to cusum needs a threshold; "
+                                       "sweep inference from a cusum world")
+
+
+def _value_text(value: int | float | str | tuple[float, ...]) -> str:
+    """A swept value in folder names and tables: integers plain, numbers in %g form, a prior
+    as its %g numbers joined by commas."""
+    if isinstance(value, tuple):
+        return ",".join(f"{p:g}" for p in value)
+    if isinstance(value, str):
+        return value
     return str(value) if isinstance(value, int) else f"{value:g}"
 
 
@@ -211,7 +263,7 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
         seconds = time.perf_counter() - start
         results = checked.results
         row = {
-            parameter: value,
+            parameter: list(value) if isinstance(value, tuple) else value,
             "deceptive_value": results.deceptive_value,
             "v_lead": results.v_lead,
             "v_ne": nash.v_ne,
@@ -235,12 +287,12 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
             sys.stderr.flush()
 
     fixed = Parameters.of(world).to_json()
-    fixed.pop(parameter)
+    fixed.pop(parameter, None)
     summary = {
         "world": world.name,
         "world_file": str(world.path),
         "parameter": parameter,
-        "values": parsed,
+        "values": [list(v) if isinstance(v, tuple) else v for v in parsed],
         "fixed_parameters": fixed,
         "storm_method": storm_method,
         "sound": results_sound(storm_method),
@@ -254,7 +306,8 @@ def sweep(world: World, parameter: str, values: Sequence[object], out: Path,
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow((parameter,) + _CSV_COLUMNS)
     for row in rows:
-        writer.writerow([row[parameter]] + [repr(row[c]) if isinstance(row[c], float) else row[c]
+        writer.writerow([_value_text(tuple(row[parameter])) if isinstance(row[parameter], list)
+                         else row[parameter]] + [repr(row[c]) if isinstance(row[c], float) else row[c]
                                             for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)
     write_text(out / "sweep.csv", buffer.getvalue())
@@ -271,7 +324,8 @@ def sweep_summary_lines(parameter: str, rows: Sequence[dict], world_name: str | 
              f"| {parameter} | deceptive value | V_lead | V_NE | hypergame states | transitions |",
              "|---|---|---|---|---|---|"]
     for row in rows:
-        lines.append(f"| {_value_text(row[parameter])} | {row['deceptive_value']:.4f} "
+        value = tuple(row[parameter]) if isinstance(row[parameter], list) else row[parameter]
+        lines.append(f"| {_value_text(value)} | {row['deceptive_value']:.4f} "
                      f"| {row['v_lead']:.4f} | {row['v_ne']:.4f} | {row['states']} "
                      f"| {row['transitions']} |")
     return lines

@@ -86,7 +86,9 @@ def world_figure(world: World, ts: TransitionSystem, steps: Sequence, outcome: s
 def sweep_figure(parameter: str, rows: Sequence[dict], path: Path) -> None:
     """Completion probability against a swept parameter, one line per value."""
     fig, ax = plt.subplots(figsize=(6, 4))
-    xs = [row[parameter] for row in rows]
+    xs = [row[parameter] if isinstance(row[parameter], (int, float)) else
+          ",".join(f"{p:g}" for p in row[parameter]) if isinstance(row[parameter], list) else
+          str(row[parameter]) for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
                               ("v_lead", "symmetric, leader", "s--"),
                               ("v_ne", "symmetric, Nash", "^:")):
