@@ -250,3 +250,43 @@ def test_commands_do_not_grow_with_the_window(world_dir: Path) -> None:
             model = pipeline.emit(load_world(path), world_dir / path.stem)
         counts.append(model.commands)
     assert counts[0] == counts[1] == {"robot": 5, "task": 4, "p2_inference": 4}
+
+
+@pytest.mark.parametrize("name", ["b02_fam01_d1_l1_w1_x3_uniform_sample",
+                                  "b07_fam04_d1_l1_w2_x2_skew_sample",
+                                  "b08_fam04_d1_l1_w2_x2_uniform_map"])
+def test_prism_accepts_the_model_and_gives_storms_value(name: str, world_dir: Path) -> None:
+    """PRISM (default engine, -epsilon 1e-12) reads the Bayesian models, pow() included, and
+    finds Storm's value; skipped without PRISM."""
+    import test_prism
+
+    if test_prism.PRISM is None:
+        pytest.skip("PRISM is not installed (set PRISM=/path/to/prism or put prism on PATH)")
+    result = run(name, str(world_dir))
+    value = test_prism.prism_value(result.out / "hypergame.prism")
+    assert value == pytest.approx(result.results.deceptive_value, abs=TOL)
+
+
+@pytest.mark.parametrize("name", ["b01_fam00_d0_l1_w1_x2_skew_sample",
+                                  "b08_fam04_d1_l1_w2_x2_uniform_map"])
+def test_simulation_agrees_with_the_exact_value_within_the_horizon(name: str,
+                                                                  world_dir: Path) -> None:
+    """P2 draws her hypothesis in the simulation as the model mixes: the simulated rate's 99.9 %
+    Wilson interval holds Storm's P(F<=horizon goal) of the induced DTMC; the mismatch detector
+    runs on the posterior mixture."""
+    from hg2prism.analyses.simulation import simulate_deceptive
+    from hg2prism.experiments.detect import detection_batch
+    from hg2prism.strategy.records import Strategy
+
+    result = run(name, str(world_dir))
+    strategy = Strategy.from_records(result.records, result.analysis.ts)
+    horizon, episodes = 30, 3000
+    summary = simulate_deceptive(result.analysis, strategy, episodes, horizon, 7, progress=False)
+    exact = storm.induced_within(result.checked, result.strategy, horizon)
+    low, high = summary.interval(0.999)
+    assert low <= exact <= high
+    assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(
+        result.results.deceptive_value, abs=TOL)
+    _, batch = detection_batch(result.analysis, strategy, 200, horizon, 7, 0.05, 0.01)
+    # P2 behaves as modelled: the test may raise a rare false alarm, never in most episodes
+    assert len(batch.first_rejection) < 20
