@@ -218,7 +218,10 @@ class Strategy:
         """P1's move ("N", "E", "S" or "W") when the robot is at `cell` (x, y), the task DFA is
         in `q` (after reading the cell's label), P2 holds `hypothesis` and remembers `window`:
         (cell, move) pairs, oldest first. With delay > 0, `traps` (cells) and `countdown` give
-        the standing traps, and each window entry is (cell, move, traps, countdown).
+        the standing traps, and each window entry is (cell, move, traps, countdown). For the
+        Bayesian observer each entry is (cell, move, traps, countdown, played), `played` the
+        cells of the trap set in force (traps and countdown None when delay is 0), and
+        `hypothesis` the window's MAP hypothesis.
         Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
         if self.ts is None:
             raise ValueError("move() needs the strategy's transition system")
@@ -232,7 +235,9 @@ class Strategy:
             v = state(cell, traps, countdown)
             observed = tuple(
                 (state(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None))),
-                 _action_index(entry[1], where)) for entry in window)
+                 _action_index(entry[1], where))
+                + ((_trap_set_index(self.ts, entry[4], where),) if len(entry) > 4 else ())
+                for entry in window)
         except StrategyError as err:
             raise KeyError(str(err)) from None
         key = (v, int(q), Memory(int(hypothesis), observed))
