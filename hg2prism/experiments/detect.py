@@ -468,7 +468,11 @@ def detection_summary_lines(result: dict) -> list[str]:
                      f"| {_rate(v['completion'])} | {v['completion_change']:+.4f} "
                      f"| {v['completion']['off_record_steps']} |")
     lines.append("")
-    lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
-                 f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
-                 f"model is {result['compliant']['max_cusum_score']:.4g})")
+    if result["p1_model"].get("inference") == "bayes":
+        lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
+                     f"{result['horizon']})")
+    else:
+        lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
+                     f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
+                     f"model is {result['compliant']['max_cusum_score']:.4g})")
     return lines
