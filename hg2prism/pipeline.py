@@ -30,7 +30,9 @@ from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
 from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
 from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
-from hg2prism.opponent.inference import InferenceModel, build_inference
+from hg2prism.opponent.bayes import build_bayes
+from hg2prism.opponent.inference import build_inference
+from hg2prism.opponent.observer import Observer
 from hg2prism.outputs import write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
@@ -56,7 +58,7 @@ class Analysis:
     ts: TransitionSystem
     task: DFA
     games: list[PerceptualGame]
-    inference: InferenceModel
+    inference: Observer       # P2's inference: CUSUM (§5) or Bayesian (§12)
     leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (docs/semantics.md §7)
     v_lead: float
     timings: dict[str, float] = field(default_factory=dict)
@@ -69,7 +71,7 @@ def analyse(world: World) -> Analysis:
         task = translate(world.formula, ts.label_names, ts.letters)
         games = [perceptual_game(ts, translate(h, ts.label_names, ts.letters), world.rationality)
                  for h in world.hypotheses]
-        inference = build_inference(games, world.window, world.threshold, world.initial_hypothesis)
+        inference = build_observer(world, games)
         leader = solve_game(ts, task)
         start_cell = ts.decode(ts.start_state)[0]
         v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]],
@@ -77,6 +79,13 @@ def analyse(world: World) -> Analysis:
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
     return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
+
+
+def build_observer(world: World, games: list[PerceptualGame]) -> Observer:
+    """P2's inference as the world file sets it (`[inference] kind`)."""
+    if world.inference == "bayes":
+        return build_bayes(games, world.window, world.prior, world.decision)
+    return build_inference(games, world.window, world.threshold, world.initial_hypothesis)
 
 
 def generate(analysis: Analysis, out: Path) -> PrismModel:
@@ -182,7 +191,8 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
     moves = storm.transitions(checked.model)
-    decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task)
+    decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task,
+                                  getattr(analysis.inference, "window_hypotheses", None))
     states, transitions = storm.canonical_size(decoded, moves)
     default = deceptive_strategy(decoded, checked, moves)
     strategy, extras, dtmc, bounded, objective_value = _objective_strategy(

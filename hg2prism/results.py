@@ -38,21 +38,30 @@ class Parameters:
     hypotheses: tuple[str, ...]     # P2's candidate tasks (§4)
     initial_hypothesis: int         # index into `hypotheses` of P2's first guess (§5)
     window: int                     # w: transitions in P2's sliding window (§5)
-    threshold: float                # c: P2's CUSUM change threshold (§5)
+    threshold: float | None         # c: P2's CUSUM change threshold (§5); None for "bayes"
     rationality: float              # β: P2's softmax model of P1 (§4)
+    inference: str = "cusum"        # P2's observer: "cusum" (§5) or "bayes" (§12)
+    prior: tuple[float, ...] = ()   # bayes: the normalised prior
+    decision: str = "map"           # bayes: "map" or "sample"
 
     @classmethod
     def of(cls, world: World) -> Parameters:
         return cls(formula=world.formula, slip=world.slip, traps=world.traps, delay=world.delay,
                    hypotheses=tuple(world.hypotheses),
                    initial_hypothesis=world.initial_hypothesis, window=world.window,
-                   threshold=world.threshold, rationality=world.rationality)
+                   threshold=world.threshold, rationality=world.rationality,
+                   inference=world.inference, prior=tuple(world.prior), decision=world.decision)
 
     def to_json(self) -> dict:
         return {
             "formula": self.formula, "slip": self.slip, "traps": self.traps, "delay": self.delay,
             "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
             "window": self.window, "threshold": self.threshold, "rationality": self.rationality,
+        } if self.inference == "cusum" else {   # CUSUM's results.json stays as it was
+            "formula": self.formula, "slip": self.slip, "traps": self.traps, "delay": self.delay,
+            "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
+            "inference": self.inference, "window": self.window, "prior": list(self.prior),
+            "decision": self.decision, "rationality": self.rationality,
         }
 
 

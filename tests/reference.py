@@ -380,7 +380,7 @@ class World:
         self.h0 = int(adv.get("initial_hypothesis", 0))
         inf = doc["inference"]
         self.window = int(inf["window"])
-        self.threshold = float(inf["threshold"])
+        self.threshold = float(inf["threshold"]) if "threshold" in inf else None   # none for "bayes"
         self.beta = float(inf["rationality"])
 
         self.cands = []

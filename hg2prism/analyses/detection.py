@@ -47,6 +47,7 @@ from dataclasses import dataclass
 from scipy.stats import chi2
 
 __all__ = [
+    "Mixture",
     "Step",
     "MismatchDetector",
     "run_detector",
@@ -77,6 +78,18 @@ class Step:
     df: int
     threshold: float | None
     rejected: bool
+
+
+@dataclass(frozen=True)
+class Mixture:
+    """A predicted action that is itself random: (action, probability) pairs. For a P2 who
+    draws her hypothesis (Bayesian "sample", docs/semantics.md §12) the prediction is the
+    posterior mixture, smoothed as ``(1 - epsilon) * mix(a) + epsilon / n_actions``."""
+
+    probabilities: tuple[tuple[Hashable, float], ...]
+
+    def of(self, action: Hashable) -> float:
+        return sum(p for a, p in self.probabilities if a == action)
 
 
 def _check_open_unit(name: str, value: float) -> float:
@@ -151,6 +164,8 @@ class MismatchDetector:
 
     def p0(self, predicted_action: Hashable, action: Hashable, n_actions: int) -> float:
         """The smoothed predicted probability of `action` (n_actions > 1)."""
+        if isinstance(predicted_action, Mixture):
+            return (1.0 - self.epsilon) * predicted_action.of(action) + self.epsilon / n_actions
         if action == predicted_action:
             return 1.0 - self.epsilon
         return self.epsilon / (n_actions - 1)

@@ -40,7 +40,7 @@ from hg2prism.model.product import product
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.progress import Bar
 from hg2prism.strategy.records import Fallback, StrategyError
-from hg2prism.opponent.inference import Memory
+from hg2prism.opponent.observer import Memory
 from hg2prism.opponent.observer import Observer
 
 __all__ = [
@@ -242,6 +242,9 @@ class StepRecord:
     p2_memory: Memory
     next_state: int
     next_q: int
+    # the trap sets P1's model predicts with their probabilities: one pair unless P2 draws
+    # her hypothesis (Bayesian "sample", docs/semantics.md §12), then the posterior mixture
+    prediction: tuple[tuple[int, float], ...] = ()
 
     @property
     def augmented_state(self) -> tuple[int, int, Memory]:
@@ -321,7 +324,7 @@ class _Chain:
         return i
 
     def update(self, which: int, model: Observer, memory: Memory,
-               observation: tuple[int, int]) -> Memory:
+               observation: tuple[int, ...]) -> Memory:
         key = (which, memory, observation)
         new = self.updates.get(key)
         if new is None:
@@ -329,14 +332,20 @@ class _Chain:
         return new
 
     def transitions(self, i: int, a1: int, a2: int) -> tuple[list[float], list[int]]:
-        """Cumulative probabilities and successor nodes of node i under (a1, a2)."""
+        """Cumulative probabilities and successor nodes of node i under (a1, a2).
+
+        P2's memory records the set she played; P1's model of it records the set it predicts
+        when P2 is deterministic (docs/semantics.md §9) and, when she draws her hypothesis, the
+        set she played (any set of the mixture is consistent with the model)."""
         key = (i, a2)
         move = self.moves.get(key)
         if move is None:
             v, q, m1, m2 = self.nodes[i]
-            observation = (v, a1)
-            n1 = self.update(1, self.p1_model, m1, observation)
-            n2 = n1 if self.p2_model is None else self.update(2, self.p2_model, m2, observation)
+            drawn = self.p1_model.hypothesis_distribution(m1)
+            modelled = a2 if len(drawn) > 1 else self.trap_choice[drawn[0][0]][v]
+            n1 = self.update(1, self.p1_model, m1, (v, a1, modelled))
+            n2 = self.update(2, self.p2_model or self.p1_model, m2, (v, a1, a2)) \
+                if self.p2_model is not None or modelled != a2 else n1
             merged: dict[int, float] = {}
             for k in range(self.succ.shape[-1]):
                 p = float(self.prob[v, a1, a2, k])
@@ -417,10 +426,19 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
             if off_record and node in off_record:
                 off_record_steps += 1
             predicted = trap_choice[p1_model.hypothesis(m1)][v]
+            drawn = p2_model.hypothesis_distribution(m2)
+            if len(drawn) == 1:
+                own = trap_choice[drawn[0][0]][v]
+            else:       # P2 draws her hypothesis (Bayesian "sample"): one uniform
+                u, k, total = uniforms.next(), 0, drawn[0][1]
+                while u >= total and k + 1 < len(drawn):
+                    k += 1
+                    total += drawn[k][1]
+                own = trap_choice[drawn[k][0]][v]
             if p2_policy is None:
-                a2 = trap_choice[p2_model.hypothesis(m2)][v]
+                a2 = own
             else:
-                a2 = int(p2_policy(rng, steps, v, trap_choice[p2_model.hypothesis(m2)][v], m2))
+                a2 = int(p2_policy(rng, steps, v, own, m2))
                 if not (0 <= a2 < ts.n_sets and allowed[v, a2]):
                     raise ValueError(f"p2_policy returned trap set {a2}, which is not "
                                      f"available in TS state {v}")
@@ -435,9 +453,13 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                 nxt = targets[k]
             if observer is not None:
                 w, q2 = nodes[nxt][0], nodes[nxt][1]
+                mixture: dict[int, float] = {}
+                for x, p in p1_model.hypothesis_distribution(m1):
+                    mixture[trap_choice[x][v]] = mixture.get(trap_choice[x][v], 0.0) + p
                 observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1,
                                     a1=a1, a2=a2, predicted_a2=predicted, n_a2=n_allowed[v],
-                                    p2_memory=m2, next_state=w, next_q=q2))
+                                    p2_memory=m2, next_state=w, next_q=q2,
+                                    prediction=tuple(sorted(mixture.items()))))
             if p2_hypothesis[nxt] != p2_hypothesis[node]:
                 switches += 1
             node = nxt

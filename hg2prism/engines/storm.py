@@ -198,14 +198,19 @@ class DecodedStates:
     countdown: np.ndarray
     q: np.ndarray             # DFA state after reading the current cell's label
     hypothesis: np.ndarray
-    window: np.ndarray        # [n, slots, 2] (TS state, action), -1 for empty slots
+    window: np.ndarray        # [n, slots, 2] (TS state, action), or [n, slots, 3] with the trap
+                              # set in force (Bayesian observer); -1 for empty slots
     goal: np.ndarray          # bool
     fail: np.ndarray          # bool
     canonical: np.ndarray     # canonical id; goal states share one id, failure states another
     n_canonical: int
 
 
-def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA) -> DecodedStates:
+def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA,
+                  window_hypotheses: Callable[[np.ndarray], np.ndarray] | None = None
+                  ) -> DecodedStates:
+    """Storm's states as hypergame states. When the layout has no `hyp` variable, P2's
+    hypothesis is derived from each state's window by `window_hypotheses`."""
     valuations = model.state_valuations
     variables = {v.name: v for v in valuations.get_all_variables()}
 
@@ -217,12 +222,19 @@ def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA
     cell = column("cell")
     label = np.append(ts.cell_label, 0)[cell]
     q = task.delta[column("q"), label]
-    window = np.stack([np.stack([column(s), column(a)], axis=1)
-                       for s, a in (layout.slot_variables(i) for i in range(1, layout.slots + 1))],
-                      axis=1) if layout.slots else np.zeros((model.nr_states, 0, 2), dtype=np.int64)
+    width = 3 if layout.slot_sets else 2
+    window = np.stack([np.stack([column(name) for name in names], axis=1)
+                       for names in (layout.slot_variables(i) for i in range(1, layout.slots + 1))],
+                      axis=1) if layout.slots else np.zeros((model.nr_states, 0, width), dtype=np.int64)
     goal = _label_mask(model, "goal")
     fail = _label_mask(model, "fail")
-    traps, countdown, hypothesis = column("traps"), column("countdown"), column("hyp")
+    traps, countdown = column("traps"), column("countdown")
+    if layout.hypothesis_variable:
+        hypothesis = column("hyp")
+    else:
+        if window_hypotheses is None:
+            raise ValueError("decoding this model needs the observer's window_hypotheses")
+        hypothesis = np.asarray(window_hypotheses(window), dtype=np.int64)
     key = np.column_stack([cell, traps, countdown, q, hypothesis, window.reshape(model.nr_states, -1)])
     key[goal] = -2
     key[fail] = -3

@@ -61,8 +61,8 @@ class DetectionBatch:
     """
 
     def __init__(self, alpha: float, epsilon: float, keep_steps: bool = False,
-                 scores_of: InferenceModel | None = None) -> None:
-        from hg2prism.analyses.detection import MismatchDetector
+                 scores_of: InferenceModel | None = None, draws: bool = False) -> None:
+        from hg2prism.analyses.detection import MismatchDetector, Mixture
 
         self._make = lambda: MismatchDetector(alpha, epsilon)
         self.keep_steps = keep_steps
@@ -78,6 +78,8 @@ class DetectionBatch:
         self.records: dict[int, list] = {}
         self._episode: int | None = None
         self._detector = None
+        # a P2 who draws her hypothesis is predicted by the posterior mixture (§12)
+        self._mixture = Mixture if draws else None
 
     def __call__(self, record: StepRecord) -> None:
         episode = record.episode
@@ -97,7 +99,9 @@ class DetectionBatch:
             self.max_score = max(self.max_score, score)
         if episode in self.first_rejection and not self.keep_steps:
             return
-        step = self._detector.observe(record.augmented_state, record.predicted_a2, record.a2,
+        predicted = (self._mixture(record.prediction) if self._mixture is not None
+                     else record.predicted_a2)
+        step = self._detector.observe(record.augmented_state, predicted, record.a2,
                                       record.n_a2)
         if step.rejected and episode not in self.first_rejection:
             self.first_rejection[episode] = step.n
@@ -119,8 +123,10 @@ def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horiz
     largest CUSUM score of P1's model of P2's inference (DetectionBatch.max_score)."""
     from hg2prism.analyses.simulation import simulate_deceptive
 
+    cusum = analysis.inference.kind == "cusum"
     batch = DetectionBatch(alpha, epsilon, keep_steps,
-                           scores_of=analysis.inference if track_scores else None)
+                           scores_of=analysis.inference if track_scores and cusum else None,
+                           draws=getattr(analysis.inference, "decision", "map") == "sample")
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, p2_policy=p2_policy,
                                  observer=batch, progress=progress, p2_inference=p2_inference)
     return summary, batch
@@ -191,6 +197,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     Writes out/detection.json and out/detection.{png,svg} and returns the JSON's content.
     """
     from hg2prism.report import plots
+    from hg2prism.opponent.bayes import build_bayes
     from hg2prism.opponent.inference import build_inference
     from hg2prism.analyses.simulation import deviating_policy, leader_fallback, wilson_interval
     from hg2prism.strategy.records import Strategy
@@ -285,28 +292,15 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     }
 
     # (d) P2's real inference differs from P1's model of it
-    variants: list[tuple[str, int, float, str]] = [
-        (f"window {world.window + 1}", world.window + 1, world.threshold, "window + 1")]
-    if world.window - 1 >= 1:
-        variants.append((f"window {world.window - 1}", world.window - 1, world.threshold,
-                         "window - 1"))
-    variants += [(f"threshold {world.threshold / 2:.4g}", world.window, world.threshold / 2,
-                  "threshold / 2"),
-                 (f"threshold {world.threshold * 2:.4g}", world.window, world.threshold * 2,
-                  "threshold * 2")]
-    # When P1's strategy keeps every CUSUM score far below the threshold (so that the variants
-    # above change nothing), a P2 who changes her mind on half the largest score P1 lets her
-    # reach certainly behaves differently somewhere.
-    hasty = batch_c.max_score / 2
-    if 0.0 < hasty < world.threshold / 2:
-        variants.append((f"threshold {hasty:.4g}", world.window, hasty,
-                         "half the largest CUSUM score reached when P2 follows the model"))
+    variants = _mismatch_variants(world, batch_c.max_score)
     reference_rate = summary_c.rate
     mismatch = []
     for label, window, threshold, why in variants:
         say(f"detection: {episodes} episodes, P2's inference uses {label} "
-            f"(P1 models window {world.window}, threshold {world.threshold:g})")
-        real = build_inference(analysis.games, window, threshold, world.initial_hypothesis)
+            f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
+        real = (build_inference(analysis.games, window, threshold, world.initial_hypothesis)
+                if world.inference == "cusum" else
+                build_bayes(analysis.games, window, world.prior, threshold))
         summary_d, batch_d = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
                                              epsilon, p2_inference=real, progress=show_progress)
         rejections = batch_d.rejections(episodes)
@@ -346,7 +340,10 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         "deceptive_value": check_result.results.deceptive_value,
         "storm_method": check_result.results.storm_method,
         "sound": check_result.results.sound,
-        "p1_model": {"window": world.window, "threshold": world.threshold},
+        "p1_model": {"window": world.window, "threshold": world.threshold}
+        if world.inference == "cusum" else
+        {"inference": "bayes", "window": world.window, "threshold": None,
+         "decision": world.decision, "prior": list(world.prior)},
         "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
                   "exceeds the free parameters, so the test is conservative. P1 plays its "
                   "exported records and, on states they do not cover (reachable only when P2 "
@@ -367,6 +364,33 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     return result
 
 
+def _mismatch_variants(world: World, max_score: float) -> list[tuple[str, int, object, str]]:
+    """P2's real inference in the other-mismatch experiment: (label, window, threshold or, for
+    the Bayesian observer, decision, why). CUSUM: window +- 1, threshold / 2 and * 2, and half the
+    largest score P2 reached; Bayesian: window +- 1 and the other decision."""
+    other = world.threshold if world.inference == "cusum" else world.decision
+    variants: list[tuple[str, int, object, str]] = [
+        (f"window {world.window + 1}", world.window + 1, other, "window + 1")]
+    if world.window - 1 >= 1:
+        variants.append((f"window {world.window - 1}", world.window - 1, other, "window - 1"))
+    if world.inference == "bayes":
+        flipped = "sample" if world.decision == "map" else "map"
+        variants.append((f"decision {flipped}", world.window, flipped, "the other decision"))
+        return variants
+    variants += [(f"threshold {world.threshold / 2:.4g}", world.window, world.threshold / 2,
+                  "threshold / 2"),
+                 (f"threshold {world.threshold * 2:.4g}", world.window, world.threshold * 2,
+                  "threshold * 2")]
+    # When P1's strategy keeps every CUSUM score far below the threshold (so that the variants
+    # above change nothing), a P2 who changes her mind on half the largest score P1 lets her
+    # reach certainly behaves differently somewhere.
+    hasty = max_score / 2
+    if 0.0 < hasty < world.threshold / 2:
+        variants.append((f"threshold {hasty:.4g}", world.window, hasty,
+                         "half the largest CUSUM score reached when P2 follows the model"))
+    return variants
+
+
 def detect(world: World, out: Path, episodes: int | None = None, seed: int | None = None,
            horizon: int | None = None, show_progress: bool = True,
            storm_method: str = "sound") -> dict:
@@ -384,6 +408,11 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
         with quiet:
             checked = pipeline.check(world, Path(scratch), storm_method)
         return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon)
+
+
+def _setting(threshold: float | None, decision: str | None) -> str:
+    """P2's second inference setting in reports: CUSUM's threshold or the Bayesian decision."""
+    return f"threshold {threshold:g}" if threshold is not None else f"decision {decision}"
 
 
 def _rate(c: dict) -> str:
@@ -418,7 +447,8 @@ def detection_summary_lines(result: dict) -> list[str]:
         f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
         "",
         f"P2's real inference differs from P1's model (window {result['p1_model']['window']}, "
-        f"threshold {result['p1_model']['threshold']:g}); P1 keeps playing its strategy:",
+        f"{_setting(result['p1_model']['threshold'], result['p1_model'].get('decision'))}); "
+        "P1 keeps playing its strategy:",
         "",
         "| P2's inference | episodes where P2's hypothesis / traps differed from P1's model "
         "| detected | detected where the traps differed | mean detection step "
@@ -426,7 +456,8 @@ def detection_summary_lines(result: dict) -> list[str]:
         "|---|---|---|---|---|---|---|---|",
     ]
     ref = result["model_mismatch"]["reference"]
-    lines.append(f"| as modelled (window {ref['p2_window']}, threshold {ref['p2_threshold']:g}) "
+    lines.append(f"| as modelled (window {ref['p2_window']}, "
+                 f"{_setting(ref['p2_threshold'], result['p1_model'].get('decision'))}) "
                  f"| 0 / 0 | {ref['detection_rate']:.1%} (false alarms) | - | - "
                  f"| {_rate(ref['completion'])} | - | {ref['completion']['off_record_steps']} |")
     for v in result["model_mismatch"]["variants"]:
@@ -438,7 +469,11 @@ def detection_summary_lines(result: dict) -> list[str]:
                      f"| {_rate(v['completion'])} | {v['completion_change']:+.4f} "
                      f"| {v['completion']['off_record_steps']} |")
     lines.append("")
-    lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
-                 f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
-                 f"model is {result['compliant']['max_cusum_score']:.4g})")
+    if result["p1_model"].get("inference") == "bayes":
+        lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
+                     f"{result['horizon']})")
+    else:
+        lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
+                     f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
+                     f"model is {result['compliant']['max_cusum_score']:.4g})")
     return lines

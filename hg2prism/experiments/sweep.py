@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from hg2prism.errors import InputError
-from hg2prism.model.world import Cell, World
+from hg2prism.model.world import Cell, World, normalise_prior, prior_argmax, uniform_prior
 from hg2prism import progress
 from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.results import Parameters
@@ -114,6 +114,53 @@ def _field(name: str) -> Callable[[World, Value], World]:
     return lambda world, value: replace(world, **{name: value})
 
 
+def _observer_kind(value: object) -> str:
+    if value not in ("cusum", "bayes"):
+        raise ValueError("must be")
+    return str(value)
+
+
+def _prior(value: object) -> tuple[float, ...]:
+    """A prior as typed (``0.5,0.25,0.25``) or given in Python (a sequence), normalised."""
+    parts = value.split(",") if isinstance(value, str) else value
+    try:
+        numbers = [float(p) for p in parts]           # type: ignore[union-attr]
+    except (TypeError, ValueError):
+        raise ValueError("is not") from None
+    if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
+        raise ValueError("must be")
+    return normalise_prior(numbers)
+
+
+def _with_observer(world: World, kind: str) -> World:
+    """The world with P2's observer switched (docs/semantics.md §12). To "bayes": a uniform
+    prior and the "map" decision, window and rationality kept (so P2's first guess is
+    hypothesis 0). To "cusum": refused, a Bayesian world has no threshold to give it."""
+    if kind == world.inference:
+        return world
+    if kind == "bayes":
+        prior = uniform_prior(len(world.hypotheses))
+        return replace(world, inference="bayes", threshold=None, prior=prior, decision="map",
+                       initial_hypothesis=prior_argmax(prior))
+    raise InputError(_CLI, "--values", "switching a Bayesian world to cusum needs a threshold; "
+                                       "sweep inference from a cusum world")
+
+
+def _with_threshold(world: World, threshold: float) -> World:
+    if world.inference == "bayes":
+        raise InputError(_CLI, "--param", "the Bayesian observer has no threshold")
+    return replace(world, threshold=threshold)
+
+
+def _with_prior(world: World, prior: tuple[float, ...]) -> World:
+    if world.inference != "bayes":
+        raise InputError(_CLI, "--param", 'sweeping prior needs [inference] kind = "bayes"')
+    if len(prior) != len(world.hypotheses):
+        raise InputError(_CLI, "--values", f"prior {_value_text(prior)} has {len(prior)} "
+                         f"numbers; expected one per hypothesis ({len(world.hypotheses)})")
+    return replace(world, prior=prior, initial_hypothesis=prior_argmax(prior))
+
+
 def _with_traps(world: World, traps: int) -> World:
     candidates = len(world.grid.trap_candidates)
     if traps > candidates:
@@ -123,22 +170,26 @@ def _with_traps(world: World, traps: int) -> World:
 
 
 SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
+    # first: the other parameters apply to the observer it chooses
+    SweepParameter("inference", '"cusum" or "bayes"', _observer_kind, _with_observer),
     SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
                    moves_traps=True),
     SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
-    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True), _field("threshold")),
+    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True), _with_threshold),
     SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
                    _field("rationality")),
     SweepParameter("slip", "a number in [0, 0.5)", _number(float, 0.0, False, below=0.5),
                    _field("slip")),
     SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
                    _number(int, 1, False), _with_traps, moves_traps=True),
+    SweepParameter("prior", "comma-separated positive numbers, one per hypothesis", _prior,
+                   _with_prior),
 )}
 
 # The per-point folders a sweep owns in its output folder (outputs.staged removes stale ones):
 # <name>_<value> joined by "__", names from the table.
 _NAME = "(?:" + "|".join(SWEEP_PARAMETERS) + ")"
-_POINT = _NAME + r"_[0-9A-Za-z][0-9A-Za-z.+-]*"
+_POINT = _NAME + r"_[0-9A-Za-z][0-9A-Za-z.,+-]*"
 OWNED_PATTERN = r"sweep\.(json|csv|png|svg|pdf)|" + _POINT + "(?:__" + _POINT + ")*"
 
 
@@ -268,7 +319,15 @@ def sweep_world(world: World, parameter: str, value: object) -> World:
 
 
 def _value_text(value: Value) -> str:
+    """A swept value in folder names and tables: integers and names plain, numbers in %g form,
+    a prior as its %g numbers joined by commas."""
+    if isinstance(value, (tuple, list)):
+        return ",".join(f"{p:g}" for p in value)
     return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _json_value(value: Value) -> object:
+    return list(value) if isinstance(value, tuple) else value
 
 
 def point_label(assignment: dict[str, Value]) -> str:
@@ -376,7 +435,7 @@ def solve_point(task: PointTask) -> PointOutcome:
                                 tuple(warnings))
     results = checked.results
     row = {
-        **assignment,
+        **{name: _json_value(value) for name, value in assignment.items()},
         "deceptive_value": results.deceptive_value,
         "v_lead": results.v_lead,
         "v_ne": nash.v_ne,
@@ -628,9 +687,9 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
         fixed.pop(name, None)
     summary: dict[str, object] = {"world": world.name, "world_file": str(world.path)}
     if len(names) == 1:        # the one-parameter format, as before grids existed
-        summary.update(parameter=names[0], values=list(run.parameters[0][1]))
+        summary.update(parameter=names[0], values=[_json_value(v) for v in run.parameters[0][1]])
     else:
-        summary["grid"] = {name: list(values) for name, values in run.parameters}
+        summary["grid"] = {name: [_json_value(v) for v in values] for name, values in run.parameters}
     summary.update({
         "parameters": names,
         "fixed_parameters": fixed,
@@ -649,7 +708,7 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(tuple(names) + _CSV_COLUMNS)
     for row in run.rows:
-        writer.writerow([row[n] for n in names]
+        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
                         + [repr(row[c]) if isinstance(row[c], float) else row[c]
                            for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)

@@ -144,9 +144,16 @@ def estimate_states(world: World) -> int:
     walks = np.ones(n)                                                    # N_0
     total = 0.0
     factor = trap_parts(world) * len(world.hypotheses)
-    for length in range(world.window):                                    # L = 0 .. w-1
+    lengths = range(world.window)                                         # L = 0 .. w-1
+    per_observation = 1                                                   # trap sets recorded
+    if world.inference == "bayes":
+        # the memory is the window alone (no hypothesis), w observations each with a trap set
+        factor = trap_parts(world)
+        lengths = range(world.window + 1)
+        per_observation = math.comb(len(world.grid.trap_candidates), world.traps)
+    for length in lengths:
         if length:
-            walks = adjacency @ walks
+            walks = adjacency @ walks * per_observation
         total += float(np.dot(q_count, walks))
         if total * factor >= BEYOND:   # a huge window: stop before the floats overflow
             return BEYOND

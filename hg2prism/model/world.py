@@ -59,10 +59,13 @@ class World:
     hypotheses: tuple[str, ...]
     initial_hypothesis: int
     window: int
-    threshold: float
+    threshold: float | None               # None with the Bayesian observer (no threshold)
     rationality: float
     simulation: SimulationSettings = field(default_factory=SimulationSettings)
     detection: DetectionSettings = field(default_factory=DetectionSettings)
+    inference: str = "cusum"              # P2's observer: "cusum" (§5) or "bayes" (§12)
+    prior: tuple[float, ...] = ()         # bayes: the normalised prior over hypotheses
+    decision: str = "map"                 # bayes: "map" or "sample"
 
     def atomic_propositions(self) -> tuple[str, ...]:
         """`obs` first, then the region letters of the map in alphabetical order."""
@@ -74,6 +77,36 @@ class World:
 # ---------------------------------------------------------------------------------------------
 
 MAP_LEGEND = ". # o t @ A-Z"
+INFERENCE_KINDS = ("cusum", "bayes")
+DECISIONS = ("map", "sample")
+
+
+def uniform_prior(n_hypotheses: int) -> tuple[float, ...]:
+    return tuple([1.0 / n_hypotheses] * n_hypotheses)
+
+
+def normalise_prior(numbers: list[float]) -> tuple[float, ...]:
+    """Positive finite numbers scaled to sum 1 (ValueError when that is impossible)."""
+    import math
+
+    total = math.fsum(numbers)
+    if not math.isfinite(total):
+        raise ValueError("the prior's numbers are too large to add up; scale them down")
+    scaled = tuple(p / total for p in numbers)
+    if any(p <= 0 for p in scaled):
+        raise ValueError("a prior probability vanishes once normalised; use less extreme numbers")
+    return scaled
+
+
+def prior_argmax(prior: tuple[float, ...]) -> int:
+    """P2's first guess under the Bayesian observer: the most probable hypothesis, the first
+    among ties; ties as in the observer's decision rule (within 1e-9 in log space), so that
+    this is also the MAP hypothesis of an empty memory."""
+    import math
+
+    logs = [math.log(p) for p in prior]
+    top = max(logs)
+    return next(x for x, value in enumerate(logs) if value >= top - 1e-9)
 
 # Keys allowed in each table: key -> required?
 _TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
@@ -84,7 +117,9 @@ _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "task": {"formula": True},
     "adversary": {"traps": True, "delay": False, "initial_traps": False, "hypotheses": True,
                   "initial_hypothesis": False},
-    "inference": {"window": True, "threshold": True, "rationality": True},
+    # threshold is required with kind "cusum" and refused with "bayes" (checked by hand)
+    "inference": {"kind": False, "window": True, "threshold": False, "rationality": True,
+                  "prior": False, "decision": False},
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
@@ -416,10 +451,39 @@ class _Loader:
                             f"(0..{len(hypotheses) - 1}), got {initial_hypothesis}")
 
         inf = self.table(root, "inference")
+        kind = inf.get("kind", "cusum")
+        if kind not in INFERENCE_KINDS:
+            raise self.fail("inference.kind", f"unknown inference kind {_toml_repr(kind)}; "
+                                              "expected \"cusum\" or \"bayes\"")
         window = self.integer(inf["window"], "inference.window", 1)
-        threshold = self.number(inf["threshold"], "inference.threshold")
-        if threshold <= 0:
-            raise self.fail("inference.threshold", f"threshold must be > 0, got {threshold}")
+        prior: tuple[float, ...] = ()
+        decision = "map"
+        if kind == "cusum":
+            for key in ("prior", "decision"):
+                if key in inf:
+                    raise self.fail(f"inference.{key}", f"{key} belongs to the Bayesian "
+                                    "observer; set kind = \"bayes\" or remove it")
+            if "threshold" not in inf:
+                raise self.fail("inference.threshold", "missing required key; expected "
+                                                       + _MISSING_HINT["inference.threshold"])
+            threshold = self.number(inf["threshold"], "inference.threshold")
+            if threshold <= 0:
+                raise self.fail("inference.threshold", f"threshold must be > 0, got {threshold}")
+        else:
+            if "threshold" in inf:
+                raise self.fail("inference.threshold", "the Bayesian observer has no "
+                                "threshold; remove it (or set kind = \"cusum\")")
+            if "initial_hypothesis" in adv:
+                raise self.fail("adversary.initial_hypothesis", "not allowed with kind = "
+                                "\"bayes\": P2's first guess is the prior's most probable "
+                                "hypothesis")
+            threshold = None
+            prior = self.prior(inf.get("prior"), len(hypotheses))
+            decision = inf.get("decision", "map")
+            if decision not in DECISIONS:
+                raise self.fail("inference.decision", f"unknown decision "
+                                f"{_toml_repr(decision)}; expected \"map\" or \"sample\"")
+            initial_hypothesis = prior_argmax(prior)
         rationality = self.number(inf["rationality"], "inference.rationality")
         if rationality <= 0:
             raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
@@ -463,7 +527,30 @@ class _Loader:
             rationality=rationality,
             simulation=simulation,
             detection=detection,
+            inference=kind,
+            prior=prior,
+            decision=decision,
         )
+
+    def prior(self, value: object, n_hypotheses: int) -> tuple[float, ...]:
+        """The prior over hypotheses, normalised; uniform when absent."""
+        key = "inference.prior"
+        if value is None:
+            return uniform_prior(n_hypotheses)
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be an array of {n_hypotheses} positive numbers (one "
+                                 f"per hypothesis), got {_toml_type(value)}")
+        if len(value) != n_hypotheses:
+            raise self.fail(key, f"prior has {len(value)} numbers but there are "
+                                 f"{n_hypotheses} hypotheses; expected one per hypothesis")
+        numbers = [self.number(p, f"{key}[{i}]") for i, p in enumerate(value)]
+        for i, p in enumerate(numbers):
+            if p <= 0:
+                raise self.fail(f"{key}[{i}]", f"prior probabilities must be > 0, got {p:g}")
+        try:
+            return normalise_prior(numbers)
+        except ValueError as err:
+            raise self.fail(key, str(err)) from None
 
     def initial_traps(self, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
         """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter

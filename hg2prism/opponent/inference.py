@@ -12,17 +12,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.opponent.observer import Observation, ObserverPrism
+from hg2prism.opponent.observer import Memory, Observation, ObserverPrism
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, render_macro
 
 TOLERANCE = 1e-9
 
 
-@dataclass(frozen=True)
-class Memory:
-    hypothesis: int
-    window: tuple[Observation, ...] = ()
+__all__ = ["Memory", "InferenceModel", "build_inference", "ts_state_expression"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,10 +52,13 @@ class InferenceModel:
     def hypothesis(self, memory: Memory) -> int:
         return memory.hypothesis
 
+    def hypothesis_distribution(self, memory: Memory) -> tuple[tuple[int, float], ...]:
+        return ((memory.hypothesis, 1.0),)
+
     def scores(self, memory: Memory, observation: Observation) -> np.ndarray:
         """CUSUM score Z_x over the window for every x (0 for the current hypothesis)."""
         current = memory.hypothesis
-        recent = (memory.window + (observation,))[-self.window:]
+        recent = (memory.window + (tuple(observation[:2]),))[-self.window:]
         z = np.zeros(self.n_hypotheses)
         for x in range(self.n_hypotheses):
             if x == current:
@@ -70,7 +70,9 @@ class InferenceModel:
         return z
 
     def update(self, memory: Memory, observation: Observation) -> Memory:
-        """eta: the memory after P1 plays `observation[1]` from TS state `observation[0]`."""
+        """eta: the memory after P1 plays `observation[1]` from TS state `observation[0]` (the
+        trap set, `observation[2]` if given, is not part of CUSUM's memory: §5)."""
+        observation = tuple(observation[:2])
         recent = (memory.window + (observation,))[-self.window:]
         if self.n_hypotheses > 1:
             z = self.scores(memory, observation)

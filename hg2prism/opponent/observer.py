@@ -17,7 +17,22 @@ from typing import Protocol, runtime_checkable
 
 from hg2prism.model.dynamics import TransitionSystem
 
-Observation = tuple[int, int]   # (TS state, P1's action index into dynamics.ACTIONS)
+# (TS state, P1's action index into dynamics.ACTIONS, the trap set in force during the step).
+# The CUSUM observer reads only the first two (its memory has no trap sets, §5); the Bayesian
+# one records all three (§12). A two-element observation is accepted where a2 is not needed.
+Observation = tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Memory:
+    """P2's memory as every observer keeps it: the hypothesis she acts on and her window of
+    observations, oldest first. For CUSUM the hypothesis is state (§5) and the window holds
+    (TS state, action) pairs; for the Bayesian observer the window is the whole memory, holding
+    (TS state, action, trap set) triples, and the hypothesis is its MAP hypothesis (§12), kept
+    beside it for reports (it is a function of the window, so equality is unaffected)."""
+
+    hypothesis: int
+    window: tuple[Observation, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -29,6 +44,12 @@ class ObserverPrism:
     module: str
     slots: int                 # observation slots o1 (oldest) .. o{slots} in the module
     commands: int              # commands of its module (the module is "p2_inference")
+    slot_sets: bool = False    # slots also hold the trap set in force (o<i>_set)
+    hypothesis_variable: bool = True   # `hyp` is a variable (else derived from the slots)
+    # Set when P2 draws her hypothesis at each step: the robot module that draws it jointly
+    # with the move (it replaces the hypergame's robot and p2_traps modules).
+    robot: str = ""
+    header: str = ""           # the header line describing the inference, if not CUSUM's
 
 
 class Observer(Protocol):
@@ -41,14 +62,19 @@ class Observer(Protocol):
     @property
     def n_hypotheses(self) -> int: ...
 
-    def initial_memory(self) -> Hashable:
+    def initial_memory(self) -> Memory:
         """P2's memory before the first move."""
 
-    def update(self, memory: Hashable, observation: Observation) -> Hashable:
-        """P2's memory after P1 plays `observation[1]` from TS state `observation[0]`."""
+    def update(self, memory: Memory, observation: Observation) -> Memory:
+        """P2's memory after P1 plays `observation[1]` from TS state `observation[0]` while
+        the trap set `observation[2]` was in force."""
 
-    def hypothesis(self, memory: Hashable) -> int:
-        """The hypothesis P2 acts on (her trap policy is pi2 of it)."""
+    def hypothesis(self, memory: Memory) -> int:
+        """The hypothesis P2 acts on (for an observer that draws, the most probable one)."""
+
+    def hypothesis_distribution(self, memory: Memory) -> tuple[tuple[int, float], ...]:
+        """(hypothesis, probability) pairs P2 draws the hypothesis she plays from at this step;
+        a single pair with probability 1 for a deterministic observer."""
 
     def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
         """The observer written into the hypergame model over `ts`; `labels` maps each move

@@ -6,7 +6,9 @@ tables, never with the product:
   robot         cell (TRAPPED once caught): P1's moves with slip, and the trap check
   task          q: P1's task DFA, one step behind (it reads the label of the cell being left)
   p2_traps      (delay > 0 only) the traps standing and the countdown
-  p2_inference  hyp and the observation window: the sliding-window CUSUM of docs/semantics.md §5
+  p2_inference  P2's memory: the sliding-window CUSUM of docs/semantics.md §5 (hyp and the
+                observation window) or the Bayesian observer of §12 (the window; with
+                decision "sample" the robot module draws P2's hypothesis with the move)
 
 Tables (moves, labels, P2's trap choices, log-likelihood ratios) are formulas written as
 balanced decision trees over the state variables, so Storm evaluates each in logarithmic time.
@@ -36,8 +38,12 @@ class Layout:
 
     slots: int                      # observation slots o1 (oldest) .. o{slots}
     delay: int
+    slot_sets: bool = False         # slots also hold the trap set in force (Bayesian observer)
+    hypothesis_variable: bool = True   # P2's hypothesis is the variable `hyp` (CUSUM)
 
-    def slot_variables(self, i: int) -> tuple[str, str]:
+    def slot_variables(self, i: int) -> tuple[str, ...]:
+        if self.slot_sets:
+            return f"o{i}_state", f"o{i}_act", f"o{i}_set"
         return f"o{i}_state", f"o{i}_act"
 
 
@@ -107,7 +113,9 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
     properties = render_template("hypergame.props.j2", property=PROPERTY, world=world)
     commands = _count_commands(model_text)
     return PrismModel(text=model_text, properties=properties,
-                      layout=Layout(slots=observer.slots, delay=ts.delay),
+                      layout=Layout(slots=observer.slots, delay=ts.delay,
+                                    slot_sets=observer.slot_sets,
+                                    hypothesis_variable=observer.hypothesis_variable),
                       commands=commands)
 
 

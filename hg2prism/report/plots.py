@@ -307,8 +307,10 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
     return _save(fig, path)
 
 
-def _value_text(value: float) -> str:
-    return str(value) if isinstance(value, int) else f"{value:g}"
+def _value_text(value: object) -> str:
+    if isinstance(value, (list, tuple)):            # a prior
+        return ",".join(_value_text(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 LOG_PARAMETERS = ("rationality", "threshold")
@@ -320,7 +322,10 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
     axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes."""
     fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
     ax = fig.add_subplot()
-    xs = [row[parameter] for row in rows]
+    values = [row[parameter] for row in rows]
+    categorical = not all(isinstance(v, (int, float)) for v in values)
+    # an observer kind or a prior is a category: evenly spaced, labelled by its value
+    xs = list(range(len(values))) if categorical else values
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
                               ("v_lead", "symmetric, leader", "s--"),
                               ("v_ne", "symmetric, Nash", "^:")):
@@ -332,7 +337,7 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
         ax.set_xlabel(f"{parameter} (log scale)")
     else:
         ax.set_xlabel(parameter)
-    ax.set_xticks(xs, [_value_text(x) for x in xs])
+    ax.set_xticks(xs, [_value_text(v) for v in values])
     if len(xs) > 8:
         ax.tick_params(axis="x", labelrotation=45)
     ax.set_ylabel("P1's completion probability")

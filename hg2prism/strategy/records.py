@@ -16,7 +16,7 @@ import numpy as np
 
 from hg2prism.engines.storm import DecodedStates, Transitions
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.opponent.inference import Memory
+from hg2prism.opponent.observer import Memory
 from hg2prism.strategy.deceptive import StormChoices
 
 
@@ -49,7 +49,8 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         record = describe(ts.state(cells[s], traps[s], countdowns[s]))
         record["q"] = qs[s]
         record["hypothesis"] = hypotheses[s]
-        record["window"] = [dict(describe(v), action=ACTIONS[a]) for v, a in windows[s] if v >= 0]
+        record["window"] = [window_entry(ts, entry, describe(entry[0]))
+                            for entry in windows[s] if entry[0] >= 0]
         record["action"] = ACTIONS[chosen[s]]
         if extras is not None:
             record.update(extras.fields(canonical[s]))
@@ -95,6 +96,15 @@ class RecordExtras:
         return [template.format(*row) for row in values.tolist()]
 
 
+def window_entry(ts: TransitionSystem, entry: list[int], described: dict) -> dict:
+    """A window entry of a record: the observation's TS state, P1's move and, for the Bayesian
+    observer (entries of three), `played`, the cells of the trap set in force."""
+    record = dict(described, action=ACTIONS[entry[1]])
+    if len(entry) > 2:
+        record["played"] = [list(c) for c in ts.trap_cells(entry[2])]
+    return record
+
+
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
                   ts: TransitionSystem, extras: RecordExtras | None = None) -> str:
     """strategy.json: the records of `strategy_records`, one compact JSON object per line.
@@ -108,11 +118,17 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
     ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
     prefix = {v: json.dumps(ts.describe_state(v), **compact)[:-1] + ',"q":'
               for v in np.unique(ts_state).tolist()}
-    window = decoded.window[states]                                   # [n, slots, 2]
+    window = decoded.window[states]                           # [n, slots, 2 or 3]
     observed = np.unique(window[..., 0][window[..., 0] >= 0]).tolist()
-    fragment = {v * 4 + a: json.dumps(dict(ts.describe_state(v), action=ACTIONS[a]), **compact)
-                for v in observed for a in range(len(ACTIONS))}
-    codes = np.where(window[..., 0] >= 0, window[..., 0] * 4 + window[..., 1], -1).tolist()
+    sets = range(ts.n_sets) if window.shape[-1] > 2 else [None]
+    n_sets = ts.n_sets if window.shape[-1] > 2 else 1
+    fragment = {(v * 4 + a) * n_sets + (t or 0): json.dumps(
+        window_entry(ts, [v, a] + ([] if t is None else [t]), ts.describe_state(v)), **compact)
+        for v in observed for a in range(len(ACTIONS)) for t in sets}
+    code = window[..., 0] * 4 + window[..., 1]
+    if window.shape[-1] > 2:
+        code = code * n_sets + window[..., 2]
+    codes = np.where(window[..., 0] >= 0, code, -1).tolist()
     chosen = moves.action[choices.choice[states]].tolist()
     if extras is None:
         tails = [f'],"action":"{a}"}}' for a in ACTIONS]
@@ -143,17 +159,32 @@ def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
     countdown = record.get("countdown")
     if traps is None or countdown is None:
         raise StrategyError(f"{where}: 'traps' and 'countdown' are required when delay > 0")
-    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
-    try:
-        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
-                               for t in traps))
-        trap_set = ts.trap_sets.index(members)
-    except (KeyError, ValueError, TypeError):
-        raise StrategyError(f"{where}: traps {traps} are not a P2 action of the world") from None
+    trap_set = _trap_set_index(ts, traps, where)
     countdown = int(countdown)
     if not 0 <= countdown <= ts.delay:
         raise StrategyError(f"{where}: countdown {countdown} outside 0..{ts.delay}")
     return ts.state(index, trap_set, countdown)
+
+
+def _trap_set_index(ts: TransitionSystem, cells: object, where: str) -> int:
+    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
+    try:
+        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
+                               for t in cells))
+        return ts.trap_sets.index(members)
+    except (KeyError, ValueError, TypeError):
+        raise StrategyError(f"{where}: traps {cells} are not a P2 action of the world") from None
+
+
+def _window_observation(ts: TransitionSystem, entry: Mapping, where: str) -> tuple[int, ...]:
+    """A window entry as an observation: (TS state, action), and the trap set in force when
+    the entry has `played` (Bayesian observer)."""
+    if not isinstance(entry, Mapping):
+        raise StrategyError(f"{where}: expected an object, got {entry!r}")
+    observation = (_record_ts_state(ts, entry, where), _action_index(entry.get("action"), where))
+    if "played" in entry:
+        observation += (_trap_set_index(ts, entry["played"], where),)
+    return observation
 
 
 def _action_index(name: object, where: str) -> int:
@@ -196,8 +227,7 @@ class Strategy:
                 entries = list(record["window"])
             except (KeyError, TypeError, ValueError) as err:
                 raise StrategyError(f"{where}: bad or missing field ({err})") from None
-            window = tuple((_record_ts_state(ts, entry, f"{where}, window entry {j}"),
-                            _action_index(entry.get("action"), f"{where}, window entry {j}"))
+            window = tuple(_window_observation(ts, entry, f"{where}, window entry {j}")
                            for j, entry in enumerate(entries))
             action = _action_index(record.get("action"), where)
             key = (v, q, Memory(hypothesis, window))
@@ -237,7 +267,10 @@ class Strategy:
         """P1's move ("N", "E", "S" or "W") when the robot is at `cell` (x, y), the task DFA is
         in `q` (after reading the cell's label), P2 holds `hypothesis` and remembers `window`:
         (cell, move) pairs, oldest first. With delay > 0, `traps` (cells) and `countdown` give
-        the standing traps, and each window entry is (cell, move, traps, countdown).
+        the standing traps, and each window entry is (cell, move, traps, countdown). For the
+        Bayesian observer each entry is (cell, move, traps, countdown, played), `played` the
+        cells of the trap set in force (traps and countdown None when delay is 0), and
+        `hypothesis` the window's MAP hypothesis.
         Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
         if self.ts is None:
             raise ValueError("move() needs the strategy's transition system")
@@ -251,7 +284,9 @@ class Strategy:
             v = state(cell, traps, countdown)
             observed = tuple(
                 (state(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None))),
-                 _action_index(entry[1], where)) for entry in window)
+                 _action_index(entry[1], where))
+                + ((_trap_set_index(self.ts, entry[4], where),) if len(entry) > 4 else ())
+                for entry in window)
         except StrategyError as err:
             raise KeyError(str(err)) from None
         key = (v, int(q), Memory(int(hypothesis), observed))
@@ -270,5 +305,7 @@ class Strategy:
                 text += f" traps {d['traps']} countdown {d['countdown']}"
             return text
 
-        window = ", ".join(f"{where(s)} {ACTIONS[a]}" for s, a in memory.window)
+        window = ", ".join(f"{where(o[0])} {ACTIONS[o[1]]}"
+                           + (f" played {list(self.ts.trap_cells(o[2]))}" if len(o) > 2 else "")
+                           for o in memory.window)
         return f"{where(ts_state)}, q={q}, hypothesis={memory.hypothesis}, window=[{window}]"

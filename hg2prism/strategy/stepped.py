@@ -54,6 +54,9 @@ class StepCounter:
     def hypothesis(self, memory: TimedMemory) -> int:
         return self.inner.hypothesis(memory.memory)
 
+    def hypothesis_distribution(self, memory: TimedMemory) -> tuple[tuple[int, float], ...]:
+        return self.inner.hypothesis_distribution(memory.memory)
+
     def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
         raise NotImplementedError("a step counter is for simulation only")
 
