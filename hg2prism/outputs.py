@@ -49,6 +49,7 @@ OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,
     "sweep": r"sweep\.(json|csv|png|svg|pdf)|(delay|window|threshold|rationality)_[0-9][0-9.e+-]*",
     "detect": r"detection\.(json|png|svg|pdf)",
+    "robust": r"robust\.(json|csv|png|svg)|robust_[0-9][0-9.e+-]*",
 }
 
 

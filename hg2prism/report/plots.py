@@ -25,6 +25,13 @@ def _save(fig: plt.Figure, path: Path) -> None:
     write_bytes(path, buffer.getvalue())
 
 
+def _save_png_and_svg(fig: plt.Figure, png: Path, svg: Path) -> None:
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="svg", bbox_inches="tight", metadata={"Date": None})
+    write_bytes(svg, buffer.getvalue())
+    _save(fig, png)
+
+
 def world_figure(world: World, ts: TransitionSystem, steps: Sequence, outcome: str, path: Path) -> None:
     """The grid, and one simulated deceptive episode: the robot's path coloured by P2's
     hypothesis, the trap P2 set at each step, and where P2 changed her mind."""
@@ -141,3 +148,28 @@ def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     _save(fig, path)
+
+
+def robust_figure(result: dict, png: Path, svg: Path) -> None:
+    """Robust deception (docs/semantics.md §13) against the deviation budget: R_delta, what the
+    deceptive strategy guarantees under the same budget, and the nominal references."""
+    rows = sorted(result["rows"], key=lambda row: row["delta"])
+    deltas = [row["delta"] for row in rows]
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    ax.plot(deltas, [row["robust_value"] for row in rows], "o-",
+            label="robust value $R_\\delta$ (robust strategy, worst case)")
+    ax.plot(deltas, [row["nominal_worst_case"] for row in rows], "s--",
+            label="deceptive strategy, worst case")
+    ax.plot(deltas, [row["robust_strategy_nominal_value"] for row in rows], "^:", alpha=0.8,
+            label="robust strategy when P2 does not deviate")
+    ax.axhline(result["deceptive_value"], color="grey", lw=0.8, ls="-.",
+               label=f"deceptive value {result['deceptive_value']:.4f}")
+    ax.axhline(result["v_lead"], color="grey", lw=0.8, ls=":",
+               label=f"V_lead (P2 knows the task) {result['v_lead']:.4f}")
+    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted trap set with probability ≤ δ)")
+    ax.set_ylabel("P1's completion probability")
+    ax.set_xticks(deltas)
+    ax.set_title(f"{result['world']}: robust deception", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7.5)
+    _save_png_and_svg(fig, png, svg)

@@ -103,17 +103,17 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     # Best choice per Storm state's row group (representatives' choices; others copy them).
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
-    best_of_state = _argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
+    best_of_state = argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
     chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
     action_rep = moves.action[chosen_rep]
     # Every Storm state takes the move its canonical state takes.
     wanted = action_rep[canonical]
     match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
-    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
+    choice = argmax_by_group(np.where(match, 1.0, 0.0), moves.source, n_states)
     return StormChoices(representative=representative, choice=choice)
 
 
-def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
+def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
                      relative_tie: float = 0.0) -> np.ndarray:
     """Index of the first score in each group within `relative_tie` (relative) of the group's
     maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
