@@ -81,6 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
     p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+    p.add_argument("--fallback", choices=("robust", "leader"),
+                   help="re-planning (docs/semantics.md §14): after the detector's first rejection P1 "
+                        "plays this strategy; reports completion with and without re-planning")
+    p.add_argument("--fallback-delta", metavar="DELTA",
+                   help="deviation budget of the robust fallback, in [0, 1) (default 0.1)")
     solver_options(p)
 
     p = add("robust", "Robust deception (docs/semantics.md §13): for each deviation budget delta, the "
@@ -147,6 +152,8 @@ def _command(args: argparse.Namespace) -> int:
             sizeguard.check_size(world, args.max_states)
         if args.command == "robust":
             robust.parse_deltas(args.deltas)
+        if args.command == "detect":
+            detect.parse_fallback(args.fallback, args.fallback_delta)
         check_writable(out)
         if args.command in ("run", "detect"):
             for option, most in (("episodes", world_mod.MAX_EPISODES),
@@ -176,7 +183,8 @@ def _command(args: argparse.Namespace) -> int:
                 results, table = None, "\n".join(robust.robust_summary_lines(result))
             elif args.command == "detect":
                 detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
-                                               storm_method=args.storm_method)
+                                          storm_method=args.storm_method, fallback=args.fallback,
+                                          fallback_delta=args.fallback_delta)
                 results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,

@@ -109,9 +109,16 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path) -> None:
 
 
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
-                     deviate_after: int, detected_at: int | None, path: Path) -> None:
-    """The likelihood-ratio statistic G per step against the chi-square threshold."""
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+                     deviate_after: int, detected_at: int | None, path: Path,
+                     replanning: dict | None = None) -> None:
+    """The likelihood-ratio statistic G per step against the chi-square threshold; with
+    `replanning` (detection.json's section) a second panel: completion with and without
+    re-planning in the deviation and compliant batches, with their 95% Wilson intervals."""
+    if replanning is None:
+        fig, ax = plt.subplots(figsize=(6.5, 4))
+    else:
+        fig, (ax, bars) = plt.subplots(1, 2, figsize=(11.5, 4),
+                                       gridspec_kw={"width_ratios": [1.35, 1]})
     steps = list(range(1, len(statistics) + 1))
     ax.plot(steps, statistics, "o-", label="G = 2 (ln L1 − ln L0)")
     ax.plot(steps, [t if t is not None else float("nan") for t in thresholds], "s--",
@@ -123,6 +130,25 @@ def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | N
     ax.set_ylabel("statistic")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    if replanning is not None:
+        shown = (f"robust strategy, δ = {replanning['delta']:g}" if replanning["fallback"] == "robust"
+                 else "leader-game strategy")
+        batches = (("deviation", "P2 deviates"), ("compliant", "P2 follows the model"))
+        for offset, (key, label, colour) in enumerate((("without", "without re-planning", "tab:blue"),
+                                                       ("with", f"re-planning ({shown})", "tab:green"))):
+            xs = [i + (offset - 0.5) * 0.36 for i in range(len(batches))]
+            rates = [replanning[b][key]["rate"] for b, _ in batches]
+            low = [r - replanning[b][key]["ci95"][0] for r, (b, _) in zip(rates, batches)]
+            high = [replanning[b][key]["ci95"][1] - r for r, (b, _) in zip(rates, batches)]
+            bars.bar(xs, rates, width=0.34, color=colour, label=label, yerr=[low, high], capsize=4)
+            for x, r in zip(xs, rates):
+                bars.text(x, r / 2, f"{r:.3f}", ha="center", va="center", fontsize=8, color="white")
+        bars.set_xticks(range(len(batches)))
+        bars.set_xticklabels([name for _, name in batches])
+        bars.set_ylabel("completion rate (95% Wilson interval)")
+        bars.set_ylim(0, 1.05)
+        bars.grid(alpha=0.3, axis="y")
+        bars.legend(fontsize=8, loc="upper center")
     _save(fig, path)
 
 
