@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from reference import ACTIONS, TRAPPED, World
 
-STOP = 1e-13
+STOP = 1e-12
 MAX_SWEEPS = 500_000
 
 
@@ -94,30 +94,36 @@ class RobustHypergame:
         P = sp.csr_matrix((vals, (ri, ci)), shape=(len(goal), len(self.states)))
         return P, np.array(goal), pairs
 
-    def _iterate(self, moves, delta: float) -> np.ndarray:
+    def _iterate(self, moves, deltas) -> np.ndarray:
+        """Value iteration for several budgets at once: column k is delta = deltas[k]."""
         P, goal, pairs = self._matrices(moves)
         pred_rows = np.array([p[2] for p in pairs])
         firsts = np.array([p[3] for p in pairs])
-        several = np.array([p[4] > 1 for p in pairs])
+        several = np.array([p[4] > 1 for p in pairs])[:, None]
         pair_state = np.array([p[0] for p in pairs])
         state_first = np.flatnonzero(np.r_[True, pair_state[1:] != pair_state[:-1]])
-        x = np.zeros(len(self.states))
+        delta = np.asarray(deltas, dtype=float)[None, :]
+        x = np.zeros((len(self.states), delta.shape[1]))
         for _ in range(MAX_SWEEPS):
-            e = goal + P @ x
-            worst = np.minimum.reduceat(e, firsts)
+            e = goal[:, None] + P @ x
+            worst = np.minimum.reduceat(e, firsts, axis=0)
             step = np.where(several, (1 - delta) * e[pred_rows] + delta * worst, e[pred_rows])
-            y = np.maximum.reduceat(step, state_first)
+            y = np.maximum.reduceat(step, state_first, axis=0)
             change = float(np.max(np.abs(y - x)))
             x = y
             if change < STOP:
                 return x
         raise RuntimeError("robust value iteration did not converge")
 
+    def robust_values(self, deltas) -> list[float]:
+        """R_delta at the initial state for each budget."""
+        if self.initial in ("goal", "fail"):
+            return [1.0 if self.initial == "goal" else 0.0] * len(deltas)
+        return [float(v) for v in self._iterate(lambda i: ACTIONS, deltas)[0]]
+
     def robust_value(self, delta: float) -> float:
         """R_delta at the initial state."""
-        if self.initial in ("goal", "fail"):
-            return 1.0 if self.initial == "goal" else 0.0
-        return float(self._iterate(lambda i: ACTIONS, delta)[0])
+        return self.robust_values([delta])[0]
 
     def worst_case(self, records, delta: float) -> float:
         """The value P1's strategy `records` (strategy.json's records) guarantees against the
@@ -148,4 +154,4 @@ class RobustHypergame:
                         seen.add(self.index[t])
                         queue.append(self.index[t])
         return float(self._iterate(
-            lambda i: [table[self.states[i]]] if i in seen else ACTIONS[:1], delta)[0])
+            lambda i: [table[self.states[i]]] if i in seen else ACTIONS[:1], [delta])[0, 0])

@@ -218,7 +218,9 @@ class Transitions:
     upper: np.ndarray | None = None   # of an interval model: the upper bounds
 
 
-_STRUCTURES: dict[int, Transitions] = {}
+# The last model read and its structure. The model is kept so that its id cannot be reused by
+# another model while the entry exists (models of two deviation budgets have the same shape).
+_STRUCTURES: dict[int, tuple[object, Transitions]] = {}
 
 
 def read_structure(model: object) -> Transitions:
@@ -229,8 +231,8 @@ def read_structure(model: object) -> Transitions:
     UMB export (flat little-endian arrays in a tar file) once and is read back with numpy.
     """
     key = id(model)
-    if key in _STRUCTURES and _STRUCTURES[key].source.size == model.nr_choices:
-        return _STRUCTURES[key]
+    if key in _STRUCTURES and _STRUCTURES[key][0] is model:
+        return _STRUCTURES[key][1]
     options = developer.storage.UmbExportOptions()
     options.compression = type(options.compression).NO_COMPRESSION
     with tempfile.TemporaryDirectory(prefix="hg2prism-umb-") as folder:
@@ -266,7 +268,7 @@ def read_structure(model: object) -> Transitions:
         action=action_index[action_ids], row_start=row_start, target=target,
         probability=probability, labels=labels, upper=upper)
     _STRUCTURES.clear()
-    _STRUCTURES[key] = structure
+    _STRUCTURES[key] = (model, structure)
     return structure
 
 

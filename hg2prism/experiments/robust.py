@@ -35,7 +35,8 @@ from hg2prism.errors import InputError, probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_json, write_text
 
-__all__ = ["parse_deltas", "RobustSolved", "solve_budget", "robust", "robust_summary_lines"]
+__all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
+           "robust", "robust_summary_lines"]
 
 _CLI = "command line"
 WORST_CASE_TOLERANCE = 1e-9    # the exported strategy must guarantee R_delta within this
@@ -87,7 +88,7 @@ def _nominal_game(game, action: np.ndarray):
     return IntervalGame(choice_start=game.choice_start, row_start=game.row_start,
                         target=game.target, lower=np.where(interval, fixed, game.lower),
                         upper=np.where(interval, fixed, game.upper), goal=game.goal,
-                        stop=game.stop, initial=game.initial)
+                        stop=game.stop, initial=game.initial, chance=game.chance)
 
 
 def _choice_with_action(game, action: np.ndarray, wanted: np.ndarray) -> np.ndarray:
@@ -115,12 +116,13 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
     model, _ = storm.build_interval_model(prism_path)
     moves = storm.read_structure(model)
     decoded = storm.decode_states(model, layout, ts, task)
-    game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial_states[0])
+    decides = storm.state_variable(model, MOVE_VARIABLE) == -1
+    game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial_states[0],
+                           chance=~decides)
     solution = solve_robust(game)
     value = probability(solution.value(game.initial), f"R_{delta} at the initial state")
 
     # Canonical states: the hypergame state, and for intermediate states the move and set.
-    decides = storm.state_variable(model, MOVE_VARIABLE) == -1
     canonical = storm.row_keys(np.column_stack([
         decoded.canonical, storm.state_variable(model, MOVE_VARIABLE),
         storm.state_variable(model, PLAYED_VARIABLE)]))
@@ -170,7 +172,8 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
         eps_model, _ = storm.build_interval_model(check_path)
         eps_moves = storm.read_structure(eps_model)
         eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
-                                   eps_model.initial_states[0])
+                                   eps_model.initial_states[0],
+                                   chance=storm.state_variable(eps_model, MOVE_VARIABLE) >= 0)
         numpy_value = solve_robust(eps_game).value(eps_game.initial)
         check = {"storm_robust_value_eps": storm_value, "numpy_value_eps": numpy_value,
                  "storm_minus_numpy": storm_value - numpy_value,
@@ -183,20 +186,46 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
         residual=solution.residual, records_json=records_json, storm_check=check)
 
 
-def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> str:
-    """The robust strategy's records (strategy.json's text) for one budget: the model is
-    rendered into `folder`. `check_result` is pipeline.check(world, ...)."""
+def solve_budgets(world: World, check_result, deltas: Sequence[float], folder: Path,
+                  storm_check: bool = True) -> list[tuple[RobustSolved, float]]:
+    """Render and solve the interval model of every budget, each into
+    ``folder/robust_<delta>/`` (robust.prism, robust.props): (solution, seconds) per budget.
+    `check_result` is pipeline.check(world, ...). With `storm_check`, Storm's robust mode and
+    numpy check the model with eps > 0 too (RobustSolved.storm_check)."""
     from hg2prism.analyses.simulation import leader_fallback
-    from hg2prism.prism.robust_model import build_robust_model, write_robust_model
+    from hg2prism.prism.robust_model import (CHECK_EPS, build_robust_model, delta_text,
+                                             write_robust_model)
     from hg2prism.strategy.records import Strategy
 
     analysis = check_result.analysis
     deceptive = Strategy.from_records(check_result.records, analysis.ts,
                                       fallback=leader_fallback(analysis))
-    model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
-                               analysis.inference, delta)
-    prism_path, _ = write_robust_model(model, folder)
-    return solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta).records_json
+    solved = []
+    with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch:
+        for delta in deltas:
+            start = time.perf_counter()
+            model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
+                                       analysis.inference, delta)
+            prism_path, _ = write_robust_model(model, Path(folder) / f"robust_{delta_text(delta)}")
+            check_path = None
+            if storm_check:
+                check_path = prism_path
+                if delta > 0 and analysis.ts.n_sets > 1:
+                    eps_model = build_robust_model(world, analysis.ts, analysis.task,
+                                                   analysis.games, analysis.inference, delta,
+                                                   CHECK_EPS)
+                    check_path, _ = write_robust_model(eps_model, Path(scratch) / f"eps_{delta}")
+            result = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
+                                  check_path)
+            solved.append((result, time.perf_counter() - start))
+    return solved
+
+
+def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> str:
+    """The robust strategy's records (strategy.json's text) for one budget; the model is
+    rendered below `folder`. `check_result` is pipeline.check(world, ...)."""
+    ((solved, _),) = solve_budgets(world, check_result, [delta], folder, storm_check=False)
+    return solved.records_json
 
 
 def robust(world: World, deltas: Sequence[object], out: Path, show_progress: bool = True,
@@ -205,11 +234,8 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     return robust.json's content. `check_result` (pipeline.check of the world) is computed in a
     scratch folder when not given."""
     from hg2prism import pipeline
-    from hg2prism.analyses.simulation import leader_fallback
-    from hg2prism.prism.robust_model import (CHECK_EPS, build_robust_model, delta_text,
-                                             write_robust_model)
+    from hg2prism.prism.robust_model import CHECK_EPS, delta_text
     from hg2prism.report import plots
-    from hg2prism.strategy.records import Strategy
 
     parsed = parse_deltas(deltas)
     out = Path(out)
@@ -219,44 +245,28 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
         if show_progress:
             progress.say(message)
 
-    with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch:
-        if check_result is None:
-            with progress.quiet():
-                check_result = pipeline.check(world, Path(scratch) / "nominal")
-        analysis = check_result.analysis
-        deceptive = Strategy.from_records(check_result.records, analysis.ts,
-                                          fallback=leader_fallback(analysis))
-        rows = []
-        for delta in parsed:
-            start = time.perf_counter()
-            folder = out / f"robust_{delta_text(delta)}"
-            model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
-                                       analysis.inference, delta)
-            prism_path, _ = write_robust_model(model, folder)
-            check_path = prism_path
-            if delta > 0 and analysis.ts.n_sets > 1:
-                eps_model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
-                                               analysis.inference, delta, CHECK_EPS)
-                check_path, _ = write_robust_model(eps_model, Path(scratch) / f"eps_{delta}")
-            solved = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
-                                  check_path)
-            write_text(folder / "strategy.json", solved.records_json)
-            seconds = time.perf_counter() - start
-            rows.append({
-                "delta": delta,
-                "robust_value": solved.robust_value,
-                "nominal_worst_case": solved.nominal_worst_case,
-                "robust_strategy_nominal_value": solved.robust_strategy_nominal_value,
-                "states": solved.states,
-                "storm_states": solved.storm_states,
-                "strategy_iteration_rounds": solved.rounds,
-                "fixed_point_residual": solved.residual,
-                "storm_check": solved.storm_check,
-                "seconds": round(seconds, 3),
-            })
-            say(f"robust: delta {delta:g}: R = {solved.robust_value:.6f}, deceptive strategy's "
-                f"worst case {solved.nominal_worst_case:.6f}, {solved.states} states "
-                f"({seconds:.1f} s)")
+    if check_result is None:
+        with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch, progress.quiet():
+            check_result = pipeline.check(world, Path(scratch))
+    rows = []
+    for delta in parsed:
+        ((solved, seconds),) = solve_budgets(world, check_result, [delta], out)
+        write_text(out / f"robust_{delta_text(delta)}" / "strategy.json", solved.records_json)
+        rows.append({
+            "delta": delta,
+            "robust_value": solved.robust_value,
+            "nominal_worst_case": solved.nominal_worst_case,
+            "robust_strategy_nominal_value": solved.robust_strategy_nominal_value,
+            "states": solved.states,
+            "storm_states": solved.storm_states,
+            "strategy_iteration_rounds": solved.rounds,
+            "fixed_point_residual": solved.residual,
+            "storm_check": solved.storm_check,
+            "seconds": round(seconds, 3),
+        })
+        say(f"robust: delta {delta:g}: R = {solved.robust_value:.6f}, deceptive strategy's "
+            f"worst case {solved.nominal_worst_case:.6f}, {solved.states} states "
+            f"({seconds:.1f} s)")
 
     result = {
         "world": world.name,

@@ -60,6 +60,9 @@ class IntervalGame:
     goal: np.ndarray          # bool per state
     stop: np.ndarray          # bool per state: goal or failure
     initial: int
+    # states that are pure chance (one choice of point intervals) and lead to no such state:
+    # the intermediate states of the robust model. Linear solves eliminate them first.
+    chance: np.ndarray | None = None
 
     @property
     def n_states(self) -> int:
@@ -70,9 +73,10 @@ class IntervalGame:
         return len(self.row_start) - 1
 
     @classmethod
-    def of(cls, moves: Transitions, goal: np.ndarray, fail: np.ndarray, initial: int) -> "IntervalGame":
+    def of(cls, moves: Transitions, goal: np.ndarray, fail: np.ndarray, initial: int,
+           chance: np.ndarray | None = None) -> "IntervalGame":
         """Storm's model (storm.read_structure) with its goal and failure states; a model without
-        intervals is the game whose intervals are points."""
+        intervals is the game whose intervals are points. `chance`: see the field."""
         n_states = len(goal)
         choice_start = np.searchsorted(moves.source, np.arange(n_states + 1))
         upper = moves.probability if moves.upper is None else moves.upper
@@ -80,7 +84,7 @@ class IntervalGame:
                    target=np.asarray(moves.target), lower=np.asarray(moves.probability),
                    upper=np.asarray(upper), goal=np.asarray(goal, dtype=bool),
                    stop=np.asarray(goal, dtype=bool) | np.asarray(fail, dtype=bool),
-                   initial=int(initial))
+                   initial=int(initial), chance=chance)
 
     # -- derived arrays, computed once -----------------------------------------------------
     def _cached(self, name: str, make) -> np.ndarray:
@@ -190,16 +194,15 @@ def adversary_response(game: IntervalGame, strategy: np.ndarray,
     targets = game.target[branches]
     into_live = position[targets] >= 0
     into_goal = game.goal[targets]
-    identity = sp.identity(live.size, format="csc")
+    eliminate = _chance_elimination(game, live, strategy)
     _, resolution = worst_case(game, values)
     chosen = resolution[branches]
     for _ in range(MAX_ROUNDS):
-        matrix = sp.csc_matrix((chosen[into_live], (row_of[into_live], position[targets[into_live]])),
+        matrix = sp.csr_matrix((chosen[into_live], (row_of[into_live], position[targets[into_live]])),
                                shape=(live.size, live.size))
         reach = np.bincount(row_of, weights=chosen * into_goal, minlength=live.size)
-        solution = np.atleast_1d(spla.spsolve(identity - matrix, reach))
         values = game.goal.astype(float)
-        values[live] = solution
+        values[live] = _solve_chain(matrix, reach, eliminate)
         expected, resolution = worst_case(game, values)
         current = np.bincount(row_of, weights=chosen * values[targets], minlength=live.size)
         better = expected[rows] < current - SWITCH
@@ -208,6 +211,45 @@ def adversary_response(game: IntervalGame, strategy: np.ndarray,
         switch = better[row_of]
         chosen = np.where(switch, resolution[branches], chosen)
     raise SolverError("the adversary's policy iteration did not converge")
+
+
+def _chance_elimination(game: IntervalGame, live: np.ndarray, strategy: np.ndarray
+                        ) -> np.ndarray | None:
+    """Positions (among `live`) of the chance states to eliminate before solving, when no
+    chance state leads to another; None when there are none (or they do)."""
+    if game.chance is None:
+        return None
+    chance = game.chance[live]
+    if not chance.any():
+        return None
+    rows = strategy[live[chance]]
+    first, last = game.row_start[rows], game.row_start[rows + 1]
+    counts = last - first
+    branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+    if game.chance[game.target[branches]].any():
+        return None
+    return np.flatnonzero(chance)
+
+
+def _solve_chain(matrix: sp.csr_matrix, reach: np.ndarray, eliminate: np.ndarray | None
+                 ) -> np.ndarray:
+    """x = matrix x + reach, exactly (sparse LU). The states `eliminate` (no edge among
+    themselves) are substituted out first: x_C = P_CK x_K + r_C, so the system shrinks to
+    (I - P_KK - P_KC P_CK) x_K = r_K + P_KC r_C."""
+    n = matrix.shape[0]
+    if eliminate is None:
+        return np.atleast_1d(spla.spsolve((sp.identity(n, format="csc") - matrix).tocsc(), reach))
+    keep = np.ones(n, dtype=bool)
+    keep[eliminate] = False
+    kept = np.flatnonzero(keep)
+    p_kk, p_kc = matrix[kept][:, kept], matrix[kept][:, eliminate]
+    p_ck = matrix[eliminate][:, kept]
+    reduced = (p_kk + p_kc @ p_ck).tocsc()
+    rhs = reach[kept] + p_kc @ reach[eliminate]
+    x = np.empty(n)
+    x[kept] = np.atleast_1d(spla.spsolve(sp.identity(kept.size, format="csc") - reduced, rhs))
+    x[eliminate] = p_ck @ x[kept] + reach[eliminate]
+    return x
 
 
 @dataclass(frozen=True, eq=False)
