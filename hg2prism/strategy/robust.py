@@ -37,7 +37,9 @@ import scipy.sparse.linalg as spla
 from hg2prism.engines.storm import Transitions
 from hg2prism.errors import SolverError
 
-SWITCH = 1e-12          # P1 (and the adversary) switch only on an improvement above this
+SWITCH = 1e-12          # the adversary switches only on an improvement above this
+P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
+MAX_P1_ROUNDS = 500
 RESIDUAL = 1e-10        # the certified fixed point's largest residual
 MAX_ROUNDS = 10_000
 OPTIMAL_SLACK = 1e-8    # as the deceptive strategy: choices this close to the value are optimal
@@ -271,11 +273,11 @@ def solve_robust(game: IntervalGame) -> RobustSolution:
     strategy[progress >= 0] = progress[progress >= 0]
     free = positive & ~game.stop
     values = None
-    for rounds in range(1, MAX_ROUNDS + 1):
+    for rounds in range(1, MAX_P1_ROUNDS + 1):
         values = adversary_response(game, strategy, values)
         q_values, _ = worst_case(game, values)
         best = np.maximum.reduceat(q_values, game.choice_start[:-1])
-        better = free & (best > q_values[strategy] + SWITCH)
+        better = free & (best > q_values[strategy] + P1_SWITCH)
         if not better.any():
             break
         for s in np.flatnonzero(better).tolist():
