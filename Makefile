@@ -18,7 +18,8 @@ world1: $(STAMP)
 world2: $(STAMP)
 	$(BIN)/hg2prism run models/world2.toml
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
-	$(BIN)/hg2prism detect models/world2.toml
+	$(BIN)/hg2prism detect models/world2.toml --fallback robust --fallback-delta 0.1
+	$(BIN)/hg2prism robust models/world2.toml --deltas 0 0.02 0.05 0.1 0.2
 
 # A 2-D sweep on Dask (a local cluster, one worker per core): world2 over delay x window.
 sweep-demo: $(STAMP)

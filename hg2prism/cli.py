@@ -112,7 +112,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
     p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
     p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+    p.add_argument("--fallback", choices=("robust", "leader"),
+                   help="re-planning (docs/semantics.md §14): after the detector's first rejection P1 "
+                        "plays this strategy; reports completion with and without re-planning")
+    p.add_argument("--fallback-delta", metavar="DELTA",
+                   help="deviation budget of the robust fallback, in [0, 1) (default 0.1)")
     solver_options(p)
+
+    p = add("robust", "Robust deception (docs/semantics.md §13): for each deviation budget delta, the "
+            "interval model (OUT/robust_<delta>/robust.prism), the robust value, the deceptive "
+            "strategy's worst case and the robust strategy (OUT/robust_<delta>/strategy.json); "
+            "writes OUT/robust.json, robust.csv, robust.png and robust.svg.")
+    p.add_argument("--deltas", nargs="+", metavar="DELTA", default=["0", "0.02", "0.05", "0.1", "0.2"],
+                   help="deviation budgets in [0, 1) (default: 0 0.02 0.05 0.1 0.2)")
+    p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    p.add_argument("--max-states", type=int, metavar="N",
+                   help="refuse worlds whose estimated hypergame size exceeds N "
+                        f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
 
     sub.add_parser("bench", add_help=False,
                    help="Scaling benchmark: worlds of growing size through every stage; writes "
@@ -152,7 +168,7 @@ def _command(args: argparse.Namespace) -> int:
                   f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
             return 0
         from hg2prism import pipeline
-        from hg2prism.experiments import detect, sweep
+        from hg2prism.experiments import detect, robust, sweep
         from hg2prism.report import tables
 
         out = _out_dir(Path(args.world), args.out)
@@ -172,6 +188,10 @@ def _command(args: argparse.Namespace) -> int:
             sweep.check_grid(world, grid, args.max_states)
         else:
             sizeguard.check_size(world, args.max_states)
+        if args.command == "robust":
+            robust.parse_deltas(args.deltas)
+        if args.command == "detect":
+            detect.parse_fallback(args.fallback, args.fallback_delta)
         check_writable(out)
         if args.command in ("run", "detect"):
             for option, most in (("episodes", world_mod.MAX_EPISODES),
@@ -219,9 +239,13 @@ def _command(args: argparse.Namespace) -> int:
                 failed = run.failed
                 results, table = None, "\n".join(sweep.sweep_summary_lines(
                     [name for name, _ in run.parameters], run.rows, world.name))
+            elif args.command == "robust":
+                result = robust.robust(world, args.deltas, stage)
+                results, table = None, "\n".join(robust.robust_summary_lines(result))
             elif args.command == "detect":
                 detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
-                                               storm_method=args.storm_method)
+                                          storm_method=args.storm_method, fallback=args.fallback,
+                                          fallback_delta=args.fallback_delta)
                 results, table = None, "\n".join(detect.detection_summary_lines(detection))
             else:
                 result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,

@@ -51,6 +51,7 @@ _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,
     "detect": r"detection\.(json|png|svg|pdf)",
+    "robust": r"robust\.(json|csv|png|svg)|robust_[0-9][0-9.e+-]*",
 }
 
 

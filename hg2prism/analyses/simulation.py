@@ -51,6 +51,8 @@ __all__ = [
     "simulate_deceptive",
     "simulate_nash",
     "leader_fallback",
+    "LeaderStrategy",
+    "Replanning",
     "model_policy",
     "deviating_policy",
 ]
@@ -124,6 +126,7 @@ class SimulationSummary:
     # last step counts: P2 updates her memory from P1's move whatever the robot reached.
     p2_switched: int = 0
     p2_switches: int = 0
+    replanned: int = 0               # with re-planning: episodes in which P1 switched strategy
 
     def interval(self, confidence: float = 0.95) -> tuple[float, float]:
         """Wilson score interval of the completion rate at another confidence level."""
@@ -149,7 +152,7 @@ class SimulationSummary:
 
 def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
              seconds: float, off_record_steps: int = 0, p2_switched: int = 0,
-             p2_switches: int = 0) -> SimulationSummary:
+             p2_switches: int = 0, replanned: int = 0) -> SimulationSummary:
     episodes = len(outcomes)
     completed = int((outcomes == GOAL).sum())
     return SimulationSummary(
@@ -157,7 +160,7 @@ def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
         truncated=int((outcomes == TRUNCATED).sum()), rate=completed / episodes,
         ci95=wilson_interval(completed, episodes, 0.95), horizon=horizon, seed=seed,
         seconds=seconds, lengths=lengths, outcomes=outcomes, off_record_steps=off_record_steps,
-        p2_switched=p2_switched, p2_switches=p2_switches)
+        p2_switched=p2_switched, p2_switches=p2_switches, replanned=replanned)
 
 
 def _check_run(episodes: int, horizon: int) -> None:
@@ -212,6 +215,32 @@ def leader_fallback(analysis) -> Fallback:
         return int(np.argmax(q_values[ts_state * n_q + q, :, a2]))
 
     return fallback
+
+
+class LeaderStrategy:
+    """P1's leader-game strategy on (v, q) (docs/semantics.md §14's "leader" fallback): P1 assumes
+    P2 knows its task and plays the leader game's trap set pi2_lead(v, q); P1 answers with its
+    fastest optimal move of that game (the leader baseline's P1, docs/semantics.md §7)."""
+
+    def __init__(self, analysis) -> None:
+        from hg2prism.opponent.perceptual_games import fastest_answers
+
+        self.n_q = analysis.task.n_states
+        self.answers = fastest_answers(analysis.ts, analysis.task, analysis.leader).tolist()
+
+    def action(self, ts_state: int, q: int, memory: Memory) -> int:
+        return self.answers[ts_state * self.n_q + q]
+
+
+@dataclass(frozen=True)
+class Replanning:
+    """Re-planning (docs/semantics.md §14): P1 runs the mismatch detector of docs/semantics.md §9
+    on its own augmented states and, from the step after its first rejection to the end of the
+    episode, plays `fallback` (any object with ``action(ts_state, q, memory)``) instead."""
+
+    fallback: object
+    alpha: float
+    epsilon: float
 
 
 # ---------------------------------------------------------------------------------------------
@@ -337,7 +366,7 @@ class _Chain:
         P2's memory records the set she played; P1's model of it records the set it predicts
         when P2 is deterministic (docs/semantics.md §9) and, when she draws her hypothesis, the
         set she played (any set of the mixture is consistent with the model)."""
-        key = (i, a2)
+        key = (i, a1, a2)
         move = self.moves.get(key)
         if move is None:
             v, q, m1, m2 = self.nodes[i]
@@ -368,7 +397,9 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                        p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
                        p2_inference: Observer | None = None,
-                       label: str = "simulate deceptive") -> SimulationSummary:
+                       label: str = "simulate deceptive",
+                       replanning: Replanning | None = None,
+                       episode_streams: bool = False) -> SimulationSummary:
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
     `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
@@ -380,6 +411,12 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     `p2_inference` runs P2's real inference with another model than P1's (analysis.inference);
     P1 still tracks its own model's memory to choose actions and predict traps.
     `observer(StepRecord)` is called once per transition; `label` names the progress bar.
+    With `replanning`, P1 switches to its fallback after the detector's first rejection
+    (SimulationSummary.replanned counts the episodes that switched).
+    With `episode_streams` episode e draws its random numbers from its own generator,
+    ``default_rng([seed, e])``, instead of one stream for the batch: two runs that differ in
+    P1's play (re-planning or not) then play every episode identically up to where P1's moves
+    differ, and episodes after it are not shifted (common random numbers).
     """
     _check_run(episodes, horizon)
     start_time = time.perf_counter()
@@ -406,16 +443,37 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     off_record_steps = 0
     p2_hypothesis = chain.p2_hypothesis
     p2_switched = p2_switches = 0
+    if replanning is not None:
+        from hg2prism.analyses.detection import MismatchDetector
+
+        fallback_a1: dict[int, int] = {}
+        fallback_recorded = getattr(replanning.fallback, "table", None)
+    replanned = 0
     for episode in range(episodes):
+        if episode_streams:
+            rng = np.random.default_rng([seed, episode])
+            uniforms = _Uniforms(rng)
         node = root
         steps = 0
         switches = 0
         outcome = status[node]
+        detector = (MismatchDetector(replanning.alpha, replanning.epsilon)
+                    if replanning is not None else None)
+        switched = False
         while outcome < 0 and steps < horizon:
             steps += 1
             a1 = a1_of[node]
             v, q, m1, m2 = nodes[node]
-            if a1 < 0:
+            if switched:
+                a1 = fallback_a1.get(node, -1)
+                if a1 < 0:
+                    try:
+                        a1 = fallback_a1[node] = int(replanning.fallback.action(v, q, m1))
+                    except StrategyError as err:
+                        raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+                if fallback_recorded is not None and (v, q, m1) not in fallback_recorded:
+                    off_record_steps += 1
+            elif a1 < 0:
                 try:
                     a1 = int(strategy.action(v, q, m1))
                 except StrategyError as err:
@@ -423,7 +481,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                 a1_of[node] = a1
                 if recorded is not None and (v, q, m1) not in recorded:
                     off_record.add(node)
-            if off_record and node in off_record:
+            if not switched and off_record and node in off_record:
                 off_record_steps += 1
             predicted = trap_choice[p1_model.hypothesis(m1)][v]
             drawn = p2_model.hypothesis_distribution(m2)
@@ -462,6 +520,10 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                                     prediction=tuple(sorted(mixture.items()))))
             if p2_hypothesis[nxt] != p2_hypothesis[node]:
                 switches += 1
+            if detector is not None and not switched:
+                if detector.observe((v, q, m1), predicted, a2, n_allowed[v]).rejected:
+                    switched = True
+                    replanned += 1
             node = nxt
             outcome = status[node]
         outcomes[episode] = TRUNCATED if outcome < 0 else outcome
@@ -472,7 +534,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     seconds = time.perf_counter() - start_time
     bar.close(seconds)
     return _summary(outcomes, lengths, horizon, seed, seconds, off_record_steps,
-                    p2_switched, p2_switches)
+                    p2_switched, p2_switches, replanned)
 
 
 # ---------------------------------------------------------------------------------------------

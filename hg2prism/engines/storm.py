@@ -211,13 +211,8 @@ def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA
                   ) -> DecodedStates:
     """Storm's states as hypergame states. When the layout has no `hyp` variable, P2's
     hypothesis is derived from each state's window by `window_hypotheses`."""
-    valuations = model.state_valuations
-    variables = {v.name: v for v in valuations.get_all_variables()}
-
     def column(name: str) -> np.ndarray:
-        if name not in variables:
-            return np.zeros(model.nr_states, dtype=np.int64)
-        return np.asarray(valuations.get_int64_values(variables[name]), dtype=np.int64)
+        return state_variable(model, name)
 
     cell = column("cell")
     label = np.append(ts.cell_label, 0)[cell]
@@ -242,6 +237,21 @@ def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA
     return DecodedStates(cell=cell, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
                          window=window, goal=goal, fail=fail, canonical=canonical,
                          n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
+
+
+def state_variable(model: object, name: str) -> np.ndarray:
+    """The value of an integer PRISM variable in every Storm state (0 where the model has none)."""
+    valuations = model.state_valuations
+    variables = {v.name: v for v in valuations.get_all_variables()}
+    if name not in variables:
+        return np.zeros(model.nr_states, dtype=np.int64)
+    return np.asarray(valuations.get_int64_values(variables[name]), dtype=np.int64)
+
+
+def row_keys(rows: np.ndarray) -> np.ndarray:
+    """One integer per row of `rows`, equal exactly when the rows are equal, numbered 0..n-1
+    in key order: how canonical states are numbered."""
+    return _dense_ids(_row_keys(rows))
 
 
 def _row_keys(rows: np.ndarray) -> np.ndarray:
@@ -285,11 +295,14 @@ class Transitions:
     action: np.ndarray
     row_start: np.ndarray      # successors of choice i: target[row_start[i]:row_start[i+1]]
     target: np.ndarray
-    probability: np.ndarray
+    probability: np.ndarray    # of an interval model: the lower bounds
     labels: dict[str, np.ndarray]   # state labels as boolean masks
+    upper: np.ndarray | None = None   # of an interval model: the upper bounds
 
 
-_STRUCTURES: dict[int, Transitions] = {}
+# The last model read and its structure. The model is kept so that its id cannot be reused by
+# another model while the entry exists (models of two deviation budgets have the same shape).
+_STRUCTURES: dict[int, tuple[object, Transitions]] = {}
 
 
 def read_structure(model: object) -> Transitions:
@@ -300,8 +313,8 @@ def read_structure(model: object) -> Transitions:
     UMB export (flat little-endian arrays in a tar file) once and is read back with numpy.
     """
     key = id(model)
-    if key in _STRUCTURES and _STRUCTURES[key].source.size == model.nr_choices:
-        return _STRUCTURES[key]
+    if key in _STRUCTURES and _STRUCTURES[key][0] is model:
+        return _STRUCTURES[key][1]
     options = developer.storage.UmbExportOptions()
     options.compression = type(options.compression).NO_COMPRESSION
     with tempfile.TemporaryDirectory(prefix="hg2prism-umb-") as folder:
@@ -315,11 +328,15 @@ def read_structure(model: object) -> Transitions:
             row_start = array("choice-to-branches.bin", np.uint64).astype(np.int64)
             target = array("branch-to-target.bin", np.uint64).astype(np.int64)
             probability = array("branch-to-probability.bin", np.float64).copy()
+            index = json.loads(tar.extractfile("index.json").read())
+            kind = index["transition-system"].get("branch-probability-type", {}).get("type")
+            upper = None
+            if kind == "double-interval":     # (lower, upper) pairs
+                probability, upper = probability[0::2].copy(), probability[1::2].copy()
             action_ids = array("actions/choices/values.bin", np.uint32).astype(np.int64)
             offsets = array("actions/choices/string-mapping.bin", np.uint64).astype(np.int64)
             text = tar.extractfile("actions/choices/strings.bin").read().decode()
             names = [text[offsets[i]:offsets[i + 1]] for i in range(len(offsets) - 1)]
-            index = json.loads(tar.extractfile("index.json").read())
             labels = {}
             for key_name, ap in index.get("annotations", {}).get("aps", {}).items():
                 label = ap.get("alias", key_name)
@@ -331,9 +348,9 @@ def read_structure(model: object) -> Transitions:
     structure = Transitions(
         source=np.repeat(np.arange(model.nr_states), np.diff(state_choices)),
         action=action_index[action_ids], row_start=row_start, target=target,
-        probability=probability, labels=labels)
+        probability=probability, labels=labels, upper=upper)
     _STRUCTURES.clear()
-    _STRUCTURES[key] = structure
+    _STRUCTURES[key] = (model, structure)
     return structure
 
 
@@ -393,3 +410,52 @@ def induced_within(checked: CheckedModel, strategy: StormChoices, horizon: int) 
         if bound == horizon or value >= unbounded - CONVERGED:
             return value
         bound = min(2 * bound, horizon)
+
+
+# ---------------------------------------------------------------------------------------------
+# Interval models (docs/semantics.md §13)
+# ---------------------------------------------------------------------------------------------
+
+def build_interval_model(prism_path: Path) -> tuple[object, dict[str, float]]:
+    """Storm's interval MDP of a PRISM model with interval probabilities, with choice labels,
+    state valuations and every label; and the parse and build times."""
+    timings = {}
+    try:
+        start = time.perf_counter()
+        program = stormpy.parse_prism_program(str(prism_path))
+        timings["parse"] = time.perf_counter() - start
+        start = time.perf_counter()
+        options = developer.BuilderOptions([])
+        options.set_build_choice_labels(True)
+        options.set_build_state_valuations(True)
+        options.set_build_all_labels(True)
+        model = stormpy.build_model[stormpy.Interval](program, options=options)
+        timings["build"] = time.perf_counter() - start
+    except RuntimeError as err:
+        raise StormError(f"{prism_path}: {err}") from err
+    return model, timings
+
+
+def check_robust(prism_path: Path, prop: str) -> float:
+    """Storm's robust mode on an interval model: the property's value at the initial state, P1
+    optimising as `prop` says and the intervals resolved against it. Storm needs every lower
+    bound positive, and its robust value iteration is not sound: it stops when an iteration
+    changes the values by less than 1e-10 (absolute). A cross-check, not a certified value."""
+    try:
+        model, _ = build_interval_model(prism_path)
+        formula = stormpy.parse_properties(prop)[0]
+        env = developer.Environment()
+        env.solver().min_max().precision = stormpy.Rational(PRECISION)
+        env.solver().min_max().relative_termination_criterion = False
+        # Storm warns that it falls back to robust value iteration, its only method here
+        level = developer.get_log_level()
+        developer.set_log_level(developer.LogLevel.ERR)
+        try:
+            result = stormpy.model_checking(
+                model, formula, environment=env,
+                uncertainty_resolution_mode=stormpy.UncertaintyResolutionMode.ROBUST)
+        finally:
+            developer.set_log_level(level)
+    except RuntimeError as err:
+        raise StormError(f"{prism_path}: {err}") from err
+    return float(result.get_value_vector()[model.initial_states[0]])

@@ -12,6 +12,10 @@ model and feeds P1's likelihood-ratio detector (:mod:`hg2prism.analyses.detectio
     :func:`hg2prism.analyses.simulation.leader_fallback` on states they do not cover, counted
     as ``off_record_steps``); the detector compares P2's traps with P1's prediction.
 
+(e) with a fallback (``--fallback robust|leader``, docs/semantics.md §14): the deviation and the
+    compliant batches again, same seed and episodes, with P1 switching to the fallback after
+    its detector's first rejection: the completion rate with and without re-planning.
+
 Writes ``OUT/detection.json`` and ``OUT/detection.{png,svg}``.
 """
 
@@ -28,14 +32,14 @@ from hg2prism import progress
 from hg2prism.outputs import write_json
 
 if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
-    from hg2prism.analyses.simulation import P2Policy, SimulationSummary, StepRecord
+    from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
     from hg2prism.strategy.records import Strategy
     from hg2prism.opponent.inference import InferenceModel
     from hg2prism.opponent.observer import Observer
     from hg2prism.pipeline import Analysis, CheckResult
 
 __all__ = ["DetectionBatch", "detection_batch", "detection_experiment", "detect",
-           "detection_summary_lines"]
+           "detection_summary_lines", "FALLBACKS", "DEFAULT_FALLBACK_DELTA", "parse_fallback"]
 
 # The seeded episode of the detection picture lasts more than deviate_after + this many steps.
 STEPS_AFTER_DEVIATION = 3
@@ -43,6 +47,32 @@ SEED_SEARCH = 1000
 MAX_DETECTION_EPISODES = 2000
 
 _CLI = "command line"
+FALLBACKS = ("robust", "leader")
+DEFAULT_FALLBACK_DELTA = 0.1
+
+
+def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | None, float | None]:
+    """The re-planning fallback and, for "robust", its deviation budget (default
+    DEFAULT_FALLBACK_DELTA); InputError (key --fallback or --fallback-delta)."""
+    if fallback is None:
+        if delta is not None:
+            raise InputError(_CLI, "--fallback-delta", "needs --fallback robust")
+        return None, None
+    if fallback not in FALLBACKS:
+        raise InputError(_CLI, "--fallback", f"{fallback!r} is not one of {', '.join(FALLBACKS)}")
+    if fallback == "leader":
+        if delta is not None:
+            raise InputError(_CLI, "--fallback-delta", "only the robust fallback has a budget")
+        return fallback, None
+    if delta is None:
+        return fallback, DEFAULT_FALLBACK_DELTA
+    from hg2prism.experiments.robust import parse_deltas
+
+    try:
+        (parsed,) = parse_deltas([delta])
+    except InputError as err:
+        raise InputError(_CLI, "--fallback-delta", err.reason) from None
+    return fallback, parsed
 
 
 # ---------------------------------------------------------------------------------------------
@@ -116,7 +146,8 @@ class DetectionBatch:
 def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horizon: int,
                     seed: int, alpha: float, epsilon: float, p2_policy: P2Policy | None = None,
                     p2_inference: Observer | None = None, keep_steps: bool = False,
-                    progress: bool = False, track_scores: bool = False
+                    progress: bool = False, track_scores: bool = False,
+                    replanning: Replanning | None = None
                     ) -> tuple[SimulationSummary, DetectionBatch]:
     """Simulate `episodes` deceptive episodes with P1's detector running in each.
     Returns (SimulationSummary, DetectionBatch). With `track_scores` the batch records the
@@ -128,7 +159,8 @@ def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horiz
                            scores_of=analysis.inference if track_scores and cusum else None,
                            draws=getattr(analysis.inference, "decision", "map") == "sample")
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, p2_policy=p2_policy,
-                                 observer=batch, progress=progress, p2_inference=p2_inference)
+                                 observer=batch, progress=progress, p2_inference=p2_inference,
+                                 replanning=replanning)
     return summary, batch
 
 
@@ -187,13 +219,38 @@ def _check_positive(value: int | None, key: str, minimum: int) -> None:
         raise InputError(_CLI, key, f"must be an integer >= {minimum}, got {value!r}")
 
 
+def _replanning_rates(summary: SimulationSummary) -> dict:
+    return {**_completion(summary), "detected_episodes": summary.replanned}
+
+
+def _fallback_strategy(world: World, check_result: CheckResult, fallback: str,
+                       delta: float | None) -> object:
+    """P1's strategy after a detected mismatch (docs/semantics.md §14)."""
+    import json
+    import tempfile
+
+    from hg2prism.analyses.simulation import LeaderStrategy, leader_fallback
+    from hg2prism.experiments.robust import robust_strategy_for
+    from hg2prism.strategy.records import Strategy
+
+    analysis = check_result.analysis
+    if fallback == "leader":
+        return LeaderStrategy(analysis)
+    with tempfile.TemporaryDirectory(prefix="hg2prism-fallback-") as scratch:
+        records = json.loads(robust_strategy_for(world, check_result, delta, Path(scratch)))
+    return Strategy.from_records(records, analysis.ts, fallback=leader_fallback(analysis))
+
+
 def detection_experiment(world: World, check_result: CheckResult, out: Path, episodes: int | None = None,
                          seed: int | None = None, show_progress: bool = True,
-                         horizon: int | None = None) -> dict:
+                         horizon: int | None = None, fallback: str | None = None,
+                         fallback_delta: float | None = None) -> dict:
     """docs/semantics.md §9's experiment and the other mismatch (see the module docstring).
 
     `check_result` is pipeline.check(world, ...). `episodes` defaults to
     min(world.simulation.episodes, 2000) per batch, `seed` and `horizon` to the world's.
+    With `fallback` ("robust", with budget `fallback_delta`, or "leader") the deviation and
+    compliant batches are run again with re-planning (docs/semantics.md §14).
     Writes out/detection.json and out/detection.{png,svg} and returns the JSON's content.
     """
     from hg2prism.report import plots
@@ -205,6 +262,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     _check_positive(episodes, "--episodes", 1)
     _check_positive(seed, "--seed", 0)
     _check_positive(horizon, "--horizon", 1)
+    fallback, fallback_delta = parse_fallback(fallback, fallback_delta)
     out = Path(out)
     start_time = time.perf_counter()
     settings = world.detection
@@ -253,9 +311,6 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         "detected_at": detected_at,
         "per_step": per_step,
     }
-    plots.detection_figure([s.statistic for s in steps], [s.threshold for s in steps],
-                           deviate_after, detected_at, out / "detection.png",
-                           world_name=world.name, seed=chosen)
     say(f"detection: seeded episode (seed {chosen}, {seeded['steps']} steps): "
         + (f"mismatch detected at step {detected_at}" if detected_at is not None
            else "mismatch not detected"))
@@ -328,6 +383,42 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
             "completion_change": summary_d.rate - reference_rate,
         })
 
+    # (e) re-planning: the same batches, P1 switching to the fallback at the first rejection
+    replanning = None
+    if fallback is not None:
+        from hg2prism.analyses.simulation import Replanning
+
+        shown = f"{fallback} (delta {fallback_delta:g})" if fallback == "robust" else fallback
+        say(f"detection: re-planning with the {shown} fallback")
+        plan = Replanning(_fallback_strategy(world, check_result, fallback, fallback_delta),
+                          alpha, epsilon)
+        from hg2prism.analyses.simulation import simulate_deceptive
+
+        def paired(p2_policy: P2Policy | None, plan: Replanning | None) -> SimulationSummary:
+            return simulate_deceptive(analysis, strategy, episodes, horizon, seed,
+                                      p2_policy=p2_policy, progress=show_progress,
+                                      replanning=plan, episode_streams=True)
+
+        # "without": the deceptive strategy as its own fallback, so that the detections are
+        # counted while P1's play is that of no re-planning
+        same = Replanning(strategy, alpha, epsilon)
+        without_b, with_b = paired(deviating, same), paired(deviating, plan)
+        without_c, with_c = paired(None, same), paired(None, plan)
+        replanning = {
+            "fallback": fallback,
+            "delta": fallback_delta,
+            "random_numbers": ("each episode its own stream, numpy default_rng([seed, "
+                               "episode]), in both runs: an episode is played identically with "
+                               "and without re-planning up to P1's switch"),
+            "deviation": {"without": _replanning_rates(without_b),
+                          "with": _replanning_rates(with_b)},
+            "compliant": {"without": _replanning_rates(without_c),
+                          "with": _replanning_rates(with_c)},
+        }
+    plots.detection_figure([s.statistic for s in steps], [s.threshold for s in steps],
+                           deviate_after, detected_at, out / "detection.png",
+                           world_name=world.name, seed=chosen, replanning=replanning)
+
     result = {
         "world": world.name,
         "world_file": str(world.path),
@@ -360,6 +451,8 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         },
         "seconds": round(time.perf_counter() - start_time, 3),
     }
+    if replanning is not None:
+        result["replanning"] = replanning
     write_json(out / "detection.json", result)
     return result
 
@@ -393,7 +486,8 @@ def _mismatch_variants(world: World, max_score: float) -> list[tuple[str, int, o
 
 def detect(world: World, out: Path, episodes: int | None = None, seed: int | None = None,
            horizon: int | None = None, show_progress: bool = True,
-           storm_method: str = "sound") -> dict:
+           storm_method: str = "sound", fallback: str | None = None,
+           fallback_delta: float | None = None) -> dict:
     """pipeline.check in a temporary folder (so that OUT/results.json of `hg2prism run` is not
     overwritten), then :func:`detection_experiment` into `out`."""
     import tempfile
@@ -403,11 +497,13 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
     _check_positive(episodes, "--episodes", 1)
     _check_positive(seed, "--seed", 0)
     _check_positive(horizon, "--horizon", 1)
+    parse_fallback(fallback, fallback_delta)
     with tempfile.TemporaryDirectory(prefix="hg2prism-detect-") as scratch:
         quiet = contextlib.nullcontext() if show_progress else progress.quiet()
         with quiet:
             checked = pipeline.check(world, Path(scratch), storm_method)
-        return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon)
+        return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon,
+                                    fallback, fallback_delta)
 
 
 def _setting(threshold: float | None, decision: str | None) -> str:
@@ -468,6 +564,24 @@ def detection_summary_lines(result: dict) -> list[str]:
                      f"| {given_text} | {_step(v['mean_detection_step'])} "
                      f"| {_rate(v['completion'])} | {v['completion_change']:+.4f} "
                      f"| {v['completion']['off_record_steps']} |")
+    replanning = result.get("replanning")
+    if replanning is not None:
+        shown = (f"the robust strategy (delta {replanning['delta']:g})"
+                 if replanning["fallback"] == "robust" else "the leader-game strategy")
+        lines += [
+            "",
+            f"Re-planning: at the detector's first rejection P1 switches to {shown} "
+            "(same seed, same episodes):",
+            "",
+            "| P2 | completion without re-planning (95% CI) | with re-planning (95% CI) "
+            "| change | episodes in which the detector fired |",
+            "|---|---|---|---|---|",
+        ]
+        for batch, name in (("deviation", f"deviates after step {k}"), ("compliant", "follows the model")):
+            without, with_ = replanning[batch]["without"], replanning[batch]["with"]
+            lines.append(f"| {name} | {_rate(without)} | {_rate(with_)} "
+                         f"| {with_['rate'] - without['rate']:+.4f} "
+                         f"| {with_['detected_episodes']} / {with_['episodes']} |")
     lines.append("")
     if result["p1_model"].get("inference") == "bayes":
         lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "

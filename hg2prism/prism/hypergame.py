@@ -72,6 +72,24 @@ def cell_map(world: World, ts: TransitionSystem) -> list[str]:
 
 def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
                 inference: Observer) -> PrismModel:
+    context = template_context(world, ts, task, games, inference)
+    model_text = render_template("hypergame.prism.j2", **context)
+    properties = render_template("hypergame.props.j2", property=PROPERTY, world=world)
+    commands = count_commands(model_text)
+    return PrismModel(text=model_text, properties=properties,
+                      layout=Layout(slots=context["observer"].slots, delay=ts.delay,
+                                    slot_sets=context["observer"].slot_sets,
+                                    hypothesis_variable=context["observer"].hypothesis_variable),
+                      commands=commands)
+
+
+def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
+                     inference: Observer, trap_key: str = "trap_set",
+                     observer_labels: dict[str, str] = ACTION_LABELS) -> dict:
+    """What the hypergame template (and the robust one, docs/semantics.md §13) is rendered
+    with: the world's tables, P2's trap policy, the observer's part. `trap_key` is the
+    expression whose trap set traps the robot (`trap_cell_j` looks it up); `observer_labels`
+    the labels the observer's module synchronises on."""
     n_cells, n_sets = ts.n_cells, ts.n_sets
     trapped = n_cells
     cell_key = [("cell", 0)]
@@ -91,32 +109,23 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
         trap_keys = [("cell", 0)]
         shape = (n_cells,)
     trap_tables = [lookup(g.trap_choice[:-1].reshape(shape), trap_keys) for g in games]
-    observer = inference.prism(ts, ACTION_LABELS)
+    observer = inference.prism(ts, observer_labels)
     # The trap set in force: P2's choice under her current hypothesis (while she may move them).
     by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
                           f"trap_choice_x{len(games) - 1}")
     trap_set = f"countdown>0 ? traps : ({by_hypothesis})" if ts.delay else by_hypothesis
-
-    model_text = render_template(
-        "hypergame.prism.j2",
+    return dict(
         version=__version__, world=world, ts=ts, task=task, games=games, inference=inference,
         actions=ACTIONS, labels=ACTION_LABELS, cell_map=cell_map(world, ts), trapped=trapped,
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
         trap_tables=trap_tables, trap_set=trap_set, observer=observer,
-        robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts),
+        robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts, trap_key),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
         start_traps=ts.decode(ts.start_state)[1], slip=prism_number(world.slip),
         region_labels=region_labels(ts),
         set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(n_sets)],
         fmt=prism_number,
     )
-    properties = render_template("hypergame.props.j2", property=PROPERTY, world=world)
-    commands = _count_commands(model_text)
-    return PrismModel(text=model_text, properties=properties,
-                      layout=Layout(slots=observer.slots, delay=ts.delay,
-                                    slot_sets=observer.slot_sets,
-                                    hypothesis_variable=observer.hypothesis_variable),
-                      commands=commands)
 
 
 def _robot_outcomes(ts: TransitionSystem) -> list[dict]:
@@ -130,16 +139,16 @@ def _robot_outcomes(ts: TransitionSystem) -> list[dict]:
     return commands
 
 
-def _trap_cell_tables(ts: TransitionSystem) -> list[str]:
+def _trap_cell_tables(ts: TransitionSystem, trap_key: str = "trap_set") -> list[str]:
     """trap_cell_j: the j-th cell of the trap set in force, as a table over `trap_set`. One
     robot command per move then serves every trap set, which halves Storm's build time against
     one command per (move, trap set)."""
     members = np.array([sorted(ts.candidates[c] for c in members) for members in ts.trap_sets],
                        dtype=np.int64).reshape(ts.n_sets, -1)
-    return [lookup(members[:, j], [("trap_set", 0)]) for j in range(members.shape[1])]
+    return [lookup(members[:, j], [(trap_key, 0)]) for j in range(members.shape[1])]
 
 
-def _count_commands(text: str) -> dict[str, int]:
+def count_commands(text: str) -> dict[str, int]:
     counts: dict[str, int] = {}
     module = None
     for line in text.splitlines():

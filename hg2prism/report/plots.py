@@ -23,7 +23,7 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_figure_inches", "world_figure",
            "belief_figure", "completion_figure", "sweep_figure",
-           "detection_figure", "scaling_figure", "SWEEP_INCHES", "DETECTION_INCHES",
+           "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
            "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS", "CELL_STYLE",
            "draw_grid", "draw_move", "LOG_PARAMETERS"]
 
@@ -31,6 +31,8 @@ FIGURE_DPI = 150
 FIGURE_FORMATS = ("png", "svg")
 SWEEP_INCHES = (6.4, 4.4)
 DETECTION_INCHES = (10.0, 4.2)
+DETECTION_REPLANNING_INCHES = (14.0, 4.2)
+ROBUST_INCHES = (6.4, 4.8)
 COMPLETION_INCHES = (6.4, 4.4)
 BELIEF_INCHES = (8.0, 3.8)
 WORLD_CELL_INCHES = 0.85     # one grid cell
@@ -393,12 +395,20 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
 
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
                      deviate_after: int, detected_at: int | None, path: Path,
-                     world_name: str | None = None, seed: int | None = None) -> list[Path]:
+                     world_name: str | None = None, seed: int | None = None,
+                     replanning: dict | None = None) -> list[Path]:
     """The likelihood-ratio statistic G per step against the chi-square threshold: the whole
     episode on the left, and on the right the steps around the detection (DETECTION_ZOOM either
-    side; around the deviation when nothing was detected)."""
-    fig = plt.figure(figsize=DETECTION_INCHES, layout="constrained")
-    full, zoom = fig.subplots(1, 2, width_ratios=(1.5, 1))
+    side; around the deviation when nothing was detected). With `replanning` (detection.json's
+    section, docs/semantics.md §14) a third panel: completion with and without re-planning in
+    the deviation and compliant batches, with their 95% Wilson intervals."""
+    if replanning is None:
+        fig = plt.figure(figsize=DETECTION_INCHES, layout="constrained")
+        full, zoom = fig.subplots(1, 2, width_ratios=(1.5, 1))
+    else:
+        fig = plt.figure(figsize=DETECTION_REPLANNING_INCHES, layout="constrained")
+        full, zoom, bars = fig.subplots(1, 3, width_ratios=(1.5, 1, 1.2))
+        _replanning_panel(bars, replanning)
     steps = np.arange(1, len(statistics) + 1)
     limits = np.array([t if t is not None else np.nan for t in thresholds], dtype=float)
     centre = detected_at if detected_at is not None else deviate_after
@@ -432,6 +442,28 @@ def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | N
     return _save(fig, path)
 
 
+def _replanning_panel(bars: plt.Axes, replanning: dict) -> None:
+    shown = (f"robust, δ = {replanning['delta']:g}" if replanning["fallback"] == "robust"
+             else "leader-game strategy")
+    batches = (("deviation", "P2 deviates"), ("compliant", "P2 follows the model"))
+    for offset, (key, label, colour) in enumerate((("without", "without re-planning", "tab:blue"),
+                                                   ("with", f"re-planning ({shown})", "tab:green"))):
+        xs = [i + (offset - 0.5) * 0.36 for i in range(len(batches))]
+        rates = [replanning[b][key]["rate"] for b, _ in batches]
+        low = [r - replanning[b][key]["ci95"][0] for r, (b, _) in zip(rates, batches)]
+        high = [replanning[b][key]["ci95"][1] - r for r, (b, _) in zip(rates, batches)]
+        bars.bar(xs, rates, width=0.34, color=colour, label=label, yerr=[low, high], capsize=4)
+        for x, r in zip(xs, rates):
+            bars.text(x, r / 2, f"{r:.3f}", ha="center", va="center", fontsize=7, color="white")
+    bars.set_xticks(range(len(batches)), [name for _, name in batches], fontsize=7)
+    bars.set_ylabel("completion rate (95% Wilson interval)", fontsize=8)
+    bars.set_ylim(0, 1.15)
+    bars.grid(alpha=0.3, axis="y")
+    bars.tick_params(labelsize=7)
+    bars.legend(fontsize=7, loc="upper center")
+    bars.set_title("re-planning after the first rejection", fontsize=8)
+
+
 SCALING_INCHES = (8.5, 4.8)
 
 
@@ -456,4 +488,30 @@ def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
     ax.set_title(title or "hg2prism: time per stage against hypergame size", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    return _save(fig, path)
+
+
+def robust_figure(result: dict, path: Path) -> list[Path]:
+    """Robust deception (docs/semantics.md §13) against the deviation budget: R_delta, what the
+    deceptive strategy guarantees under the same budget, and the nominal references."""
+    rows = sorted(result["rows"], key=lambda row: row["delta"])
+    deltas = [row["delta"] for row in rows]
+    fig = plt.figure(figsize=ROBUST_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    ax.plot(deltas, [row["robust_value"] for row in rows], "o-",
+            label="robust value $R_\\delta$ (robust strategy, worst case)")
+    ax.plot(deltas, [row["nominal_worst_case"] for row in rows], "s--",
+            label="deceptive strategy, worst case")
+    ax.plot(deltas, [row["robust_strategy_nominal_value"] for row in rows], "^:", alpha=0.8,
+            label="robust strategy when P2 does not deviate")
+    ax.axhline(result["deceptive_value"], color="grey", lw=0.8, ls="-.",
+               label=f"deceptive value {result['deceptive_value']:.4f}")
+    ax.axhline(result["v_lead"], color="grey", lw=0.8, ls=":",
+               label=f"V_lead (P2 knows the task) {result['v_lead']:.4f}")
+    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted trap set with probability ≤ δ)")
+    ax.set_ylabel("P1's completion probability")
+    ax.set_xticks(deltas)
+    ax.set_title(f"{result['world']}: robust deception", fontsize=9)
+    ax.grid(alpha=0.3)
+    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
     return _save(fig, path)

@@ -103,7 +103,7 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     # Best choice per Storm state's row group (representatives' choices; others copy them).
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
-    best_of_state = _argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
+    best_of_state = argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
     chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
     return storm_choices(decoded, moves, representative, moves.action[chosen_rep])
 
@@ -114,7 +114,7 @@ def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np
     value in absorbing states): every Storm state takes the move its canonical state takes."""
     wanted = action[decoded.canonical]
     match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
-    choice = _argmax_by_group(np.where(match, 1.0, 0.0), moves.source, len(decoded.canonical))
+    choice = argmax_by_group(np.where(match, 1.0, 0.0), moves.source, len(decoded.canonical))
     return StormChoices(representative=representative, choice=choice)
 
 
@@ -124,7 +124,7 @@ def canonical_actions(choices: StormChoices, moves: Transitions) -> np.ndarray:
     return moves.action[choices.choice[choices.representative]]
 
 
-def _argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
+def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
                      relative_tie: float = 0.0) -> np.ndarray:
     """Index of the first score in each group within `relative_tie` (relative) of the group's
     maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a

@@ -1,0 +1,314 @@
+"""Robust deception (docs/semantics.md §13): `hg2prism robust WORLD --deltas ...`.
+
+For each deviation budget delta the world's interval model (hg2prism.prism.robust_model) is
+rendered into ``OUT/robust_<delta>/robust.prism`` (with ``robust.props``), built by Storm and
+solved exactly in numpy (hg2prism.strategy.robust). Per delta:
+
+- ``robust_value``: R_delta at the initial state;
+- ``nominal_worst_case``: what the deceptive strategy of docs/semantics.md §6 guarantees under the
+  same budget (its records, and where they have none — states only a deviation reaches — the
+  leader-game answer the simulations use, hg2prism.analyses.simulation.leader_fallback);
+- ``robust_strategy_nominal_value``: what the robust strategy completes when P2 does not deviate
+  (the deceptive value minus this is what robustness costs);
+- the robust strategy, ``OUT/robust_<delta>/strategy.json`` (the format of strategy.json);
+- cross-checks: Storm's robust mode and the same numpy solver on the model whose deviations
+  have probability at least eps = 1e-9 (Storm needs positive lower bounds).
+
+Writes ``OUT/robust.json``, ``OUT/robust.csv``, ``OUT/robust.png`` and ``OUT/robust.svg``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import tempfile
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from hg2prism import progress
+from hg2prism.errors import InputError, probability
+from hg2prism.model.world import World
+from hg2prism.outputs import write_json, write_text
+
+__all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
+           "robust", "robust_summary_lines"]
+
+_CLI = "command line"
+WORST_CASE_TOLERANCE = 1e-9    # the exported strategy must guarantee R_delta within this
+_CSV_COLUMNS = ("robust_value", "nominal_worst_case", "robust_strategy_nominal_value", "states",
+                "storm_states", "storm_robust_value_eps", "seconds")
+
+
+def parse_deltas(values: Sequence[object]) -> list[float]:
+    """Distinct budgets in [0, 1), as typed on the command line; InputError (key --deltas)."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
+        raise InputError(_CLI, "--deltas", "expected at least one deviation budget in [0, 1)")
+    parsed: list[float] = []
+    for value in values:
+        try:
+            number = float(value) if not isinstance(value, bool) else math.nan
+        except (TypeError, ValueError):
+            number = math.nan
+        if not (math.isfinite(number) and 0.0 <= number < 1.0):
+            raise InputError(_CLI, "--deltas", f"{value!r} is not a deviation budget in [0, 1)")
+        if number in parsed:
+            raise InputError(_CLI, "--deltas", f"{value} is repeated; expected distinct budgets")
+        parsed.append(number)
+    return parsed
+
+
+@dataclass(frozen=True, eq=False)
+class RobustSolved:
+    """One budget solved: the values, and what exporting and re-checking the strategy needs."""
+
+    delta: float
+    robust_value: float
+    nominal_worst_case: float
+    robust_strategy_nominal_value: float
+    states: int                    # canonical hypergame states (goal and failure merged)
+    storm_states: int              # the interval model's states (intermediate ones included)
+    rounds: int
+    residual: float
+    records_json: str              # the robust strategy, strategy.json's text
+    storm_check: dict | None       # Storm's robust mode on the eps-model, and numpy on it
+
+
+def _nominal_game(game, action: np.ndarray):
+    """The interval game with P2 following the prediction: the intervals of P1's choices (those
+    with a move) become 1 for the predicted set (upper bound 1) and 0 for the others."""
+    from hg2prism.strategy.robust import IntervalGame
+
+    interval = action[game.branch_choice] >= 0
+    fixed = np.where(game.upper >= 1.0, 1.0, 0.0)
+    return IntervalGame(choice_start=game.choice_start, row_start=game.row_start,
+                        target=game.target, lower=np.where(interval, fixed, game.lower),
+                        upper=np.where(interval, fixed, game.upper), goal=game.goal,
+                        stop=game.stop, initial=game.initial, chance=game.chance)
+
+
+def _choice_with_action(game, action: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """The choice of each Storm state whose move is wanted[state] (-1: the state's first)."""
+    from hg2prism.strategy.deceptive import argmax_by_group
+
+    match = (action == wanted[game.choice_state]) & (action >= 0)
+    return argmax_by_group(np.where(match, 1.0, 0.0), game.choice_state, game.n_states)
+
+
+def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
+                 check_path: Path | None = None) -> RobustSolved:
+    """Solve the interval model at `prism_path` (rendered for `delta`). `deceptive` is the
+    deceptive Strategy (with its fallback); `check_path`, the same model rendered with eps > 0,
+    is checked by Storm's robust mode and by numpy (at delta = 0 the model itself is)."""
+    from hg2prism.engines import storm
+    from hg2prism.opponent.inference import Memory
+    from hg2prism.strategy.deceptive import StormChoices
+    from hg2prism.strategy.records import strategy_json
+    from hg2prism.strategy.robust import (IntervalGame, adversary_response, fastest_choices,
+                                          solve_robust)
+    from hg2prism.prism.robust_model import MOVE_VARIABLE, PLAYED_VARIABLE, STORM_PROPERTY
+
+    ts, task = analysis.ts, analysis.task
+    model, _ = storm.build_interval_model(prism_path)
+    moves = storm.read_structure(model)
+    decoded = storm.decode_states(model, layout, ts, task)
+    decides = storm.state_variable(model, MOVE_VARIABLE) == -1
+    game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial_states[0],
+                           chance=~decides)
+    solution = solve_robust(game)
+    value = probability(solution.value(game.initial), f"R_{delta} at the initial state")
+
+    # Canonical states: the hypergame state, and for intermediate states the move and set.
+    canonical = storm.row_keys(np.column_stack([
+        decoded.canonical, storm.state_variable(model, MOVE_VARIABLE),
+        storm.state_variable(model, PLAYED_VARIABLE)]))
+    n_canonical = int(canonical.max()) + 1
+    first = np.full(n_canonical, -1, dtype=np.int64)
+    first[canonical[::-1]] = np.arange(model.nr_states)[::-1]
+    representative = first[np.unique(canonical[decides])]
+    states = int(len(representative))
+
+    # The exported strategy: the fastest optimal move of each canonical state, for all copies.
+    chosen = fastest_choices(game, solution, decides, moves.action)
+    wanted = np.full(n_canonical, -1, dtype=np.int64)
+    wanted[canonical[representative]] = moves.action[chosen[representative]]
+    strategy = _choice_with_action(game, moves.action, wanted[canonical])
+    strategy = np.where(decides, strategy, game.choice_start[:-1])
+    guaranteed = adversary_response(game, strategy)[game.initial]
+    if guaranteed < value - WORST_CASE_TOLERANCE:
+        # the fastest rule lost optimality somewhere: export strategy iteration's own choices
+        progress.warn(f"delta {delta}: the fastest optimal moves guarantee {guaranteed:.10f} < "
+                      f"R = {value:.10f}; exporting strategy iteration's moves")
+        wanted[canonical[representative]] = moves.action[solution.strategy[representative]]
+        strategy = _choice_with_action(game, moves.action, wanted[canonical])
+        strategy = np.where(decides, strategy, game.choice_start[:-1])
+        guaranteed = adversary_response(game, strategy)[game.initial]
+        if guaranteed < value - WORST_CASE_TOLERANCE:
+            from hg2prism.errors import SolverError
+            raise SolverError(f"delta {delta}: the robust strategy guarantees {guaranteed} < {value}")
+    robust_nominal = adversary_response(_nominal_game(game, moves.action), strategy)[game.initial]
+    records_json = strategy_json(
+        replace(decoded, canonical=canonical, n_canonical=n_canonical),
+        StormChoices(representative=representative, choice=strategy), moves, ts)
+
+    # The deceptive strategy under the budget: its records, the leader answer elsewhere.
+    deceptive_wanted = np.full(n_canonical, -1, dtype=np.int64)
+    ts_state = ts.state(decoded.cell, decoded.traps, decoded.countdown)
+    for s in representative[~game.stop[representative]].tolist():
+        window = tuple((int(v), int(a)) for v, a in decoded.window[s].tolist() if v >= 0)
+        memory = Memory(int(decoded.hypothesis[s]), window)
+        deceptive_wanted[canonical[s]] = deceptive.action(int(ts_state[s]), int(decoded.q[s]), memory)
+    nominal = _choice_with_action(game, moves.action, deceptive_wanted[canonical])
+    nominal = np.where(decides, nominal, game.choice_start[:-1])
+    nominal_worst = adversary_response(game, nominal)[game.initial]
+
+    check = None
+    if check_path is not None:
+        storm_value = storm.check_robust(check_path, STORM_PROPERTY)
+        eps_model, _ = storm.build_interval_model(check_path)
+        eps_moves = storm.read_structure(eps_model)
+        eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
+                                   eps_model.initial_states[0],
+                                   chance=storm.state_variable(eps_model, MOVE_VARIABLE) >= 0)
+        numpy_value = solve_robust(eps_game).value(eps_game.initial)
+        check = {"storm_robust_value_eps": storm_value, "numpy_value_eps": numpy_value,
+                 "storm_minus_numpy": storm_value - numpy_value,
+                 "eps_minus_exact": numpy_value - value}
+    return RobustSolved(
+        delta=delta, robust_value=value,
+        nominal_worst_case=probability(nominal_worst, "the deceptive strategy's worst case"),
+        robust_strategy_nominal_value=probability(robust_nominal, "the robust strategy's value"),
+        states=states, storm_states=int(model.nr_states), rounds=solution.rounds,
+        residual=solution.residual, records_json=records_json, storm_check=check)
+
+
+def solve_budgets(world: World, check_result, deltas: Sequence[float], folder: Path,
+                  storm_check: bool = True) -> list[tuple[RobustSolved, float]]:
+    """Render and solve the interval model of every budget, each into
+    ``folder/robust_<delta>/`` (robust.prism, robust.props): (solution, seconds) per budget.
+    `check_result` is pipeline.check(world, ...). With `storm_check`, Storm's robust mode and
+    numpy check the model with eps > 0 too (RobustSolved.storm_check)."""
+    from hg2prism.analyses.simulation import leader_fallback
+    from hg2prism.prism.robust_model import (CHECK_EPS, build_robust_model, delta_text,
+                                             write_robust_model)
+    from hg2prism.strategy.records import Strategy
+
+    analysis = check_result.analysis
+    deceptive = Strategy.from_records(check_result.records, analysis.ts,
+                                      fallback=leader_fallback(analysis))
+    solved = []
+    with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch:
+        for delta in deltas:
+            start = time.perf_counter()
+            model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
+                                       analysis.inference, delta)
+            prism_path, _ = write_robust_model(model, Path(folder) / f"robust_{delta_text(delta)}")
+            check_path = None
+            if storm_check:
+                check_path = prism_path
+                if delta > 0 and analysis.ts.n_sets > 1:
+                    eps_model = build_robust_model(world, analysis.ts, analysis.task,
+                                                   analysis.games, analysis.inference, delta,
+                                                   CHECK_EPS)
+                    check_path, _ = write_robust_model(eps_model, Path(scratch) / f"eps_{delta}")
+            result = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
+                                  check_path)
+            solved.append((result, time.perf_counter() - start))
+    return solved
+
+
+def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> str:
+    """The robust strategy's records (strategy.json's text) for one budget; the model is
+    rendered below `folder`. `check_result` is pipeline.check(world, ...)."""
+    ((solved, _),) = solve_budgets(world, check_result, [delta], folder, storm_check=False)
+    return solved.records_json
+
+
+def robust(world: World, deltas: Sequence[object], out: Path, show_progress: bool = True,
+           check_result=None) -> dict:
+    """Solve the world for every budget; write the outputs (module docstring) into `out` and
+    return robust.json's content. `check_result` (pipeline.check of the world) is computed in a
+    scratch folder when not given."""
+    from hg2prism import pipeline
+    from hg2prism.prism.robust_model import CHECK_EPS, delta_text
+    from hg2prism.report import plots
+
+    parsed = parse_deltas(deltas)
+    out = Path(out)
+    start_all = time.perf_counter()
+
+    def say(message: str) -> None:
+        if show_progress:
+            progress.say(message)
+
+    if check_result is None:
+        with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch, progress.quiet():
+            check_result = pipeline.check(world, Path(scratch))
+    rows = []
+    for delta in parsed:
+        ((solved, seconds),) = solve_budgets(world, check_result, [delta], out)
+        write_text(out / f"robust_{delta_text(delta)}" / "strategy.json", solved.records_json)
+        rows.append({
+            "delta": delta,
+            "robust_value": solved.robust_value,
+            "nominal_worst_case": solved.nominal_worst_case,
+            "robust_strategy_nominal_value": solved.robust_strategy_nominal_value,
+            "states": solved.states,
+            "storm_states": solved.storm_states,
+            "strategy_iteration_rounds": solved.rounds,
+            "fixed_point_residual": solved.residual,
+            "storm_check": solved.storm_check,
+            "seconds": round(seconds, 3),
+        })
+        say(f"robust: delta {delta:g}: R = {solved.robust_value:.6f}, deceptive strategy's "
+            f"worst case {solved.nominal_worst_case:.6f}, {solved.states} states "
+            f"({seconds:.1f} s)")
+
+    result = {
+        "world": world.name,
+        "world_file": str(world.path),
+        "deceptive_value": check_result.results.deceptive_value,
+        "v_lead": check_result.results.v_lead,
+        "deltas": parsed,
+        "method": ("robust values solved exactly in numpy on Storm's build of the interval model "
+                   "(strategy iteration, adversary by policy iteration with sparse solves, "
+                   "fixed point certified to 1e-10); storm_check: Storm's robust mode (not sound, "
+                   "absolute precision 1e-10) and the same numpy solver on the model whose "
+                   f"deviations have probability at least eps = {CHECK_EPS:g}"),
+        "storm_check_eps": CHECK_EPS,
+        "rows": rows,
+        "seconds": round(time.perf_counter() - start_all, 3),
+    }
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(("delta",) + _CSV_COLUMNS)
+    for row in rows:
+        check = row["storm_check"] or {}
+        values = {**row, "storm_robust_value_eps": check.get("storm_robust_value_eps", "")}
+        writer.writerow([repr(row["delta"])] + [repr(values[c]) if isinstance(values[c], float)
+                                                 else values[c] for c in _CSV_COLUMNS])
+    write_json(out / "robust.json", result)
+    write_text(out / "robust.csv", buffer.getvalue())
+    plots.robust_figure(result, out / "robust.png")
+    return result
+
+
+def robust_summary_lines(result: dict) -> list[str]:
+    """What `hg2prism robust` prints: the robustness curve as a Markdown table."""
+    lines = [
+        f"Robust deception in {result['world']} (deceptive value "
+        f"{result['deceptive_value']:.4f}, V_lead {result['v_lead']:.4f})",
+        "",
+        "| delta | robust value R_delta | deceptive strategy's worst case | robust strategy "
+        "when P2 does not deviate | hypergame states |",
+        "|---|---|---|---|---|",
+    ]
+    for row in result["rows"]:
+        lines.append(f"| {row['delta']:g} | {row['robust_value']:.4f} "
+                     f"| {row['nominal_worst_case']:.4f} "
+                     f"| {row['robust_strategy_nominal_value']:.4f} | {row['states']} |")
+    return lines

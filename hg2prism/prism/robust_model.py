@@ -1,0 +1,91 @@
+"""The robust hypergame of docs/semantics.md §13 as an interval MDP in the PRISM language.
+
+The hypergame MDP of docs/semantics.md §6 with P2's trap choice made uncertain: each step takes
+two transitions. P1's move leads to an intermediate state that records the move and the trap
+set played, with probability intervals [1-delta, 1] for the predicted set and [eps, delta] for
+every other set P2 may play (none where she has a single set); the robot then moves under the
+set played, and the task DFA, P2's standing traps and her inference advance as in the hypergame.
+P1 maximises, the resolution of the intervals minimises: PRISM's `Pmaxmin=? [F "goal"]`.
+
+The model of §13 has eps = 0. PRISM and Storm read it (Storm's interval builder, PRISM as an
+IMDP) but check interval models only when every lower bound is positive, so the cross-checks
+render it with eps > 0 (`eps` below): a slightly weaker adversary, a value at least R_delta.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from hg2prism.model.automata import DFA
+from hg2prism.model.dynamics import ACTION_LABELS, TransitionSystem
+from hg2prism.model.world import World
+from hg2prism.opponent.observer import Observer
+from hg2prism.opponent.perceptual_games import PerceptualGame
+from hg2prism.prism.hypergame import Layout, PrismModel, count_commands, template_context
+from hg2prism.prism.rendering import prism_number, render_template
+
+# PRISM's property: P1 maximises, the interval resolution (P2's deviation) minimises.
+PRISM_PROPERTY = 'Pmaxmin=? [F "goal"]'
+# Storm's: the same formula, checked with uncertainty resolution ROBUST (the adversary opposes P1).
+STORM_PROPERTY = 'Pmax=? [F "goal"]'
+# Labels of the second transition of a step (the robot moving under the trap set played); P1's
+# choices keep the hypergame's labels, so that decoding Storm's choices reads the same moves.
+STEP_LABELS = {a: f"step_{label}" for a, label in ACTION_LABELS.items()}
+# Smallest lower bound PRISM and Storm accept for a deviation (docs/semantics.md §13).
+CHECK_EPS = 1e-9
+# Names of the variables that tell an intermediate state (move >= 0) from one where P1 chooses.
+MOVE_VARIABLE, PLAYED_VARIABLE = "move", "played"
+
+
+@dataclass(frozen=True)
+class RobustModel:
+    """The interval model of one deviation budget."""
+
+    prism: PrismModel
+    delta: float
+    eps: float
+
+
+def delta_text(delta: float) -> str:
+    """How a budget is written in file and folder names: 0, 0.02, 0.1 (shortest decimal)."""
+    text = prism_number(float(delta))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
+                       games: list[PerceptualGame], inference: Observer, delta: float,
+                       eps: float = 0.0) -> RobustModel:
+    """The interval model of docs/semantics.md §13 for budget `delta` (0 <= delta < 1); with
+    eps > 0 every off-prediction set where P2 may deviate gets at least eps (for PRISM and
+    Storm, which need positive lower bounds)."""
+    if not 0.0 <= delta < 1.0:
+        raise ValueError(f"delta must lie in [0, 1), got {delta}")
+    if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
+        raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
+    context = template_context(world, ts, task, games, inference, trap_key=PLAYED_VARIABLE,
+                               observer_labels=STEP_LABELS)
+    if ts.n_sets == 1:
+        deviation = "0"              # nothing to deviate to
+    elif ts.delay:
+        deviation = "countdown>0 ? 0 : delta"
+    else:
+        deviation = "delta"
+    text = render_template(
+        "robust.prism.j2", **context, step_labels=STEP_LABELS, deviation=deviation,
+        delta_text=prism_number(float(delta)), eps_text=prism_number(float(eps)),
+        property=PRISM_PROPERTY)
+    prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
+                       layout=Layout(slots=context["observer"].slots, delay=ts.delay),
+                       commands=count_commands(text))
+    return RobustModel(prism=prism, delta=float(delta), eps=float(eps))
+
+
+def write_robust_model(model: RobustModel, folder: Path) -> tuple[Path, Path]:
+    """folder/robust.prism and folder/robust.props."""
+    from hg2prism.outputs import write_text
+
+    prism, props = folder / "robust.prism", folder / "robust.props"
+    write_text(prism, model.prism.text)
+    write_text(props, model.prism.properties)
+    return prism, props

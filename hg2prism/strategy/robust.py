@@ -1,0 +1,335 @@
+"""Robust deception (docs/semantics.md §13): the max-min reachability value of an interval MDP,
+solved exactly in numpy, and P1's robust strategy read off it.
+
+The interval model (hg2prism.prism.robust_model) is built by Storm; `IntervalGame` holds its
+states, choices and branches with their probability intervals. P1 chooses a choice in every
+state; the adversary resolves the intervals of the chosen choice, seeing it, to minimise the
+probability of reaching the goal. The robust value is the least fixed point of
+
+    R(s) = max_c  min_{p in P(c)}  sum_b p_b R(target_b),   P(c) = {p : lower <= p <= upper, sum p = 1}
+
+(goal 1, failure 0). The inner minimum is attained by filling the lower bounds and giving the
+remaining mass to the branches of smallest value first, up to their upper bounds.
+
+Method, certified as docs/semantics.md §10 asks of the games:
+
+1. the states of value 0 by a graph fixed point: outside the set from which P1 can force a
+   positive probability of reaching the goal (at each step some branch the adversary cannot
+   empty leads closer), the adversary keeps P1 away from the goal forever;
+2. strategy iteration for P1: P1's strategy is evaluated exactly by the adversary's best
+   response — itself a policy iteration over the adversary's resolutions, each evaluated by a
+   sparse linear solve on the states where the adversary cannot avoid the goal surely (there
+   every resolution leaves the states with probability 1, so the system is regular) — and
+   P1 switches to a choice whose worst case is better by more than 1e-12, until none is;
+3. certificate: the values are those of a P1 strategy against the adversary's best response
+   (so at most R), and a fixed point of the operator above to within 1e-10 (so, being 0
+   exactly where R is 0, at least R up to that residual). Failing either is a SolverError.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from hg2prism.engines.storm import Transitions
+from hg2prism.errors import SolverError
+
+SWITCH = 1e-12          # the adversary switches only on an improvement above this
+P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
+MAX_P1_ROUNDS = 500
+RESIDUAL = 1e-10        # the certified fixed point's largest residual
+MAX_ROUNDS = 10_000
+OPTIMAL_SLACK = 1e-8    # as the deceptive strategy: choices this close to the value are optimal
+DISCOUNT = 0.9          # as the deceptive strategy: among optimal moves, the fastest
+DISCOUNT_STOP = 1e-9
+MAX_DISCOUNT_SWEEPS = 1000
+
+
+@dataclass(frozen=True, eq=False)
+class IntervalGame:
+    """An interval MDP as arrays: the choices of state s are choice_start[s]:choice_start[s+1],
+    the branches of choice c are row_start[c]:row_start[c+1]. Absorbing states (`stop`) keep
+    their choices but are never solved: goal states have value 1, the others 0."""
+
+    choice_start: np.ndarray
+    row_start: np.ndarray
+    target: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    goal: np.ndarray          # bool per state
+    stop: np.ndarray          # bool per state: goal or failure
+    initial: int
+    # states that are pure chance (one choice of point intervals) and lead to no such state:
+    # the intermediate states of the robust model. Linear solves eliminate them first.
+    chance: np.ndarray | None = None
+
+    @property
+    def n_states(self) -> int:
+        return len(self.choice_start) - 1
+
+    @property
+    def n_choices(self) -> int:
+        return len(self.row_start) - 1
+
+    @classmethod
+    def of(cls, moves: Transitions, goal: np.ndarray, fail: np.ndarray, initial: int,
+           chance: np.ndarray | None = None) -> "IntervalGame":
+        """Storm's model (storm.read_structure) with its goal and failure states; a model without
+        intervals is the game whose intervals are points. `chance`: see the field."""
+        n_states = len(goal)
+        choice_start = np.searchsorted(moves.source, np.arange(n_states + 1))
+        upper = moves.probability if moves.upper is None else moves.upper
+        return cls(choice_start=choice_start, row_start=np.asarray(moves.row_start),
+                   target=np.asarray(moves.target), lower=np.asarray(moves.probability),
+                   upper=np.asarray(upper), goal=np.asarray(goal, dtype=bool),
+                   stop=np.asarray(goal, dtype=bool) | np.asarray(fail, dtype=bool),
+                   initial=int(initial), chance=chance)
+
+    # -- derived arrays, computed once -----------------------------------------------------
+    def _cached(self, name: str, make) -> np.ndarray:
+        cache = self.__dict__.setdefault("_cache", {})
+        if name not in cache:
+            cache[name] = make()
+        return cache[name]
+
+    @property
+    def choice_state(self) -> np.ndarray:
+        return self._cached("choice_state", lambda: np.repeat(
+            np.arange(self.n_states), np.diff(self.choice_start)))
+
+    @property
+    def branch_choice(self) -> np.ndarray:
+        return self._cached("branch_choice", lambda: np.repeat(
+            np.arange(self.n_choices), np.diff(self.row_start)))
+
+    @property
+    def uncertain(self) -> tuple[np.ndarray, np.ndarray]:
+        """The branches of the choices that leave the adversary some mass (in order), and for
+        each the position of its choice's first branch among them."""
+        def make():
+            choices = self.slack > 0
+            branches = np.flatnonzero(choices[self.branch_choice])
+            choice = self.branch_choice[branches]
+            first = np.flatnonzero(np.r_[True, choice[1:] != choice[:-1]])
+            return branches, np.repeat(first, np.diff(np.r_[first, branches.size]))
+        return self._cached("uncertain", make)
+
+    @property
+    def slack(self) -> np.ndarray:
+        """1 - sum of the lower bounds of each choice: the mass the adversary places."""
+        return self._cached("slack", lambda: np.clip(1.0 - np.bincount(
+            self.branch_choice, weights=self.lower, minlength=self.n_choices), 0.0, None))
+
+
+def worst_case(game: IntervalGame, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per choice, the adversary's minimum of the expected value over its intervals, and the
+    minimising probability of every branch: lower bounds first, then the remaining mass to the
+    branches of smallest value (ties in branch order), each up to its upper bound."""
+    branch_value = values[game.target]
+    probability = game.lower.copy()
+    branches, group_start = game.uncertain
+    if branches.size:
+        choice = game.branch_choice[branches]
+        order = np.lexsort((branches, branch_value[branches], choice))   # stays grouped by choice
+        ordered = branches[order]
+        room = game.upper[ordered] - game.lower[ordered]
+        total = np.r_[0.0, np.cumsum(room)]
+        before = total[:-1] - total[group_start]      # room of the cheaper branches of the choice
+        probability[ordered] += np.clip(game.slack[choice] - before, 0.0, room)
+    expected = np.bincount(game.branch_choice, weights=probability * branch_value,
+                           minlength=game.n_choices)
+    return expected, probability
+
+
+def positive_states(game: IntervalGame, fixed: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The states from which P1 (playing the choices `fixed`, one per state, or any) reaches
+    the goal with positive probability whatever the adversary does, and for each of them a
+    choice that moves closer to the goal (-1 elsewhere). Least fixed point: a choice makes
+    progress when a branch into the set has a positive lower bound, or the upper bounds of the
+    branches outside the set sum to less than 1."""
+    positive = game.goal.copy()
+    progress = np.full(game.n_states, -1, dtype=np.int64)
+    allowed = np.zeros(game.n_choices, dtype=bool)
+    if fixed is None:
+        allowed[:] = True
+    else:
+        allowed[fixed[~game.stop]] = True
+    allowed &= ~game.stop[game.choice_state]
+    choice = game.branch_choice
+    while True:
+        inside = positive[game.target]
+        forced = np.bincount(choice, weights=(inside & (game.lower > 0)).astype(float),
+                             minlength=game.n_choices) > 0
+        outside = np.bincount(choice, weights=np.where(inside, 0.0, game.upper),
+                              minlength=game.n_choices)
+        moves = allowed & (forced | (outside < 1.0 - 1e-12)) & ~positive[game.choice_state]
+        if not moves.any():
+            return positive, progress
+        chosen = np.flatnonzero(moves)
+        states = game.choice_state[chosen]
+        first = np.r_[True, states[1:] != states[:-1]]
+        progress[states[first]] = chosen[first]
+        positive[states] = True
+
+
+def adversary_response(game: IntervalGame, strategy: np.ndarray,
+                       start: np.ndarray | None = None) -> np.ndarray:
+    """The probability of reaching the goal when P1 plays `strategy` (a choice per state) and the
+    adversary best responds: exact, by policy iteration over resolutions with sparse solves."""
+    positive, _ = positive_states(game, strategy)
+    live = np.flatnonzero(positive & ~game.stop)
+    values = game.goal.astype(float)
+    if live.size == 0:
+        return values
+    values[live] = 0.0 if start is None else start[live]
+    rows = strategy[live]
+    first, last = game.row_start[rows], game.row_start[rows + 1]
+    counts = last - first
+    row_of = np.repeat(np.arange(live.size), counts)
+    branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+    position = np.full(game.n_states, -1, dtype=np.int64)
+    position[live] = np.arange(live.size)
+    targets = game.target[branches]
+    into_live = position[targets] >= 0
+    into_goal = game.goal[targets]
+    eliminate = _chance_elimination(game, live, strategy)
+    _, resolution = worst_case(game, values)
+    chosen = resolution[branches]
+    for _ in range(MAX_ROUNDS):
+        matrix = sp.csr_matrix((chosen[into_live], (row_of[into_live], position[targets[into_live]])),
+                               shape=(live.size, live.size))
+        reach = np.bincount(row_of, weights=chosen * into_goal, minlength=live.size)
+        values = game.goal.astype(float)
+        values[live] = _solve_chain(matrix, reach, eliminate)
+        expected, resolution = worst_case(game, values)
+        current = np.bincount(row_of, weights=chosen * values[targets], minlength=live.size)
+        better = expected[rows] < current - SWITCH
+        if not better.any():
+            return values
+        switch = better[row_of]
+        chosen = np.where(switch, resolution[branches], chosen)
+    raise SolverError("the adversary's policy iteration did not converge")
+
+
+def _chance_elimination(game: IntervalGame, live: np.ndarray, strategy: np.ndarray
+                        ) -> np.ndarray | None:
+    """Positions (among `live`) of the chance states to eliminate before solving, when no
+    chance state leads to another; None when there are none (or they do)."""
+    if game.chance is None:
+        return None
+    chance = game.chance[live]
+    if not chance.any():
+        return None
+    rows = strategy[live[chance]]
+    first, last = game.row_start[rows], game.row_start[rows + 1]
+    counts = last - first
+    branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+    if game.chance[game.target[branches]].any():
+        return None
+    return np.flatnonzero(chance)
+
+
+def _solve_chain(matrix: sp.csr_matrix, reach: np.ndarray, eliminate: np.ndarray | None
+                 ) -> np.ndarray:
+    """x = matrix x + reach, exactly (sparse LU). The states `eliminate` (no edge among
+    themselves) are substituted out first: x_C = P_CK x_K + r_C, so the system shrinks to
+    (I - P_KK - P_KC P_CK) x_K = r_K + P_KC r_C."""
+    n = matrix.shape[0]
+    if eliminate is None:
+        return np.atleast_1d(spla.spsolve((sp.identity(n, format="csc") - matrix).tocsc(), reach))
+    keep = np.ones(n, dtype=bool)
+    keep[eliminate] = False
+    kept = np.flatnonzero(keep)
+    p_kk, p_kc = matrix[kept][:, kept], matrix[kept][:, eliminate]
+    p_ck = matrix[eliminate][:, kept]
+    reduced = (p_kk + p_kc @ p_ck).tocsc()
+    rhs = reach[kept] + p_kc @ reach[eliminate]
+    x = np.empty(n)
+    x[kept] = np.atleast_1d(spla.spsolve(sp.identity(kept.size, format="csc") - reduced, rhs))
+    x[eliminate] = p_ck @ x[kept] + reach[eliminate]
+    return x
+
+
+@dataclass(frozen=True, eq=False)
+class RobustSolution:
+    values: np.ndarray         # R at every state of the interval model
+    strategy: np.ndarray       # an optimal choice per state (P1's, from strategy iteration)
+    q_values: np.ndarray       # worst case of every choice under `values`
+    rounds: int                # P1's strategy-iteration rounds
+    residual: float            # largest |max_c Q(c) - R(s)| over the non-absorbing states
+
+    def value(self, state: int) -> float:
+        return float(self.values[state])
+
+
+def solve_robust(game: IntervalGame) -> RobustSolution:
+    """R at every state, certified (module docstring)."""
+    positive, progress = positive_states(game)
+    strategy = game.choice_start[:-1].copy()
+    strategy[progress >= 0] = progress[progress >= 0]
+    free = positive & ~game.stop
+    values = None
+    for rounds in range(1, MAX_P1_ROUNDS + 1):
+        values = adversary_response(game, strategy, values)
+        q_values, _ = worst_case(game, values)
+        best = np.maximum.reduceat(q_values, game.choice_start[:-1])
+        better = free & (best > q_values[strategy] + P1_SWITCH)
+        if not better.any():
+            break
+        for s in np.flatnonzero(better).tolist():
+            choices = q_values[game.choice_start[s]:game.choice_start[s + 1]]
+            strategy[s] = game.choice_start[s] + int(np.argmax(choices))
+    else:
+        raise SolverError("P1's strategy iteration on the interval model did not converge")
+    running = ~game.stop
+    residual = float(np.abs(best - values)[running].max(initial=0.0))
+    if residual > RESIDUAL:
+        raise SolverError(f"robust values are not a fixed point: residual {residual:.2e}")
+    if (values[~positive] != 0.0).any():
+        raise SolverError("robust values are positive where the adversary avoids the goal")
+    return RobustSolution(values=values, strategy=strategy, q_values=q_values, rounds=rounds,
+                          residual=residual)
+
+
+def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.ndarray,
+                    action: np.ndarray) -> np.ndarray:
+    """Per state, P1's choice among the value-optimal ones (worst case within OPTIMAL_SLACK of
+    R): the one maximising the worst-case discounted probability of reaching the goal, as the
+    deceptive strategy chooses (docs/semantics.md §6), ties to the first in choice order.
+
+    `decides` marks the states where P1 chooses a move (the others are the intermediate states
+    of a step, with one choice each); `action` is each choice's move (-1 for none). The discount
+    applies once per step, when an intermediate state moves on."""
+    from hg2prism.strategy.deceptive import argmax_by_group
+
+    optimal = (solution.q_values >= solution.values[game.choice_state] - OPTIMAL_SLACK)
+    optimal &= (action >= 0) | ~decides[game.choice_state]
+    intermediate = ~decides & ~game.stop
+    speed = np.zeros(game.n_states)
+    for _ in range(MAX_DISCOUNT_SWEEPS):
+        onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
+        expected, _ = worst_case(game, onward)
+        later = np.where(intermediate, _best(game, expected, optimal), 0.0)
+        expected, _ = worst_case(game, np.where(game.goal, 1.0, later))
+        new = np.where(decides & ~game.stop, _best(game, expected, optimal), 0.0)
+        done = np.abs(new - speed).max(initial=0.0) < DISCOUNT_STOP
+        speed = new
+        if done:
+            break
+    onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
+    expected, _ = worst_case(game, onward)
+    later = np.where(intermediate, _best(game, expected, optimal), 0.0)
+    score, _ = worst_case(game, np.where(game.goal, 1.0, later))
+    score = np.where(optimal, score, -1.0)
+    score[action < 0] = np.where(decides[game.choice_state], -2.0, score)[action < 0]
+    return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=1e-12)
+
+
+def _best(game: IntervalGame, per_choice: np.ndarray, allowed: np.ndarray) -> np.ndarray:
+    masked = np.where(allowed, per_choice, -np.inf)
+    best = np.maximum.reduceat(masked, game.choice_start[:-1])
+    return np.where(np.isfinite(best), best, 0.0)

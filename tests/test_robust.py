@@ -1,0 +1,255 @@
+"""Robust deception (docs/semantics.md §13) and re-planning (§14).
+
+The robust values are compared with an independent robust value iteration on the explicit
+hypergame of tests/reference.py (tests/reference_robust.py, which imports nothing from hg2prism),
+on world1, world2 and generated worlds; the exported robust strategy's worst case is evaluated
+by the same reference; Storm's robust mode and PRISM check the model whose deviations have a
+positive lower bound; re-planning is reproducible and changes nothing when the fallback plays
+as the deceptive strategy does.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+import worldgen
+from conftest import MODELS
+from reference_robust import RobustHypergame
+from hg2prism import pipeline, progress
+from hg2prism.analyses.simulation import (LeaderStrategy, Replanning, deviating_policy,
+                                          leader_fallback, simulate_deceptive)
+from hg2prism.cli import main
+from hg2prism.experiments import robust
+from hg2prism.model.world import load_world
+from hg2prism.prism.robust_model import CHECK_EPS, build_robust_model, write_robust_model
+from hg2prism.strategy.records import Strategy
+
+DELTAS = (0.01, 0.1, 0.3)
+TOL = 1e-6
+FAMILY = dict(worldgen.world_family())
+# 20 generated worlds (delay 0-2, one and two traps, windows 1-3, one to four hypotheses, slip 0
+# and > 0) whose interval models solve in about a second each
+GENERATED = ["fam00_d0_l1_w1_x2", "fam01_d1_l1_w1_x3", "fam02_d2_l1_w1_x4", "fam03_d0_l1_w2_x1",
+             "fam05_d2_l1_w2_x3", "fam09_d0_l2_w1_x3",
+             "fam10_d1_l2_w1_x2", "fam11_d2_l2_w1_x1", "fam12_d0_l2_w2_x4", "fam18_d0_l1_w1_x3",
+             "fam19_d1_l1_w1_x2", "fam20_d2_l1_w1_x3", "fam21_d0_l1_w2_x4", "fam23_d2_l1_w2_x2",
+             "fam24_d0_l1_w3_x3", "fam27_d0_l2_w1_x2", "fam28_d1_l2_w1_x4", "fam36_eq_d0_w2",
+             "fam37_eq_d1_w1", "fam40_tx_d0_l1_w2"]
+CASES = ["world2"] + GENERATED   # world1: see docs/semantics.md §13 (strategy iteration cycles there)
+
+
+@functools.cache
+def world_path(name: str, folder: str) -> Path:
+    if name in ("world1", "world2"):
+        return MODELS / f"{name}.toml"
+    path = Path(folder) / f"{name}.toml"
+    path.write_text(FAMILY[name])
+    return path
+
+
+@functools.cache
+def checked(name: str, folder: str) -> pipeline.CheckResult:
+    with progress.quiet():
+        return pipeline.check(load_world(world_path(name, folder)), Path(folder) / name)
+
+
+@functools.cache
+def solved(name: str, folder: str) -> tuple[list, RobustHypergame]:
+    """Our solutions at 0 and DELTAS, and the reference's hypergame."""
+    world = load_world(world_path(name, folder))
+    rows = robust.solve_budgets(world, checked(name, folder), (0.0,) + DELTAS,
+                                Path(folder) / f"{name}_robust", storm_check=False)
+    return [row for row, _ in rows], RobustHypergame(world_path(name, folder))
+
+
+@pytest.fixture(params=CASES)
+def case(request: pytest.FixtureRequest, world_dir: Path):
+    return request.param, str(world_dir)
+
+
+def test_the_generated_worlds_vary() -> None:
+    import tomllib
+
+    worlds = [tomllib.loads(FAMILY[name]) for name in GENERATED]
+    assert len(worlds) >= 20
+    assert {w["adversary"].get("delay", 0) for w in worlds} == {0, 1, 2}
+    assert {w["adversary"]["traps"] for w in worlds} == {1, 2}
+    assert {w["inference"]["window"] for w in worlds} == {1, 2, 3}
+    assert {w["robot"]["slip"] == 0 for w in worlds} == {True, False}
+
+
+def test_robust_values_match_the_reference_and_are_ordered(case) -> None:
+    name, folder = case
+    rows, reference = solved(name, folder)
+    deceptive = checked(name, folder).results.deceptive_value
+    assert rows[0].robust_value == pytest.approx(deceptive, abs=TOL)
+    for row in rows:
+        assert row.nominal_worst_case <= row.robust_value + 1e-9
+        assert row.robust_strategy_nominal_value <= deceptive + 1e-9
+        assert row.residual <= 1e-10
+    for earlier, later in zip(rows, rows[1:]):
+        assert later.robust_value <= earlier.robust_value + 1e-9
+    expected = reference.robust_values([row.delta for row in rows[1:]])
+    for row, value in zip(rows[1:], expected):
+        assert row.robust_value == pytest.approx(value, abs=TOL)
+
+
+def test_robust_strategy_guarantees_the_robust_value(case) -> None:
+    """The exported records' worst case, with P1's moves fixed and the reference's adversary
+    minimising, is R_delta."""
+    name, folder = case
+    rows, reference = solved(name, folder)
+    for row in rows:
+        records = json.loads(row.records_json)
+        assert reference.worst_case(records, row.delta) == pytest.approx(row.robust_value, abs=TOL)
+
+
+def test_at_delta_zero_the_robust_strategy_is_the_deceptive_one(world_dir: Path) -> None:
+    rows, _ = solved("world2", str(world_dir))
+    result = checked("world2", str(world_dir))
+    # strategy.json's records also give each move's value (`values`); the robust records give moves
+    moves_only = [{k: v for k, v in r.items() if k != "values"} for r in result.records]
+    assert json.loads(rows[0].records_json) == moves_only
+    assert rows[0].states == result.results.states
+    assert rows[0].nominal_worst_case == pytest.approx(result.results.deceptive_value, abs=1e-9)
+
+
+def _check_model(name: str, folder: Path, delta: float) -> Path:
+    result = checked(name, str(folder))
+    a = result.analysis
+    model = build_robust_model(a.world, a.ts, a.task, a.games, a.inference, delta, CHECK_EPS)
+    path, _ = write_robust_model(model, folder / f"{name}_eps_{delta}")
+    return path
+
+
+@pytest.mark.parametrize("name", ["world2", "fam01_d1_l1_w1_x3", "fam09_d0_l2_w1_x3"])
+def test_storm_robust_mode_agrees_on_the_eps_model(name: str, world_dir: Path) -> None:
+    """Storm's robust mode and our solver on the same model (every deviation at least eps), and
+    that model's value is R_delta up to what eps changes (measured here, at most 1e-6)."""
+    from hg2prism.engines import storm
+    from hg2prism.strategy.robust import IntervalGame, solve_robust
+
+    rows, _ = solved(name, str(world_dir))
+    path = _check_model(name, world_dir, 0.1)
+    model, _ = storm.build_interval_model(path)
+    moves = storm.read_structure(model)
+    game = IntervalGame.of(moves, moves.labels["goal"], moves.labels["fail"], model.initial_states[0])
+    ours = solve_robust(game).value(game.initial)
+    assert storm.check_robust(path, 'Pmax=? [F "goal"]') == pytest.approx(ours, abs=TOL)
+    exact = next(row.robust_value for row in rows if row.delta == 0.1)
+    assert exact - 1e-9 <= ours <= exact + TOL
+
+
+def _prism() -> str | None:
+    return os.environ.get("PRISM") or shutil.which("prism") or (
+        "/opt/prism-games/bin/prism" if Path("/opt/prism-games/bin/prism").exists() else None)
+
+
+@pytest.mark.skipif(_prism() is None, reason="PRISM not installed (set PRISM or PATH)")
+def test_prism_reads_the_interval_model_and_gives_the_value(world_dir: Path) -> None:
+    name = "fam09_d0_l2_w1_x3"
+    rows, _ = solved(name, str(world_dir))
+    exact_model = world_dir / f"{name}_robust" / "robust_0.1" / "robust.prism"
+    path = _check_model(name, world_dir, 0.1)
+    for model, expect_value in ((exact_model, False), (path, True)):
+        run = subprocess.run([_prism(), str(model), "-pf", 'Pmaxmin=? [F "goal"]',
+                              "-epsilon", "1e-12"], capture_output=True, text=True, timeout=300)
+        output = run.stdout + run.stderr
+        assert "Type:        IMDP" in output, output[-2000:]
+        if not expect_value:
+            # PRISM builds the exact model but checks interval models only with positive
+            # lower bounds (docs/semantics.md §13)
+            assert "lower bound of 0" in output, output[-2000:]
+            continue
+        line = next(line for line in output.splitlines() if line.startswith("Result:"))
+        value = float(line.split()[1])
+        exact = next(row.robust_value for row in rows if row.delta == 0.1)
+        assert value == pytest.approx(exact, abs=TOL)
+
+
+# -- re-planning (docs/semantics.md §14) ------------------------------------------------------
+
+def _replanning_runs(world_dir: Path, fallback, episodes: int = 300, seed: int = 3):
+    result = checked("world2", str(world_dir))
+    a = result.analysis
+    deceptive = Strategy.from_records(result.records, a.ts, fallback=leader_fallback(a))
+    policy = deviating_policy(a.ts, a.world.detection.deviate_after)
+    settings = a.world.detection
+
+    def play(plan_fallback):
+        plan = Replanning(plan_fallback, settings.alpha, settings.epsilon)
+        return simulate_deceptive(a, deceptive, episodes, 100, seed, p2_policy=policy,
+                                  progress=False, replanning=plan, episode_streams=True)
+
+    return play(deceptive), play(fallback(a, result))
+
+
+def test_replanning_to_an_identical_strategy_changes_nothing(world_dir: Path) -> None:
+    """The robust strategy at delta 0 is the deceptive strategy: switching to it after a
+    detection plays every episode exactly as without re-planning."""
+    def robust_zero(a, result):
+        records = json.loads(robust.robust_strategy_for(a.world, result, 0.0,
+                                                        world_dir / "fallback_zero"))
+        return Strategy.from_records(records, a.ts, fallback=leader_fallback(a))
+
+    without, with_ = _replanning_runs(world_dir, robust_zero)
+    assert without.replanned > 0
+    assert with_.replanned == without.replanned
+    assert (with_.outcomes == without.outcomes).all() and (with_.lengths == without.lengths).all()
+    assert with_.rate == without.rate
+
+
+def test_replanning_is_seeded_and_paired(world_dir: Path) -> None:
+    """Same seed, same numbers; episodes in which the detector never fires are played
+    identically with and without re-planning, and the detector fires in the same episodes."""
+    without, with_ = _replanning_runs(world_dir, lambda a, result: LeaderStrategy(a))
+    again_without, again_with = _replanning_runs(world_dir, lambda a, result: LeaderStrategy(a))
+    assert (again_with.outcomes == with_.outcomes).all() and again_with.rate == with_.rate
+    assert (again_without.outcomes == without.outcomes).all()
+    assert with_.replanned == without.replanned > 0
+    # an episode can only differ where P1 switched (each episode has its own random numbers)
+    differs = (with_.outcomes != without.outcomes) | (with_.lengths != without.lengths)
+    assert 0 < differs.sum() <= without.replanned
+
+
+def test_robust_command_writes_its_outputs(world_dir: Path, tmp_path: Path) -> None:
+    name = "fam00_d0_l1_w1_x2"
+    world = load_world(world_path(name, str(world_dir)))
+    result = robust.robust(world, ["0", "0.1"], tmp_path, show_progress=False,
+                           check_result=checked(name, str(world_dir)))
+    assert [row["delta"] for row in result["rows"]] == [0.0, 0.1]
+    assert set(result["rows"][0]) >= {"delta", "robust_value", "nominal_worst_case", "states",
+                                      "seconds"}
+    written = json.loads((tmp_path / "robust.json").read_text())
+    assert written["rows"][1]["robust_value"] == result["rows"][1]["robust_value"]
+    check = written["rows"][1]["storm_check"]
+    assert abs(check["storm_minus_numpy"]) <= TOL
+    for item in ("robust.csv", "robust.png", "robust.svg", "robust_0/strategy.json",
+                 "robust_0.1/strategy.json", "robust_0.1/robust.prism", "robust_0.1/robust.props"):
+        assert (tmp_path / item).is_file(), item
+    lines = (tmp_path / "robust.csv").read_text().splitlines()
+    assert lines[0].startswith("delta,robust_value,nominal_worst_case") and len(lines) == 3
+
+
+@pytest.mark.parametrize("argv, key", [
+    (["robust", "WORLD", "--deltas", "1"], "--deltas"),
+    (["robust", "WORLD", "--deltas", "0.1", "0.1"], "--deltas"),
+    (["robust", "WORLD", "--deltas", "x"], "--deltas"),
+    (["detect", "WORLD", "--fallback-delta", "0.1"], "--fallback-delta"),
+    (["detect", "WORLD", "--fallback", "robust", "--fallback-delta", "-0.5"], "--fallback-delta"),
+    (["detect", "WORLD", "--fallback", "leader", "--fallback-delta", "0.1"], "--fallback-delta"),
+])
+def test_bad_options_are_one_line_and_write_nothing(argv, key, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "out"
+    argv = [str(MODELS / "world2.toml") if a == "WORLD" else a for a in argv] + ["--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and key in err[0] and "Traceback" not in err[0]
+    assert not out.exists()
