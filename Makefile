@@ -26,8 +26,10 @@ sweep-demo: $(STAMP)
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3 \
 		--param window --values 1 2 --out models/world2_grid
 
+# world3 against both observers: CUSUM (world3.toml) and Bayesian (world3_bayes.toml, same map)
 world3: $(STAMP)
 	$(BIN)/hg2prism run models/world3.toml
+	$(BIN)/hg2prism run models/world3_bayes.toml
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

@@ -11,6 +11,7 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import reference_bayes
@@ -327,3 +328,29 @@ def test_sweeps_over_prior_and_observer(world_dir: Path) -> None:
         sweep.sweep_world(load_world(cusum), "prior", "1,1")
     with pytest.raises(InputError, match="one per hypothesis"):
         sweep.sweep_world(world, "prior", "1,1,1")
+
+
+def test_v_naive_is_the_naive_strategy_on_storms_model_and_at_most_the_deceptive_value(case) -> None:
+    """docs/semantics.md §11 with the Bayesian observer: V_naive, computed in Python on the chain
+    the naive strategy induces (P2 drawing her hypothesis under "sample"), equals the value Storm
+    gives the same strategy fixed on the PRISM model's states, and is at most the deceptive
+    value (V_static is not bounded by it: a P2 who never revises can be weaker or stronger)."""
+    from hg2prism.analyses.deception_value import deception_values
+    from hg2prism.strategy.deceptive import storm_choices
+
+    _, result, _ = case
+    analysis, decoded = result.analysis, result.decoded
+    ts, deceptive = analysis.ts, result.results.deceptive_value
+    worth = deception_values(analysis, deceptive)
+    assert worth.v_naive <= deceptive + 1e-9
+    moves = storm.transitions(result.checked.model)
+    representative = result.strategy.representative
+    action = np.zeros(len(representative), dtype=np.int64)
+    for c, s in enumerate(representative.tolist()):
+        if decoded.goal[s] or decoded.fail[s] or decoded.cell[s] >= ts.n_cells:
+            continue
+        v = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        action[c] = worth.naive.action(v, int(decoded.q[s]), _memory(decoded, s))
+    fixed = storm_choices(decoded, moves, representative, action)
+    assert storm.induced_probability(result.checked, fixed) == pytest.approx(worth.v_naive,
+                                                                              abs=TOL)

@@ -139,7 +139,8 @@ def test_sweep_delay_without_initial_traps_and_with_a_storm_method(tmp_path: Pat
     """world1 writes `initial_traps = []`: a delay sweep falls back to the first candidate, as
     sweep.json's rule says, and --storm-method reaches every point."""
     proc = run_cli(["sweep", WORLD1, "--param", "delay", "--values", "0", "1", "--out",
-                    str(tmp_path / "out"), "--storm-method", "sound-ovi"], tmp_path)
+                    str(tmp_path / "out"), "--storm-method", "sound-ovi", "--workers", "1"],
+                   tmp_path)
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "sweep.json").read_text())
     assert summary["storm_method"] == "sound-ovi" and summary["sound"] is True
@@ -190,7 +191,7 @@ def test_largest_horizon_runs_in_bounded_time(tmp_path: Path) -> None:
     """At the largest horizon the exact within-horizon numbers stop once converged: they equal
     the unbounded values, and the run takes seconds, not 10^5 sweeps per number."""
     out = tmp_path / "out"
-    proc = run_cli(["run", WORLD1, "--out", str(out), "--episodes", "200", "--horizon", "100000"],
+    proc = run_cli(["run", WORLD1, "--out", str(out), "--episodes", "50", "--horizon", "100000"],
                    tmp_path, timeout=240)
     assert proc.returncode == 0, proc.stderr
     results = json.loads((out / "results.json").read_text())

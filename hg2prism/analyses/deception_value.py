@@ -218,8 +218,10 @@ def induced_chain(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
                   observer: Observer, strategy) -> InducedChain:
     """The chain P1's `strategy` (``action(ts_state, q, memory) -> move``, deterministic)
     induces on the hypergame of docs/semantics.md §6 against P2's inference `observer`: from
-    (v, q, M), P2 plays pi2 of `observer.hypothesis(M)`, the robot moves, the DFA reads the new
-    cell's label and P2's memory becomes `observer.update(M, (v, a1))`. Goal and failure
+    (v, q, M), P2 plays a2 = pi2 of `observer.hypothesis(M)` (with a Bayesian "sample" observer,
+    of each hypothesis of `observer.hypothesis_distribution(M)` with its probability), the robot
+    moves, the DFA reads the new cell's label and P2's memory becomes
+    `observer.update(M, (v, a1, a2))`. Goal and failure
     (trapped, or q in Sink) are merged into states GOAL and FAIL."""
     trap_choice = [[int(a) for a in g.trap_choice] for g in games]
     label = ts.state_label().tolist()
@@ -228,7 +230,7 @@ def induced_chain(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
     succ, prob = ts.succ, ts.prob
     states: list[tuple[int, int, Hashable] | None] = [None, None]
     index: dict[tuple[int, int, Hashable], int] = {}
-    updates: dict[tuple[Hashable, tuple[int, int]], Hashable] = {}
+    updates: dict[tuple[Hashable, tuple[int, int, int]], Hashable] = {}
 
     def node(v: int, q: int, memory: Hashable) -> int:
         if v == trapped:
@@ -252,19 +254,22 @@ def induced_chain(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
     while i < len(states):          # states grows as successors are found: breadth-first
         v, q, memory = states[i]
         xh = observer.hypothesis(memory)
-        a2 = trap_choice[xh][v]
         a1 = int(strategy.action(v, q, memory))
-        key = (memory, (v, a1))
-        new_memory = updates.get(key)
-        if new_memory is None:
-            new_memory = updates[key] = observer.update(memory, (v, a1))
         merged: dict[int, float] = {}
-        for k in range(succ.shape[-1]):
-            p = float(prob[v, a1, a2, k])
-            if p > 0.0:
-                w = int(succ[v, a1, a2, k])
-                j = node(w, delta[q][label[w]], new_memory)
-                merged[j] = merged.get(j, 0.0) + p
+        # P2 plays pi2 of her hypothesis, or draws it (a Bayesian "sample" observer): each
+        # hypothesis' trap set, with its probability; her memory records the set she played.
+        for x, px in observer.hypothesis_distribution(memory):
+            a2 = trap_choice[x][v]
+            key = (memory, (v, a1, a2))
+            new_memory = updates.get(key)
+            if new_memory is None:
+                new_memory = updates[key] = observer.update(memory, (v, a1, a2))
+            for k in range(succ.shape[-1]):
+                p = px * float(prob[v, a1, a2, k])
+                if p > 0.0:
+                    w = int(succ[v, a1, a2, k])
+                    j = node(w, delta[q][label[w]], new_memory)
+                    merged[j] = merged.get(j, 0.0) + p
         for j, p in merged.items():
             rows.append(i)
             cols.append(j)

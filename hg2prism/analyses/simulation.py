@@ -281,9 +281,10 @@ class StepRecord:
         return (self.ts_state, self.q, self.memory)
 
     @property
-    def observation(self) -> tuple[int, int]:
-        """What P2's inference reads at this step (observer.Observation)."""
-        return (self.ts_state, self.a1)
+    def observation(self) -> tuple[int, int, int]:
+        """What P2's inference reads at this step (observer.Observation): the TS state, P1's
+        move and the trap set she played."""
+        return (self.ts_state, self.a1, self.a2)
 
 
 def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int,

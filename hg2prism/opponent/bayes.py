@@ -45,6 +45,16 @@ class BayesObserver:
     trap_choice: np.ndarray      # [X, n_ts] pi2_x(v)
 
     kind = "bayes"
+    belief_name = "posterior p(x | W)"
+
+    @property
+    def belief_threshold(self) -> None:
+        return None
+
+    def belief(self, memory: Memory, observation: Observation) -> list[float]:
+        """P2's posterior once she has read `observation` (observer.ReportsBelief): the
+        numbers her next hypothesis (MAP) or draw ("sample") rests on."""
+        return self.posterior(self.update(memory, observation).window)
 
     @property
     def n_hypotheses(self) -> int:

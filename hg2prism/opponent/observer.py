@@ -85,8 +85,8 @@ class Observer(Protocol):
 class ReportsBelief(Protocol):
     """An observer that can show, step by step, the per-hypothesis numbers its decision rests
     on (the replay and `belief.png` draw them; docs/semantics.md §8 "The episode drawn"). The
-    CUSUM observer reports its scores Z_x, compared with its threshold; a Bayesian observer
-    would report its posterior p(x | W), with no threshold."""
+    CUSUM observer reports its scores Z_x, compared with its threshold; the Bayesian observer
+    reports its posterior p(x | W), with no threshold."""
 
     belief_name: str           # what the numbers are, for axis labels ("CUSUM score Z_x")
 
