@@ -318,30 +318,46 @@ def _value_text(value: object) -> str:
 LOG_PARAMETERS = ("rationality", "threshold")
 
 
+def _parameter_axis(ax: plt.Axes, parameter: str, values: Sequence[object]):
+    """The x axis of a swept parameter: its values as ticks (a logarithmic axis for
+    LOG_PARAMETERS); an observer kind or a prior is a category, evenly spaced in the order
+    swept. Returns the x position of a value."""
+    categorical = not all(isinstance(v, (int, float)) for v in values)
+    labels = list(dict.fromkeys(_value_text(v) for v in values))
+    if categorical:
+        def x_of(value: object) -> float:
+            return float(labels.index(_value_text(value)))
+        ticks = [float(i) for i in range(len(labels))]
+    else:
+        def x_of(value: object) -> float:
+            return value                    # type: ignore[return-value]
+        ticks = sorted(set(values))         # type: ignore[type-var]
+        labels = [_value_text(v) for v in ticks]
+    if parameter in LOG_PARAMETERS and not categorical:
+        ax.set_xscale("log")
+        ax.minorticks_off()
+        ax.set_xlabel(f"{parameter} (log scale)")
+    else:
+        ax.set_xlabel(parameter)
+    ax.set_xticks(ticks, labels)
+    if len(ticks) > 8:
+        ax.tick_params(axis="x", labelrotation=45)
+    return x_of
+
+
 def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
                  world_name: str | None = None) -> list[Path]:
     """Completion probability against a swept parameter, one line per value; a logarithmic
     axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes."""
     fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
     ax = fig.add_subplot()
-    values = [row[parameter] for row in rows]
-    categorical = not all(isinstance(v, (int, float)) for v in values)
-    # an observer kind or a prior is a category: evenly spaced, labelled by its value
-    xs = list(range(len(values))) if categorical else values
+    x_of = _parameter_axis(ax, parameter, [row[parameter] for row in rows])
+    xs = [x_of(row[parameter]) for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
                               ("v_lead", "symmetric, leader", "s--"),
                               ("v_ne", "symmetric, Nash", "^:")):
         if all(key in row for row in rows):
             ax.plot(xs, [row[key] for row in rows], style, label=label)
-    if parameter in LOG_PARAMETERS:
-        ax.set_xscale("log")
-        ax.minorticks_off()
-        ax.set_xlabel(f"{parameter} (log scale)")
-    else:
-        ax.set_xlabel(parameter)
-    ax.set_xticks(xs, [_value_text(v) for v in values])
-    if len(xs) > 8:
-        ax.tick_params(axis="x", labelrotation=45)
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
@@ -363,27 +379,19 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
     ax = fig.add_subplot()
     first, others = parameters[0], list(parameters[1:])
     series: dict[tuple, list[dict]] = {}
-    for row in rows:
-        series.setdefault(tuple(row[p] for p in others), []).append(row)
+    for row in rows:     # a prior is a list: keyed by its text
+        series.setdefault(tuple(_value_text(row[p]) for p in others), []).append(row)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    x_of = _parameter_axis(ax, first, [row[first] for row in rows])
     for n, (key, members) in enumerate(series.items()):
-        members = sorted(members, key=lambda r: r[first])
-        xs = [r[first] for r in members]
-        label = ", ".join(f"{p}={_value_text(v)}" if isinstance(v, float) else f"{p}={v}"
-                          for p, v in zip(others, key))
+        members = sorted(members, key=lambda r: x_of(r[first]))
+        xs = [x_of(r[first]) for r in members]
+        label = ", ".join(f"{p}={_value_text(v)}" for p, v in zip(others, key))
         colour = colours[n % len(colours)]
         ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour,
                 label=f"deceptive, {label}")
         ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
                 label=f"V_lead, {label}")
-    xs = sorted({row[first] for row in rows})
-    if first in LOG_PARAMETERS:
-        ax.set_xscale("log")
-        ax.minorticks_off()
-        ax.set_xlabel(f"{first} (log scale)")
-    else:
-        ax.set_xlabel(first)
-    ax.set_xticks(xs, [_value_text(x) for x in xs])
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
