@@ -70,12 +70,12 @@ CASES = [
         ("fam40_tx_d0_l1_w2", None, "sample", 2), ("fam43_tx_d0_l1_w3", "skew", "sample", 1),
     ])]
 CASE_NAMES = [c[0] for c in CASES]
-SPEC = {c[0]: c[1:] for c in CASES}
+CASE_SETTINGS = {c[0]: c[1:] for c in CASES}
 
 
 @functools.cache
 def world_path(name: str, folder: str) -> Path:
-    base, prior, decision, window = SPEC[name]
+    base, prior, decision, window = CASE_SETTINGS[name]
     path = Path(folder) / f"{name}.toml"
     path.write_text(bayes_text(FAMILY[base], prior, decision, window))
     return path
