@@ -1,4 +1,6 @@
-"""Command line: `hg2prism validate|emit|check|run WORLD`."""
+"""hg2prism: deceptive strategies in dynamic hypergames, model-checked with Storm through
+generated PRISM models. Each command takes a world file (TOML); docs/semantics.md defines every
+quantity, README.md the world format and the outputs."""
 
 from __future__ import annotations
 
