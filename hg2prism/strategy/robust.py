@@ -20,7 +20,9 @@ Method, certified as docs/semantics.md §10 asks of the games:
    response — itself a policy iteration over the adversary's resolutions, each evaluated by a
    sparse linear solve on the states where the adversary cannot avoid the goal surely (there
    every resolution leaves the states with probability 1, so the system is regular) — and
-   P1 switches to a choice whose worst case is better by more than 1e-12, until none is;
+   P1 switches to a choice whose worst case is better by more than 1e-11, until none is,
+   keeping only switches under which every positive state stays positive (otherwise
+   simultaneous switches can close a loop the adversary holds P1 in, and the iteration cycles);
 3. certificate: the values are those of a P1 strategy against the adversary's best response
    (so at most R), and a fixed point of the operator above to within 1e-10 (so, being 0
    exactly where R is 0, at least R up to that residual). Failing either is a SolverError.
@@ -280,9 +282,10 @@ def solve_robust(game: IntervalGame) -> RobustSolution:
         better = free & (best > q_values[strategy] + P1_SWITCH)
         if not better.any():
             break
-        for s in np.flatnonzero(better).tolist():
-            choices = q_values[game.choice_start[s]:game.choice_start[s + 1]]
-            strategy[s] = game.choice_start[s] + int(np.argmax(choices))
+        improved = _improve_keeping_positive(game, strategy, q_values, better, free)
+        if np.array_equal(improved, strategy):
+            break       # every remaining switch would stall P1: the certificate decides
+        strategy = improved
     else:
         raise SolverError("P1's strategy iteration on the interval model did not converge")
     running = ~game.stop
@@ -293,6 +296,31 @@ def solve_robust(game: IntervalGame) -> RobustSolution:
         raise SolverError("robust values are positive where the adversary avoids the goal")
     return RobustSolution(values=values, strategy=strategy, q_values=q_values, rounds=rounds,
                           residual=residual)
+
+
+def _improve_keeping_positive(game: IntervalGame, strategy: np.ndarray, q_values: np.ndarray,
+                              better: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """P1's next strategy: each state in `better` switches to its best choice, except where the
+    switches together would let the adversary hold a positive state away from the goal forever.
+
+    Switches that are each an improvement can jointly close a loop of choices the adversary can
+    keep P1 in; the values of such a strategy drop to 0 there and the iteration cycles. So the
+    switched states that are no longer positive under the new strategy go back to their old
+    choice, until every state of `free` is positive again (it is once all switches are undone).
+    With every free state positive the adversary cannot stall P1, so each accepted round does
+    not decrease the values, and one with a switch increases one."""
+    proposed = strategy.copy()
+    switched = np.flatnonzero(better)
+    best = np.array([game.choice_start[s] + int(np.argmax(
+        q_values[game.choice_start[s]:game.choice_start[s + 1]])) for s in switched.tolist()],
+        dtype=strategy.dtype)
+    proposed[switched] = best
+    while True:
+        positive, _ = positive_states(game, proposed)
+        lost = free & ~positive & (proposed != strategy)
+        if not lost.any():
+            return proposed
+        proposed[lost] = strategy[lost]
 
 
 def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.ndarray,
