@@ -1,7 +1,7 @@
 """Generator of small random *valid* world files for the tests (docs/semantics.md §1).
 
 ``random_world(seed)`` gives the TOML text of one small valid world; ``world_family()`` a
-fixed, deterministic list of worlds covering delay 0/1/2, traps 1/2, window 1/2/3, slip 0 and
+fixed, deterministic list of worlds covering delay 0/1/2/3, traps 1/2, window 1/2/3, slip 0 and
 > 0, one and several hypotheses.  Every world's hypergame stays well below ~30,000 canonical
 states (checked with tests/reference.py when the family was chosen).
 """
@@ -269,6 +269,11 @@ FAMILY = [
     ('fam43_tx_d0_l1_w3', 44002, {'delay': 0, 'traps': 1, 'window': 3, 'task': '!obs U A', 'hyps': ['!obs U A', '!obs U B', 'F C']}),
     ('fam44_big_d0_l1_w3_x3', 45004, {'delay': 0, 'traps': 1, 'window': 3, 'nhyp': 3, 'size': (5, 5)}),
     ('fam45_big_d1_l1_w3_x3', 46000, {'delay': 1, 'traps': 1, 'window': 3, 'nhyp': 3, 'size': (4, 4)}),
+    # delay 3 (seeds picked for a value strictly between V_lead and 1)
+    ('fam46_d3_l1_w1_x3', 47005, {'delay': 3, 'traps': 1, 'window': 1, 'nhyp': 3}),
+    ('fam47_d3_l2_w1_x2', 48020, {'delay': 3, 'traps': 2, 'window': 1, 'nhyp': 2}),
+    ('fam48_d3_l1_w2_x2', 49001, {'delay': 3, 'traps': 1, 'window': 2, 'nhyp': 2}),
+    ('fam49_d3_l1_w3_x2', 51007, {'delay': 3, 'traps': 1, 'window': 3, 'nhyp': 2}),
 ]
 
 

@@ -70,11 +70,16 @@ DEFAULT_SIZES: tuple[tuple[int, ...], ...] = (
     (24, 3, 3, 1),
     (28, 3, 3, 1),
     (31, 3, 3, 1),
-    # delay (the fifth number): one trap with delay 1 and 2 (deceptive value 0.9 against v_lead
-    # 0.64), and two traps with delay 1 (0.576 against 0; without delay two traps give 0)
+    # delay (the fifth number): one trap with delay 1 to 3 (deceptive value 0.9 against v_lead
+    # 0.64), two traps with delay 1 and 2 (0.576 against 0; without delay two traps give 0), and
+    # window 3 with delay 1 and 2 (0.9), to compare with the delay-0 worlds of the same grid
     (12, 1, 3, 1, 1),
     (12, 1, 3, 1, 2),
+    (12, 1, 3, 1, 3),
     (12, 2, 3, 2, 1),
+    (12, 2, 3, 2, 2),
+    (12, 3, 3, 1, 1),
+    (12, 3, 3, 1, 2),
 )
 
 SLOPE_RANGE = (1e4, 1e6)

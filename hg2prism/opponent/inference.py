@@ -19,7 +19,7 @@ from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, rende
 TOLERANCE = 1e-9
 
 
-__all__ = ["Memory", "InferenceModel", "build_inference", "ts_state_expression"]
+__all__ = ["Memory", "InferenceModel", "build_inference", "ts_state_expression", "ts_table"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,20 +94,29 @@ class InferenceModel:
         n_obs_states = ts.n_states - 1          # the TRAPPED state is never observed
         ratio_formulas = []      # (name, comment, expression)
         rules = []               # per (hypothesis, action): switch and best formulas
+        if slots == 0 and n_x > 1:
+            return self._prism_window_one(ts, labels)
+        class_tables = []        # (name, comment, expression)
+        n_classes = 1
         for h in range(n_x):
             others = [x for x in range(n_x) if x != h]
+            if others and slots:
+                classes, class_ratios = self.ratio_classes(h)
+                n_classes = max(n_classes, len(class_ratios))
+                for d, a in enumerate(ACTIONS):
+                    class_tables.append((f"cls_h{h}_{a}", f"class of moving {a} now when hyp = {h}",
+                                         ts_table(ts, classes[:, d])))
             for x in others:
                 ratios = self.ratios[h, x, :n_obs_states]                    # [states, 4]
                 for i in range(1, slots + 1):
-                    padded = np.vstack([np.zeros((1, 4)), ratios])           # state -1 = empty
-                    padded = np.hstack([np.zeros((padded.shape[0], 1)), padded])  # act -1
+                    padded = np.r_[0.0, class_ratios[:, x]]                   # class -1 = empty
                     ratio_formulas.append((
                         f"r_h{h}_x{x}_o{i}", f"r(x{x} | x{h}) of the move in slot o{i}",
-                        lookup(padded, [(f"o{i}_state", -1), (f"o{i}_act", -1)])))
+                        lookup(padded, [(f"o{i}_cls", -1)])))
                 for d, a in enumerate(ACTIONS):
                     ratio_formulas.append((
                         f"r_h{h}_x{x}_{a}", f"r(x{x} | x{h}) of moving {a} now",
-                        lookup(ratios[:, d], [("ts_state", 0)])))
+                        ts_table(ts, ratios[:, d])))
             for a in ACTIONS:
                 scores = {}
                 for x in others:
@@ -124,6 +133,7 @@ class InferenceModel:
                               "zmax": maximum(z_names) if others else "", "next": best})
         context = dict(
             ts_state=ts_state_expression(ts), ratio_formulas=ratio_formulas, inference_rules=rules,
+            class_tables=class_tables, n_classes=n_classes,
             switch_threshold=prism_number(self.threshold - TOLERANCE),
             tolerance=prism_number(TOLERANCE), actions=ACTIONS, labels=labels, slots=slots,
             n_obs_states=n_obs_states, n_hypotheses=n_x, initial_hypothesis=self.initial_hypothesis)
@@ -131,6 +141,66 @@ class InferenceModel:
             formulas=render_macro("inference_cusum.prism.j2", "formulas", **context).rstrip("\n"),
             module=render_macro("inference_cusum.prism.j2", "module", **context).rstrip("\n"),
             slots=slots, commands=sum(2 if rule["others"] else 1 for rule in rules))
+
+
+    def ratio_classes(self, hypothesis: int) -> tuple[np.ndarray, np.ndarray]:
+        """Observations that P2 cannot tell apart under `hypothesis`: those whose ratios
+        r(x | hypothesis) agree for every x. Returns each observed (TS state, move)'s class
+        [states, 4] and each class's ratios [classes, X] (0 for x = hypothesis). A window slot
+        of the PRISM model keeps its observation's class, so the slot's ratios are a table over
+        the classes (a few hundred) instead of over every observation."""
+        n_obs = self.ratios.shape[2] - 1
+        vectors = self.ratios[hypothesis, :, :n_obs, :].transpose(1, 2, 0).reshape(-1, self.n_hypotheses)
+        vectors = vectors + 0.0          # -0.0 and 0.0 are the same ratio
+        class_ratios, classes = np.unique(vectors, axis=0, return_inverse=True)
+        return classes.reshape(n_obs, 4), class_ratios
+
+    def next_hypotheses(self, action: int) -> np.ndarray:
+        """[X, observed TS states]: P2's hypothesis after P1 plays `action` from each TS state,
+        when the window holds nothing before it (window 1), from each current hypothesis.
+        The same arithmetic as `update`, so the table is exact."""
+        n_x = self.n_hypotheses
+        n_obs = self.ratios.shape[2] - 1
+        after = np.repeat(np.arange(n_x)[:, None], n_obs, axis=1)
+        for h in range(n_x):
+            others = [x for x in range(n_x) if x != h]
+            z = np.maximum(0.0, 0.0 + self.ratios[h, others, :n_obs, action])    # [others, v]
+            top = z.max(axis=0)
+            switch = top >= self.threshold - TOLERANCE
+            first = (z >= top - TOLERANCE).argmax(axis=0)
+            after[h] = np.where(switch, np.asarray(others)[first], h)
+        return after
+
+    def _prism_window_one(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+        """Window 1: P2's memory is her hypothesis alone, so the hypothesis after each move is
+        a table over the TS state, computed here; Storm evaluates one table per command instead
+        of the CUSUM formulas, each of which repeats every ratio table it uses."""
+        n_x = self.n_hypotheses
+        tables = []              # (name, comment, expression)
+        for d, a in enumerate(ACTIONS):
+            after = self.next_hypotheses(d)
+            for h in range(n_x):
+                tables.append((f"hyp_after_h{h}_{a}",
+                               f"P2's hypothesis after P1 moves {a} when hyp = {h}",
+                               ts_table(ts, after[h])))
+        context = dict(next_tables=tables, actions=ACTIONS, labels=labels,
+                       n_hypotheses=n_x, initial_hypothesis=self.initial_hypothesis)
+        return ObserverPrism(
+            formulas=render_macro("inference_cusum.prism.j2", "formulas_window_one",
+                                  **context).rstrip("\n"),
+            module=render_macro("inference_cusum.prism.j2", "module_window_one",
+                                **context).rstrip("\n"),
+            slots=0, commands=len(ACTIONS) * n_x)
+
+
+def ts_table(ts: TransitionSystem, values: np.ndarray) -> str:
+    """A table over the observed TS states (values[v] for v < ts.n_states - 1) as a decision
+    tree over cell (then traps and countdown when delay > 0): comparisons on the variables
+    themselves, not on `ts_state`, which Storm would recompute at every comparison."""
+    if not ts.delay:
+        return lookup(values, [("cell", 0)])
+    keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
+    return lookup(np.asarray(values).reshape(ts.n_cells, ts.n_sets, ts.phases), keys)
 
 
 def ts_state_expression(ts: TransitionSystem) -> str:

@@ -101,14 +101,16 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
     accepting = sorted(task.accepting)
     sink = sorted(task.sink)
 
-    # P2's trap choice per hypothesis.
+    # P2's trap choice per hypothesis: with delay, only where she may move them (countdown 0;
+    # `trap_set` keeps the standing set otherwise), so the tables do not grow with the delay.
+    choices = np.array([g.trap_choice[:-1] for g in games]).reshape(len(games), n_cells, -1)
     if ts.delay:
-        trap_keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
-        shape = (n_cells, n_sets, ts.phases)
+        choices = choices.reshape(len(games), n_cells, n_sets, ts.phases)[..., 0]
+        trap_keys = [("cell", 0), ("traps", 0)]
     else:
+        choices = choices[..., 0]
         trap_keys = [("cell", 0)]
-        shape = (n_cells,)
-    trap_tables = [lookup(g.trap_choice[:-1].reshape(shape), trap_keys) for g in games]
+    trap_tables = [lookup(choice, trap_keys) for choice in choices]
     observer = inference.prism(ts, observer_labels)
     # The trap set in force: P2's choice under her current hypothesis (while she may move them).
     by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
@@ -120,6 +122,7 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
         trap_tables=trap_tables, trap_set=trap_set, observer=observer,
         robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts, trap_key),
+        trap_hits=_trap_hit_tables(ts, choices, trap_keys),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
         start_traps=ts.decode(ts.start_state)[1], slip=prism_number(world.slip),
         region_labels=region_labels(ts),
@@ -146,6 +149,33 @@ def _trap_cell_tables(ts: TransitionSystem, trap_key: str = "trap_set") -> list[
     members = np.array([sorted(ts.candidates[c] for c in members) for members in ts.trap_sets],
                        dtype=np.int64).reshape(ts.n_sets, -1)
     return [lookup(members[:, j], [(trap_key, 0)]) for j in range(members.shape[1])]
+
+
+def _trap_hit_tables(ts: TransitionSystem, choices: np.ndarray, keys: list[tuple[str, int]]
+                     ) -> dict[str, dict]:
+    """Per direction d, whether the cell reached by moving d lands on the trap set in force:
+    tables over the keys of `choices` (P2's choice per hypothesis, [X, cells(, traps)]), one per
+    hypothesis, and with delay one for the standing set (countdown > 0). The robot then asks
+    one table per outcome, where looking the set's cells up from `trap_set` would repeat
+    P2's tables in every comparison."""
+    n_x = choices.shape[0]
+    members = np.zeros((ts.n_sets, ts.n_cells + 1), dtype=bool)
+    for t, chosen in enumerate(ts.trap_sets):
+        members[t, [ts.candidates[c] for c in chosen]] = True
+    hits = {}
+    for d, a in enumerate(ACTIONS):
+        landing = ts.move[:, d]
+        landing = landing.reshape((-1,) + (1,) * (choices.ndim - 2))
+        by_hypothesis = [lookup(members[choices[x], np.broadcast_to(landing, choices[x].shape)]
+                                .astype(np.int64), keys) for x in range(n_x)]
+        standing = None
+        if ts.delay:
+            traps = np.arange(ts.n_sets)[None, :]
+            standing = lookup(members[np.broadcast_to(traps, choices[0].shape),
+                                      np.broadcast_to(landing, choices[0].shape)]
+                              .astype(np.int64), keys)
+        hits[a] = {"by_hypothesis": by_hypothesis, "standing": standing}
+    return hits
 
 
 def count_commands(text: str) -> dict[str, int]:
