@@ -168,7 +168,7 @@ def test_huge_window_is_refused_up_front(tmp_path: Path) -> None:
     proc = run_cli(["run", str(world), "--out", str(tmp_path / "out")], tmp_path, timeout=60)
     assert time.monotonic() - start < 30
     assert_one_line_error(proc, str(world), "size", "more than 10^18", "window 1000000",
-                          "limit of 4,194,304")
+                          "limit of 6,291,456")
     assert not (tmp_path / "out").exists()
 
 

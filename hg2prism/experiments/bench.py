@@ -70,6 +70,7 @@ DEFAULT_SIZES: tuple[tuple[int, ...], ...] = (
     (24, 3, 3, 1),
     (28, 3, 3, 1),
     (31, 3, 3, 1),
+    (64, 3, 3, 1),      # 4.2 million canonical states, about 10 GB at peak
     # delay (the fifth number): one trap with delay 1 to 3 (deceptive value 0.9 against v_lead
     # 0.64), two traps with delay 1 and 2 (0.576 against 0; without delay two traps give 0), and
     # window 3 with delay 1 and 2 (0.9), to compare with the delay-0 worlds of the same grid

@@ -53,12 +53,13 @@ from hg2prism.model.world import World
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
 # the benchmark family (bench/results.csv, `peak_mb`): 2.3-2.5 KB per canonical state from 4e5
 # to 1e6 states (2,269 MB for 982,387 states: Storm's model with state valuations and choice
-# labels, the arrays read back from Storm, the strategy export). The default limit keeps a
-# model within 24 GiB at 6 KB per *estimated* state, a margin of 2.5x over what was measured on
-# top of the estimate's own (1.0-4.6x on that family).
+# labels, the arrays read back from Storm, the strategy export), 2.3 KB at 4.2e6 (9,671 MB for
+# 4,202,302 states, estimate 5,006,240). The default limit keeps a model within 24 GiB at 4 KiB
+# per *estimated* state, a margin of 1.6x over the most measured per canonical state, on top
+# of the estimate's own (1.0-4.6x on that family).
 MEMORY_BUDGET = 24 * 2 ** 30
-BYTES_PER_STATE = 6 * 1024
-DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 4,194,304 estimated states
+BYTES_PER_STATE = 4 * 1024
+DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
 BEYOND = 10 ** 18     # the estimate stops counting here ("more than 10^18 states")
 
 # dynamics.py's directions (N, E, S, W) and the two perpendicular slips of each.
