@@ -109,8 +109,20 @@ def test_loglog_slope() -> None:
     rows = [{"states": n, "time_total": 2e-5 * n ** 1.05} for n in (1e4, 1e5, 1e6)]
     rows.append({"states": 1e7, "time_total": 1.0})                  # outside the range
     rows.append({"states": 5e4, "time_total": 1.0, "error": "x"})    # failed run
-    assert bench.loglog_slope(rows) == pytest.approx(1.05)
+    assert bench.loglog_slope(rows, 1e4, 1e6) == pytest.approx(1.05)
     assert bench.loglog_slope(rows[:1]) is None
+    assert bench.loglog_slope(rows[:3] + [{"states": 1e3, "time_total": 1.0}]) \
+        == pytest.approx(1.05)                                       # below 1e4: left out
+
+
+def test_delay_costs_compare_with_the_same_world_without_delay() -> None:
+    def row(delay: int, seconds: float, states: int) -> dict:
+        return {"name": f"d{delay}", "side": 12, "window": 2, "hypotheses": 3, "traps": 1,
+                "delay": delay, "time_parse": seconds / 4, "time_build": seconds * 3 / 4,
+                "storm_states": states}
+    rows = [row(0, 1.0, 1000), row(2, 6.0, 4000), dict(row(1, 1.0, 10), side=16)]
+    assert bench.delay_costs(rows) == [("d2", pytest.approx(1.5))]
+    assert bench.undelayed(rows) == rows[:1]
 
 
 def test_bench_writes_results_and_figure(tmp_path: Path) -> None:
