@@ -31,7 +31,11 @@ TIE = 1e-6              # P2's tie tolerance between trap sets (docs/semantics.m
 # certification fail, value iteration resumes with a tolerance 100 times smaller.
 VI_TOLERANCE = 0.3
 MAX_SWEEPS = 1_000_000
-POLISH_ROUNDS = 12
+# Strategy iteration switches a strategy only where the exact values improve by more than this:
+# float noise in the linear solves (about 1e-15) must not make a player switch back and forth.
+IMPROVEMENT = 1e-12
+DROP = 1e-9             # a fall of P1's values by more than this is not float noise of a solve
+MAX_ROUNDS = 10_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,21 +172,94 @@ def _value_iteration(game: TurnBasedGame, v: np.ndarray, fixed: np.ndarray,
 
 def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Greedy strategies for both players from v, evaluated exactly and polished; if certified
-    (see the module docstring), the exact values x, P1's answers greedy for x (which guarantee
-    x) and P2's trap sets chosen from x by docs/semantics.md §4's rule (`trap_rule`), else None."""
-    for _ in range(POLISH_ROUNDS):
-        p1, p2 = _greedy(game, v, optimal_slack)
-        x = _evaluate_pair(game, p1, p2, zero)
-        residual = np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0)
-        if residual <= 1e-11:
-            # From exact values of a pair, only float noise separates truly optimal moves.
-            p1_x, _ = _greedy(game, x, 1e-12)
-            if is_certified(game, p1_x, x):
-                worst = np.where(game.allowed, game.q_values(x).max(axis=1), np.inf)
-                return x, p1_x, trap_rule(worst, game.standing)
-        v, optimal_slack = x, 1e-12
-    return None
+    """Greedy strategies for both players from v, evaluated exactly and, if that pair is not
+    optimal yet, improved by strategy iteration (`_strategy_iteration`); if certified (see the
+    module docstring), the exact values x, P1's answers greedy for x (which guarantee x) and
+    P2's trap sets chosen from x by docs/semantics.md §4's rule (`trap_rule`), else None."""
+    p1, p2 = _greedy(game, v, optimal_slack)
+    x = _evaluate_pair(game, p1, p2, zero)
+    if _residual(game, x) > 1e-11:
+        x = _strategy_iteration(game, p1, p2, zero)
+        if _residual(game, x) > 1e-11:
+            return None
+    # From exact values of a pair, only float noise separates truly optimal moves.
+    p1_x, _ = _greedy(game, x, 1e-12)
+    if not is_certified(game, p1_x, x):
+        return None
+    worst = np.where(game.allowed, game.q_values(x).max(axis=1), np.inf)
+    return x, p1_x, trap_rule(worst, game.standing)
+
+
+def _residual(game: TurnBasedGame, x: np.ndarray) -> float:
+    """How far x is from a fixed point of the game operator, over the free states."""
+    return float(np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0))
+
+
+def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
+                        ) -> np.ndarray:
+    """The game's values by Hoffman-Karp strategy iteration from the pair (p1, p2): P2
+    best-responds exactly to P1's answers (`_trap_response`), then P1 switches an answer
+    p1[g, a2] only where another move is better by more than IMPROVEMENT; until he cannot.
+
+    P1 guarantees each round's values (P2's best response is exact), and a strict switch
+    cannot let P2 keep P1 from the goal where he had a positive value (on such a trap the state
+    of largest value could not have improved), so the values rise, strictly where P1 switched,
+    no strategy of P1 comes back and the iteration ends, at a fixed point of the game operator
+    (up to IMPROVEMENT) that P1 guarantees: the least one, the game's value. (The other way
+    round, P2 improving against P1's best responses, can end at a larger fixed point.) Where P1
+    waits a long time (delay worlds) float noise in the values can exceed IMPROVEMENT, and a
+    switch that only looks better can let P2 trap him: the values then drop, and the switches
+    at the states that dropped are undone (all of them, ending the iteration, if values still
+    drop). The caller certifies the result."""
+    rows = np.arange(game.size)
+    solve = game.free & ~zero
+    p1 = p1.copy()
+    p2, x = _trap_response(game, p1, p2, zero)
+    for _ in range(MAX_ROUNDS):
+        q = game.q_values(x)                                          # [G, 4, A2]
+        current = np.take_along_axis(q, p1[:, None, :], axis=1)[:, 0, :]
+        better = (solve[:, None] & game.allowed) & (q.max(axis=1) > current + IMPROVEMENT)
+        if not better.any():
+            return x
+        switched = np.where(better, q.argmax(axis=1), p1)
+        p2_new, new = _trap_response(game, switched, p2, zero)
+        dropped = new < x - DROP
+        if dropped.any():
+            switched = np.where(dropped[:, None], p1, switched)
+            if (switched == p1).all():
+                return x
+            p2_new, new = _trap_response(game, switched, p2, zero)
+            if (new < x - DROP).any():
+                return x
+        p1, p2, x = switched, p2_new, new
+    raise SolverError(f"strategy iteration did not end in {MAX_ROUNDS} rounds")
+
+
+def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """P2's best trap sets against P1's answers p1[g, a2] (an MDP in which she minimises the
+    chance of the goal) and their exact values, by strategy iteration from p2.
+
+    Where P2 can keep P1 from the goal forever against p1 the value is 0, fixed; from every
+    other state each of her strategies reaches the goal or those states for sure, so her
+    operator has a single fixed point, and switching where a trap set is better by more than
+    IMPROVEMENT lowers the values until it is reached."""
+    answers = p1[:, None, :] == np.arange(4)[None, :, None]           # [G, 4, A2]
+    pinned = zero | (game.positive_attractor(answers) < 0)
+    rows = np.arange(game.size)
+    solve = game.free & ~pinned
+    # Only P1's answers matter here: the successors and probabilities of (g, p1[g, a2], a2).
+    nxt = np.take_along_axis(game.next, p1[:, None, :, None], axis=1)[:, 0]     # [G, A2, 3]
+    prob = np.take_along_axis(game.prob, p1[:, None, :, None], axis=1)[:, 0]
+    for _ in range(MAX_ROUNDS):
+        x = _evaluate_pair(game, p1, p2, pinned)
+        answered = prob[..., 0] * x[nxt[..., 0]] + prob[..., 1] * x[nxt[..., 1]] + prob[..., 2] * x[nxt[..., 2]]
+        worst = np.where(game.allowed, answered, np.inf)
+        better = solve & (worst.min(axis=1) < worst[rows, p2] - IMPROVEMENT)
+        if not better.any():
+            return p2, x
+        p2 = np.where(better, worst.argmin(axis=1), p2)
+    raise SolverError(f"P2's strategy iteration did not end in {MAX_ROUNDS} rounds")
 
 
 def _greedy(game: TurnBasedGame, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
@@ -218,9 +295,13 @@ def trap_rule(worst: np.ndarray, standing: np.ndarray | None) -> np.ndarray:
 
 def _evaluate_pair(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
     """Exact reach probabilities when P2 plays p2[g] and P1 answers p1[g, a2]."""
+    return _evaluate_moves(game, p1[np.arange(game.size), p2], p2, zero)
+
+
+def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
+    """Exact reach probabilities when P2 plays p2[g] and P1 moves a1[g] (0 on `zero`)."""
     n = game.size
     rows = np.arange(n)
-    a1 = p1[rows, p2]
     nxt = game.next[rows, a1, p2]                                     # [G, 3]
     prob = game.prob[rows, a1, p2]
     solve = game.free & ~zero
