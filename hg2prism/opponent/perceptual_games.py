@@ -31,6 +31,7 @@ TIE = 1e-6              # P2's tie tolerance between trap sets (docs/semantics.m
 # certification fail, value iteration resumes with a tolerance 100 times smaller.
 VI_TOLERANCE = 0.3
 MAX_SWEEPS = 1_000_000
+POLISH_ROUNDS = 12
 # Strategy iteration switches a strategy only where the exact values improve by more than this:
 # float noise in the linear solves (about 1e-15) must not make a player switch back and forth.
 IMPROVEMENT = 1e-12
@@ -176,9 +177,16 @@ def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack
     optimal yet, improved by strategy iteration (`_strategy_iteration`); if certified (see the
     module docstring), the exact values x, P1's answers greedy for x (which guarantee x) and
     P2's trap sets chosen from x by docs/semantics.md §4's rule (`trap_rule`), else None."""
-    p1, p2 = _greedy(game, v, optimal_slack)
-    x = _evaluate_pair(game, p1, p2, zero)
-    if _residual(game, x) > 1e-11:
+    # First the pair greedy for the values, re-evaluated (usually certified within a few
+    # rounds; kept first because it finds the same values to the last bit as before); where it
+    # cycles (delay worlds), Hoffman-Karp strategy iteration from the last pair.
+    for _ in range(POLISH_ROUNDS):
+        p1, p2 = _greedy(game, v, optimal_slack)
+        x = _evaluate_pair(game, p1, p2, zero)
+        if _residual(game, x) <= 1e-11:
+            break
+        v, optimal_slack = x, 1e-12
+    else:
         x = _strategy_iteration(game, p1, p2, zero)
         if _residual(game, x) > 1e-11:
             return None
