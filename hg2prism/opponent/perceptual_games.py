@@ -2,8 +2,11 @@
 
 G(x) is played on TS x DFA(x): at every step P2 commits to a trap set a2, then P1 answers with a1.
 Values are solved to within 1e-10 (docs/semantics.md §10): a few sweeps of value iteration from below seed
-the strategies, then strategy iteration evaluates the strategy pair exactly (a sparse linear solve)
-and certifies the result:
+the strategies; the pair greedy for the values is evaluated exactly (a sparse linear solve) and
+re-greedied for a few rounds; where that cycles (on delay worlds P2 changed about a third of her
+trap sets every round), Hoffman-Karp strategy iteration — P1 improves his answers, P2
+best-responds exactly — finds the values (benchmark delay worlds: 2.6-17 s of solving instead of
+12-19 s, see README "Scaling"). The result is certified:
   * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
     greedy strategy is at most x (the least fixed point lies below every fixed point), and
   * x is 0 wherever P2 can keep P1 away from the target forever against P1's strategy; then
@@ -122,7 +125,10 @@ class TurnBasedGame:
             if allowed_moves is not None:
                 found = found[allowed_moves[found]]
             reach[found] = True
-            candidates = np.unique(found // n_moves)
+            # sorted distinct states by marking: numpy's hash-based unique is several times slower
+            marked = np.zeros(self.size, dtype=bool)
+            marked[found // n_moves] = True
+            candidates = np.flatnonzero(marked)
             candidates = candidates[self.free[candidates] & (rank[candidates] < 0)]
             hit = reach.reshape(self.size, 4, -1)[candidates].any(axis=1)
             ok = (hit | ~self.allowed[candidates]).all(axis=1)
@@ -180,27 +186,30 @@ def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack
     # First the pair greedy for the values, re-evaluated (usually certified within a few
     # rounds; kept first because it finds the same values to the last bit as before); where it
     # cycles (delay worlds), Hoffman-Karp strategy iteration from the last pair.
+    q = game.q_values(v)
     for _ in range(POLISH_ROUNDS):
-        p1, p2 = _greedy(game, v, optimal_slack)
+        p1, p2 = _greedy(game, q, optimal_slack)
         x = _evaluate_pair(game, p1, p2, zero)
-        if _residual(game, x) <= 1e-11:
+        q = game.q_values(x)
+        if _residual(game, x, q) <= 1e-11:
             break
-        v, optimal_slack = x, 1e-12
+        optimal_slack = 1e-12
     else:
         x = _strategy_iteration(game, p1, p2, zero)
-        if _residual(game, x) > 1e-11:
+        q = game.q_values(x)
+        if _residual(game, x, q) > 1e-11:
             return None
     # From exact values of a pair, only float noise separates truly optimal moves.
-    p1_x, _ = _greedy(game, x, 1e-12)
+    p1_x, _ = _greedy(game, q, 1e-12)
     if not is_certified(game, p1_x, x):
         return None
-    worst = np.where(game.allowed, game.q_values(x).max(axis=1), np.inf)
+    worst = np.where(game.allowed, q.max(axis=1), np.inf)
     return x, p1_x, trap_rule(worst, game.standing)
 
 
-def _residual(game: TurnBasedGame, x: np.ndarray) -> float:
-    """How far x is from a fixed point of the game operator, over the free states."""
-    return float(np.abs(game.operator(game.q_values(x)) - x)[game.free].max(initial=0.0))
+def _residual(game: TurnBasedGame, x: np.ndarray, q: np.ndarray) -> float:
+    """How far x is from a fixed point of the game operator (q = Q of x), over the free states."""
+    return float(np.abs(game.operator(q) - x)[game.free].max(initial=0.0))
 
 
 def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray
@@ -270,10 +279,9 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     raise SolverError(f"P2's strategy iteration did not end in {MAX_ROUNDS} rounds")
 
 
-def _greedy(game: TurnBasedGame, v: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
+def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
     """P1's answer to every trap set and P2's trap set (exactly greedy: strategy iteration
-    needs it), greedy for v."""
-    q = game.q_values(v)                                              # [G, 4, A2]
+    needs it), greedy for values v whose one-step values are q = game.q_values(v) [G, 4, A2]."""
     best_a1 = q.max(axis=1)                                           # [G, A2]
     p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
     # P1: among (near-)optimal answers, one that makes progress toward the goal, so that P1
