@@ -5,8 +5,8 @@ Values are solved to within 1e-10 (docs/semantics.md §10): a few sweeps of valu
 the strategies; the pair greedy for the values is evaluated exactly (a sparse linear solve) and
 re-greedied for a few rounds; where that cycles (on delay worlds P2 changed about a third of her
 trap sets every round), Hoffman-Karp strategy iteration — P1 improves his answers, P2
-best-responds exactly — finds the values (benchmark delay worlds: 2.6-17 s of solving instead of
-12-19 s, see README "Scaling"). The result is certified:
+best-responds exactly — finds the values (the games stage of the benchmark's delay worlds fell
+from 9-151 s to 3-30 s, README "Scaling"). The result is certified:
   * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
     greedy strategy is at most x (the least fixed point lies below every fixed point), and
   * x is 0 wherever P2 can keep P1 away from the target forever against P1's strategy; then
