@@ -1,5 +1,6 @@
 """The games' graph searches (breadth-first over predecessor moves) against the plain
-level-by-level fixed points they replace, on world1 and generated worlds."""
+level-by-level fixed points they replace, on world1 and generated worlds; the solved strategies'
+optimality; strategy iteration alone on the generated delay worlds."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from conftest import MODELS
 from hg2prism.model.automata import translate
 from hg2prism.model.dynamics import build_transition_system
 from hg2prism.opponent.perceptual_games import is_certified, TurnBasedGame
-from hg2prism.model.world import load_world
+from hg2prism.model.world import load_world, world_from_toml
 
 FAMILY = dict(worldgen.world_family())
 CASES = ["world1"] + sorted(FAMILY)[::5]
@@ -112,3 +113,48 @@ def test_solved_strategies_are_optimal(games: list[TurnBasedGame]) -> None:
         q = game.q_values(value)
         answered = q[rows[:, None], p1, np.arange(game.ts.n_sets)[None, :]]       # [G, A2]
         assert (~game.allowed | (answered >= q.max(axis=1) - 1e-9)).all()
+
+
+def first_seed_sweeps(game: TurnBasedGame, tolerance: float) -> int:
+    """Sweeps of value iteration from below (goal 1, P1's attractor complement fixed at 0) until
+    the change is below `tolerance`: docs/semantics.md §10's step 2, counted independently."""
+    outside = ~game.goal & (game.positive_attractor() < 0)
+    fixed = ~game.free | outside
+    v = game.goal.astype(float)
+    for sweep in range(1, 100_000):
+        new = np.where(fixed, v, game.operator(game.q_values(v)))
+        change = np.abs(new - v).max()
+        v = new
+        if change < tolerance:
+            return sweep
+    raise AssertionError("value iteration did not settle")
+
+
+def test_strategy_iteration_certifies_the_same_solution_on_delay_worlds(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """With a single polishing round, Hoffman-Karp strategy iteration (docs/semantics.md §10,
+    step 3a) solves most games of the generated delay worlds: its values must be certified from
+    the first value-iteration seed (a wrong fixed point would fail the certificate and make value
+    iteration resume, adding sweeps) and give the strategies of the default path, whose values
+    tests/test_core.py checks against the independent reference."""
+    import hg2prism.opponent.perceptual_games as perceptual_games
+
+    compared = 0
+    for name, text in sorted(FAMILY.items()):
+        world = world_from_toml(text, name)
+        if not world.delay:
+            continue
+        ts = build_transition_system(world)
+        for formula in (world.formula,) + world.hypotheses:
+            dfa = translate(formula, ts.label_names, ts.letters)
+            default = perceptual_games.solve_game(ts, dfa)
+            with monkeypatch.context() as patch:
+                patch.setattr(perceptual_games, "POLISH_ROUNDS", 1)
+                alone = perceptual_games.solve_game(ts, dfa)
+            game = TurnBasedGame(ts, dfa)
+            assert alone.sweeps == first_seed_sweeps(game, perceptual_games.VI_TOLERANCE), (name, formula)
+            assert (alone.p2_strategy == default.p2_strategy).all(), (name, formula)
+            assert (alone.p1_strategy == default.p1_strategy).all(), (name, formula)
+            assert np.abs(alone.values - default.values).max() <= 1e-12, (name, formula)
+            compared += 1
+    assert compared >= 50
