@@ -228,7 +228,6 @@ def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zer
     switch that only looks better can let P2 trap him: the values then drop, and the switches
     at the states that dropped are undone (all of them, ending the iteration, if values still
     drop). The caller certifies the result."""
-    rows = np.arange(game.size)
     solve = game.free & ~zero
     p1 = p1.copy()
     p2, x = _trap_response(game, p1, p2, zero)
