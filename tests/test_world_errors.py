@@ -364,8 +364,11 @@ def test_stopped_run_leaves_nothing_half_written(tmp_path: Path, signal_name: st
     env = dict(os.environ, PYTHONPATH=str(REPO))
     command = [sys.executable, "-m", "hg2prism", "run", str(MODELS / "world1.toml"),
                "--out", str(out), "--episodes", "1000000"]
+    # A shell's background job inherits SIGINT ignored (and Python then keeps ignoring it), so
+    # the child gets the default disposition back, as a command typed in a terminal has.
     proc = subprocess.Popen(command, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 60
     # Wait until the model is checked (strategy.json staged): the simulations run from then on.
     while not any(tmp_path.glob(".out.staging-*/strategy.json")):
