@@ -35,7 +35,7 @@ bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile   # two processes, one per core; each test file stays in one
 
 clean:
 	rm -rf $(VENV) models/*/ bench/
