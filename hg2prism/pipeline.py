@@ -5,10 +5,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 import numpy as np
 
@@ -20,9 +21,8 @@ from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, fa
                             solve_game)
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
-from hg2prism.strategy.canonical import canonical_mdp, canonical_values
-from hg2prism.strategy.deceptive import (StormChoices, canonical_actions, deceptive_strategy,
-                                         storm_choices)
+from hg2prism.strategy.canonical import CanonicalMDP, canonical_mdp, canonical_values
+from hg2prism.strategy.deceptive import StormChoices, deceptive_actions, storm_choices
 from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_explicit,
                                        stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
@@ -33,7 +33,7 @@ from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_mo
 from hg2prism.opponent.bayes import build_bayes
 from hg2prism.opponent.inference import build_inference
 from hg2prism.opponent.observer import Observer
-from hg2prism.outputs import write_json, write_text
+from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
                               Simulations, StrategyObjective)
@@ -133,36 +133,61 @@ def automata_files(analysis: Analysis) -> dict[str, str]:
     return files
 
 
-def _objective_strategy(objective: str, bound: int | None, decoded: storm.DecodedStates,
-                        checked: storm.CheckedModel, moves: storm.Transitions,
-                        ts: TransitionSystem, default: StormChoices
-                        ) -> tuple[StormChoices, RecordExtras, InducedDTMC, Bounded | None, float]:
-    """P1's strategy for the objective, the records' extra keys, its induced DTMC, the
-    step-dependent strategy (bounded only) and the objective's value (docs/semantics.md §6)."""
-    mdp = canonical_mdp(decoded, moves)
+@dataclass(frozen=True, eq=False)
+class ModelStructure:
+    """What the export stage reads off Storm's model, independent of the values (so it is read
+    while Storm solves)."""
+
+    moves: storm.Transitions
+    decoded: storm.DecodedStates
+    mdp: CanonicalMDP
+    size: tuple[int, int]          # canonical states and transitions (docs/semantics.md §6)
+
+
+def read_model(model: object, prism: PrismModel, analysis: Analysis) -> ModelStructure:
+    """Storm's transitions, its states decoded, the canonical MDP and its size."""
+    moves = storm.transitions(model)
+    decoded = storm.decode_states(model, prism.layout, analysis.ts, analysis.task,
+                                  getattr(analysis.inference, "window_hypotheses", None))
+    return ModelStructure(moves, decoded, canonical_mdp(decoded, moves),
+                          storm.canonical_size(decoded, moves))
+
+
+def _objective_strategy(objective: str, bound: int | None, structure: ModelStructure,
+                        checked: storm.CheckedModel, ts: TransitionSystem
+                        ) -> tuple[StormChoices, RecordExtras, Callable[[], InducedDTMC],
+                                   Bounded | None, float]:
+    """P1's strategy for the objective, the records' extra keys, the maker of its induced DTMC,
+    the step-dependent strategy (bounded only) and the objective's value (docs/semantics.md
+    §6)."""
+    decoded, moves, mdp = structure.decoded, structure.moves, structure.mdp
     values = canonical_values(decoded, checked.values)
     initial = int(decoded.canonical[checked.model.initial_states[0]])
     move_values = mdp.by_state(mdp.choice_values(values))
-    action = canonical_actions(default, moves)
+    action = deceptive_actions(mdp, values)
     if objective == "pmax":
-        dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
-        return default, RecordExtras(move_values), dtmc, None, checked.value
+        strategy = storm_choices(decoded, moves, mdp.representative, action)
+        dtmc = functools.partial(stationary_dtmc, mdp, action, decoded, ts, initial)
+        return strategy, RecordExtras(move_values), dtmc, None, checked.value
     if objective == "lexicographic":
         action = lexicographic_actions(mdp, values, action).action
-        strategy = storm_choices(decoded, moves, default.representative, action)
-        dtmc = stationary_dtmc(mdp, action, decoded, ts, initial)
+        strategy = storm_choices(decoded, moves, mdp.representative, action)
+        dtmc = functools.partial(stationary_dtmc, mdp, action, decoded, ts, initial)
         return strategy, RecordExtras(move_values), dtmc, None, checked.value
     if mdp.n * bound > MAX_BOUNDED_PAIRS:
         raise InputError("command line", "--bound",
                          f"{mdp.n:,} hypergame states x {bound:,} steps is more than the "
                          f"{MAX_BOUNDED_PAIRS:,} (state, step) pairs the bounded objective keeps")
     bounded = bounded_actions(mdp, action, initial, bound)
-    strategy = storm_choices(decoded, moves, default.representative, bounded.action_at(0))
-    try:
-        dtmc = unfolded_dtmc(mdp, bounded.action_at, decoded, ts, initial, bound,
-                             MAX_BOUNDED_PAIRS)
-    except ValueError as err:
-        raise InputError("command line", "--bound", str(err)) from None
+    strategy = storm_choices(decoded, moves, mdp.representative, bounded.action_at(0))
+
+    def dtmc() -> InducedDTMC:
+        try:
+            return unfolded_dtmc(mdp, bounded.action_at, decoded, ts, initial, bound,
+                                 MAX_BOUNDED_PAIRS)
+        except ValueError as err:
+            raise InputError("command line", "--bound", str(err)) from None
+
     extras = RecordExtras(move_values, bounded.schedules(), bounded.move_values)
     return strategy, extras, dtmc, bounded, bounded.value
 
@@ -187,21 +212,34 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     if storm_method not in storm.SOUND_METHODS:
         warn(f"Storm method {storm_method!r} is not sound: the deceptive value is not "
                  "certified to 1e-10")
-    checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method)
+    checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method,
+                          alongside=lambda model: read_model(model, prism, analysis))
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
-    moves = storm.transitions(checked.model)
-    decoded = storm.decode_states(checked.model, prism.layout, analysis.ts, analysis.task,
-                                  getattr(analysis.inference, "window_hypotheses", None))
-    states, transitions = storm.canonical_size(decoded, moves)
-    default = deceptive_strategy(decoded, checked, moves)
-    strategy, extras, dtmc, bounded, objective_value = _objective_strategy(
-        objective, bound, decoded, checked, moves, analysis.ts, default)
-    strategy_text = strategy_json(decoded, strategy, moves, analysis.ts, extras)
-    steps = expected_steps(dtmc)
-    explicit = prism_explicit(dtmc)
-    drn_text = drn(dtmc, f"the DTMC P1's strategy ({objective}) induces on the hypergame of "
-                         f"{world.name}; states as in induced.sta")
+    structure: ModelStructure = checked.alongside
+    decoded, moves = structure.decoded, structure.moves
+    states, transitions = structure.size
+    strategy, extras, make_dtmc, bounded, objective_value = _objective_strategy(
+        objective, bound, structure, checked, analysis.ts)
+    comment = (f"the DTMC P1's strategy ({objective}) induces on the hypergame of {world.name}; "
+               "states as in induced.sta")
+
+    def write_explicit(dtmc: InducedDTMC) -> None:
+        for suffix, text in prism_explicit(dtmc).items():
+            write_bytes(out / f"induced.{suffix}", text)
+
+    # The exports are independent: they are formatted and written side by side (numpy and
+    # scipy release the GIL in their loops). One record per line in strategy.json: compact
+    # for millions of states, still easy to grep and diff.
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        jobs = [pool.submit(lambda: write_bytes(out / "strategy.json", strategy_json(
+            decoded, strategy, moves, analysis.ts, extras)))]
+        dtmc = make_dtmc()
+        jobs += [pool.submit(write_explicit, dtmc),
+                 pool.submit(lambda: write_bytes(out / "induced.drn", drn(dtmc, comment)))]
+        steps = expected_steps(dtmc)
+        for job in jobs:
+            job.result()
     analysis.timings["export"] = time.perf_counter() - start
     if abs(steps.goal_probability - objective_value) > 1e-6:
         warn(f"the exported strategy reaches the goal with probability "
@@ -227,12 +265,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
             goal_probability=steps.goal_probability, expected_steps=steps.to_end,
             expected_steps_to_goal=steps.to_goal),
     )
-    # One record per line: compact for millions of states, still easy to grep and diff.
-    write_text(out / "strategy.json", strategy_text)
     write_json(out / "results.json", results.to_json())
-    for suffix, text in explicit.items():
-        write_text(out / f"induced.{suffix}", text)
-    write_text(out / "induced.drn", drn_text)
     for name, text in automata_files(analysis).items():
         write_text(out / name, text)
     say(f"storm: {checked.model.nr_states} states ({states} canonical), "

@@ -18,6 +18,7 @@ from hg2prism.engines import storm
 from hg2prism.model.dynamics import ACTIONS
 from hg2prism.opponent.inference import Memory
 from hg2prism.model.world import load_world
+from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 
 FAMILY = dict(worldgen.world_family())
 CASES = ["world1"] + sorted(FAMILY)
@@ -106,7 +107,8 @@ def test_exported_strategy_is_optimal(case) -> None:
 
 
 def test_strategy_file_holds_the_records(case) -> None:
-    """strategy.json is written from cached fragments, not from the records: same content."""
+    """strategy.json is written column-wise (strategy/columns.py), not from the records: same
+    content."""
     result, _ = case
     written = json.loads((result.out / "strategy.json").read_text())
     assert written == result.records
@@ -225,3 +227,41 @@ def test_storm_methods_agree_with_the_sound_default(name: str, method: str, worl
     tolerance = 1e-9 if "sound" in method else TOL   # "fast" is not sound
     assert other.values == pytest.approx(result.checked.values, abs=tolerance)
     assert other.value == pytest.approx(ref.value, abs=TOL)
+
+
+def test_deceptive_moves_are_the_fastest_optimal_ones(case) -> None:
+    """docs/semantics.md §6: every state's exported move is, among the moves whose value is
+    within 1e-8 of the state's, the first (in move order) maximising the discounted (0.9)
+    probability W of reaching the goal; W iterated here state by state in plain Python."""
+    result, _ = case
+    moves = storm.transitions(result.checked.model)
+    mdp = canonical_mdp(result.decoded, moves)
+    values = canonical_values(result.decoded, result.checked.values)
+    branches: dict[int, list[tuple[int, float]]] = {}
+    for c, t, p in zip(mdp.entry_choice.tolist(), mdp.entry_target.tolist(),
+                       mdp.entry_prob.tolist()):
+        branches.setdefault(c, []).append((t, p))
+    optimal: dict[int, list[int]] = {}
+    for c, s in enumerate(mdp.choice_state.tolist()):
+        if sum(p * values[t] for t, p in branches[c]) >= values[s] - 1e-8:
+            optimal.setdefault(s, []).append(c)
+    goal = mdp.goal.tolist()
+
+    def score(c: int, w: dict[int, float]) -> float:
+        return sum(p * (1.0 if goal[t] else 0.9 * w.get(t, 0.0)) for t, p in branches[c])
+
+    w = dict.fromkeys(optimal, 0.0)
+    for _ in range(1000):
+        new = {s: max(score(c, w) for c in cs) for s, cs in optimal.items()}
+        change = max((abs(new[s] - w[s]) for s in w), default=0.0)
+        w = new
+        if change < 1e-9:
+            break
+    action = moves.action[result.strategy.choice[mdp.representative]]
+    exported = {s: a for s, a in enumerate(action.tolist()) if a >= 0}
+    assert set(exported) == set(optimal)
+    for s, cs in optimal.items():
+        scores = [score(c, w) for c in cs]
+        best = max(scores)
+        first = next(c for c, x in zip(cs, scores) if x >= best - 1e-12 * abs(best))
+        assert exported[s] == mdp.choice_action[first], s

@@ -47,7 +47,7 @@ def choice_matrix(row_start: np.ndarray, target: np.ndarray, probability: np.nda
     return sp.csr_matrix((probability, target, row_start), shape=(len(row_start) - 1, n_states))
 
 
-def _backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
+def backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
                     ) -> np.ndarray:
     """The states with a path (along the edges rows[i] -> columns[i]) into `sources`: a
     breadth-first search from an extra node n, linked to every source, along reversed edges."""
@@ -78,9 +78,9 @@ def strategy_value(matrix: sp.csr_matrix, choice: np.ndarray, target: np.ndarray
     rows = np.repeat(np.arange(n), np.diff(chain.indptr))
     edge = free[rows] & (chain.data > 0)
     rows, columns = rows[edge], chain.indices[edge]
-    reaches = _backward_reach(rows, columns, np.flatnonzero(target), n)
+    reaches = backward_reach(rows, columns, np.flatnonzero(target), n)
     zero = free & ~reaches
-    sure = free & ~_backward_reach(rows, columns, np.flatnonzero(zero), n)
+    sure = free & ~backward_reach(rows, columns, np.flatnonzero(zero), n)
     values = (target | sure).astype(float)
     solve = np.flatnonzero(free & reaches & ~sure)
     if solve.size == 0:

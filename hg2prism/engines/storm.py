@@ -10,7 +10,9 @@ import functools
 import json
 import tarfile
 import tempfile
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable
 from pathlib import Path
@@ -50,6 +52,7 @@ class CheckedModel:
     values: np.ndarray             # value of every Storm state
     formula: object                # the checked property's formula
     timings: dict[str, float]      # parse, build, check
+    alongside: object = None       # what check(..., alongside=...) computed beside Storm
 
     @functools.cached_property
     def scheduler(self) -> object:
@@ -92,24 +95,31 @@ def solver_environment(method: str) -> developer.Environment:
     raise ValueError(f"unknown Storm method {method!r}; choose from {STORM_METHODS}")
 
 
-def check(prism_path: Path, prop: str, method: str = "sound") -> CheckedModel:
-    """Parse, build and solve `prop` (a Pmax reachability property) with one of STORM_METHODS."""
+def check(prism_path: Path, prop: str, method: str = "sound",
+          alongside: Callable[[object], object] | None = None) -> CheckedModel:
+    """Parse, build and solve `prop` (a Pmax reachability property) with one of STORM_METHODS.
+    `alongside(model)`, when given, runs on a second thread while Storm solves (Storm releases
+    the GIL): its result is the CheckedModel's `alongside`."""
     try:
-        return _check(prism_path, prop, method)
+        return _check(prism_path, prop, method, alongside)
     except RuntimeError as err:  # stormpy reports parse and build failures as RuntimeError
         raise StormError(f"{prism_path}: {err}") from err
 
 
-def _check(prism_path: Path, prop: str, method: str) -> CheckedModel:
+def _check(prism_path: Path, prop: str, method: str,
+           alongside: Callable[[object], object] | None) -> CheckedModel:
     solver_environment(method)   # an unknown method fails before the build
     model, formula, timings = build(prism_path, prop)
     start = time.perf_counter()
-    values, scheduler = solve(model, formula, method)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        beside = pool.submit(alongside, model) if alongside is not None else None
+        values, scheduler = solve(model, formula, method)
+        prepared = beside.result() if beside is not None else None
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
     value = probability(values[initial], "Storm's value at the initial state")
     checked = CheckedModel(model=model, value=value, values=values, formula=formula,
-                           timings=timings)
+                           timings=timings, alongside=prepared)
     if scheduler is not None:   # the certified route has one already: no second solve for it
         checked.__dict__["scheduler"] = scheduler
     return checked
@@ -312,6 +322,14 @@ def read_structure(model: object) -> Transitions:
     Python costs seconds per million transitions, so the model goes through Storm's binary
     UMB export (flat little-endian arrays in a tar file) once and is read back with numpy.
     """
+    with _STRUCTURE_LOCK:      # two threads asking for one model read it once
+        return _read_structure(model)
+
+
+_STRUCTURE_LOCK = threading.Lock()
+
+
+def _read_structure(model: object) -> Transitions:
     key = id(model)
     if key in _STRUCTURES and _STRUCTURES[key][0] is model:
         return _STRUCTURES[key][1]

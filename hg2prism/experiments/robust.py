@@ -33,7 +33,7 @@ import numpy as np
 from hg2prism import progress
 from hg2prism.errors import InputError, probability
 from hg2prism.model.world import World
-from hg2prism.outputs import write_json, write_text
+from hg2prism.outputs import write_bytes, write_json, write_text
 
 __all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
            "robust", "robust_summary_lines"]
@@ -74,7 +74,7 @@ class RobustSolved:
     storm_states: int              # the interval model's states (intermediate ones included)
     rounds: int
     residual: float
-    records_json: str              # the robust strategy, strategy.json's text
+    records_json: bytes            # the robust strategy, strategy.json's text
     storm_check: dict | None       # Storm's robust mode on the eps-model, and numpy on it
 
 
@@ -221,7 +221,7 @@ def solve_budgets(world: World, check_result, deltas: Sequence[float], folder: P
     return solved
 
 
-def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> str:
+def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> bytes:
     """The robust strategy's records (strategy.json's text) for one budget; the model is
     rendered below `folder`. `check_result` is pipeline.check(world, ...)."""
     ((solved, _),) = solve_budgets(world, check_result, [delta], folder, storm_check=False)
@@ -251,7 +251,7 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     rows = []
     for delta in parsed:
         ((solved, seconds),) = solve_budgets(world, check_result, [delta], out)
-        write_text(out / f"robust_{delta_text(delta)}" / "strategy.json", solved.records_json)
+        write_bytes(out / f"robust_{delta_text(delta)}" / "strategy.json", solved.records_json)
         rows.append({
             "delta": delta,
             "robust_value": solved.robust_value,

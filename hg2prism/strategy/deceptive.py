@@ -3,12 +3,14 @@ values Storm computed: among the value-optimal moves, the fastest."""
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.engines.storm import CheckedModel, DecodedStates, Transitions
+from hg2prism.engines.storm import DecodedStates, Transitions
+from hg2prism.strategy.canonical import CanonicalMDP
 
 
 @dataclass(frozen=True, eq=False)
@@ -24,8 +26,10 @@ DISCOUNT = 0.9         # how strongly P1 prefers finishing soon among optimal mo
 MAX_DISCOUNT_SWEEPS = 1000
 
 
-def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Transitions) -> StormChoices:
-    """An optimal strategy that does not stall, computed on canonical states from Storm's values.
+def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
+    """An optimal strategy that does not stall, computed on canonical states from Storm's
+    values (`values`: [mdp.n] by canonical state): the move of every canonical state, -1 in
+    absorbing ones.
 
     Storm's own scheduler is optimal in the limit but may dither (push into a wall) for a long
     time: on world1 it completes within 200 steps with probability 0.02 for a value of 0.95.
@@ -34,45 +38,26 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
     state takes, among its value-optimal moves, the one that maximises the discounted
     probability of reaching the goal (lexicographically: value first, then speed).
     """
-    n_states = len(decoded.canonical)
-    canonical = decoded.canonical
-    n_canonical = decoded.n_canonical
-    representative = np.full(n_canonical, -1, dtype=np.int64)
-    representative[canonical[::-1]] = np.arange(n_states)[::-1]     # first Storm state of each
-    values = np.zeros(n_canonical)
-    values[canonical] = checked.values
-
-    # Choices of the representatives, and their entries.
-    counts = np.diff(moves.row_start)
-    is_rep = representative[canonical[moves.source]] == moves.source
-    choices = np.flatnonzero(is_rep & (moves.action >= 0))
-    entry_choice = np.repeat(np.arange(len(moves.source)), counts)
-    entries = np.flatnonzero(is_rep[entry_choice] & (moves.action[entry_choice] >= 0))
-    e_choice = entry_choice[entries]
-    e_target = canonical[moves.target[entries]]
-    e_prob = moves.probability[entries]
-    q_value = np.bincount(e_choice, weights=e_prob * values[e_target], minlength=len(moves.source))
-    source_c = canonical[moves.source]
-    optimal = np.zeros(len(moves.source), dtype=bool)
-    optimal[choices] = q_value[choices] >= values[source_c[choices]] - OPTIMAL_SLACK
+    choice_state = mdp.choice_state
+    optimal = mdp.choice_values(values) >= values[choice_state] - OPTIMAL_SLACK
 
     # Among optimal choices, prefer reaching the goal soon: the discounted probability
     # W(s) = max over optimal choices of E[DISCOUNT^steps; reach goal]. A choice that stalls
     # scores 0 there, so the greedy choice keeps moving, and every state of positive value
     # keeps a positive chance of reaching the goal: the strategy stays optimal.
-    goal = np.zeros(n_canonical, dtype=bool)
-    goal[canonical[decoded.goal]] = True
-    opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by source
-    keep = optimal[e_choice]
-    k_choice, k_target, k_prob = e_choice[keep], e_target[keep], e_prob[keep]
+    goal = mdp.goal
+    opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by state
+    keep = np.flatnonzero(optimal[mdp.entry_choice])
+    k_choice, k_target, k_prob = (mdp.entry_choice[keep], mdp.entry_target[keep],
+                                  mdp.entry_prob[keep])
     # The optimal choices of each canonical state that has some form a column of a
     # [width, states] table (padded with -1, below every score), so that a sweep is one sparse
     # product and a maximum over the table's few contiguous rows.
-    group_start = np.flatnonzero(np.diff(np.r_[-1, source_c[opt_choices]]) != 0)
+    group_start = np.flatnonzero(np.diff(np.r_[-1, choice_state[opt_choices]]) != 0)
     group_size = np.diff(np.r_[group_start, len(opt_choices)])
     n_groups, width = len(group_start), int(group_size.max(initial=1))
-    group_of = np.full(n_canonical, -1, dtype=np.int64)
-    group_of[source_c[opt_choices[group_start]]] = np.arange(n_groups)
+    group_of = np.full(mdp.n, -1, dtype=np.int64)
+    group_of[choice_state[opt_choices[group_start]]] = np.arange(n_groups)
     group_of_slot = np.repeat(np.arange(n_groups), group_size)
     rank_in_group = np.arange(len(opt_choices)) - np.repeat(group_start, group_size)
     cell_of_slot = rank_in_group * n_groups + group_of_slot
@@ -88,24 +73,28 @@ def deceptive_strategy(decoded: DecodedStates, checked: CheckedModel, moves: Tra
         (k_prob[onward] * DISCOUNT, (k_cell[onward], group_of[k_target[onward]])),
         shape=(n_cells, n_groups))
     w = np.zeros(n_groups)
-    for _ in range(MAX_DISCOUNT_SWEEPS):
-        table = (onward_matrix @ w).reshape(width, n_groups)
-        table += reached.reshape(width, n_groups)
-        new = np.max(table, axis=0) if width > 1 else table[0]
-        done = np.abs(new - w).max(initial=0.0) < 1e-9   # enough to rank the moves
-        w = new
-        if done:
-            break
-    soon = np.zeros(len(moves.source))
-    soon[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]
-    score = np.where(optimal, soon, -1.0)
-    score[moves.action < 0] = -2.0
-    # Best choice per Storm state's row group (representatives' choices; others copy them).
+    # Row blocks multiplied on two threads (scipy releases the GIL): the same sums.
+    halves = [onward_matrix[:n_cells // 2], onward_matrix[n_cells // 2:]]
+    table = np.empty(n_cells)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for _ in range(MAX_DISCOUNT_SWEEPS):
+            products = pool.map(lambda half: half @ w, halves)   # noqa: B023 (this sweep's w)
+            np.concatenate(list(products), out=table)
+            table += reached
+            rows = table.reshape(width, n_groups)
+            new = np.max(rows, axis=0) if width > 1 else rows[0].copy()
+            done = np.abs(new - w).max(initial=0.0) < 1e-9   # enough to rank the moves
+            w = new
+            if done:
+                break
+    score = np.full(len(choice_state), -1.0)
+    score[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
-    best_of_state = argmax_by_group(score, moves.source, n_states, relative_tie=1e-12)
-    chosen_rep = best_of_state[representative]                        # [n_canonical] choice index
-    return storm_choices(decoded, moves, representative, moves.action[chosen_rep])
+    best = first_best(score, choice_state, relative_tie=1e-12)
+    action = np.full(mdp.n, -1, dtype=np.int64)
+    action[choice_state[best]] = mdp.choice_action[best]
+    return action
 
 
 def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np.ndarray,
@@ -118,20 +107,23 @@ def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np
     return StormChoices(representative=representative, choice=choice)
 
 
-def canonical_actions(choices: StormChoices, moves: Transitions) -> np.ndarray:
-    """[n_canonical] the move each canonical state takes (-1 where only the absorbing
-    self-loop is left)."""
-    return moves.action[choices.choice[choices.representative]]
-
-
 def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
                      relative_tie: float = 0.0) -> np.ndarray:
     """Index of the first score in each group within `relative_tie` (relative) of the group's
     maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
     choice)."""
-    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    if len(start) != n_groups:
+    best = first_best(score, group, relative_tie)
+    if len(best) != n_groups:
         raise ValueError("every group needs at least one member")
+    return best
+
+
+def first_best(score: np.ndarray, group: np.ndarray, relative_tie: float = 0.0) -> np.ndarray:
+    """Index of the first score in each run of equal `group` labels within `relative_tie`
+    (relative) of the run's maximum, run after run."""
+    if len(score) == 0:
+        return np.zeros(0, dtype=np.int64)
+    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
     best = np.repeat(np.maximum.reduceat(score, start), np.diff(np.r_[start, len(score)]))
     candidates = np.flatnonzero(score >= best - relative_tie * np.abs(best))
     return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]

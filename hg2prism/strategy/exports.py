@@ -19,10 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse import csgraph
 
+from hg2prism.engines.certify import backward_reach
 from hg2prism.engines.storm import DecodedStates
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.strategy.canonical import CanonicalMDP
+from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
+                                       render_grouped, tokens)
 
 ABSENT = -1     # the value of a state variable that does not apply (an empty window slot)
 # Every variable of the merged absorbing states takes one of these values, so that no two states
@@ -197,21 +201,27 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
 # Writers
 # ---------------------------------------------------------------------------------------------
 
-def _valuation_lines(dtmc: InducedDTMC, template: str) -> list[str]:
-    """One line per state from `template` ("{}" for the state number, then one per variable),
-    formatted column-wise: far faster than joining each row's fields."""
-    rows = dtmc.valuations.tolist()
-    return [template.format(i, *row) for i, row in enumerate(rows)]
+def _valuation_fields(dtmc: InducedDTMC, before: str, between: str, after: str,
+                      named: bool) -> list[Field]:
+    """A state's valuation as fields: `before`, the values (each after `name=` if `named`)
+    separated by `between`, then `after`."""
+    fields = [literal(before)]
+    for k, name in enumerate(dtmc.variables):
+        prefix = (between if k else "") + (f"{name}=" if named else "")
+        if prefix:
+            fields.append(literal(prefix))
+        fields.append(integers(dtmc.valuations[:, k]))
+    return fields + [literal(after)]
 
 
-def prism_explicit(dtmc: InducedDTMC) -> dict[str, str]:
+def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
     """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}. PRISM reads them with
     `prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab -dtmc`."""
-    tra = [f"{dtmc.n} {len(dtmc.source)}"]
-    tra += [f"{s} {t} {p!r}" for s, t, p in
-            zip(dtmc.source.tolist(), dtmc.target.tolist(), dtmc.probability.tolist())]
-    sta = ["(" + ",".join(dtmc.variables) + ")"]
-    sta += _valuation_lines(dtmc, "{}:(" + ",".join(["{}"] * len(dtmc.variables)) + ")")
+    state = integers(np.arange(dtmc.n))
+    tra = Lines([Field(state.vocabulary, dtmc.source), literal(" "),
+                 Field(state.vocabulary, dtmc.target), literal(" "),
+                 tokens(dtmc.probability), literal("\n")], len(dtmc.source))
+    sta = Lines([state] + _valuation_fields(dtmc, ":(", ",", ")\n", named=False), dtmc.n)
     names = ["init", "deadlock"] + list(dtmc.labels)
     lab = [" ".join(f'{k}="{name}"' for k, name in enumerate(names))]
     members: dict[int, list[int]] = {dtmc.initial: [0]}
@@ -219,11 +229,12 @@ def prism_explicit(dtmc: InducedDTMC) -> dict[str, str]:
         for i in np.flatnonzero(dtmc.labels[name]).tolist():
             members.setdefault(i, []).append(k)
     lab += [f"{i}: " + " ".join(map(str, sorted(members[i]))) for i in sorted(members)]
-    return {"tra": "\n".join(tra) + "\n", "sta": "\n".join(sta) + "\n",
-            "lab": "\n".join(lab) + "\n"}
+    return {"tra": tra.render(f"{dtmc.n} {len(dtmc.source)}\n".encode()),
+            "sta": sta.render(("(" + ",".join(dtmc.variables) + ")\n").encode()),
+            "lab": ("\n".join(lab) + "\n").encode()}
 
 
-def drn(dtmc: InducedDTMC, comment: str = "") -> str:
+def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
     """Storm's DRN format (stormpy.build_model_from_drn): per state its labels, its valuation
     as a comment and one choice labelled with P1's move (`absorbing` in absorbing states)."""
     lines = [f"// {line}" for line in comment.splitlines()] + [
@@ -234,17 +245,20 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> str:
     for name, mask in dtmc.labels.items():
         for i in np.flatnonzero(mask).tolist():
             named[i] += f" {name}"
-    moves = [ACTION_LABELS[a] for a in ACTIONS]
-    actions = [moves[a] if a >= 0 else "absorbing" for a in dtmc.action.tolist()]
-    headers = _valuation_lines(dtmc, "{}\n//[" + ", ".join(f"{v}={{}}" for v in dtmc.variables)
-                               + "]")
-    branches = [f"\t\t{t} : {p!r}" for t, p in zip(dtmc.target.tolist(),
-                                                     dtmc.probability.tolist())]
-    starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1)).tolist()
-    lines += [f"state {header.replace(chr(10), names + chr(10), 1)}\n\taction {action}\n"
-              + "\n".join(branches[starts[i]:starts[i + 1]])
-              for i, (header, names, action) in enumerate(zip(headers, named, actions))]
-    return "\n".join(lines) + "\n"
+    label_sets = sorted(set(named))
+    label_code = {text: k for k, text in enumerate(label_sets)}
+    moves = [ACTION_LABELS[a] for a in ACTIONS] + ["absorbing"]
+    state = integers(np.arange(dtmc.n))
+    heads = Lines([literal("state "), state,
+                   Field(Vocabulary.of(label_sets),
+                         np.fromiter(map(label_code.__getitem__, named), np.int64, dtmc.n))]
+                  + _valuation_fields(dtmc, "\n//[", ", ", "]\n\taction ", named=True)
+                  + [Field(Vocabulary.of(moves), np.where(dtmc.action >= 0, dtmc.action, 4)),
+                     literal("\n")], dtmc.n)
+    branches = Lines([literal("\t\t"), Field(state.vocabulary, dtmc.target), literal(" : "),
+                      tokens(dtmc.probability), literal("\n")], len(dtmc.target))
+    starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1))
+    return render_grouped(heads, branches, starts, ("\n".join(lines) + "\n").encode())
 
 
 # ---------------------------------------------------------------------------------------------
@@ -262,70 +276,46 @@ class Steps:
 
 def expected_steps(dtmc: InducedDTMC) -> Steps:
     """P(F goal), the expected steps until an absorbing state, and the expected steps to the
-    goal given that it is reached (docs/semantics.md §6 "Timing"), by sparse linear solves."""
+    goal given that it is reached (docs/semantics.md §6 "Timing"), by sparse linear solves over
+    the states the initial state reaches, with one LU factorisation."""
     n = dtmc.n
     absorbing = np.zeros(n, dtype=bool)
     for mask in dtmc.labels.values():
         absorbing |= mask
     goal = dtmc.labels["goal"]
-    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(n, n))
-    transient = np.flatnonzero(~absorbing)
-    inner = matrix[transient][:, transient]
-    to_goal = np.asarray(matrix[transient][:, np.flatnonzero(goal)].sum(axis=1)).ravel()
-    where = np.full(n, -1, dtype=np.int64)
-    where[transient] = np.arange(len(transient))
-    s0 = int(where[dtmc.initial])
-    if s0 < 0:
+    if absorbing[dtmc.initial]:
         hit = bool(goal[dtmc.initial])
         return Steps(float(hit), 0.0, 0.0 if hit else None)
+    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(n, n))
+    reached = np.zeros(n, dtype=bool)
+    reached[csgraph.breadth_first_order(matrix, dtmc.initial, directed=True,
+                                        return_predecessors=False)] = True
+    transient = np.flatnonzero(reached & ~absorbing)
+    rows = matrix[transient]
+    inner = rows[:, transient]
+    to_goal = np.asarray(rows[:, np.flatnonzero(goal)].sum(axis=1)).ravel()
+    exits = np.asarray(rows[:, np.flatnonzero(absorbing)].sum(axis=1)).ravel()
+    s0 = int(np.searchsorted(transient, dtmc.initial))
 
-    # States that reach an absorbing state with probability 1: those that cannot reach a
-    # closed set of transient states. Backward search from the absorbing ones finds the states
-    # that can reach them; a state that cannot has infinite expected time, and so has every
-    # state that can reach it.
-    reach_prob = _reach(inner, to_goal)
-    exits = np.asarray(matrix[transient][:, np.flatnonzero(absorbing)].sum(axis=1)).ravel()
-    can_end = _backward(inner, exits > 0)
-    stuck = _backward(inner, ~can_end)          # can reach a state that never ends
-    if stuck[s0]:
-        end = None
-    else:
-        keep = np.flatnonzero(~stuck)
-        sub = inner[keep][:, keep]
-        solution = spla.spsolve(sp.identity(len(keep), format="csc") - sub.tocsc(),
-                                np.ones(len(keep)))
-        end = float(np.atleast_1d(solution)[np.searchsorted(keep, s0)])
-    probability = float(np.clip(reach_prob[s0], 0.0, 1.0))
+    # Every state here is reached from the initial state with positive probability, so the
+    # expected time is finite iff each of them can reach an absorbing state; then I - P is
+    # invertible on all of them. Otherwise P(F goal) and the steps to the goal are solved on
+    # the states that can reach the goal, where it is invertible too.
+    edges = inner.tocoo()
+    ends = backward_reach(edges.row, edges.col, np.flatnonzero(exits > 0), len(transient))
+    solve_on = (np.arange(len(transient)) if ends.all() else
+                np.flatnonzero(backward_reach(edges.row, edges.col, np.flatnonzero(to_goal > 0),
+                                              len(transient))))
+    if s0 not in solve_on:      # the goal is unreachable
+        return Steps(0.0, None, None)
+    sub = inner[solve_on][:, solve_on] if len(solve_on) < len(transient) else inner
+    lu = spla.splu(sp.identity(len(solve_on), format="csc") - sub.tocsc())
+    at = int(np.searchsorted(solve_on, s0))
+    reach = lu.solve(to_goal[solve_on])
+    end = float(lu.solve(np.ones(len(solve_on)))[at]) if ends.all() else None
+    probability = float(np.clip(reach[at], 0.0, 1.0))
     if probability <= 0.0:
         return Steps(probability, end, None)
-    # E[T 1{goal}] = y with y = x + P y on the states that reach the goal, x = P(F goal).
-    live = np.flatnonzero(reach_prob > 0)
-    sub = inner[live][:, live]
-    y = spla.spsolve(sp.identity(len(live), format="csc") - sub.tocsc(), reach_prob[live])
-    weighted = float(np.atleast_1d(y)[np.searchsorted(live, s0)])
+    # E[T 1{goal}] = y with y = x + P y, x = P(F goal).
+    weighted = float(lu.solve(reach)[at])
     return Steps(probability, end, weighted / probability)
-
-
-def _backward(inner: sp.csr_matrix, targets: np.ndarray) -> np.ndarray:
-    """States with a path (length >= 0) into `targets` along positive transitions."""
-    reverse = (inner.T > 0).tocsr()
-    reached = targets.copy()
-    frontier = np.flatnonzero(targets)
-    while len(frontier):
-        found = np.unique(reverse[frontier].indices)
-        frontier = found[~reached[found]]
-        reached[frontier] = True
-    return reached
-
-
-def _reach(inner: sp.csr_matrix, to_goal: np.ndarray) -> np.ndarray:
-    """P(F goal) of every transient state: 0 where the goal cannot be reached, elsewhere the
-    unique solution of x = to_goal + P x."""
-    can = _backward(inner, to_goal > 0)
-    x = np.zeros(inner.shape[0])
-    live = np.flatnonzero(can)
-    if len(live):
-        sub = inner[live][:, live]
-        x[live] = np.atleast_1d(spla.spsolve(sp.identity(len(live), format="csc") - sub.tocsc(),
-                                             to_goal[live]))
-    return x

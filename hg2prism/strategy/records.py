@@ -3,7 +3,8 @@ neither goal nor failure (docs/semantics.md §6), and `Strategy`, the one type t
 read from the records (or the file), asked for P1's move in a hypergame state.
 
 Writers: `strategy_records` (the records as dicts) and `strategy_json` (the file's text, built
-from cached fragments: the same text as json.dumps of each record, for millions of records).
+column-wise by strategy/columns.py: the same text as json.dumps of each record, for millions
+of records).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 from hg2prism.engines.storm import DecodedStates, Transitions
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Memory
+from hg2prism.strategy.columns import Field, Lines, Vocabulary, integers, literal, tokens
 from hg2prism.strategy.deceptive import StormChoices
 
 
@@ -85,15 +87,23 @@ class RecordExtras:
                                         for m, x in zip(ACTIONS, self.bounded[state].tolist())}
         return fields
 
-    def json_tails(self, states: Sequence[int]) -> list[str]:
-        """The added keys of each state's record as compact JSON, ending the record: the text
-        json.dumps gives, built without dumping a dict per record (millions of records)."""
-        values = self.values[np.asarray(states, dtype=np.int64)]
-        if self.schedules is not None or np.isnan(values).any():
+    def json_tail(self, states: np.ndarray) -> list[Field]:
+        """The added keys of each state's record as compact JSON fields, ending the record:
+        the text json.dumps gives, without dumping a dict per record (millions of records)."""
+        if self.schedules is not None:
             compact = {"separators": (",", ":")}
-            return [json.dumps(self.fields(c), **compact)[1:] for c in states]
-        template = '"values":{{' + ",".join(f'"{m}":{{!r}}' for m in ACTIONS) + "}}}}"
-        return [template.format(*row) for row in values.tolist()]
+            tails = [json.dumps(self.fields(c), **compact)[1:] for c in states.tolist()]
+            return [Field(Vocabulary.of(tails), np.arange(len(tails)))]
+        values = self.values[states]
+        fields = []
+        for k, move in enumerate(ACTIONS):
+            fields += [literal(("\"values\":{" if k == 0 else ",") + f'"{move}":'),
+                       tokens(values[:, k], _json_float)]
+        return fields + [literal("}}")]
+
+
+def _json_float(x: float) -> str:
+    return json.dumps(_json_number(x))
 
 
 def window_entry(ts: TransitionSystem, entry: list[int], described: dict) -> dict:
@@ -106,42 +116,47 @@ def window_entry(ts: TransitionSystem, entry: list[int], described: dict) -> dic
 
 
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                  ts: TransitionSystem, extras: RecordExtras | None = None) -> str:
+                  ts: TransitionSystem, extras: RecordExtras | None = None) -> bytes:
     """strategy.json: the records of `strategy_records`, one compact JSON object per line.
 
-    Built from JSON fragments cached per TS state (and per observed move), because a few
+    Built column-wise from JSON fragments per TS state (and per observed move), because a few
     hundred TS states describe millions of records: the same text as json.dumps of each record,
     without creating the records."""
     states = choices.representative
     states = states[~(decoded.goal | decoded.fail)[states]]
     compact = {"separators": (",", ":")}
     ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
-    prefix = {v: json.dumps(ts.describe_state(v), **compact)[:-1] + ',"q":'
-              for v in np.unique(ts_state).tolist()}
+    fields = [tokens(ts_state, lambda v: json.dumps(ts.describe_state(v), **compact)[:-1]
+                     + ',"q":'),
+              integers(decoded.q[states]), literal(',"hypothesis":'),
+              integers(decoded.hypothesis[states]), literal(',"window":[')]
     window = decoded.window[states]                           # [n, slots, 2 or 3]
-    observed = np.unique(window[..., 0][window[..., 0] >= 0]).tolist()
-    sets = range(ts.n_sets) if window.shape[-1] > 2 else [None]
-    n_sets = ts.n_sets if window.shape[-1] > 2 else 1
-    fragment = {(v * 4 + a) * n_sets + (t or 0): json.dumps(
-        window_entry(ts, [v, a] + ([] if t is None else [t]), ts.describe_state(v)), **compact)
-        for v in observed for a in range(len(ACTIONS)) for t in sets}
+    with_sets = window.shape[-1] > 2
+    n_sets = ts.n_sets if with_sets else 1
     code = window[..., 0] * 4 + window[..., 1]
-    if window.shape[-1] > 2:
+    if with_sets:
         code = code * n_sets + window[..., 2]
-    codes = np.where(window[..., 0] >= 0, code, -1).tolist()
-    chosen = moves.action[choices.choice[states]].tolist()
+    present = window[..., 0] >= 0
+    used = np.unique(code[present])
+    entries = [json.dumps(window_entry(ts, [c // n_sets // 4, c // n_sets % 4]
+                                       + ([c % n_sets] if with_sets else []),
+                                       ts.describe_state(c // n_sets // 4)), **compact)
+               for c in used.tolist()]
+    # A slot's entry, after a comma when an earlier slot has one.
+    entry = Vocabulary.of(entries + ["," + e for e in entries])
+    earlier = np.zeros(len(states), dtype=bool)
+    for k in range(window.shape[1]):
+        rank = np.searchsorted(used, code[:, k])
+        fields.append(Field(entry, np.where(present[:, k], rank + len(used) * earlier, -1)))
+        earlier |= present[:, k]
+    chosen = moves.action[choices.choice[states]]
     if extras is None:
-        tails = [f'],"action":"{a}"}}' for a in ACTIONS]
-        ends = [tails[a] for a in chosen]
+        fields.append(Field(Vocabulary.of([f'],"action":"{a}"}}' for a in ACTIONS]), chosen))
     else:
-        tails = [f'],"action":"{a}",' for a in ACTIONS]
-        ends = [tails[a] + extra for a, extra in
-                zip(chosen, extras.json_tails(decoded.canonical[states].tolist()))]
-    lines = [f'{prefix[v]}{q},"hypothesis":{h},"window":['
-             + ",".join([fragment[c] for c in slots if c >= 0]) + end
-             for v, q, h, slots, end in zip(ts_state.tolist(), decoded.q[states].tolist(),
-                                            decoded.hypothesis[states].tolist(), codes, ends)]
-    return "[\n" + ",\n".join(lines) + "\n]\n"
+        fields.append(Field(Vocabulary.of([f'],"action":"{a}",' for a in ACTIONS]), chosen))
+        fields += extras.json_tail(decoded.canonical[states])
+    fields.append(literal(",\n").where(np.arange(len(states)) < len(states) - 1))
+    return Lines(fields, len(states)).render(b"[\n", b"\n]\n")
 
 
 def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
