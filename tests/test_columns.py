@@ -60,3 +60,12 @@ def test_grouped_rows_follow_their_head(seed: int) -> None:
 def test_nul_bytes_are_refused() -> None:
     with pytest.raises(ValueError, match="NUL"):
         Vocabulary.of(["a\0b"])
+
+
+@pytest.mark.parametrize("distinct", [3, 5000])
+def test_tokens_spell_every_value(distinct: int) -> None:
+    """Few distinct values are found from a sample, many by sorting: the same text."""
+    rng = np.random.default_rng(distinct)
+    values = rng.choice(rng.random(distinct), 20_000)
+    text = Lines([tokens(values), literal(";")], len(values)).render()
+    assert text.decode().split(";")[:-1] == [repr(v) for v in values.tolist()]

@@ -23,6 +23,7 @@ import numpy as np
 
 BLOCK_BYTES = 1 << 25      # the byte matrix of one block of rows: 32 MB
 THREADS = min(2, os.cpu_count() or 1)
+SAMPLE = 4096              # values sampled to find a column's few distinct ones
 T = TypeVar("T")
 
 
@@ -92,8 +93,26 @@ def literal(text: str) -> Field:
 def tokens(values: np.ndarray, spell: Callable[[object], str] = repr) -> Field:
     """A field of arbitrary values (floats, say) written as `spell(value)`: each distinct value
     is spelled once."""
-    distinct, code = np.unique(values, return_inverse=True)
-    return Field(Vocabulary.of([spell(v) for v in distinct.tolist()]), code.reshape(-1))
+    values = np.asarray(values).reshape(-1)
+    distinct, code = _distinct(values)
+    return Field(Vocabulary.of([spell(v) for v in distinct.tolist()]), code)
+
+
+def _distinct(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sorted distinct values and each value's index among them. A column of a few
+    distinct values (the probabilities of a transition table) is looked up in those of a sample
+    rather than sorted whole, when the sample has them all."""
+    sample = np.unique(values[::max(1, len(values) // SAMPLE)])
+    if 0 < len(sample) <= SAMPLE // 8:
+        code = np.minimum(np.searchsorted(sample, values), len(sample) - 1)
+        if np.array_equal(sample[code], values):
+            return sample, code
+    order = np.argsort(values, kind="stable")
+    ordered = values[order]
+    new = np.r_[True, ordered[1:] != ordered[:-1]] if len(values) else np.zeros(0, dtype=bool)
+    code = np.empty(len(values), dtype=np.int64)
+    code[order] = np.cumsum(new) - 1
+    return ordered[new], code
 
 
 def integers(values: np.ndarray) -> Field:

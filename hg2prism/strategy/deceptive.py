@@ -72,20 +72,30 @@ def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
     onward_matrix = sp.csr_matrix(
         (k_prob[onward] * DISCOUNT, (k_cell[onward], group_of[k_target[onward]])),
         shape=(n_cells, n_groups))
+    # Each sweep runs on two threads, each over half of the states (numpy and scipy release
+    # the GIL): the same sums and maxima, row by row, as one thread would take.
+    table = np.empty((width, n_groups))
+    reached_rows = reached.reshape(width, n_groups)
+    halves = []
+    for low, high in ((0, n_groups // 2), (n_groups // 2, n_groups)):
+        rows = [onward_matrix[r * n_groups + low:r * n_groups + high] for r in range(width)]
+        halves.append((low, high, rows))
+
+    def sweep(half: tuple[int, int, list[sp.csr_matrix]], w: np.ndarray, new: np.ndarray
+              ) -> float:
+        low, high, rows = half
+        for r, block in enumerate(rows):
+            np.add(block @ w, reached_rows[r, low:high], out=table[r, low:high])
+        np.max(table[:, low:high], axis=0, out=new[low:high])
+        return float(np.abs(new[low:high] - w[low:high]).max(initial=0.0))
+
     w = np.zeros(n_groups)
-    # Row blocks multiplied on two threads (scipy releases the GIL): the same sums.
-    halves = [onward_matrix[:n_cells // 2], onward_matrix[n_cells // 2:]]
-    table = np.empty(n_cells)
     with ThreadPoolExecutor(max_workers=2) as pool:
         for _ in range(MAX_DISCOUNT_SWEEPS):
-            products = pool.map(lambda half: half @ w, halves)   # noqa: B023 (this sweep's w)
-            np.concatenate(list(products), out=table)
-            table += reached
-            rows = table.reshape(width, n_groups)
-            new = np.max(rows, axis=0) if width > 1 else rows[0].copy()
-            done = np.abs(new - w).max(initial=0.0) < 1e-9   # enough to rank the moves
+            new = np.empty(n_groups)
+            change = max(pool.map(lambda half: sweep(half, w, new), halves))  # noqa: B023
             w = new
-            if done:
+            if change < 1e-9:      # enough to rank the moves
                 break
     score = np.full(len(choice_state), -1.0)
     score[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]

@@ -13,6 +13,7 @@ breadth-first order, then `goal`, `fail` and `horizon` (H steps taken without re
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -50,6 +51,16 @@ class InducedDTMC:
     @property
     def n(self) -> int:
         return len(self.valuations)
+
+    @functools.cached_property
+    def numbers(self) -> Field:
+        """The state numbers 0..n-1 as a text column (the writers below share it)."""
+        return integers(np.arange(self.n))
+
+    @functools.cached_property
+    def probabilities(self) -> Field:
+        """The transitions' probabilities as a text column (`repr`)."""
+        return tokens(self.probability)
 
 
 def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
@@ -217,10 +228,10 @@ def _valuation_fields(dtmc: InducedDTMC, before: str, between: str, after: str,
 def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
     """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}. PRISM reads them with
     `prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab -dtmc`."""
-    state = integers(np.arange(dtmc.n))
+    state = dtmc.numbers
     tra = Lines([Field(state.vocabulary, dtmc.source), literal(" "),
                  Field(state.vocabulary, dtmc.target), literal(" "),
-                 tokens(dtmc.probability), literal("\n")], len(dtmc.source))
+                 dtmc.probabilities, literal("\n")], len(dtmc.source))
     sta = Lines([state] + _valuation_fields(dtmc, ":(", ",", ")\n", named=False), dtmc.n)
     names = ["init", "deadlock"] + list(dtmc.labels)
     lab = [" ".join(f'{k}="{name}"' for k, name in enumerate(names))]
@@ -248,7 +259,7 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
     label_sets = sorted(set(named))
     label_code = {text: k for k, text in enumerate(label_sets)}
     moves = [ACTION_LABELS[a] for a in ACTIONS] + ["absorbing"]
-    state = integers(np.arange(dtmc.n))
+    state = dtmc.numbers
     heads = Lines([literal("state "), state,
                    Field(Vocabulary.of(label_sets),
                          np.fromiter(map(label_code.__getitem__, named), np.int64, dtmc.n))]
@@ -256,7 +267,7 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
                   + [Field(Vocabulary.of(moves), np.where(dtmc.action >= 0, dtmc.action, 4)),
                      literal("\n")], dtmc.n)
     branches = Lines([literal("\t\t"), Field(state.vocabulary, dtmc.target), literal(" : "),
-                      tokens(dtmc.probability), literal("\n")], len(dtmc.target))
+                      dtmc.probabilities, literal("\n")], len(dtmc.target))
     starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1))
     return render_grouped(heads, branches, starts, ("\n".join(lines) + "\n").encode())
 
