@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from hg2prism.strategy import columns
-from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
+from hg2prism.strategy.columns import (Field, Lines, Texts, Vocabulary, integers, literal,
                                        render_grouped, tokens)
 
 
@@ -69,3 +69,10 @@ def test_tokens_spell_every_value(distinct: int) -> None:
     values = rng.choice(rng.random(distinct), 20_000)
     text = Lines([tokens(values), literal(";")], len(values)).render()
     assert text.decode().split(";")[:-1] == [repr(v) for v in values.tolist()]
+
+
+def test_texts_column_spans_blocks() -> None:
+    rng = np.random.default_rng(7)
+    strings = ["x" * int(k) for k in rng.integers(0, 40, 300)]
+    text = Lines([integers(np.arange(300)), Texts(strings), literal("\n")], 300).render()
+    assert text.decode() == "".join(f"{i}{t}\n" for i, t in enumerate(strings))

@@ -79,10 +79,24 @@ class Field:
     vocabulary: Vocabulary
     codes: np.ndarray | int
 
+    @property
+    def width(self) -> int:
+        return self.vocabulary.width
+
     def where(self, present: np.ndarray) -> Field:
         """This field on the rows where `present` holds, nothing elsewhere."""
         codes = np.broadcast_to(self.codes, present.shape)
         return Field(self.vocabulary, np.where(present, codes, -1))
+
+
+class Texts:
+    """A column of one string per row, spelled by the caller (long and mostly distinct
+    strings): each block of rows gets a vocabulary of its own strings, so that no table holds
+    them all."""
+
+    def __init__(self, strings: Sequence[str]) -> None:
+        self.strings = strings
+        self.width = max(1, max((len(t.encode()) for t in strings), default=0))
 
 
 def literal(text: str) -> Field:
@@ -128,20 +142,24 @@ def integers(values: np.ndarray) -> Field:
 class Lines:
     """Rows of text, each the concatenation of `fields` (every array of codes has `n` rows)."""
 
-    def __init__(self, fields: Sequence[Field], n: int) -> None:
+    def __init__(self, fields: Sequence[Field | Texts], n: int) -> None:
         self.fields = list(fields)
         self.n = n
-        self.width = sum(f.vocabulary.width for f in self.fields)
+        self.width = sum(f.width for f in self.fields)
 
     def block(self, start: int, stop: int) -> np.ndarray:
         """Rows start..stop-1 as a byte matrix, the unused bytes 0."""
         text = np.empty((stop - start, self.width), dtype=np.uint8)
         offset = 0
         for field in self.fields:
-            table = field.vocabulary.table
-            codes = field.codes if np.isscalar(field.codes) else field.codes[start:stop]
-            text[:, offset:offset + table.shape[1]] = table[codes]
-            offset += table.shape[1]
+            if isinstance(field, Texts):
+                table = Vocabulary.of(field.strings[start:stop]).table[:-1]
+                text[:, offset:offset + field.width] = 0
+                text[:, offset:offset + table.shape[1]] = table
+            else:
+                codes = field.codes if np.isscalar(field.codes) else field.codes[start:stop]
+                text[:, offset:offset + field.width] = field.vocabulary.table[codes]
+            offset += field.width
         return text
 
     def render(self, before: bytes = b"", after: bytes = b"") -> bytes:

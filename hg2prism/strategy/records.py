@@ -18,7 +18,7 @@ import numpy as np
 from hg2prism.engines.storm import DecodedStates, Transitions
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Memory
-from hg2prism.strategy.columns import Field, Lines, Vocabulary, integers, literal, tokens
+from hg2prism.strategy.columns import Field, Lines, Texts, Vocabulary, integers, literal, tokens
 from hg2prism.strategy.deceptive import StormChoices
 
 
@@ -87,13 +87,12 @@ class RecordExtras:
                                         for m, x in zip(ACTIONS, self.bounded[state].tolist())}
         return fields
 
-    def json_tail(self, states: np.ndarray) -> list[Field]:
+    def json_tail(self, states: np.ndarray) -> list[Field | Texts]:
         """The added keys of each state's record as compact JSON fields, ending the record:
         the text json.dumps gives, without dumping a dict per record (millions of records)."""
         if self.schedules is not None:
             compact = {"separators": (",", ":")}
-            tails = [json.dumps(self.fields(c), **compact)[1:] for c in states.tolist()]
-            return [Field(Vocabulary.of(tails), np.arange(len(tails)))]
+            return [Texts([json.dumps(self.fields(c), **compact)[1:] for c in states.tolist()])]
         values = self.values[states]
         fields = []
         for k, move in enumerate(ACTIONS):
