@@ -8,6 +8,7 @@ import functools
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import reference
@@ -133,6 +134,20 @@ def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
             assert _memory(decoded, int(t)) == expected
             checked += 1
     assert checked > 0
+
+
+def test_tables_are_exact_wherever_storm_goes(case) -> None:
+    """The model's tables over TS states are exact only on ts.reachable (rendering.lookup's
+    `care`): every TS state Storm reached, in a state or in a window slot, is among them."""
+    result, _ = case
+    decoded, ts = result.decoded, result.analysis.ts
+    reachable = ts.reachable(np.array([g.trap_choice for g in result.analysis.games]))
+    live = ~(decoded.goal | decoded.fail) & (decoded.cell < ts.n_cells)
+    states = (decoded.cell * ts.n_sets + decoded.traps) * ts.phases + decoded.countdown \
+        if ts.delay else decoded.cell
+    assert reachable[states[live]].all()
+    slots = decoded.window[..., 0]
+    assert reachable[slots[slots >= 0]].all()
 
 
 def test_python_inference_matches_reference(case) -> None:

@@ -91,6 +91,27 @@ class TransitionSystem:
         cells = np.array([self.decode(s)[0] for s in range(self.n_states - 1)], dtype=np.int64)
         return np.append(self.cell_label[cells], 0)
 
+    def reachable(self, p2_sets: np.ndarray | None = None) -> np.ndarray:
+        """[n_states] bool: the TS states reachable from the start, P1 playing every move (and
+        every slip), P2 playing at each state v one of p2_sets[:, v] ([k, n_states] trap sets:
+        her choice under each hypothesis, say), or any set A2(v) allows when p2_sets is None.
+        The hypergame's tables are only ever read at these states."""
+        plays = self.allowed.copy()
+        if p2_sets is not None:
+            plays[:] = False
+            for sets in np.asarray(p2_sets).reshape(-1, self.n_states):
+                plays[np.arange(self.n_states), sets] = True
+            plays &= self.allowed
+        seen = np.zeros(self.n_states, dtype=bool)
+        seen[self.start_state] = True
+        frontier = np.array([self.start_state])
+        while frontier.size:
+            taken = plays[frontier][:, None, :, None] & (self.prob[frontier] > 0)
+            successors = np.unique(self.succ[frontier][taken])
+            frontier = successors[~seen[successors]]
+            seen[frontier] = True
+        return seen
+
     def trap_cells(self, trap_set: int) -> tuple[Cell, ...]:
         return tuple(self.cells[self.candidates[c]] for c in self.trap_sets[trap_set])
 

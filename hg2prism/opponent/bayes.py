@@ -132,7 +132,8 @@ class BayesObserver:
 
     # -- the PRISM part ------------------------------------------------------------------------
 
-    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+    def prism(self, ts: TransitionSystem, labels: dict[str, str],
+              observed: np.ndarray | None = None) -> ObserverPrism:
         """The window's slots o1 (oldest) .. o{w} and the decision, as formulas and the module
         p2_inference (4 commands whatever the window, the grid or the hypotheses).
 
@@ -160,9 +161,11 @@ class BayesObserver:
         # which would be copied into every comparison of the table.
         states = np.arange(n_obs_states)
         in_force = self.trap_choice[:, :n_obs_states]                   # [X, states]
-        class_now = {a: lookup(class_of[states[:, None], d, in_force.T], [("ts_state", 0), ("hyp", 0)])
+        care = np.ones(n_obs_states, dtype=bool) if observed is None else np.asarray(observed)
+        class_now = {a: lookup(class_of[states[:, None], d, in_force.T], [("ts_state", 0), ("hyp", 0)],
+                               care[:, None])
                      for d, a in enumerate(ACTIONS)} if not draws else {}
-        class_drawn = {(a, x): lookup(class_of[states, d, in_force[x]], [("ts_state", 0)])
+        class_drawn = {(a, x): lookup(class_of[states, d, in_force[x]], [("ts_state", 0)], care)
                        for d, a in enumerate(ACTIONS) for x in range(n_x)} if draws else {}
         slot_ll = []                             # (name, expression) ln pi1_x of slot o<i>
         for x in range(n_x):
@@ -177,7 +180,7 @@ class BayesObserver:
                 scores = []
                 for x in range(n_x):
                     now = lookup(table[x, states[:, None], d, in_force.T],
-                                 [("ts_state", 0), ("hyp", 0)])
+                                 [("ts_state", 0), ("hyp", 0)], care[:, None])
                     terms = [prism_number(float(self.log_prior[x]))]
                     terms += [f"ll_x{x}_o{i}" for i in range(2, slots + 1)] + [f"llnow_x{x}_{a}"]
                     scores.append({"x": x, "now": now, "sum": "+".join(terms)})

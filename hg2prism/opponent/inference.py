@@ -85,7 +85,8 @@ class InferenceModel:
         return Memory(memory.hypothesis, keep)
 
 
-    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+    def prism(self, ts: TransitionSystem, labels: dict[str, str],
+              observed: np.ndarray | None = None) -> ObserverPrism:
         """The ratio tables, the CUSUM scores and the module p2_inference: hyp and the window's
         slots o1 (oldest) .. o{w-1}, each a TS state and a move (-1 when empty). The scores are
         formulas over the slots, so the module has 2 commands per (hypothesis, move), 1 with a
@@ -95,17 +96,17 @@ class InferenceModel:
         ratio_formulas = []      # (name, comment, expression)
         rules = []               # per (hypothesis, action): switch and best formulas
         if slots == 0 and n_x > 1:
-            return self._prism_window_one(ts, labels)
+            return self._prism_window_one(ts, labels, observed)
         class_tables = []        # (name, comment, expression)
         n_classes = 1
         for h in range(n_x):
             others = [x for x in range(n_x) if x != h]
             if others and slots:
-                classes, class_ratios = self.ratio_classes(h)
+                classes, class_ratios = self.ratio_classes(h, observed)
                 n_classes = max(n_classes, len(class_ratios))
                 for d, a in enumerate(ACTIONS):
                     class_tables.append((f"cls_h{h}_{a}", f"class of moving {a} now when hyp = {h}",
-                                         ts_table(ts, classes[:, d])))
+                                         ts_table(ts, classes[:, d], observed)))
             for x in others:
                 ratios = self.ratios[h, x, :n_obs_states]                    # [states, 4]
                 for i in range(1, slots + 1):
@@ -116,7 +117,7 @@ class InferenceModel:
                 for d, a in enumerate(ACTIONS):
                     ratio_formulas.append((
                         f"r_h{h}_x{x}_{a}", f"r(x{x} | x{h}) of moving {a} now",
-                        ts_table(ts, ratios[:, d])))
+                        ts_table(ts, ratios[:, d], observed)))
             for a in ACTIONS:
                 scores = {}
                 for x in others:
@@ -143,17 +144,22 @@ class InferenceModel:
             slots=slots, commands=sum(2 if rule["others"] else 1 for rule in rules))
 
 
-    def ratio_classes(self, hypothesis: int) -> tuple[np.ndarray, np.ndarray]:
+    def ratio_classes(self, hypothesis: int, observed: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
         """Observations that P2 cannot tell apart under `hypothesis`: those whose ratios
         r(x | hypothesis) agree for every x. Returns each observed (TS state, move)'s class
         [states, 4] and each class's ratios [classes, X] (0 for x = hypothesis). A window slot
         of the PRISM model keeps its observation's class, so the slot's ratios are a table over
-        the classes (a few hundred) instead of over every observation."""
+        the classes (a few hundred) instead of over every observation. Only the TS states
+        marked `observed` (default all) are classified; the others get class 0."""
         n_obs = self.ratios.shape[2] - 1
-        vectors = self.ratios[hypothesis, :, :n_obs, :].transpose(1, 2, 0).reshape(-1, self.n_hypotheses)
-        vectors = vectors + 0.0          # -0.0 and 0.0 are the same ratio
-        class_ratios, classes = np.unique(vectors, axis=0, return_inverse=True)
-        return classes.reshape(n_obs, 4), class_ratios
+        kept = np.ones(n_obs, dtype=bool) if observed is None else np.asarray(observed, dtype=bool)
+        vectors = self.ratios[hypothesis, :, :n_obs, :][:, kept].transpose(1, 2, 0)
+        vectors = vectors.reshape(-1, self.n_hypotheses) + 0.0   # -0.0 and 0.0 are the same ratio
+        class_ratios, found = np.unique(vectors, axis=0, return_inverse=True)
+        classes = np.zeros((n_obs, 4), dtype=np.int64)
+        classes[kept] = found.reshape(-1, 4)
+        return classes, class_ratios
 
     def next_hypotheses(self, action: int) -> np.ndarray:
         """[X, observed TS states]: P2's hypothesis after P1 plays `action` from each TS state,
@@ -171,7 +177,8 @@ class InferenceModel:
             after[h] = np.where(switch, np.asarray(others)[first], h)
         return after
 
-    def _prism_window_one(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+    def _prism_window_one(self, ts: TransitionSystem, labels: dict[str, str],
+                          observed: np.ndarray | None) -> ObserverPrism:
         """Window 1: P2's memory is her hypothesis alone, so the hypothesis after each move is
         a table over the TS state, computed here; Storm evaluates one table per command instead
         of the CUSUM formulas, each of which repeats every ratio table it uses."""
@@ -182,7 +189,7 @@ class InferenceModel:
             for h in range(n_x):
                 tables.append((f"hyp_after_h{h}_{a}",
                                f"P2's hypothesis after P1 moves {a} when hyp = {h}",
-                               ts_table(ts, after[h])))
+                               ts_table(ts, after[h], observed)))
         context = dict(next_tables=tables, actions=ACTIONS, labels=labels,
                        n_hypotheses=n_x, initial_hypothesis=self.initial_hypothesis)
         return ObserverPrism(
@@ -193,14 +200,17 @@ class InferenceModel:
             slots=0, commands=len(ACTIONS) * n_x)
 
 
-def ts_table(ts: TransitionSystem, values: np.ndarray) -> str:
+def ts_table(ts: TransitionSystem, values: np.ndarray, observed: np.ndarray | None = None) -> str:
     """A table over the observed TS states (values[v] for v < ts.n_states - 1) as a decision
     tree over cell (then traps and countdown when delay > 0): comparisons on the variables
-    themselves, not on `ts_state`, which Storm would recompute at every comparison."""
+    themselves, not on `ts_state`, which Storm would recompute at every comparison. Where
+    `observed` is False the table may take any value (see rendering.lookup)."""
     if not ts.delay:
-        return lookup(values, [("cell", 0)])
+        return lookup(values, [("cell", 0)], observed)
     keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
-    return lookup(np.asarray(values).reshape(ts.n_cells, ts.n_sets, ts.phases), keys)
+    shape = (ts.n_cells, ts.n_sets, ts.phases)
+    return lookup(np.asarray(values).reshape(shape), keys,
+                  None if observed is None else np.asarray(observed).reshape(shape))
 
 
 def ts_state_expression(ts: TransitionSystem) -> str:

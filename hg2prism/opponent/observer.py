@@ -15,6 +15,8 @@ from collections.abc import Hashable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
+import numpy as np
+
 from hg2prism.model.dynamics import TransitionSystem
 
 # (TS state, P1's action index into dynamics.ACTIONS, the trap set in force during the step).
@@ -76,9 +78,12 @@ class Observer(Protocol):
         """(hypothesis, probability) pairs P2 draws the hypothesis she plays from at this step;
         a single pair with probability 1 for a deterministic observer."""
 
-    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
+    def prism(self, ts: TransitionSystem, labels: dict[str, str],
+              observed: np.ndarray | None = None) -> ObserverPrism:
         """The observer written into the hypergame model over `ts`; `labels` maps each move
-        to its synchronisation label."""
+        to its synchronisation label; `observed` ([n_states - 1] bool, default all) marks the
+        TS states the robot can reach, where its tables must be right (elsewhere they are free
+        to take whatever values keep them short)."""
 
 
 @runtime_checkable

@@ -85,12 +85,20 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
 
 def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
                      inference: Observer, trap_key: str = "trap_set",
-                     observer_labels: dict[str, str] = ACTION_LABELS) -> dict:
+                     observer_labels: dict[str, str] = ACTION_LABELS,
+                     p2_deviates: bool = False) -> dict:
     """What the hypergame template (and the robust one, docs/semantics.md §13) is rendered
     with: the world's tables, P2's trap policy, the observer's part. `trap_key` is the
     expression whose trap set traps the robot (`trap_cell_j` looks it up); `observer_labels`
-    the labels the observer's module synchronises on."""
+    the labels the observer's module synchronises on; `p2_deviates` whether P2 may play other
+    trap sets than her hypotheses' choices (the robust model)."""
     n_cells, n_sets = ts.n_cells, ts.n_sets
+    # The tables over TS states need only be right where the robot can be: the TS states
+    # reachable when P2 plays her choice under some hypothesis (any set, if she may deviate).
+    # With delay that is a few percent of cells x trap sets x phases, and the freedom elsewhere
+    # keeps the tables' text, and Storm's parse, close to the size of the reachable part.
+    reachable = ts.reachable(None if p2_deviates else np.array([g.trap_choice for g in games]))
+    observed = reachable[:-1]            # the TRAPPED state is never observed
     trapped = n_cells
     cell_key = [("cell", 0)]
 
@@ -107,11 +115,14 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
     if ts.delay:
         choices = choices.reshape(len(games), n_cells, n_sets, ts.phases)[..., 0]
         trap_keys = [("cell", 0), ("traps", 0)]
+        phases = observed.reshape(n_cells, n_sets, ts.phases)
+        choosing, waiting = phases[..., 0], phases[..., 1:].any(axis=-1)
     else:
         choices = choices[..., 0]
         trap_keys = [("cell", 0)]
-    trap_tables = [lookup(choice, trap_keys) for choice in choices]
-    observer = inference.prism(ts, observer_labels)
+        choosing, waiting = observed, None
+    trap_tables = [lookup(choice, trap_keys, choosing) for choice in choices]
+    observer = inference.prism(ts, observer_labels, observed)
     # The trap set in force: P2's choice under her current hypothesis (while she may move them).
     by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
                           f"trap_choice_x{len(games) - 1}")
@@ -122,7 +133,7 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
         moves=moves, label_expr=label_expr, q_now=q_now, accepting=accepting, sink=sink,
         trap_tables=trap_tables, trap_set=trap_set, observer=observer,
         robot_outcomes=_robot_outcomes(ts), trap_cell_tables=_trap_cell_tables(ts, trap_key),
-        trap_hits=_trap_hit_tables(ts, choices, trap_keys),
+        trap_hits=_trap_hit_tables(ts, choices, trap_keys, choosing, waiting),
         n_trap_cells=world.traps, start_cell=ts.decode(ts.start_state)[0],
         start_traps=ts.decode(ts.start_state)[1], slip=prism_number(world.slip),
         region_labels=region_labels(ts),
@@ -151,13 +162,14 @@ def _trap_cell_tables(ts: TransitionSystem, trap_key: str = "trap_set") -> list[
     return [lookup(members[:, j], [(trap_key, 0)]) for j in range(members.shape[1])]
 
 
-def _trap_hit_tables(ts: TransitionSystem, choices: np.ndarray, keys: list[tuple[str, int]]
-                     ) -> dict[str, dict]:
+def _trap_hit_tables(ts: TransitionSystem, choices: np.ndarray, keys: list[tuple[str, int]],
+                     choosing: np.ndarray, waiting: np.ndarray | None) -> dict[str, dict]:
     """Per direction d, whether the cell reached by moving d lands on the trap set in force:
     tables over the keys of `choices` (P2's choice per hypothesis, [X, cells(, traps)]), one per
     hypothesis, and with delay one for the standing set (countdown > 0). The robot then asks
     one table per outcome, where looking the set's cells up from `trap_set` would repeat
-    P2's tables in every comparison."""
+    P2's tables in every comparison. `choosing` and `waiting` mark where each kind is read
+    (the reachable states with countdown 0, and above 0)."""
     n_x = choices.shape[0]
     members = np.zeros((ts.n_sets, ts.n_cells + 1), dtype=bool)
     for t, chosen in enumerate(ts.trap_sets):
@@ -167,13 +179,13 @@ def _trap_hit_tables(ts: TransitionSystem, choices: np.ndarray, keys: list[tuple
         landing = ts.move[:, d]
         landing = landing.reshape((-1,) + (1,) * (choices.ndim - 2))
         by_hypothesis = [lookup(members[choices[x], np.broadcast_to(landing, choices[x].shape)]
-                                .astype(np.int64), keys) for x in range(n_x)]
+                                .astype(np.int64), keys, choosing) for x in range(n_x)]
         standing = None
         if ts.delay:
             traps = np.arange(ts.n_sets)[None, :]
             standing = lookup(members[np.broadcast_to(traps, choices[0].shape),
                                       np.broadcast_to(landing, choices[0].shape)]
-                              .astype(np.int64), keys)
+                              .astype(np.int64), keys, waiting)
         hits[a] = {"by_hypothesis": by_hypothesis, "standing": standing}
     return hits
 

@@ -33,24 +33,64 @@ def prism_number(value: float | int) -> str:
     return text if "." in text else text + ".0"
 
 
-def lookup(table: np.ndarray, keys: list[tuple[str, int]]) -> str:
-    """An expression for table[k0 - lo0][k1 - lo1]...: a balanced tree of comparisons.
+def lookup(table: np.ndarray, keys: list[tuple[str, int]], care: np.ndarray | None = None) -> str:
+    """An expression for table[k0 - lo0][k1 - lo1]...: a tree of comparisons.
 
-    keys: (expression, lowest value) per table dimension. Equal sub-blocks collapse to a constant.
+    keys: (expression, lowest value) per table dimension. Along each dimension the indices are
+    grouped into runs whose sub-tables agree, and the tree bisects the runs, so a table that is
+    mostly one value costs little text and Storm few comparisons. `care` (a bool array of the
+    table's shape, default all True) marks the entries the model can reach; the others may take
+    any value, which lengthens the runs (a table over TS states need only be right on the TS
+    states P1 can reach).
     """
-    def node(block: np.ndarray, dim: int, start: int) -> str:
-        first = block.flat[0]
-        if (block == first).all():
-            return prism_number(first.item())
-        if block.shape[0] == 1:
-            return node(block[0], dim + 1, 0)
-        expr, low = keys[dim]
-        mid = block.shape[0] // 2
-        left = node(block[:mid], dim, start)
-        right = node(block[mid:], dim, start + mid)
-        return f"({expr}<{low + start + mid} ? {left} : {right})"
+    table = np.asarray(table)
+    care = np.ones(table.shape, dtype=bool) if care is None else np.broadcast_to(care, table.shape)
+    if not care.any():
+        return prism_number(table.flat[0].item())
 
-    return node(np.asarray(table), 0, 0)
+    def node(block: np.ndarray, mask: np.ndarray, dim: int, start: int) -> str:
+        cared = block[mask]
+        if (cared == cared[0]).all():
+            return prism_number(cared[0].item())
+        return bisect(_runs(block, mask), dim, start)
+
+    def bisect(runs: list[tuple[int, np.ndarray, np.ndarray]], dim: int, start: int) -> str:
+        if len(runs) == 1:
+            _, row, mask = runs[0]
+            return node(row, mask, dim + 1, 0)
+        expr, low = keys[dim]
+        mid = len(runs) // 2
+        left = bisect(runs[:mid], dim, start)
+        right = bisect(runs[mid:], dim, start)
+        return f"({expr}<{low + start + runs[mid][0]} ? {left} : {right})"
+
+    return node(table, np.asarray(care, dtype=bool), 0, 0)
+
+
+def _runs(block: np.ndarray, mask: np.ndarray) -> list[tuple[int, np.ndarray, np.ndarray]]:
+    """block's rows (along its first dimension) grouped into runs of consecutive rows that agree
+    wherever both are cared for: (first row, the run's merged row, its mask) per run."""
+    if mask.all():
+        flat = block.reshape(block.shape[0], -1)
+        starts = np.r_[0, np.flatnonzero((flat[1:] != flat[:-1]).any(axis=1)) + 1]
+        return [(int(i), block[i], mask[i]) for i in starts]
+    if block.ndim == 1:     # each free entry joins the run before it (the first, the one after)
+        cared = np.flatnonzero(mask)
+        filled = block[cared[np.maximum(np.searchsorted(cared, np.arange(len(block)), "right") - 1, 0)]]
+        starts = np.r_[0, np.flatnonzero(filled[1:] != filled[:-1]) + 1]
+        return [(int(i), filled[i], np.True_) for i in starts]
+    runs = []
+    row, row_mask, first = block[0], mask[0], 0
+    for i in range(1, block.shape[0]):
+        both = row_mask & mask[i]
+        if (row[both] == block[i][both]).all():
+            row = np.where(row_mask, row, block[i])
+            row_mask = row_mask | mask[i]
+        else:
+            runs.append((first, row, row_mask))
+            row, row_mask, first = block[i], mask[i], i
+    runs.append((first, row, row_mask))
+    return runs
 
 
 def cases(branches: list[tuple[str, str]], otherwise: str) -> str:

@@ -64,7 +64,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
     if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
         raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
     context = template_context(world, ts, task, games, inference, trap_key=PLAYED_VARIABLE,
-                               observer_labels=STEP_LABELS)
+                               observer_labels=STEP_LABELS, p2_deviates=True)
     if ts.n_sets == 1:
         deviation = "0"              # nothing to deviate to
     elif ts.delay:
