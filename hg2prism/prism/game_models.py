@@ -8,7 +8,7 @@
                         "goal"] is V_x at the initial state (P1 maximises, P2 minimises).
 
 The models are written the way hypergame.prism is (one module per component, tables as
-balanced decision trees over the state variables), in the PRISM-games language only:
+decision trees over the state variables), in the PRISM-games language only:
   * action labels are lower-case words (north, east, south, west, place0, ...): PRISM reserves
     the single letters E, S, W, ... as keywords;
   * in the csg each player owns one module, the players' action sets are disjoint, and the

@@ -11,7 +11,9 @@ tables, never with the product:
                 decision "sample" the robot module draws P2's hypothesis with the move)
 
 Tables (moves, labels, P2's trap choices, log-likelihood ratios) are formulas written as
-balanced decision trees over the state variables, so Storm evaluates each in logarithmic time.
+decision trees over the state variables that bisect runs of equal entries, so Storm evaluates
+each in logarithmic time; tables over TS states are exact where the robot can be (TS states
+reachable with P2's choices) and free elsewhere, which keeps them small under delay.
 """
 
 from __future__ import annotations
