@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hg2prism.model.world import World, load_world, world_from_toml
-from hg2prism.results import CheckResults
+from hg2prism.results import CheckResults, StrategyObjective
 from hg2prism.strategy.records import Strategy
 
 if TYPE_CHECKING:
@@ -43,6 +43,7 @@ class Solution:
     storm_method: str
     sound: bool                     # False for the "fast" method: the value is not certified
     strategy: Strategy              # P1's move in every reachable hypergame state
+    objective: StrategyObjective    # what the strategy optimises: name, bound, value, steps
     results: CheckResults = field(repr=False)   # everything `check` computes (hg2prism.results)
     _checked: CheckResult | None = field(repr=False, default=None)
 
@@ -52,31 +53,42 @@ class Solution:
 
 
 def solve(world: World | str | Path, *, out: str | Path | None = None,
-          storm_method: str = "sound") -> Solution:
+          storm_method: str = "sound", objective: str = "pmax",
+          bound: int | None = None) -> Solution:
     """Build the hypergame of `world` (a World or the path of a world file), check it with
     Storm and extract P1's deceptive strategy. With `out`, what `hg2prism check` writes (the
-    model, strategy.json, results.json, the automata and the induced DTMC) goes there (atomically); without, nothing is written (the model passes
-    through a temporary folder Storm reads, removed before returning)."""
+    model, strategy.json, results.json, the automata and the induced DTMC) goes there
+    (atomically); without, nothing is written (the model passes through a temporary folder
+    Storm reads, removed before returning). `objective` is what the strategy optimises among
+    the moves that keep Pmax (docs/semantics.md §6): "pmax" (the default), "lexicographic"
+    (then the fewest expected steps) or "bounded" (the probability of the goal within `bound`
+    steps, by default the world's simulation horizon; the moves then depend on the step)."""
     from hg2prism import pipeline
     from hg2prism.model import sizeguard
     from hg2prism.outputs import staged
 
+    from hg2prism.strategy.objectives import OBJECTIVES
+
+    if objective not in OBJECTIVES:
+        raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    if bound is not None and (objective != "bounded" or bound < 1):
+        raise ValueError(f"bound (got {bound}) is a number of steps >= 1, for objective='bounded'")
     if not isinstance(world, World):
         world = load_world(world)
     sizeguard.check_size(world)
     if out is not None:
         with staged(Path(out)) as stage:
-            checked = pipeline.check(world, stage, storm_method)
+            checked = pipeline.check(world, stage, storm_method, objective, bound)
             records = tuple(checked.records)
     else:
         with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
-            checked = pipeline.check(world, Path(scratch), storm_method)
+            checked = pipeline.check(world, Path(scratch), storm_method, objective, bound)
             records = tuple(checked.records)
     r = checked.results
     return Solution(world=world, deceptive_value=r.deceptive_value, v_lead=r.v_lead,
                     states=r.states, transitions=r.transitions, storm_method=storm_method,
-                    sound=r.sound, strategy=Strategy.from_records(records, checked.analysis.ts), results=r,
-                    _checked=checked)
+                    sound=r.sound, strategy=Strategy.from_records(records, checked.analysis.ts),
+                    objective=r.objective, results=r, _checked=checked)
 
 
 @dataclass(frozen=True)
@@ -116,14 +128,27 @@ class Simulation:
     ci95: tuple[float, float]       # Wilson score interval of the rate
 
 
-def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int = 200,
+def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int | None = None,
              seed: int = 0) -> Simulation:
-    """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps."""
-    from hg2prism.analyses.simulation import simulate_deceptive
+    """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps
+    (by default 200, or the bound of a step-bounded solution, whose rate then estimates its
+    bounded value)."""
+    import dataclasses
 
-    analysis = solution._checked.analysis
-    summary = simulate_deceptive(analysis, solution.strategy, episodes, horizon, seed,
-                                 progress=False)
+    from hg2prism.analyses.simulation import simulate_deceptive
+    from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
+
+    checked = solution._checked
+    analysis, strategy = checked.analysis, solution.strategy
+    bounded = checked.bounded
+    if horizon is None:
+        horizon = bounded.bound if bounded is not None else 200
+    if bounded is not None:
+        # the move depends on the steps taken: P1 counts them beside P2's memory
+        strategy = SteppedStrategy(strategy.records, analysis.ts, bounded.bound)
+        analysis = dataclasses.replace(analysis, inference=StepCounter(analysis.inference,
+                                                                       bounded.bound - 1))
+    summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, progress=False)
     return Simulation(episodes=summary.episodes, horizon=horizon, seed=seed,
                       completed=summary.completed, failed=summary.failed,
                       truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95))

@@ -16,6 +16,7 @@ import pytest
 import hg2prism
 import reference
 from conftest import MODELS, ROOT
+from hg2prism.analyses import simulation
 from hg2prism.errors import InputError
 
 TOL = 1e-6
@@ -65,6 +66,47 @@ def test_baselines_and_simulation(tmp_path: Path) -> None:
     assert played.episodes == 400 and played.completed + played.failed + played.truncated == 400
     assert played.ci95[0] <= played.rate <= played.ci95[1]
     assert hg2prism.simulate(solution, episodes=400, horizon=400, seed=3) == played
+
+
+def test_solve_for_another_objective(tmp_path: Path) -> None:
+    """solve(objective=...) computes what `check --objective` does: the lexicographic strategy
+    keeps Pmax and needs no more steps; the bounded one has Storm's Pmax=? [F<=H "goal"] as its
+    value, answers with its schedule's move at each step, and is simulated with it."""
+    import stormpy
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    default = hg2prism.solve(world)
+    fastest = hg2prism.solve(world, objective="lexicographic")
+    assert default.objective.name == "pmax" and fastest.objective.name == "lexicographic"
+    assert fastest.deceptive_value == default.deceptive_value
+    assert fastest.objective.value == pytest.approx(default.deceptive_value, abs=TOL)
+    assert fastest.objective.expected_steps <= default.objective.expected_steps * (1 + 1e-9)
+
+    bounded = hg2prism.solve(world, objective="bounded", bound=30, out=tmp_path / "b")
+    assert (bounded.objective.name, bounded.objective.bound) == ("bounded", 30)
+    program = stormpy.parse_prism_program(str(tmp_path / "b" / "hypergame.prism"))
+    model = stormpy.build_model(program)
+    prop = stormpy.parse_properties('Pmax=? [F<=30 "goal"]', program)[0]
+    exact = stormpy.model_checking(model, prop).get_value_vector()[model.initial_states[0]]
+    assert bounded.objective.value == pytest.approx(exact, abs=TOL)
+    changing = [r for r in bounded.strategy.records if len(r["schedule"]) > 1]
+    assert changing, "world1's bounded strategy changes its move with the step somewhere"
+    for record in changing[:20]:
+        window = tuple((tuple(o["cell"]), o["action"]) for o in record["window"])
+        for first, last, move in record["schedule"]:
+            for step in (first, last):
+                assert bounded.strategy.move(tuple(record["cell"]), record["q"],
+                                             record["hypothesis"], window, step=step) == move
+        assert bounded.strategy.move(tuple(record["cell"]), record["q"], record["hypothesis"],
+                                     window, step=99) == record["schedule"][-1][2]
+    played = hg2prism.simulate(bounded, episodes=3000, seed=5)
+    assert played.horizon == 30
+    low, high = simulation.wilson_interval(played.completed, played.episodes, 0.999)
+    assert low <= bounded.objective.value <= high
+    with pytest.raises(ValueError, match="objective"):
+        hg2prism.solve(world, objective="fastest")
+    with pytest.raises(ValueError, match="bound"):
+        hg2prism.solve(world, bound=30)
 
 
 def test_a_bad_world_text_names_the_key() -> None:

@@ -158,6 +158,19 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
     return Lines(fields, len(states)).render(b"[\n", b"\n]\n")
 
 
+def _record_key(ts: TransitionSystem, record: Mapping, where: str) -> tuple[int, int, Memory]:
+    """The hypergame state ``(ts_state, q, Memory)`` a strategy record is for."""
+    v = _record_ts_state(ts, record, where)
+    try:
+        q, hypothesis = int(record["q"]), int(record["hypothesis"])
+        entries = list(record["window"])
+    except (KeyError, TypeError, ValueError) as err:
+        raise StrategyError(f"{where}: bad or missing field ({err})") from None
+    window = tuple(_window_observation(ts, entry, f"{where}, window entry {j}")
+                   for j, entry in enumerate(entries))
+    return v, q, Memory(hypothesis, window)
+
+
 def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
     """The TS state of a record's (or window entry's) cell, traps and countdown."""
     try:
@@ -226,6 +239,7 @@ class Strategy:
         self.ts = ts
         self.fallback = fallback
         self.records = records          # the records read (strategy.json's content), if any
+        self._rows: dict | None = None  # table key -> record, for the schedules
 
     @classmethod
     def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
@@ -235,16 +249,8 @@ class Strategy:
         records = tuple(records)
         for i, record in enumerate(records):
             where = f"strategy record {i}"
-            v = _record_ts_state(ts, record, where)
-            try:
-                q, hypothesis = int(record["q"]), int(record["hypothesis"])
-                entries = list(record["window"])
-            except (KeyError, TypeError, ValueError) as err:
-                raise StrategyError(f"{where}: bad or missing field ({err})") from None
-            window = tuple(_window_observation(ts, entry, f"{where}, window entry {j}")
-                           for j, entry in enumerate(entries))
+            key = _record_key(ts, record, where)
             action = _action_index(record.get("action"), where)
-            key = (v, q, Memory(hypothesis, window))
             if table.setdefault(key, action) != action:
                 raise StrategyError(f"{where}: conflicting actions {ACTIONS[table[key]]} and "
                                     f"{ACTIONS[action]} for the same state")
@@ -277,14 +283,16 @@ class Strategy:
 
     def move(self, cell: tuple[int, int], q: int, hypothesis: int,
              window: Iterable[tuple] = (), traps: Iterable[tuple[int, int]] | None = None,
-             countdown: int | None = None) -> str:
+             countdown: int | None = None, step: int = 0) -> str:
         """P1's move ("N", "E", "S" or "W") when the robot is at `cell` (x, y), the task DFA is
         in `q` (after reading the cell's label), P2 holds `hypothesis` and remembers `window`:
         (cell, move) pairs, oldest first. With delay > 0, `traps` (cells) and `countdown` give
         the standing traps, and each window entry is (cell, move, traps, countdown). For the
         Bayesian observer each entry is (cell, move, traps, countdown, played), `played` the
         cells of the trap set in force (traps and countdown None when delay is 0), and
-        `hypothesis` the window's MAP hypothesis.
+        `hypothesis` the window's MAP hypothesis. `step` is the number of steps taken so far:
+        the move of a step-bounded strategy (records with a ``schedule``) depends on it, from
+        the bound on it stays the last step's; the other strategies ignore it.
         Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
         if self.ts is None:
             raise ValueError("move() needs the strategy's transition system")
@@ -306,7 +314,26 @@ class Strategy:
         key = (v, int(q), Memory(int(hypothesis), observed))
         if key not in self.table:
             raise KeyError(f"no record for {self.describe(*key)}")
+        if step < 0:
+            raise ValueError(f"step must be at least 0, got {step}")
+        schedule = self._schedule(key)
+        if schedule:
+            last = max(int(run[1]) for run in schedule)
+            for first, end, move in schedule:
+                if int(first) <= min(step, last) <= int(end):
+                    return str(move)
         return ACTIONS[self.table[key]]
+
+    def _schedule(self, key: tuple[int, int, Memory]) -> list | None:
+        """The ``schedule`` of the record of `key` (step-bounded strategies), else None."""
+        if not self.records or "schedule" not in self.records[0]:
+            return None
+        if self._rows is None:      # built when first asked: bounded strategies only
+            rows: dict[tuple[int, int, Memory], int] = {}
+            for i, record in enumerate(self.records):
+                rows.setdefault(_record_key(self.ts, record, f"strategy record {i}"), i)
+            self._rows = rows
+        return self.records[self._rows[key]]["schedule"]
 
     def describe(self, ts_state: int, q: int, memory: Memory) -> str:
         if self.ts is None:
