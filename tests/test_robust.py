@@ -111,12 +111,41 @@ def test_robust_strategy_guarantees_the_robust_value(case) -> None:
         assert reference.worst_case(records, row.delta) == pytest.approx(row.robust_value, abs=TOL)
 
 
+def test_robust_records_give_each_moves_worst_case(case) -> None:
+    """`values` of a robust record: each move's worst case under the budget; the move played is
+    a best one, and at the initial state its worst case is R_delta."""
+    name, folder = case
+    rows, _ = solved(name, folder)
+    analysis = checked(name, folder).analysis
+    ts, task = analysis.ts, analysis.task
+    start = ts.describe_state(ts.start_state)
+    start_cell = ts.decode(ts.start_state)[0]
+    start.update(q=int(task.delta[task.initial, ts.cell_label[start_cell]]),
+                 hypothesis=analysis.inference.initial_hypothesis, window=[])
+    for row in rows:
+        records = json.loads(row.records_json)
+        for record in records:
+            values = [v for v in record["values"].values() if v is not None]
+            assert record["values"][record["action"]] >= max(values) - 1e-8
+        initial = [r for r in records if {k: r[k] for k in start} == start]
+        assert len(initial) == 1
+        assert initial[0]["values"][initial[0]["action"]] == pytest.approx(row.robust_value,
+                                                                            abs=1e-9)
+
+
 def test_at_delta_zero_the_robust_strategy_is_the_deceptive_one(world_dir: Path) -> None:
     rows, _ = solved("world2", str(world_dir))
     result = checked("world2", str(world_dir))
-    # strategy.json's records also give each move's value (`values`); the robust records give moves
-    moves_only = [{k: v for k, v in r.items() if k != "values"} for r in result.records]
-    assert json.loads(rows[0].records_json) == moves_only
+    robust_records = json.loads(rows[0].records_json)
+    assert [{k: v for k, v in r.items() if k != "values"} for r in robust_records] == \
+        [{k: v for k, v in r.items() if k != "values"} for r in result.records]
+    # each move's worst case at delta = 0 (numpy, on the interval model) is its value in
+    # strategy.json (Storm's values on the hypergame)
+    for ours, theirs in zip(robust_records, result.records):
+        for move, value in theirs["values"].items():
+            assert (ours["values"][move] is None) == (value is None)
+            if value is not None:
+                assert ours["values"][move] == pytest.approx(value, abs=1e-9)
     assert rows[0].states == result.results.states
     assert rows[0].nominal_worst_case == pytest.approx(result.results.deceptive_value, abs=1e-9)
 

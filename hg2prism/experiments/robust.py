@@ -107,9 +107,9 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
     from hg2prism.engines import storm
     from hg2prism.opponent.inference import Memory
     from hg2prism.strategy.deceptive import StormChoices
-    from hg2prism.strategy.records import strategy_json
+    from hg2prism.strategy.records import RecordExtras, strategy_json
     from hg2prism.strategy.robust import (IntervalGame, adversary_response, fastest_choices,
-                                          solve_robust)
+                                          move_values, solve_robust)
     from hg2prism.prism.robust_model import MOVE_VARIABLE, PLAYED_VARIABLE, STORM_PROPERTY
 
     ts, task = analysis.ts, analysis.task
@@ -151,9 +151,13 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
             from hg2prism.errors import SolverError
             raise SolverError(f"delta {delta}: the robust strategy guarantees {guaranteed} < {value}")
     robust_nominal = adversary_response(_nominal_game(game, moves.action), strategy)[game.initial]
+    worst_cases = np.full((n_canonical, 4), np.nan)
+    worst_cases[canonical[representative]] = move_values(game, solution, representative,
+                                                         moves.action)
     records_json = strategy_json(
         replace(decoded, canonical=canonical, n_canonical=n_canonical),
-        StormChoices(representative=representative, choice=strategy), moves, ts)
+        StormChoices(representative=representative, choice=strategy), moves, ts,
+        RecordExtras(worst_cases))
 
     # The deceptive strategy under the budget: its records, the leader answer elsewhere.
     deceptive_wanted = np.full(n_canonical, -1, dtype=np.int64)

@@ -357,6 +357,19 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
     return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=1e-12)
 
 
+def move_values(game: IntervalGame, solution: RobustSolution, states: np.ndarray,
+                action: np.ndarray) -> np.ndarray:
+    """[len(states), 4]: the worst case under the budget of each move (action[choice], an index
+    into N, E, S, W) of each of `states`, R's one-step values (NaN for a move a state lacks):
+    why the robust strategy moves as it does, as strategy.json's ``values``."""
+    values = np.full((len(states), 4), np.nan)
+    row = np.full(game.n_states, -1, dtype=np.int64)
+    row[states] = np.arange(len(states))
+    choices = np.flatnonzero(row[game.choice_state] >= 0)
+    values[row[game.choice_state[choices]], action[choices]] = solution.q_values[choices]
+    return values
+
+
 def _best(game: IntervalGame, per_choice: np.ndarray, allowed: np.ndarray) -> np.ndarray:
     masked = np.where(allowed, per_choice, -np.inf)
     best = np.maximum.reduceat(masked, game.choice_start[:-1])
