@@ -8,7 +8,9 @@ move spreads the rest to minimise P1's value:
     R(s) = max_a1 [ (1 - delta) * E[R | a1, pred] + delta * min_{a2 in A2(v)} E[R | a1, a2] ]
 
 (the plain expectation under pred where |A2(v)| = 1), goal 1, failure 0, least fixed point.
-P2's memory evolves by the observation (v, a1) whatever she plays (section 5). Value iteration
+P2's memory evolves by the observation (v, a1) whatever she plays (section 5); a Bayesian
+observer (tests/reference_bayes.py, decision "map") records (v, a1, a2) with a2 the set she
+played (section 13). Value iteration
 from 0 converges to the least fixed point from below; it stops when a sweep changes no value by
 more than STOP.
 """
@@ -30,9 +32,10 @@ class RobustHypergame:
     """The hypergame states reachable when P2 may play any available trap set, and for each
     (state, move, trap set) the successor distribution."""
 
-    def __init__(self, path) -> None:
-        self.world = World(path)
+    def __init__(self, path, world: World | None = None) -> None:
+        self.world = World(path) if world is None else world
         w = self.world
+        bayes = hasattr(w, "log_posterior")      # a reference_bayes.BayesWorld
         dfa = w.task_dfa
         s0 = w.initial()
         self.initial = s0
@@ -48,11 +51,18 @@ class RobustHypergame:
         while queue:
             s = queue.popleft()
             v, q, M = s
-            pred = w.pi2(M[0], v)
+            if bayes:
+                (x, _), = w.draw(M).items()
+                pred = w.pi2(x, v)
+            else:
+                pred = w.pi2(M[0], v)
             for a1 in ACTIONS:
-                M2 = w.eta(M, (v, a1))
+                if not bayes:
+                    M2 = w.eta(M, (v, a1))
                 per_set = []
                 for a2 in w.A2(v):
+                    if bayes:
+                        M2 = (tuple(M) + ((v, a1, a2),))[-w.window:]
                     succ: dict = {}
                     for v2, pr in w.outcomes(v, a1, a2).items():
                         if v2 == TRAPPED:

@@ -150,6 +150,33 @@ def test_at_delta_zero_the_robust_strategy_is_the_deceptive_one(world_dir: Path)
     assert rows[0].nominal_worst_case == pytest.approx(result.results.deceptive_value, abs=1e-9)
 
 
+def test_a_bayesian_observer_records_the_set_played(world_dir: Path, capsys) -> None:
+    """With the Bayesian observer ("map") P2's window records the trap set she played
+    (docs/semantics.md §13): R_delta against the reference's robust value iteration on
+    world3_bayes, whose states keep that set; "sample" is refused in one line."""
+    import reference_bayes
+
+    path = MODELS / "world3_bayes.toml"
+    world = load_world(path)
+    with progress.quiet():
+        result = pipeline.check(world, world_dir / "bayes_check")
+    rows = [row for row, _ in robust.solve_budgets(world, result, (0.0,) + DELTAS,
+                                                   world_dir / "bayes_robust", storm_check=False)]
+    reference = RobustHypergame(path, reference_bayes.BayesWorld(path))
+    assert rows[0].robust_value == pytest.approx(result.results.deceptive_value, abs=TOL)
+    expected = reference.robust_values(list(DELTAS))
+    assert expected[-1] < expected[0] - 0.05      # deviations cost P1 something here
+    for row, value in zip(rows[1:], expected):
+        assert row.robust_value == pytest.approx(value, abs=TOL)
+        assert row.residual <= 1e-10
+    sample = world_dir / "bayes_sample.toml"
+    sample.write_text(path.read_text().replace('decision = "map"', 'decision = "sample"'))
+    assert main(["robust", str(sample), "--out", str(world_dir / "bayes_sample")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "inference.decision" in err[0]
+    assert not (world_dir / "bayes_sample").exists()
+
+
 def _check_model(name: str, folder: Path, delta: float) -> Path:
     result = checked(name, str(folder))
     a = result.analysis

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import contextlib
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -241,6 +243,35 @@ def _fallback_strategy(world: World, check_result: CheckResult, fallback: str,
     return Strategy.from_records(records, analysis.ts, fallback=leader_fallback(analysis))
 
 
+@dataclass(frozen=True)
+class _Batches:
+    """What every batch of the experiment shares: the same strategy, episodes, horizon, seed
+    and detector, so that the batches differ only in what P2 does."""
+
+    analysis: Analysis
+    strategy: Strategy
+    episodes: int
+    horizon: int
+    seed: int
+    alpha: float
+    epsilon: float
+    show_progress: bool
+
+    def run(self, **options) -> tuple[SimulationSummary, DetectionBatch]:
+        """detection_batch with these settings and `options` (p2_policy, p2_inference, ...)."""
+        return detection_batch(self.analysis, self.strategy, self.episodes, self.horizon,
+                               self.seed, self.alpha, self.epsilon,
+                               progress=self.show_progress, **options)
+
+    def replay(self, p2_policy: P2Policy | None, plan: Replanning) -> SimulationSummary:
+        """The episodes again, P1 re-planning with `plan` (one random stream per episode)."""
+        from hg2prism.analyses.simulation import simulate_deceptive
+
+        return simulate_deceptive(self.analysis, self.strategy, self.episodes, self.horizon,
+                                  self.seed, p2_policy=p2_policy, progress=self.show_progress,
+                                  replanning=plan, episode_streams=True)
+
+
 def detection_experiment(world: World, check_result: CheckResult, out: Path, episodes: int | None = None,
                          seed: int | None = None, show_progress: bool = True,
                          horizon: int | None = None, fallback: str | None = None,
@@ -254,9 +285,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     Writes out/detection.json and out/detection.{png,svg} and returns the JSON's content.
     """
     from hg2prism.report import plots
-    from hg2prism.opponent.bayes import build_bayes
-    from hg2prism.opponent.inference import build_inference
-    from hg2prism.analyses.simulation import deviating_policy, leader_fallback, wilson_interval
+    from hg2prism.analyses.simulation import deviating_policy, leader_fallback
     from hg2prism.strategy.records import Strategy
 
     _check_positive(episodes, "--episodes", 1)
@@ -266,164 +295,43 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     out = Path(out)
     start_time = time.perf_counter()
     settings = world.detection
-    alpha, epsilon, deviate_after = settings.alpha, settings.epsilon, settings.deviate_after
+    deviate_after = settings.deviate_after
     episodes = episodes or min(world.simulation.episodes, MAX_DETECTION_EPISODES)
     horizon = horizon or world.simulation.horizon
     seed = world.simulation.seed if seed is None else seed
     analysis = check_result.analysis
-    ts = analysis.ts
-    strategy = Strategy.from_records(check_result.records, ts, fallback=leader_fallback(analysis))
-    deviating = deviating_policy(ts, deviate_after)
+    strategy = Strategy.from_records(check_result.records, analysis.ts,
+                                     fallback=leader_fallback(analysis))
+    deviating = deviating_policy(analysis.ts, deviate_after)
+    batches = _Batches(analysis, strategy, episodes, horizon, seed, settings.alpha,
+                       settings.epsilon, show_progress)
 
     def say(message: str) -> None:
         if show_progress:
             progress.say(message)
 
-    # (a) one seeded episode, for the picture
-    chosen, summary_a, batch_a = _find_seeded_episode(analysis, strategy, horizon, seed, alpha,
-                                                      epsilon, deviate_after, deviating)
-    steps = batch_a.steps.get(0, [])
-    records = batch_a.records.get(0, [])
-    detected_at = batch_a.first_rejection.get(0)
-    per_step = []
-    for step, record in zip(steps, records):
-        per_step.append({
-            "n": step.n,
-            "cell": list(ts.cells[ts.decode(record.ts_state)[0]]),
-            "hypothesis_modelled": record.memory.hypothesis,
-            "hypothesis_real": record.p2_memory.hypothesis,
-            "predicted_traps": [list(c) for c in ts.trap_cells(record.predicted_a2)],
-            "played_traps": [list(c) for c in ts.trap_cells(record.a2)],
-            "choices": record.n_a2,
-            "counted": step.counted,
-            "G": step.statistic,
-            "df": step.df,
-            "threshold": step.threshold,
-            "rejected": step.rejected,
-        })
-    seeded = {
-        "seed": chosen,
-        "searched_from_seed": seed,
-        "rule": (f"the first seed from {seed} upward whose episode lasts more than "
-                 f"deviate_after + {STEPS_AFTER_DEVIATION} steps"),
-        "steps": int(summary_a.lengths[0]),
-        "outcome": _OUTCOME[int(summary_a.outcomes[0])],
-        "detected_at": detected_at,
-        "per_step": per_step,
-    }
-    say(f"detection: seeded episode (seed {chosen}, {seeded['steps']} steps): "
-        + (f"mismatch detected at step {detected_at}" if detected_at is not None
-           else "mismatch not detected"))
-
-    # (b) many episodes with the deviation
+    seeded, steps = _seeded_episode(batches, deviate_after, deviating, say)
     say(f"detection: {episodes} episodes, P2 follows the model for {deviate_after} step(s), "
         "then plays at random")
-    summary_b, batch_b = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
-                                         epsilon, p2_policy=deviating, progress=show_progress)
-    deviation = _distribution(batch_b.rejections(episodes), deviate_after)
-    reached = [e for e in range(episodes) if summary_b.lengths[e] > deviate_after]
-    deviation["episodes_reaching_deviation"] = len(reached)
-    deviation["episodes_with_unpredicted_traps"] = len(batch_b.unpredicted)
-    deviation["share_not_detected_among_reaching_deviation"] = (
-        sum(1 for e in reached if e not in batch_b.first_rejection) / len(reached)
-        if reached else None)
-    deviation["completion"] = _completion(summary_b)
-
-    # (c) as many episodes in which P2 follows the model
+    deviation = _deviation_batch(batches, deviating, deviate_after)
     say(f"detection: {episodes} episodes, P2 follows the model (false alarms)")
-    summary_c, batch_c = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
-                                         epsilon, progress=show_progress, track_scores=True)
-    alarms = batch_c.rejections(episodes)
-    n_alarms = sum(1 for n in alarms if n is not None)
-    compliant = {
-        "episodes": episodes,
-        "false_alarms": n_alarms,
-        "false_alarm_rate": n_alarms / episodes,
-        "false_alarm_rate_ci95": list(wilson_interval(n_alarms, episodes)),
-        "false_alarm_steps": {str(n): c for n, c in
-                              _distribution(alarms)["histogram"].items()},
-        "completion": _completion(summary_c),
-        "max_cusum_score": batch_c.max_score,
-    }
-
-    # (d) P2's real inference differs from P1's model of it
-    variants = _mismatch_variants(world, batch_c.max_score)
-    reference_rate = summary_c.rate
-    mismatch = []
-    for label, window, threshold, why in variants:
-        say(f"detection: {episodes} episodes, P2's inference uses {label} "
-            f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
-        real = (build_inference(analysis.games, window, threshold, world.initial_hypothesis)
-                if world.inference == "cusum" else
-                build_bayes(analysis.games, window, world.prior, threshold))
-        summary_d, batch_d = detection_batch(analysis, strategy, episodes, horizon, seed, alpha,
-                                             epsilon, p2_inference=real, progress=show_progress)
-        rejections = batch_d.rejections(episodes)
-        detected = sum(1 for n in rejections if n is not None)
-        observable = len(batch_d.unpredicted)
-        detected_observable = sum(1 for e in batch_d.unpredicted if e in batch_d.first_rejection)
-        dist = _distribution(rejections)
-        mismatch.append({
-            "p2_inference": label,
-            "chosen_as": why,
-            "p2_window": window,
-            "p2_threshold": threshold,
-            "episodes": episodes,
-            "detected": detected,
-            "detection_rate": detected / episodes,
-            "detection_rate_ci95": list(wilson_interval(detected, episodes)),
-            "mean_detection_step": dist["mean_detection_step"],
-            "median_detection_step": dist["median_detection_step"],
-            "histogram": dist["histogram"],
-            "episodes_with_hypothesis_divergence": len(batch_d.diverged),
-            "episodes_with_unpredicted_traps": observable,
-            "detection_rate_given_unpredicted_traps": (detected_observable / observable
-                                                       if observable else None),
-            "completion": _completion(summary_d),
-            "completion_change": summary_d.rate - reference_rate,
-        })
-
-    # (e) re-planning: the same batches, P1 switching to the fallback at the first rejection
+    compliant, summary_c, batch_c = _compliant_batch(batches)
+    mismatch = _mismatch_batches(world, batches, batch_c.max_score, summary_c.rate, say)
     replanning = None
     if fallback is not None:
-        from hg2prism.analyses.simulation import Replanning
-
         shown = f"{fallback} (delta {fallback_delta:g})" if fallback == "robust" else fallback
         say(f"detection: re-planning with the {shown} fallback")
-        plan = Replanning(_fallback_strategy(world, check_result, fallback, fallback_delta),
-                          alpha, epsilon)
-        from hg2prism.analyses.simulation import simulate_deceptive
-
-        def paired(p2_policy: P2Policy | None, plan: Replanning | None) -> SimulationSummary:
-            return simulate_deceptive(analysis, strategy, episodes, horizon, seed,
-                                      p2_policy=p2_policy, progress=show_progress,
-                                      replanning=plan, episode_streams=True)
-
-        # "without": the deceptive strategy as its own fallback, so that the detections are
-        # counted while P1's play is that of no re-planning
-        same = Replanning(strategy, alpha, epsilon)
-        without_b, with_b = paired(deviating, same), paired(deviating, plan)
-        without_c, with_c = paired(None, same), paired(None, plan)
-        replanning = {
-            "fallback": fallback,
-            "delta": fallback_delta,
-            "random_numbers": ("each episode its own stream, numpy default_rng([seed, "
-                               "episode]), in both runs: an episode is played identically with "
-                               "and without re-planning up to P1's switch"),
-            "deviation": {"without": _replanning_rates(without_b),
-                          "with": _replanning_rates(with_b)},
-            "compliant": {"without": _replanning_rates(without_c),
-                          "with": _replanning_rates(with_c)},
-        }
+        replanning = _replanning_batches(world, check_result, batches, fallback, fallback_delta,
+                                         deviating)
     plots.detection_figure([s.statistic for s in steps], [s.threshold for s in steps],
-                           deviate_after, detected_at, out / "detection.png",
-                           world_name=world.name, seed=chosen, replanning=replanning)
+                           deviate_after, seeded["detected_at"], out / "detection.png",
+                           world_name=world.name, seed=seeded["seed"], replanning=replanning)
 
     result = {
         "world": world.name,
         "world_file": str(world.path),
-        "alpha": alpha,
-        "epsilon": epsilon,
+        "alpha": settings.alpha,
+        "epsilon": settings.epsilon,
         "deviate_after": deviate_after,
         "horizon": horizon,
         "seed": seed,
@@ -445,8 +353,9 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         "compliant": compliant,
         "model_mismatch": {
             "reference": {"p2_inference": "as modelled", "p2_window": world.window,
-                          "p2_threshold": world.threshold, "detection_rate": n_alarms / episodes,
-                          "completion": _completion(summary_c)},
+                          "p2_threshold": world.threshold,
+                          "detection_rate": compliant["false_alarm_rate"],
+                          "completion": compliant["completion"]},
             "variants": mismatch,
         },
         "seconds": round(time.perf_counter() - start_time, 3),
@@ -455,6 +364,154 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
         result["replanning"] = replanning
     write_json(out / "detection.json", result)
     return result
+
+
+def _seeded_episode(batches: _Batches, deviate_after: int, deviating: P2Policy,
+                    say: Callable[[str], None]) -> tuple[dict, list]:
+    """(a) One seeded episode, for the picture: its record and its detector steps."""
+    ts = batches.analysis.ts
+    chosen, summary, batch = _find_seeded_episode(
+        batches.analysis, batches.strategy, batches.horizon, batches.seed, batches.alpha,
+        batches.epsilon, deviate_after, deviating)
+    steps = batch.steps.get(0, [])
+    records = batch.records.get(0, [])
+    detected_at = batch.first_rejection.get(0)
+    per_step = []
+    for step, record in zip(steps, records):
+        per_step.append({
+            "n": step.n,
+            "cell": list(ts.cells[ts.decode(record.ts_state)[0]]),
+            "hypothesis_modelled": record.memory.hypothesis,
+            "hypothesis_real": record.p2_memory.hypothesis,
+            "predicted_traps": [list(c) for c in ts.trap_cells(record.predicted_a2)],
+            "played_traps": [list(c) for c in ts.trap_cells(record.a2)],
+            "choices": record.n_a2,
+            "counted": step.counted,
+            "G": step.statistic,
+            "df": step.df,
+            "threshold": step.threshold,
+            "rejected": step.rejected,
+        })
+    seeded = {
+        "seed": chosen,
+        "searched_from_seed": batches.seed,
+        "rule": (f"the first seed from {batches.seed} upward whose episode lasts more than "
+                 f"deviate_after + {STEPS_AFTER_DEVIATION} steps"),
+        "steps": int(summary.lengths[0]),
+        "outcome": _OUTCOME[int(summary.outcomes[0])],
+        "detected_at": detected_at,
+        "per_step": per_step,
+    }
+    say(f"detection: seeded episode (seed {chosen}, {seeded['steps']} steps): "
+        + (f"mismatch detected at step {detected_at}" if detected_at is not None
+           else "mismatch not detected"))
+    return seeded, steps
+
+
+def _deviation_batch(batches: _Batches, deviating: P2Policy, deviate_after: int) -> dict:
+    """(b) Many episodes with the deviation: when it is detected, and how often not."""
+    episodes = batches.episodes
+    summary, batch = batches.run(p2_policy=deviating)
+    deviation = _distribution(batch.rejections(episodes), deviate_after)
+    reached = [e for e in range(episodes) if summary.lengths[e] > deviate_after]
+    deviation["episodes_reaching_deviation"] = len(reached)
+    deviation["episodes_with_unpredicted_traps"] = len(batch.unpredicted)
+    deviation["share_not_detected_among_reaching_deviation"] = (
+        sum(1 for e in reached if e not in batch.first_rejection) / len(reached)
+        if reached else None)
+    deviation["completion"] = _completion(summary)
+    return deviation
+
+
+def _compliant_batch(batches: _Batches) -> tuple[dict, SimulationSummary, DetectionBatch]:
+    """(c) As many episodes in which P2 follows the model: the false alarms."""
+    from hg2prism.analyses.simulation import wilson_interval
+
+    episodes = batches.episodes
+    summary, batch = batches.run(track_scores=True)
+    alarms = batch.rejections(episodes)
+    n_alarms = sum(1 for n in alarms if n is not None)
+    compliant = {
+        "episodes": episodes,
+        "false_alarms": n_alarms,
+        "false_alarm_rate": n_alarms / episodes,
+        "false_alarm_rate_ci95": list(wilson_interval(n_alarms, episodes)),
+        "false_alarm_steps": {str(n): c for n, c in
+                              _distribution(alarms)["histogram"].items()},
+        "completion": _completion(summary),
+        "max_cusum_score": batch.max_score,
+    }
+    return compliant, summary, batch
+
+
+def _mismatch_batches(world: World, batches: _Batches, max_score: float, reference_rate: float,
+                      say: Callable[[str], None]) -> list[dict]:
+    """(d) P2's real inference differs from P1's model of it: one batch per variant."""
+    from hg2prism.analyses.simulation import wilson_interval
+    from hg2prism.opponent.bayes import build_bayes
+    from hg2prism.opponent.inference import build_inference
+
+    games, episodes = batches.analysis.games, batches.episodes
+    mismatch = []
+    for label, window, threshold, why in _mismatch_variants(world, max_score):
+        say(f"detection: {episodes} episodes, P2's inference uses {label} "
+            f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
+        real = (build_inference(games, window, threshold, world.initial_hypothesis)
+                if world.inference == "cusum" else
+                build_bayes(games, window, world.prior, threshold))
+        summary, batch = batches.run(p2_inference=real)
+        rejections = batch.rejections(episodes)
+        detected = sum(1 for n in rejections if n is not None)
+        observable = len(batch.unpredicted)
+        detected_observable = sum(1 for e in batch.unpredicted if e in batch.first_rejection)
+        dist = _distribution(rejections)
+        mismatch.append({
+            "p2_inference": label,
+            "chosen_as": why,
+            "p2_window": window,
+            "p2_threshold": threshold,
+            "episodes": episodes,
+            "detected": detected,
+            "detection_rate": detected / episodes,
+            "detection_rate_ci95": list(wilson_interval(detected, episodes)),
+            "mean_detection_step": dist["mean_detection_step"],
+            "median_detection_step": dist["median_detection_step"],
+            "histogram": dist["histogram"],
+            "episodes_with_hypothesis_divergence": len(batch.diverged),
+            "episodes_with_unpredicted_traps": observable,
+            "detection_rate_given_unpredicted_traps": (detected_observable / observable
+                                                       if observable else None),
+            "completion": _completion(summary),
+            "completion_change": summary.rate - reference_rate,
+        })
+    return mismatch
+
+
+def _replanning_batches(world: World, check_result: CheckResult, batches: _Batches,
+                        fallback: str, fallback_delta: float | None,
+                        deviating: P2Policy) -> dict:
+    """(e) The deviation and compliant batches again, P1 switching to the fallback at its
+    detector's first rejection, and without re-planning for comparison."""
+    from hg2prism.analyses.simulation import Replanning
+
+    plan = Replanning(_fallback_strategy(world, check_result, fallback, fallback_delta),
+                      batches.alpha, batches.epsilon)
+    # "without": the deceptive strategy as its own fallback, so that the detections are
+    # counted while P1's play is that of no re-planning
+    same = Replanning(batches.strategy, batches.alpha, batches.epsilon)
+    without_b, with_b = batches.replay(deviating, same), batches.replay(deviating, plan)
+    without_c, with_c = batches.replay(None, same), batches.replay(None, plan)
+    return {
+        "fallback": fallback,
+        "delta": fallback_delta,
+        "random_numbers": ("each episode its own stream, numpy default_rng([seed, "
+                           "episode]), in both runs: an episode is played identically with "
+                           "and without re-planning up to P1's switch"),
+        "deviation": {"without": _replanning_rates(without_b),
+                      "with": _replanning_rates(with_b)},
+        "compliant": {"without": _replanning_rates(without_c),
+                      "with": _replanning_rates(with_c)},
+    }
 
 
 def _mismatch_variants(world: World, max_score: float) -> list[tuple[str, int, object, str]]:

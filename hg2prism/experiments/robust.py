@@ -163,7 +163,7 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
     deceptive_wanted = np.full(n_canonical, -1, dtype=np.int64)
     ts_state = ts.state(decoded.cell, decoded.traps, decoded.countdown)
     for s in representative[~game.stop[representative]].tolist():
-        window = tuple((int(v), int(a)) for v, a in decoded.window[s].tolist() if v >= 0)
+        window = tuple(tuple(entry) for entry in decoded.window[s].tolist() if entry[0] >= 0)
         memory = Memory(int(decoded.hypothesis[s]), window)
         deceptive_wanted[canonical[s]] = deceptive.action(int(ts_state[s]), int(decoded.q[s]), memory)
     nominal = _choice_with_action(game, moves.action, deceptive_wanted[canonical])

@@ -133,7 +133,7 @@ class BayesObserver:
     # -- the PRISM part ------------------------------------------------------------------------
 
     def prism(self, ts: TransitionSystem, labels: dict[str, str],
-              observed: np.ndarray | None = None) -> ObserverPrism:
+              observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
         """The window's slots o1 (oldest) .. o{w} and the decision, as formulas and the module
         p2_inference (4 commands whatever the window, the grid or the hypotheses).
 
@@ -144,7 +144,10 @@ class BayesObserver:
         slot, so it adds no state), and the log-posterior sums small per-class tables. With
         "map", `hyp` is a variable set with the window (also a function of it). With "sample"
         the robot module draws P2's hypothesis jointly with the move (4 + 1 commands) and also
-        holds the newest slot's trap set and class and, with delay > 0, the standing traps."""
+        holds the newest slot's trap set and class and, with delay > 0, the standing traps.
+        With `played` (the robust model, "map" only) P2 records the set she played, held in
+        that variable (docs/semantics.md §13), and the move's tables are over it instead of
+        her prediction."""
         n_x, slots = self.n_hypotheses, self.window
         n_obs_states = ts.n_states - 1          # the TRAPPED state is never observed
         n_sets = ts.n_sets
@@ -159,11 +162,20 @@ class BayesObserver:
         # set while the countdown runs. So the move made now is looked up over (ts_state, hyp)
         # ("map") or over ts_state for each drawn x ("sample"), never over the trap set formula,
         # which would be copied into every comparison of the table.
+        if played is not None and draws:
+            raise ValueError("P2 draws her hypothesis (decision \"sample\"): the robust model "
+                             "(docs/semantics.md §13) is written for decision \"map\"")
         states = np.arange(n_obs_states)
         in_force = self.trap_choice[:, :n_obs_states]                   # [X, states]
         care = np.ones(n_obs_states, dtype=bool) if observed is None else np.asarray(observed)
-        class_now = {a: lookup(class_of[states[:, None], d, in_force.T], [("ts_state", 0), ("hyp", 0)],
-                               care[:, None])
+        # The move made now: over (ts_state, hyp), P2's prediction in force, or over
+        # (ts_state, played) where she may play another set.
+        if played is None:
+            now_keys, now_sets = [("ts_state", 0), ("hyp", 0)], in_force.T        # [states, X]
+        else:
+            now_keys = [("ts_state", 0), (played, 0)]
+            now_sets = np.broadcast_to(np.arange(n_sets), (n_obs_states, n_sets))
+        class_now = {a: lookup(class_of[states[:, None], d, now_sets], now_keys, care[:, None])
                      for d, a in enumerate(ACTIONS)} if not draws else {}
         class_drawn = {(a, x): lookup(class_of[states, d, in_force[x]], [("ts_state", 0)], care)
                        for d, a in enumerate(ACTIONS) for x in range(n_x)} if draws else {}
@@ -179,8 +191,8 @@ class BayesObserver:
             for d, a in enumerate(ACTIONS):
                 scores = []
                 for x in range(n_x):
-                    now = lookup(table[x, states[:, None], d, in_force.T],
-                                 [("ts_state", 0), ("hyp", 0)], care[:, None])
+                    now = lookup(table[x, states[:, None], d, now_sets], now_keys,
+                                 care[:, None])
                     terms = [prism_number(float(self.log_prior[x]))]
                     terms += [f"ll_x{x}_o{i}" for i in range(2, slots + 1)] + [f"llnow_x{x}_{a}"]
                     scores.append({"x": x, "now": now, "sum": "+".join(terms)})
@@ -215,6 +227,7 @@ class BayesObserver:
             ts_state=ts_state_expression(ts), slot_ll=slot_ll, rules=rules,
             posterior=posterior, class_now=class_now, class_drawn=class_drawn,
             draws=draws, robot_outcomes=robot, set_cells=set_cells,
+            set_in_force=played or "trap_set",
             n_trap_cells=members.shape[1], delay=ts.delay, actions=ACTIONS, labels=labels,
             slots=slots, n_obs_states=n_obs_states, n_sets=n_sets, n_hypotheses=n_x,
             n_classes=n_classes, initial_hypothesis=self.initial_hypothesis,

@@ -86,11 +86,12 @@ class InferenceModel:
 
 
     def prism(self, ts: TransitionSystem, labels: dict[str, str],
-              observed: np.ndarray | None = None) -> ObserverPrism:
+              observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
         """The ratio tables, the CUSUM scores and the module p2_inference: hyp and the window's
         slots o1 (oldest) .. o{w-1}, each a TS state and a move (-1 when empty). The scores are
         formulas over the slots, so the module has 2 commands per (hypothesis, move), 1 with a
-        single hypothesis, whatever the window or the grid."""
+        single hypothesis, whatever the window or the grid. `played` changes nothing: a ratio
+        reads P2's predicted trap set by definition (docs/semantics.md §5)."""
         n_x, slots = self.n_hypotheses, self.window - 1
         n_obs_states = ts.n_states - 1          # the TRAPPED state is never observed
         ratio_formulas = []      # (name, comment, expression)

@@ -79,11 +79,13 @@ class Observer(Protocol):
         a single pair with probability 1 for a deterministic observer."""
 
     def prism(self, ts: TransitionSystem, labels: dict[str, str],
-              observed: np.ndarray | None = None) -> ObserverPrism:
+              observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
         """The observer written into the hypergame model over `ts`; `labels` maps each move
         to its synchronisation label; `observed` ([n_states - 1] bool, default all) marks the
         TS states the robot can reach, where its tables must be right (elsewhere they are free
-        to take whatever values keep them short)."""
+        to take whatever values keep them short); `played`, when P2 may play another trap set
+        than her prediction (the robust model of docs/semantics.md §13), the variable holding
+        the set she played."""
 
 
 @runtime_checkable

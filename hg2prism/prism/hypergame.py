@@ -124,7 +124,7 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
         trap_keys = [("cell", 0)]
         choosing, waiting = observed, None
     trap_tables = [lookup(choice, trap_keys, choosing) for choice in choices]
-    observer = inference.prism(ts, observer_labels, observed)
+    observer = inference.prism(ts, observer_labels, observed, trap_key if p2_deviates else None)
     # The trap set in force: P2's choice under her current hypothesis (while she may move them).
     by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
                           f"trap_choice_x{len(games) - 1}")

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from hg2prism.errors import InputError
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTION_LABELS, TransitionSystem
 from hg2prism.model.world import World
@@ -63,6 +64,11 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
         raise ValueError(f"delta must lie in [0, 1), got {delta}")
     if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
         raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
+    if getattr(inference, "decision", None) == "sample":
+        raise InputError(str(world.path), "inference.decision",
+                         'robust deception (docs/semantics.md §13) is defined here for a '
+                         'Bayesian observer that plays her MAP hypothesis ("map"), not one that '
+                         'draws it ("sample")')
     context = template_context(world, ts, task, games, inference, trap_key=PLAYED_VARIABLE,
                                observer_labels=STEP_LABELS, p2_deviates=True)
     if ts.n_sets == 1:
@@ -76,7 +82,9 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
         delta_text=prism_number(float(delta)), eps_text=prism_number(float(eps)),
         property=PRISM_PROPERTY)
     prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
-                       layout=Layout(slots=context["observer"].slots, delay=ts.delay),
+                       layout=Layout(slots=context["observer"].slots, delay=ts.delay,
+                                     slot_sets=context["observer"].slot_sets,
+                                     hypothesis_variable=context["observer"].hypothesis_variable),
                        commands=count_commands(text))
     return RobustModel(prism=prism, delta=float(delta), eps=float(eps))
 
