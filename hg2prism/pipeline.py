@@ -72,12 +72,15 @@ def analyse(world: World) -> Analysis:
         hypotheses = [translate(h, ts.label_names, ts.letters) for h in world.hypotheses]
         # The games are independent and numpy and SuperLU release the GIL, so two threads
         # solve them side by side (1.6x on delayed worlds), each exactly as alone.
-        with ThreadPoolExecutor(max_workers=2) as pool:
+        pool = ThreadPoolExecutor(max_workers=2)
+        try:
             solving = [pool.submit(perceptual_game, ts, dfa, world.rationality)
                        for dfa in hypotheses]
             leading = pool.submit(solve_game, ts, task)
             games = [future.result() for future in solving]
             leader = leading.result()
+        finally:    # a failed game (or Ctrl-C) does not wait for the games still queued
+            pool.shutdown(wait=True, cancel_futures=True)
         inference = build_observer(world, games)
         start_cell = ts.decode(ts.start_state)[0]
         v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]],

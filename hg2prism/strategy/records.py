@@ -331,7 +331,11 @@ class Strategy:
         if self._rows is None:      # built when first asked: bounded strategies only
             rows: dict[tuple[int, int, Memory], int] = {}
             for i, record in enumerate(self.records):
-                rows.setdefault(_record_key(self.ts, record, f"strategy record {i}"), i)
+                where = f"strategy record {i}"
+                first = rows.setdefault(_record_key(self.ts, record, where), i)
+                if self.records[first].get("schedule") != record.get("schedule"):
+                    raise StrategyError(f"{where}: another schedule for the state of "
+                                        f"strategy record {first}")
             self._rows = rows
         return self.records[self._rows[key]]["schedule"]
 

@@ -365,7 +365,7 @@ def move_values(game: IntervalGame, solution: RobustSolution, states: np.ndarray
     values = np.full((len(states), 4), np.nan)
     row = np.full(game.n_states, -1, dtype=np.int64)
     row[states] = np.arange(len(states))
-    choices = np.flatnonzero(row[game.choice_state] >= 0)
+    choices = np.flatnonzero((row[game.choice_state] >= 0) & (action >= 0))   # not `[] stop`
     values[row[game.choice_state[choices]], action[choices]] = solution.q_values[choices]
     return values
 
