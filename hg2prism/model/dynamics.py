@@ -126,7 +126,9 @@ class TransitionSystem:
                 "traps": [list(c) for c in self.trap_cells(traps)], "countdown": countdown}
 
 
-def build_transition_system(world: World) -> TransitionSystem:
+def _cells(world: World) -> tuple[tuple[Cell, ...], dict[Cell, int], np.ndarray, np.ndarray]:
+    """The non-wall cells in map reading order, their index, label class and the cell each
+    move reaches (walls bounce)."""
     grid = world.grid
     cells = tuple(
         (x, grid.height - 1 - row)
@@ -135,7 +137,6 @@ def build_transition_system(world: World) -> TransitionSystem:
         if (x, grid.height - 1 - row) not in grid.walls
     )
     cell_index = {cell: i for i, cell in enumerate(cells)}
-    label_names = ("", "obs") + grid.region_letters()
     cell_label = np.zeros(len(cells), dtype=np.int64)
     for i, cell in enumerate(cells):
         if cell in grid.obstacles:
@@ -143,13 +144,18 @@ def build_transition_system(world: World) -> TransitionSystem:
     for k, (_, region) in enumerate(grid.regions):
         for cell in region:
             cell_label[cell_index[cell]] = 2 + k
-
     move = np.empty((len(cells), 4), dtype=np.int64)
     for i, (x, y) in enumerate(cells):
         for d, action in enumerate(ACTIONS):
             dx, dy = _STEP[action]
             move[i, d] = cell_index.get((x + dx, y + dy), i)
+    return cells, cell_index, cell_label, move
 
+
+def build_transition_system(world: World) -> TransitionSystem:
+    grid = world.grid
+    cells, cell_index, cell_label, move = _cells(world)
+    label_names = ("", "obs") + grid.region_letters()
     candidates = tuple(cell_index[c] for c in grid.trap_candidates)
     trap_sets = tuple(itertools.combinations(range(len(candidates)), world.traps))
     set_cells = np.zeros((len(trap_sets), len(cells)), dtype=bool)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import io
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -49,23 +50,32 @@ def replay_inches(world: World) -> tuple[float, float]:
     return (0.55 * grid.width + 4.5, max(0.55 * grid.height + 1.2, 4.0))
 
 
-def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -> int:
-    """Write the replay of `episode` (episodes.ChosenEpisode) with P2's `trace`
-    (episodes.BeliefTrace) to `path`; returns the number of frames."""
-    from hg2prism.analyses.episodes import episode_moves
+@dataclass
+class _Replay:
+    """The replay's figure, laid out once: the artists each frame changes, and the background
+    they are drawn over (blitting)."""
 
-    moves = episode_moves(ts, episode.steps)
-    n_steps = len(moves)
+    fig: object
+    grid_ax: object
+    trail: object
+    robot: object
+    traps: object
+    caption: object
+    believes: object
+    bars: list
+    values: np.ndarray | None      # [steps + 1, hypotheses] the observer's numbers, or None
+    background: object = None
+
+    @property
+    def moving(self) -> list:
+        """The artists every frame redraws."""
+        return [self.trail, self.robot, self.traps, self.caption, self.believes, *self.bars]
+
+
+def _belief_panel(ax, world: World, trace) -> tuple[list, np.ndarray | None, object]:
+    """The bar chart of P2's numbers (or her hypothesis), its threshold and the legend;
+    returns the bars, the per-state values (None: bars show the hypothesis) and the title."""
     n_x = len(world.hypotheses)
-    positions = [world.grid.start] + [m.landing for m in moves]
-    fig = _plt.figure(figsize=replay_inches(world), dpi=REPLAY_DPI, layout="constrained")
-    grid_ax, belief_ax = fig.subplots(1, 2, width_ratios=(0.55 * world.grid.width, 3.2))
-    plots.draw_grid(grid_ax, world)
-    trail, = grid_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
-    robot, = grid_ax.plot([], [], "o", ms=15, mec="black", mew=1.2, zorder=6)
-    traps, = grid_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
-    caption = grid_ax.set_title("", fontsize=9, loc="left")
-
     if trace.values is not None:
         values = np.vstack([np.zeros(n_x), np.array(trace.values, dtype=float).reshape(-1, n_x)])
         top = max(float(values.max()), trace.threshold or 0.0, 1e-9) * 1.15
@@ -73,82 +83,98 @@ def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -
     else:
         values = None
         top, label = 1.05, "P2's hypothesis"
-    bars = belief_ax.bar(range(n_x), np.zeros(n_x),
-                         color=[plots.HYPOTHESIS_COLOURS[x % len(plots.HYPOTHESIS_COLOURS)]
-                                for x in range(n_x)])
+    bars = ax.bar(range(n_x), np.zeros(n_x),
+                  color=[plots.HYPOTHESIS_COLOURS[x % len(plots.HYPOTHESIS_COLOURS)]
+                         for x in range(n_x)])
     if trace.threshold is not None:
-        belief_ax.axhline(trace.threshold, color="black", ls="--", lw=1)
-        belief_ax.text(n_x - 0.5, trace.threshold, f"threshold {trace.threshold:g}",
-                       ha="right", va="bottom", fontsize=8)
-    belief_ax.set_ylim(0, top)
-    belief_ax.set_xticks(range(n_x), [f"x{x}" for x in range(n_x)])
-    belief_ax.set_ylabel(label, fontsize=8)
-    belief_ax.tick_params(labelsize=8)
-    believes = belief_ax.set_title("", fontsize=9)
+        ax.axhline(trace.threshold, color="black", ls="--", lw=1)
+        ax.text(n_x - 0.5, trace.threshold, f"threshold {trace.threshold:g}",
+                ha="right", va="bottom", fontsize=8)
+    ax.set_ylim(0, top)
+    ax.set_xticks(range(n_x), [f"x{x}" for x in range(n_x)])
+    ax.set_ylabel(label, fontsize=8)
+    ax.tick_params(labelsize=8)
+    believes = ax.set_title("", fontsize=9)
     legend = "\n".join(f"x{x}: {h}" for x, h in enumerate(world.hypotheses))
-    belief_ax.text(0.02, 0.98, legend, transform=belief_ax.transAxes, ha="left", va="top",
-                   fontsize=7)
+    ax.text(0.02, 0.98, legend, transform=ax.transAxes, ha="left", va="top", fontsize=7)
+    return list(bars), values, believes
+
+
+def _layout(world: World, episode, trace, n_steps: int) -> _Replay:
+    """The figure with everything that does not move drawn, laid out once with captions as
+    long as any frame's, so that nothing moves from frame to frame."""
+    n_x = len(world.hypotheses)
+    fig = _plt.figure(figsize=replay_inches(world), dpi=REPLAY_DPI, layout="constrained")
+    grid_ax, belief_ax = fig.subplots(1, 2, width_ratios=(0.55 * world.grid.width, 3.2))
+    plots.draw_grid(grid_ax, world)
+    trail, = grid_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
+    robot, = grid_ax.plot([], [], "o", ms=15, mec="black", mew=1.2, zorder=6)
+    traps, = grid_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
+    caption = grid_ax.set_title("", fontsize=9, loc="left")
+    bars, values, believes = _belief_panel(belief_ax, world, trace)
     fig.suptitle(f"{world.name}: replay of the drawn episode (seed {episode.seed}, "
                  f"{n_steps} steps, {episode.outcome})", fontsize=9)
-
-    # Lay the figure out once, with captions as long as any frame's, so that nothing moves
-    # from frame to frame.
     caption.set_text(f"step {n_steps}/{n_steps}: chose W, went W (bumped into a wall, trapped)")
     believes.set_text(f"P2 set traps for x{n_x - 1}; now believes x{n_x - 1}")
     fig.canvas.draw()
     fig.set_layout_engine("none")
+    replay = _Replay(fig, grid_ax, trail, robot, traps, caption, believes, bars, values)
     # Blitting: the map, axes and labels are drawn once; each frame restores them and draws
     # only what moves (a full redraw per frame is about ten times slower).
-    moving = [trail, robot, traps, caption, believes, *bars]
-    for artist in moving:
+    for artist in replay.moving:
         artist.set_animated(True)
     fig.canvas.draw()
-    background = fig.canvas.copy_from_bbox(fig.bbox)
+    replay.background = fig.canvas.copy_from_bbox(fig.bbox)
+    return replay
 
-    frames = replay_frames(n_steps)
-    images = []
-    step_artists: list = []
-    for state in frames:
-        for artist in step_artists:
-            artist.remove()
-        xs, ys = zip(*positions[:state + 1])
-        trail.set_data(xs, ys)
-        move = moves[state - 1] if state else None
-        hypothesis_after = trace.after[state - 1] if state else world.initial_hypothesis
-        robot.set_data([positions[state][0]], [positions[state][1]])
-        robot.set_markerfacecolor("red" if move is not None and move.trapped
-                                  else plots.HYPOTHESIS_COLOURS[hypothesis_after
-                                                                % len(plots.HYPOTHESIS_COLOURS)])
-        before = set(grid_ax.get_children())
-        if move is not None:
-            trap_cells = list(move.traps)
-            traps.set_data([c[0] for c in trap_cells], [c[1] for c in trap_cells])
-            plots.draw_move(grid_ax, move, "black", offset=0.0)
-            what = ("bumped into a wall" if move.bump else "slipped" if move.slip else "moved")
-            caption.set_text(f"step {state}/{n_steps}: chose {move.chosen}, went "
-                             f"{move.realised} ({what}{', trapped' if move.trapped else ''})")
-            believes.set_text(f"P2 set traps for x{trace.acted[state - 1]}; "
-                              f"now believes x{hypothesis_after}")
-        else:
-            traps.set_data([], [])
-            caption.set_text(f"start (0/{n_steps})")
-            believes.set_text(f"P2 starts believing x{hypothesis_after}")
-        step_artists = [a for a in grid_ax.get_children() if a not in before]
-        for artist in step_artists:
-            artist.set_animated(True)
-        heights = (values[state] if values is not None
-                   else np.eye(n_x)[hypothesis_after])
-        for x, bar in enumerate(bars):
-            bar.set_height(heights[x])
-            bar.set_edgecolor("black" if x == hypothesis_after else "none")
-            bar.set_linewidth(2.0 if x == hypothesis_after else 0.0)
-        fig.canvas.restore_region(background)
-        for artist in (*step_artists, *moving):
-            fig.draw_artist(artist)
-        images.append(Image.fromarray(np.array(fig.canvas.buffer_rgba())[..., :3]))
-    _plt.close(fig)
-    # One palette for all frames, from a strip of frames spread over the episode (the colours
-    # of traps, slips and hypotheses need not appear in the first frame).
+
+def _frame(replay: _Replay, world: World, positions: list, moves: list, trace, state: int,
+           n_steps: int) -> tuple[Image.Image, list]:
+    """Draw episode state `state` over the background; returns the image and the artists
+    added for it (removed before the next frame)."""
+    grid_ax, n_x = replay.grid_ax, len(world.hypotheses)
+    xs, ys = zip(*positions[:state + 1])
+    replay.trail.set_data(xs, ys)
+    move = moves[state - 1] if state else None
+    hypothesis_after = trace.after[state - 1] if state else world.initial_hypothesis
+    replay.robot.set_data([positions[state][0]], [positions[state][1]])
+    replay.robot.set_markerfacecolor(
+        "red" if move is not None and move.trapped
+        else plots.HYPOTHESIS_COLOURS[hypothesis_after % len(plots.HYPOTHESIS_COLOURS)])
+    before = set(grid_ax.get_children())
+    if move is not None:
+        trap_cells = list(move.traps)
+        replay.traps.set_data([c[0] for c in trap_cells], [c[1] for c in trap_cells])
+        plots.draw_move(grid_ax, move, "black", offset=0.0)
+        what = ("bumped into a wall" if move.bump else "slipped" if move.slip else "moved")
+        replay.caption.set_text(f"step {state}/{n_steps}: chose {move.chosen}, went "
+                                f"{move.realised} ({what}{', trapped' if move.trapped else ''})")
+        replay.believes.set_text(f"P2 set traps for x{trace.acted[state - 1]}; "
+                                 f"now believes x{hypothesis_after}")
+    else:
+        replay.traps.set_data([], [])
+        replay.caption.set_text(f"start (0/{n_steps})")
+        replay.believes.set_text(f"P2 starts believing x{hypothesis_after}")
+    added = [a for a in grid_ax.get_children() if a not in before]
+    for artist in added:
+        artist.set_animated(True)
+    heights = (replay.values[state] if replay.values is not None
+               else np.eye(n_x)[hypothesis_after])
+    for x, bar in enumerate(replay.bars):
+        bar.set_height(heights[x])
+        bar.set_edgecolor("black" if x == hypothesis_after else "none")
+        bar.set_linewidth(2.0 if x == hypothesis_after else 0.0)
+    canvas = replay.fig.canvas
+    canvas.restore_region(replay.background)
+    for artist in (*added, *replay.moving):
+        replay.fig.draw_artist(artist)
+    return Image.fromarray(np.array(canvas.buffer_rgba())[..., :3]), added
+
+
+def _gif(images: list[Image.Image]) -> bytes:
+    """The frames as one GIF with one palette for all frames, from a strip of frames spread
+    over the episode (the colours of traps, slips and hypotheses need not appear in the
+    first frame)."""
     sample = images[::max(1, len(images) // 8)] + [images[-1]]
     strip = Image.new("RGB", (sample[0].width * len(sample), sample[0].height))
     for i, image in enumerate(sample):
@@ -158,5 +184,25 @@ def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -
     buffer = io.BytesIO()
     images[0].save(buffer, format="GIF", save_all=True, append_images=images[1:],
                    duration=REPLAY_FRAME_MS, loop=0)
-    write_bytes(path, buffer.getvalue())
+    return buffer.getvalue()
+
+
+def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -> int:
+    """Write the replay of `episode` (episodes.ChosenEpisode) with P2's `trace`
+    (episodes.BeliefTrace) to `path`; returns the number of frames."""
+    from hg2prism.analyses.episodes import episode_moves
+
+    moves = episode_moves(ts, episode.steps)
+    n_steps = len(moves)
+    positions = [world.grid.start] + [m.landing for m in moves]
+    replay = _layout(world, episode, trace, n_steps)
+    images: list[Image.Image] = []
+    added: list = []
+    for state in replay_frames(n_steps):
+        for artist in added:
+            artist.remove()
+        image, added = _frame(replay, world, positions, moves, trace, state, n_steps)
+        images.append(image)
+    _plt.close(replay.fig)
+    write_bytes(path, _gif(images))
     return len(images)
