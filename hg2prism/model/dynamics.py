@@ -17,9 +17,9 @@ from hg2prism.model.world import Cell, World
 ACTIONS = ("N", "E", "S", "W")
 # Action labels in generated PRISM: E, S and W are PRISM keywords.
 ACTION_LABELS = {"N": "north", "E": "east", "S": "south", "W": "west"}
-_STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
-# The two directions perpendicular to each move, in a fixed order.
-_PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}
+STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
+# The two directions perpendicular to each move, in a fixed order: its slips.
+PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}
 OUTCOMES = 3  # intended direction, then the two perpendicular slips
 
 
@@ -27,7 +27,7 @@ def outcome_directions(action: int) -> tuple[int, int, int]:
     """The directions (indices into ACTIONS) of a move's outcomes: the move itself, then its two
     slips, in the order of the `succ`/`prob` tables' last axis."""
     name = ACTIONS[action]
-    return (action, *(ACTIONS.index(p) for p in _PERPENDICULAR[name]))
+    return (action, *(ACTIONS.index(p) for p in PERPENDICULAR[name]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -147,7 +147,7 @@ def _cells(world: World) -> tuple[tuple[Cell, ...], dict[Cell, int], np.ndarray,
     move = np.empty((len(cells), 4), dtype=np.int64)
     for i, (x, y) in enumerate(cells):
         for d, action in enumerate(ACTIONS):
-            dx, dy = _STEP[action]
+            dx, dy = STEP[action]
             move[i, d] = cell_index.get((x + dx, y + dy), i)
     return cells, cell_index, cell_label, move
 
@@ -169,7 +169,7 @@ def build_transition_system(world: World) -> TransitionSystem:
     trapped = n_states - 1
 
     # Outcome directions and probabilities, [4 actions, 3 outcomes].
-    directions = np.array([[ACTIONS.index(a), *(ACTIONS.index(p) for p in _PERPENDICULAR[a])]
+    directions = np.array([[ACTIONS.index(a), *(ACTIONS.index(p) for p in PERPENDICULAR[a])]
                            for a in ACTIONS])
     outcome_prob = np.array([1 - 2 * world.slip, world.slip, world.slip])
 

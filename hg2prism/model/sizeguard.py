@@ -48,6 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.errors import InputError
+from hg2prism.model.dynamics import ACTIONS, STEP, outcome_directions
 from hg2prism.model.world import World
 
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
@@ -62,9 +63,9 @@ BYTES_PER_STATE = 4 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
 BEYOND = 10 ** 18     # the estimate stops counting here ("more than 10^18 states")
 
-# dynamics.py's directions (N, E, S, W) and the two perpendicular slips of each.
-_STEP = ((0, 1), (1, 0), (0, -1), (-1, 0))
-_PERPENDICULAR = ((1, 3), (0, 2), (1, 3), (0, 2))
+# dynamics.py's directions (N, E, S, W) as index tuples, and the two perpendicular slips of each.
+_STEP = tuple(STEP[a] for a in ACTIONS)
+_PERPENDICULAR = tuple(outcome_directions(d)[1:] for d in range(len(ACTIONS)))
 
 
 def _cells(world: World) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -78,7 +79,7 @@ def _cells(world: World) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ys, xs = np.nonzero(free)
     index = np.full((grid.height, grid.width), -1, dtype=np.int64)
     index[ys, xs] = np.arange(len(xs))
-    move = np.empty((len(xs), 4), dtype=np.int64)
+    move = np.empty((len(xs), len(ACTIONS)), dtype=np.int64)
     for d, (dx, dy) in enumerate(_STEP):
         nx, ny = xs + dx, ys + dy
         inside = (nx >= 0) & (nx < grid.width) & (ny >= 0) & (ny < grid.height)
@@ -128,7 +129,7 @@ def estimate_states(world: World) -> int:
     n = len(coords)
     label, label_names = _labels(world, index, n)
     q_count = _dfa_states_per_label(world, label_names)[label]           # Q(c)
-    outcomes = [(d,) + (_PERPENDICULAR[d] if world.slip > 0 else ()) for d in range(4)]
+    outcomes = [(d,) + (_PERPENDICULAR[d] if world.slip > 0 else ()) for d in range(len(ACTIONS))]
     # A[c', c] = number of actions a such that c' is an outcome of a from c (distinct outcomes).
     rows, cols = [], []
     for dirs in outcomes:

@@ -28,16 +28,13 @@ import numpy as np
 
 from hg2prism import __version__
 from hg2prism.model.automata import DFA
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, PERPENDICULAR, TransitionSystem
 from hg2prism.prism.hypergame import cell_map
 from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
 from hg2prism.model.world import World
 
 PROPERTY = '<<p1>> Pmax=? [F "goal"]'
 
-# P1's actions as PRISM action labels (E, S and W are PRISM keywords, so no single letters).
-ACTION_LABELS = {"N": "north", "E": "east", "S": "south", "W": "west"}
-_PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}
 
 
 def _place(t: int) -> str:
@@ -51,7 +48,7 @@ def _robot_commands(ts: TransitionSystem) -> list[dict]:
     commands = []
     for a in ACTIONS:
         if ts.slip > 0:
-            outcomes = [("1-2*slip", a)] + [("slip", p) for p in _PERPENDICULAR[a]]
+            outcomes = [("1-2*slip", a)] + [("slip", p) for p in PERPENDICULAR[a]]
         else:
             outcomes = [("1", a)]
         for t in range(ts.n_sets):

@@ -11,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.engines.storm import DecodedStates, Transitions
+from hg2prism.model.dynamics import ACTIONS
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,8 +45,9 @@ class CanonicalMDP:
                            minlength=len(self.choice_state))
 
     def by_state(self, per_choice: np.ndarray, fill: float = np.nan) -> np.ndarray:
-        """[n, 4] a per-choice quantity laid out by (state, move); `fill` where there is none."""
-        table = np.full((self.n, 4), fill, dtype=float)
+        """[n, moves] a per-choice quantity laid out by (state, move); `fill` where there is
+        none."""
+        table = np.full((self.n, len(ACTIONS)), fill, dtype=float)
         table[self.choice_state, self.choice_action] = per_choice
         return table
 

@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from hg2prism.model.dynamics import ACTIONS
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
 
@@ -106,7 +107,7 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     where = np.full(mdp.n, -1, dtype=np.int64)
     where[states] = np.arange(len(states))
     matrix = mdp.matrix()
-    choice_of = np.full((mdp.n, 4), -1, dtype=np.int64)
+    choice_of = np.full((mdp.n, len(ACTIONS)), -1, dtype=np.int64)
     choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
     policy = first_move.copy()
     expected = np.zeros(mdp.n)
