@@ -21,7 +21,6 @@ import csv
 import hashlib
 import io
 import json
-import re
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
