@@ -310,17 +310,19 @@ def deviating_policy(ts: TransitionSystem, deviate_after: int) -> P2Policy:
 
 
 class _Chain:
-    """The hypergame states an online simulation has met so far, numbered, with their
-    memoised transitions. A node is (v, q, (M1, M2)): TS state, task DFA state, P1's model of
-    P2's memory and P2's real memory (successor.TrackedObserver); `game` is the successor
-    function over them."""
+    """The hypergame states an online simulation has met so far, numbered, with what the
+    episodes ask of them memoised. A node is (v, q, (M1, M2)): TS state, task DFA state, P1's
+    model of P2's memory and P2's real memory; `game` is the successor function over them
+    (its observer a successor.TrackedObserver of `model`, the hypergame as P1 models it)."""
 
-    def __init__(self, game: Hypergame) -> None:
-        self.game = game
+    def __init__(self, game: Hypergame, model: Hypergame) -> None:
+        self.game, self.model = game, model
         self.index: dict[HypergameState, int] = {}
         self.nodes: list[HypergameState] = []
         self.status: list[int] = []          # RUNNING, GOAL or FAIL
         self.p2_hypothesis: list[int] = []   # the hypothesis of P2's real memory
+        self.p2_sets: list[list[tuple[int, float]]] = []   # the trap sets P2 plays from
+        self.predicted: list[int] = []       # the trap set P1's model predicts
         self.a1: list[int] = []              # P1's move, -1 until first asked
         self.moves: dict[tuple[int, int, int], tuple[list[float], list[int]]] = {}
 
@@ -333,6 +335,8 @@ class _Chain:
             v, q, memory = state
             self.status.append(self.game.status(v, q))
             self.p2_hypothesis.append(self.game.observer.hypothesis(memory))
+            self.p2_sets.append(self.game.trap_sets(v, memory))
+            self.predicted.append(self.model.predicted(v, memory[0]))
             self.a1.append(-1)
         return i
 
@@ -368,7 +372,8 @@ class _DeceptiveRun:
         self.ts = ts
         self.model = Hypergame(ts, task, games, analysis.inference)
         real = None if p2_inference is None else Hypergame(ts, task, games, p2_inference)
-        self.chain = _Chain(Hypergame(ts, task, games, TrackedObserver(self.model, real)))
+        self.chain = _Chain(Hypergame(ts, task, games, TrackedObserver(self.model, real)),
+                            self.model)
         self.root = self.chain.node(self.chain.game.initial())
         self.n_allowed = ts.allowed.sum(axis=1).tolist()
         self.strategy, self.p2_policy, self.observer = strategy, p2_policy, observer
@@ -393,8 +398,8 @@ class _DeceptiveRun:
             steps += 1
             v, q, (m1, _) = chain.nodes[node]
             a1 = self._p1_move(node, switched, episode, steps)
-            predicted = self.model.predicted(v, m1)
-            a2 = self._p2_move(rng, uniforms, steps, chain.nodes[node])
+            predicted = chain.predicted[node]
+            a2 = self._p2_move(rng, uniforms, steps, node)
             nxt = self._next(node, a1, a2, uniforms)
             if self.observer is not None:
                 self._report(episode, steps, node, nxt, a1, a2, predicted)
@@ -434,11 +439,10 @@ class _DeceptiveRun:
         return a1
 
     def _p2_move(self, rng: np.random.Generator, uniforms: _Uniforms, n: int,
-                 state: HypergameState) -> int:
-        """The trap set P2 plays: pi2 of her real hypothesis (drawn with one uniform when she
-        draws it), or what `p2_policy` makes of it."""
-        v, _, memory = state
-        drawn = self.chain.game.trap_sets(v, memory)
+                 node: int) -> int:
+        """The trap set P2 plays at `node`: pi2 of her real hypothesis (drawn with one uniform
+        when she draws it), or what `p2_policy` makes of it."""
+        drawn = self.chain.p2_sets[node]
         if len(drawn) == 1:
             own = drawn[0][0]
         else:       # P2 draws her hypothesis (Bayesian "sample"): one uniform
@@ -449,7 +453,8 @@ class _DeceptiveRun:
             own = drawn[k][0]
         if self.p2_policy is None:
             return own
-        a2 = int(self.p2_policy(rng, n, v, own, memory[1]))
+        v, _, (_, m2) = self.chain.nodes[node]
+        a2 = int(self.p2_policy(rng, n, v, own, m2))
         if not (0 <= a2 < self.ts.n_sets and self.ts.allowed[v, a2]):
             raise ValueError(f"p2_policy returned trap set {a2}, which is not "
                              f"available in TS state {v}")

@@ -35,8 +35,10 @@ HypergameState = tuple[int, int, Hashable]     # (v, q, M)
 
 class Hypergame:
     """The hypergame over `ts` x DFA(`task`) with P2's inference `observer` and her trap
-    policies pi2_x (`games[x].trap_choice`), as a successor function. Memory updates are
-    memoised (an observer's update is a function of its arguments)."""
+    policies pi2_x (`games[x].trap_choice`), as a successor function. Of the observer only
+    `initial_memory`, `update`, `hypothesis` and `hypothesis_distribution` are used (all a
+    TrackedObserver has). Memory updates are memoised (an update is a function of its
+    arguments)."""
 
     def __init__(self, ts: TransitionSystem, task: DFA, games: list,
                  observer: Observer) -> None:
@@ -142,7 +144,10 @@ class TrackedObserver:
                ) -> tuple[Hashable, Hashable]:
         """Both memories after (v, a1, a2). Without a separate real inference, P2's memory is
         taken to be the model's whenever the model records the set played: the two memories
-        are assumed equal there, as they are until P2 plays an unpredicted set."""
+        are assumed equal there, as they are until P2 plays an unpredicted set. (With an
+        observer whose memory holds the sets, the Bayesian one, they differ after such a set,
+        and this puts P2's memory back to the model's: the simulation has always done so, and
+        the outputs of its deviation experiments depend on it.)"""
         m1, m2 = memory
         v, a1, a2 = observation
         drawn = self.model.trap_sets(v, m1)
