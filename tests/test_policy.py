@@ -11,7 +11,8 @@
   Bayesian "sample" worlds, where P2 draws her hypothesis. DFA states are matched through the
   walk (a consistent one-to-one renaming), not by number;
 * the simulation's two-memory observer (`TrackedObserver`) is the model hypergame when P2
-  behaves as modelled.
+  behaves as modelled, and with another real inference keeps both memories apart: P2's records
+  the set she played, P1's model the set it predicts ("map") or the set played ("sample").
 """
 
 from __future__ import annotations
@@ -278,3 +279,34 @@ def test_tracked_observer_is_the_model_when_p2_follows_it(tmp_path: Path) -> Non
                     seen.add(nxt)
                     queue.append(nxt)
     assert len(seen) > 10
+
+
+@pytest.mark.parametrize("name, decision", [("world3_bayes", "map"),
+                                            ("world3_bayes_sample", "sample")])
+def test_tracked_observer_keeps_both_memories(name: str, decision: str, tmp_path: Path) -> None:
+    """With P2's real inference another than P1's model (here the other window), P2's memory
+    records the set she played and P1's model the set it predicts when it says she is
+    deterministic ("map"), the set played when it says she draws ("sample"); P2 plays from
+    her real memory."""
+    from hg2prism.opponent.bayes import build_bayes
+
+    analysis = pipeline.analyse(load_world(world_file(name, tmp_path)))
+    world, games = analysis.world, analysis.games
+    model = Hypergame(analysis.ts, analysis.task, games, analysis.inference)
+    real = Hypergame(analysis.ts, analysis.task, games,
+                     build_bayes(games, world.window + 1, world.prior, decision))
+    tracked = TrackedObserver(model, real)
+    v, q, m1 = model.initial()
+    m2 = real.observer.initial_memory()
+    assert tracked.initial_memory() == (m1, m2)
+    played = np.flatnonzero(analysis.ts.allowed[v]).tolist()
+    assert len(played) > 1
+    for a1 in range(len(ACTIONS)):
+        for a2 in played:
+            n1, n2 = tracked.update((m1, m2), (v, a1, a2))
+            modelled = a2 if decision == "sample" else model.predicted(v, m1)
+            assert n1 == analysis.inference.update(m1, (v, a1, modelled))
+            assert n2 == real.observer.update(m2, (v, a1, a2))
+            assert tracked.hypothesis((n1, n2)) == real.observer.hypothesis(n2)
+            assert tracked.hypothesis_distribution((n1, n2)) == \
+                real.observer.hypothesis_distribution(n2)
