@@ -34,8 +34,9 @@ from hg2prism import progress
 from hg2prism.outputs import write_json
 
 if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
-    from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
     from hg2prism.strategy.policy import Policy
+    from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
+    from hg2prism.strategy.records import Strategy
     from hg2prism.opponent.inference import InferenceModel
     from hg2prism.opponent.observer import Observer
     from hg2prism.pipeline import Analysis, CheckResult
@@ -249,7 +250,7 @@ class _Batches:
     and detector, so that the batches differ only in what P2 does."""
 
     analysis: Analysis
-    strategy: Policy
+    strategy: Strategy              # the deceptive strategy (a Policy)
     episodes: int
     horizon: int
     seed: int
