@@ -17,7 +17,7 @@ from hg2prism import __version__
 from hg2prism.engines import storm
 from hg2prism.model.automata import DFA, to_dot, to_hoa, translate
 from hg2prism.model.dynamics import TransitionSystem, build_transition_system
-from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, fastest_answers, perceptual_game,
+from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, perceptual_game,
                             solve_game)
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
@@ -364,7 +364,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
                                               n_episodes, horizon, seed, progress=show_progress,
                                               label="simulate leader")
-        static_p1, static_p2 = np.eye(4)[worth.static.p1], np.eye(analysis.ts.n_sets)[worth.static.p2]
+        static_p1, static_p2 = worth.static.policy.mixed(), np.eye(analysis.ts.n_sets)[worth.static.p2]
         static_sim = simulation.simulate_nash(analysis.ts, analysis.task, static_p1, static_p2,
                                               n_episodes, horizon, seed, progress=show_progress,
                                               label="simulate static")
@@ -428,7 +428,8 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:
     """The leader game's pair as (degenerate) mixed strategies over g = s * n_q + q: P2's trap
     sets by docs/semantics.md §4's rule on the exact values (optimal up to its 1e-6 ties), P1's fastest
-    optimal answers."""
+    optimal answers (simulation.LeaderStrategy)."""
+    from hg2prism.analyses.simulation import LeaderStrategy
+
     p2 = analysis.leader.p2_strategy
-    p1 = fastest_answers(analysis.ts, analysis.task, analysis.leader)
-    return np.eye(4)[p1], np.eye(analysis.ts.n_sets)[p2]
+    return LeaderStrategy(analysis).mixed(), np.eye(analysis.ts.n_sets)[p2]

@@ -8,8 +8,8 @@
 * **V_naive**: P1 ignores P2's misperception. It answers the trap set in force with its move of
   the leader game G(phi) (docs/semantics.md §7), while P2 runs her real inference. The pair is a
   Markov chain on the hypergame's states (v, q, M); it is explored here explicitly, from the
-  initial state, with the observer's own `initial_memory`, `update` and `hypothesis`, so it works
-  for every observer without Storm. The chain has one successor list per state (not four, as
+  initial state, with the hypergame's successor function in Python (analyses/successor.py,
+  built on the Observer interface), so it works for every observer without Storm. The chain has one successor list per state (not four, as
   the MDP), and its value is one sparse linear solve.
 
 Why not Storm with P1's choices fixed: the naive strategy needs P2's trap set at each state,
@@ -29,13 +29,14 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from hg2prism.analyses.baselines import ConcurrentGame, best_response_value, concurrent_game
+from hg2prism.analyses.successor import GOAL as REACHED, RUNNING, Hypergame, HypergameState
 from hg2prism.errors import SolverError, probability
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.product import product
-from hg2prism.opponent.observer import Observer
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
+from hg2prism.strategy.policy import Policy, ProductPolicy
 
 __all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
            "induced_chain", "DeceptionValues", "deception_values"]
@@ -62,6 +63,12 @@ class StaticValue:
     p1: np.ndarray            # [G] P1's fastest optimal move (docs/semantics.md §§6-7's rule)
     p2: np.ndarray            # [G] the trap set pi2_x0(v) of each game state
     value: float              # V_static at the initial state
+    n_q: int                  # the task DFA's states
+
+    @property
+    def policy(self) -> ProductPolicy:
+        """P1's strategy `p1` as a Policy on hypergame states (it ignores P2's memory)."""
+        return ProductPolicy(self.p1, self.n_q)
 
 
 def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
@@ -76,7 +83,7 @@ def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
     moves = fastest_moves(ts, task, values, p2, DISCOUNT)
     arena = product(ts, task)
     return StaticValue(first_guess=first_guess, values=values, p1=moves.answers, p2=p2,
-                       value=probability(values[arena.start], "V_static"))
+                       value=probability(values[arena.start], "V_static"), n_q=n_q)
 
 
 def _certify_mdp(game: ConcurrentGame, p2: np.ndarray, values: np.ndarray) -> None:
@@ -129,23 +136,17 @@ def naive_answers(ts: TransitionSystem, task: DFA, leader: GameSolution) -> np.n
 
 
 class NaiveStrategy:
-    """P1's naive strategy on hypergame states: the leader-game answer (`naive_answers`) to
-    the trap set in force, pi2 of the hypothesis P2 acts on. It has the `action` method the
-    simulation asks a strategy for."""
+    """P1's naive strategy on hypergame states, a Policy: the leader-game answer
+    (`naive_answers`) to the trap set in force, pi2 of the hypothesis P2 acts on
+    (`Hypergame.predicted` of the hypergame `game`)."""
 
-    def __init__(self, answers: np.ndarray, games: list[PerceptualGame], observer: Observer,
-                 n_q: int) -> None:
+    def __init__(self, answers: np.ndarray, game: Hypergame) -> None:
         self.answers = answers
-        self.trap_choice = [[int(a) for a in g.trap_choice] for g in games]
-        self.observer = observer
-        self.n_q = n_q
-
-    def trap_set(self, ts_state: int, memory: Hashable) -> int:
-        """The trap set P2 plays at `ts_state` with `memory`."""
-        return self.trap_choice[self.observer.hypothesis(memory)][ts_state]
+        self.game = game
+        self.n_q = game.task.n_states
 
     def action(self, ts_state: int, q: int, memory: Hashable) -> int:
-        return int(self.answers[ts_state * self.n_q + q, self.trap_set(ts_state, memory)])
+        return int(self.answers[ts_state * self.n_q + q, self.game.predicted(ts_state, memory)])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -214,67 +215,41 @@ class InducedChain:
         return bounded_reach(self.matrix, self.goal, self.stop, self.start, horizon)
 
 
-def induced_chain(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
-                  observer: Observer, strategy) -> InducedChain:
-    """The chain P1's `strategy` (``action(ts_state, q, memory) -> move``, deterministic)
-    induces on the hypergame of docs/semantics.md §6 against P2's inference `observer`: from
-    (v, q, M), P2 plays a2 = pi2 of `observer.hypothesis(M)` (with a Bayesian "sample" observer,
-    of each hypothesis of `observer.hypothesis_distribution(M)` with its probability), the robot
-    moves, the DFA reads the new cell's label and P2's memory becomes
-    `observer.update(M, (v, a1, a2))`. Goal and failure
-    (trapped, or q in Sink) are merged into states GOAL and FAIL."""
-    trap_choice = [[int(a) for a in g.trap_choice] for g in games]
-    label = ts.state_label().tolist()
-    delta = task.delta.tolist()
-    accepting, sink, trapped = task.accepting, task.sink, ts.trapped
-    succ, prob = ts.succ, ts.prob
-    states: list[tuple[int, int, Hashable] | None] = [None, None]
-    index: dict[tuple[int, int, Hashable], int] = {}
-    updates: dict[tuple[Hashable, tuple[int, int, int]], Hashable] = {}
+def induced_chain(game: Hypergame, strategy: Policy) -> InducedChain:
+    """The chain P1's deterministic `strategy` induces on the hypergame `game` (docs/semantics.md
+    §6), explored breadth-first from the initial state with `game.successors`: from (v, q, M) P1
+    plays strategy.action(v, q, M), P2 pi2 of her hypothesis (with a Bayesian "sample"
+    observer, of each hypothesis with its probability). Goal and failure are merged into the
+    states GOAL and FAIL; the probabilities of the transitions into one state are summed."""
+    states: list[HypergameState | None] = [None, None]
+    index: dict[HypergameState, int] = {}
 
-    def node(v: int, q: int, memory: Hashable) -> int:
-        if v == trapped:
-            return FAIL
-        if q in accepting:
-            return GOAL
-        if q in sink:
-            return FAIL
-        key = (v, q, memory)
-        i = index.get(key)
+    def node(state: HypergameState) -> int:
+        status = game.status(state[0], state[1])
+        if status != RUNNING:
+            return GOAL if status == REACHED else FAIL
+        i = index.get(state)
         if i is None:
-            i = index[key] = len(states)
-            states.append(key)
+            i = index[state] = len(states)
+            states.append(state)
         return i
 
-    v0 = ts.start_state
-    start = node(v0, delta[task.initial][label[v0]], observer.initial_memory())
+    start = node(game.initial())
     rows, cols, values = [], [], []
     hypothesis, action = [-1, -1], [-1, -1]
     i = FAIL + 1
     while i < len(states):          # states grows as successors are found: breadth-first
-        v, q, memory = states[i]
-        xh = observer.hypothesis(memory)
+        v, q, memory = state = states[i]
         a1 = int(strategy.action(v, q, memory))
         merged: dict[int, float] = {}
-        # P2 plays pi2 of her hypothesis, or draws it (a Bayesian "sample" observer): each
-        # hypothesis' trap set, with its probability; her memory records the set she played.
-        for x, px in observer.hypothesis_distribution(memory):
-            a2 = trap_choice[x][v]
-            key = (memory, (v, a1, a2))
-            new_memory = updates.get(key)
-            if new_memory is None:
-                new_memory = updates[key] = observer.update(memory, (v, a1, a2))
-            for k in range(succ.shape[-1]):
-                p = px * float(prob[v, a1, a2, k])
-                if p > 0.0:
-                    w = int(succ[v, a1, a2, k])
-                    j = node(w, delta[q][label[w]], new_memory)
-                    merged[j] = merged.get(j, 0.0) + p
+        for successor, p in game.successors(state, a1):
+            j = node(successor)
+            merged[j] = merged.get(j, 0.0) + p
         for j, p in merged.items():
             rows.append(i)
             cols.append(j)
             values.append(p)
-        hypothesis.append(xh)
+        hypothesis.append(game.observer.hypothesis(memory))
         action.append(a1)
         i += 1
     n = len(states)
@@ -305,9 +280,9 @@ def deception_values(analysis, deceptive_value: float) -> DeceptionValues:
     ts, task, games, observer = analysis.ts, analysis.task, analysis.games, analysis.inference
     first_guess = observer.hypothesis(observer.initial_memory())
     static = static_value(ts, task, games, first_guess)
-    naive = NaiveStrategy(naive_answers(ts, task, analysis.leader), games, observer,
-                          task.n_states)
-    chain = induced_chain(ts, task, games, observer, naive)
+    game = Hypergame(ts, task, games, observer)
+    naive = NaiveStrategy(naive_answers(ts, task, analysis.leader), game)
+    chain = induced_chain(game, naive)
     v_naive = chain.value("V_naive")
     return DeceptionValues(v_static=static.value, v_naive=v_naive,
                            value_of_deception=deceptive_value - v_naive, static=static,

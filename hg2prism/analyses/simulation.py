@@ -35,10 +35,13 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.stats import norm
 
+from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
+                                         TrackedObserver)
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.progress import Bar
+from hg2prism.strategy.policy import Policy, ProductPolicy
 from hg2prism.strategy.records import Fallback, StrategyError
 from hg2prism.opponent.observer import Memory
 from hg2prism.opponent.observer import Observer
@@ -57,8 +60,9 @@ __all__ = [
     "deviating_policy",
 ]
 
-# Episode outcome codes (SimulationSummary.outcomes).
-FAIL, GOAL, TRUNCATED = 0, 1, 2
+# Episode outcome codes (SimulationSummary.outcomes): FAIL and GOAL are the hypergame states'
+# status codes (analyses.successor).
+TRUNCATED = 2
 
 # (rng, step number n >= 1, TS state v, the trap set P2's model plays at v, P2's real memory)
 # -> the trap set P2 plays.
@@ -208,16 +212,16 @@ def leader_fallback(analysis) -> Fallback:
     values = analysis.leader.values
     q_values = TurnBasedGame(ts, task).q_values(values.reshape(-1))          # [G, 4, A2]
     n_q = task.n_states
-    trap_choice = [g.trap_choice for g in analysis.games]
+    model = Hypergame(ts, task, analysis.games, analysis.inference)
 
     def fallback(ts_state: int, q: int, memory: Memory) -> int:
-        a2 = int(trap_choice[analysis.inference.hypothesis(memory)][ts_state])
+        a2 = model.predicted(ts_state, memory)
         return int(np.argmax(q_values[ts_state * n_q + q, :, a2]))
 
     return fallback
 
 
-class LeaderStrategy:
+class LeaderStrategy(ProductPolicy):
     """P1's leader-game strategy on (v, q) (docs/semantics.md §14's "leader" fallback): P1 assumes
     P2 knows its task and plays the leader game's trap set pi2_lead(v, q); P1 answers with its
     fastest optimal move of that game (the leader baseline's P1, docs/semantics.md §7)."""
@@ -225,20 +229,17 @@ class LeaderStrategy:
     def __init__(self, analysis) -> None:
         from hg2prism.opponent.perceptual_games import fastest_answers
 
-        self.n_q = analysis.task.n_states
-        self.answers = fastest_answers(analysis.ts, analysis.task, analysis.leader).tolist()
-
-    def action(self, ts_state: int, q: int, memory: Memory) -> int:
-        return self.answers[ts_state * self.n_q + q]
+        super().__init__(fastest_answers(analysis.ts, analysis.task, analysis.leader),
+                         analysis.task.n_states)
 
 
 @dataclass(frozen=True)
 class Replanning:
     """Re-planning (docs/semantics.md §14): P1 runs the mismatch detector of docs/semantics.md §9
     on its own augmented states and, from the step after its first rejection to the end of the
-    episode, plays `fallback` (any object with ``action(ts_state, q, memory)``) instead."""
+    episode, plays the Policy `fallback` instead."""
 
-    fallback: object
+    fallback: Policy
     alpha: float
     epsilon: float
 
@@ -309,80 +310,45 @@ def deviating_policy(ts: TransitionSystem, deviate_after: int) -> P2Policy:
 
 
 class _Chain:
-    """Hypergame states met so far, numbered, with their memoised transitions.
+    """The hypergame states an online simulation has met so far, numbered, with what the
+    episodes ask of them memoised. A node is (v, q, (M1, M2)): TS state, task DFA state, P1's
+    model of P2's memory and P2's real memory; `game` is the successor function over them
+    (its observer a successor.TrackedObserver of `model`, the hypergame as P1 models it)."""
 
-    A node is (v, q, M1, M2): TS state, task DFA state, P1's model memory, P2's real memory.
-    """
-
-    def __init__(self, ts: TransitionSystem, task: DFA, games: list, p1_model: Observer,
-                 p2_model: Observer | None) -> None:
-        self.ts, self.task = ts, task
-        self.p1_model, self.p2_model = p1_model, p2_model
-        self.trap_choice = [[int(a) for a in g.trap_choice] for g in games]
-        self.label = ts.state_label().tolist()
-        self.delta = task.delta.tolist()
-        self.accepting, self.sink = task.accepting, task.sink
-        self.trapped = ts.trapped
-        self.succ, self.prob = ts.succ, ts.prob
-        self.index: dict[tuple, int] = {}
-        self.nodes: list[tuple[int, int, Memory, Memory]] = []
-        self.status: list[int] = []      # -1 running, GOAL, FAIL
+    def __init__(self, game: Hypergame, model: Hypergame) -> None:
+        self.game, self.model = game, model
+        self.index: dict[HypergameState, int] = {}
+        self.nodes: list[HypergameState] = []
+        self.status: list[int] = []          # RUNNING, GOAL or FAIL
         self.p2_hypothesis: list[int] = []   # the hypothesis of P2's real memory
-        self.a1: list[int] = []          # -1 until first visited
-        self.moves: dict[tuple[int, int], tuple[list[float], list[int]]] = {}
-        self.updates: dict[tuple[int, Memory, tuple[int, int]], Memory] = {}
+        self.p2_sets: list[list[tuple[int, float]]] = []   # the trap sets P2 plays from
+        self.predicted: list[int] = []       # the trap set P1's model predicts
+        self.a1: list[int] = []              # P1's move, -1 until first asked
+        self.moves: dict[tuple[int, int, int], tuple[list[float], list[int]]] = {}
 
-    def node(self, v: int, q: int, m1: Memory, m2: Memory) -> int:
-        key = (v, q, m1, m2)
-        i = self.index.get(key)
+    def node(self, state: HypergameState) -> int:
+        """The number of `state`, given when first met."""
+        i = self.index.get(state)
         if i is None:
-            i = len(self.nodes)
-            self.index[key] = i
-            self.nodes.append(key)
-            if v == self.trapped:
-                status = FAIL
-            elif q in self.accepting:
-                status = GOAL
-            elif q in self.sink:
-                status = FAIL
-            else:
-                status = -1
-            self.status.append(status)
-            p2 = self.p1_model if self.p2_model is None else self.p2_model
-            self.p2_hypothesis.append(p2.hypothesis(m2))
+            i = self.index[state] = len(self.nodes)
+            self.nodes.append(state)
+            v, q, memory = state
+            self.status.append(self.game.status(v, q))
+            self.p2_hypothesis.append(self.game.observer.hypothesis(memory))
+            self.p2_sets.append(self.game.trap_sets(v, memory))
+            self.predicted.append(self.model.predicted(v, memory[0]))
             self.a1.append(-1)
         return i
 
-    def update(self, which: int, model: Observer, memory: Memory,
-               observation: tuple[int, ...]) -> Memory:
-        key = (which, memory, observation)
-        new = self.updates.get(key)
-        if new is None:
-            new = self.updates[key] = model.update(memory, observation)
-        return new
-
     def transitions(self, i: int, a1: int, a2: int) -> tuple[list[float], list[int]]:
-        """Cumulative probabilities and successor nodes of node i under (a1, a2).
-
-        P2's memory records the set she played; P1's model of it records the set it predicts
-        when P2 is deterministic (docs/semantics.md §9) and, when she draws her hypothesis, the
-        set she played (any set of the mixture is consistent with the model)."""
+        """Cumulative probabilities and successor nodes of node i when P1 plays a1 and P2
+        the trap set a2 (`Hypergame.after`)."""
         key = (i, a1, a2)
         move = self.moves.get(key)
         if move is None:
-            v, q, m1, m2 = self.nodes[i]
-            drawn = self.p1_model.hypothesis_distribution(m1)
-            modelled = a2 if len(drawn) > 1 else self.trap_choice[drawn[0][0]][v]
-            n1 = self.update(1, self.p1_model, m1, (v, a1, modelled))
-            n2 = self.update(2, self.p2_model or self.p1_model, m2, (v, a1, a2)) \
-                if self.p2_model is not None or modelled != a2 else n1
             merged: dict[int, float] = {}
-            for k in range(self.succ.shape[-1]):
-                p = float(self.prob[v, a1, a2, k])
-                if p <= 0.0:
-                    continue
-                w = int(self.succ[v, a1, a2, k])
-                j = self.node(w, self.delta[q][self.label[w]], n1, n2)
+            for successor, p in self.game.after(self.nodes[i], a1, a2):
+                j = self.node(successor)
                 merged[j] = merged.get(j, 0.0) + p
             cumulative, targets, total = [], [], 0.0
             for j, p in merged.items():
@@ -394,7 +360,132 @@ class _Chain:
         return move
 
 
-def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: int,
+class _DeceptiveRun:
+    """What the episodes of one `simulate_deceptive` call share: the chain of hypergame states
+    met, P1's policies and their memoised moves, P2's deviation, the step observer, and the
+    counters of the summary (off-record steps, P2's switches, re-planned episodes)."""
+
+    def __init__(self, analysis, strategy: Policy, p2_policy: P2Policy | None,
+                 observer: StepCallback | None, p2_inference: Observer | None,
+                 replanning: Replanning | None) -> None:
+        ts, task, games = analysis.ts, analysis.task, analysis.games
+        self.ts = ts
+        self.model = Hypergame(ts, task, games, analysis.inference)
+        real = None if p2_inference is None else Hypergame(ts, task, games, p2_inference)
+        self.chain = _Chain(Hypergame(ts, task, games, TrackedObserver(self.model, real)),
+                            self.model)
+        self.root = self.chain.node(self.chain.game.initial())
+        self.n_allowed = ts.allowed.sum(axis=1).tolist()
+        self.strategy, self.p2_policy, self.observer = strategy, p2_policy, observer
+        self.replanning = replanning
+        self.recorded = getattr(strategy, "table", None)
+        self.off_record: set[int] = set()
+        self.fallback_a1: dict[int, int] = {}
+        self.fallback_recorded = (None if replanning is None
+                                  else getattr(replanning.fallback, "table", None))
+        self.off_record_steps = self.p2_switched = self.p2_switches = self.replanned = 0
+
+    def episode(self, episode: int, horizon: int, rng: np.random.Generator,
+                uniforms: _Uniforms) -> tuple[int, int]:
+        """Play episode number `episode`: (its outcome code, its number of transitions)."""
+        from hg2prism.analyses.detection import MismatchDetector
+
+        chain, plan = self.chain, self.replanning
+        node, steps, switches, switched = self.root, 0, 0, False
+        outcome = chain.status[node]
+        detector = MismatchDetector(plan.alpha, plan.epsilon) if plan is not None else None
+        while outcome < 0 and steps < horizon:
+            steps += 1
+            v, q, (m1, _) = chain.nodes[node]
+            a1 = self._p1_move(node, switched, episode, steps)
+            predicted = chain.predicted[node]
+            a2 = self._p2_move(rng, uniforms, steps, node)
+            nxt = self._next(node, a1, a2, uniforms)
+            if self.observer is not None:
+                self._report(episode, steps, node, nxt, a1, a2, predicted)
+            if chain.p2_hypothesis[nxt] != chain.p2_hypothesis[node]:
+                switches += 1
+            if detector is not None and not switched:
+                if detector.observe((v, q, m1), predicted, a2, self.n_allowed[v]).rejected:
+                    switched = True
+                    self.replanned += 1
+            node = nxt
+            outcome = chain.status[node]
+        self.p2_switches += switches
+        self.p2_switched += switches > 0
+        return (TRUNCATED if outcome < 0 else outcome), steps
+
+    def _p1_move(self, node: int, switched: bool, episode: int, steps: int) -> int:
+        """P1's move at `node`: the strategy's, or after a re-planning switch the fallback's
+        (both memoised per node); steps off the strategy's records are counted."""
+        v, q, (m1, _) = self.chain.nodes[node]
+        try:
+            if switched:
+                a1 = self.fallback_a1.get(node, -1)
+                if a1 < 0:
+                    a1 = self.fallback_a1[node] = int(self.replanning.fallback.action(v, q, m1))
+                if self.fallback_recorded is not None and (v, q, m1) not in self.fallback_recorded:
+                    self.off_record_steps += 1
+                return a1
+            a1 = self.chain.a1[node]
+            if a1 < 0:
+                a1 = self.chain.a1[node] = int(self.strategy.action(v, q, m1))
+                if self.recorded is not None and (v, q, m1) not in self.recorded:
+                    self.off_record.add(node)
+        except StrategyError as err:
+            raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+        if node in self.off_record:
+            self.off_record_steps += 1
+        return a1
+
+    def _p2_move(self, rng: np.random.Generator, uniforms: _Uniforms, n: int,
+                 node: int) -> int:
+        """The trap set P2 plays at `node`: pi2 of her real hypothesis (drawn with one uniform
+        when she draws it), or what `p2_policy` makes of it."""
+        drawn = self.chain.p2_sets[node]
+        if len(drawn) == 1:
+            own = drawn[0][0]
+        else:       # P2 draws her hypothesis (Bayesian "sample"): one uniform
+            u, k, total = uniforms.next(), 0, drawn[0][1]
+            while u >= total and k + 1 < len(drawn):
+                k += 1
+                total += drawn[k][1]
+            own = drawn[k][0]
+        if self.p2_policy is None:
+            return own
+        v, _, (_, m2) = self.chain.nodes[node]
+        a2 = int(self.p2_policy(rng, n, v, own, m2))
+        if not (0 <= a2 < self.ts.n_sets and self.ts.allowed[v, a2]):
+            raise ValueError(f"p2_policy returned trap set {a2}, which is not "
+                             f"available in TS state {v}")
+        return a2
+
+    def _next(self, node: int, a1: int, a2: int, uniforms: _Uniforms) -> int:
+        """The node the step leads to, drawn with one uniform when there are several."""
+        cumulative, targets = self.chain.transitions(node, a1, a2)
+        if len(targets) == 1:
+            return targets[0]
+        u = uniforms.next()
+        k = 0
+        while u >= cumulative[k]:
+            k += 1
+        return targets[k]
+
+    def _report(self, episode: int, steps: int, node: int, nxt: int, a1: int, a2: int,
+                predicted: int) -> None:
+        """Pass the step to the observer, with P1's model's prediction as a mixture."""
+        v, q, (m1, m2) = self.chain.nodes[node]
+        w, q2, _ = self.chain.nodes[nxt]
+        mixture: dict[int, float] = {}
+        for a, p in self.model.trap_sets(v, m1):
+            mixture[a] = mixture.get(a, 0.0) + p
+        self.observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1, a1=a1,
+                                 a2=a2, predicted_a2=predicted, n_a2=self.n_allowed[v],
+                                 p2_memory=m2, next_state=w, next_q=q2,
+                                 prediction=tuple(sorted(mixture.items()))))
+
+
+def simulate_deceptive(analysis, strategy: Policy, episodes: int, horizon: int, seed: int,
                        p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
                        p2_inference: Observer | None = None,
@@ -404,8 +495,8 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
     `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
-    `strategy` is a Strategy (or any object whose ``action(ts_state, q, memory)`` returns P1's
-    action index; it must be deterministic, since transitions are memoised per state).
+    `strategy` is P1's Policy (deterministic: its moves are memoised per state), e.g. a
+    Strategy.
     `p2_policy(rng, n, ts_state, predicted, memory) -> a2` replaces P2's model behaviour; there
     ``predicted`` = pi2_xh(v) for P2's real hypothesis and ``memory`` is P2's real memory
     (n = 1, 2, ... within each episode). It must return an allowed trap set of v.
@@ -421,121 +512,22 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
     """
     _check_run(episodes, horizon)
     start_time = time.perf_counter()
-    ts, task = analysis.ts, analysis.task
-    chain = _Chain(ts, task, analysis.games, analysis.inference, p2_inference)
+    run = _DeceptiveRun(analysis, strategy, p2_policy, observer, p2_inference, replanning)
     rng = np.random.default_rng(seed)
     uniforms = _Uniforms(rng)
-    allowed = ts.allowed
-    n_allowed = allowed.sum(axis=1).tolist()
-    trap_choice = chain.trap_choice
-    p1_model = analysis.inference
-    p2_model = p1_model if p2_inference is None else p2_inference
-    p1_initial = p1_model.initial_memory()
-    p2_initial = p2_model.initial_memory()
-    v0 = ts.start_state
-    root = chain.node(v0, chain.delta[task.initial][chain.label[v0]], p1_initial, p2_initial)
-
     outcomes = np.empty(episodes, dtype=np.int8)
     lengths = np.empty(episodes, dtype=np.int64)
     bar = Bar(label, episodes, progress)
-    status, a1_of, nodes = chain.status, chain.a1, chain.nodes
-    recorded = getattr(strategy, "table", None)
-    off_record: set[int] = set()
-    off_record_steps = 0
-    p2_hypothesis = chain.p2_hypothesis
-    p2_switched = p2_switches = 0
-    if replanning is not None:
-        from hg2prism.analyses.detection import MismatchDetector
-
-        fallback_a1: dict[int, int] = {}
-        fallback_recorded = getattr(replanning.fallback, "table", None)
-    replanned = 0
     for episode in range(episodes):
         if episode_streams:
             rng = np.random.default_rng([seed, episode])
             uniforms = _Uniforms(rng)
-        node = root
-        steps = 0
-        switches = 0
-        outcome = status[node]
-        detector = (MismatchDetector(replanning.alpha, replanning.epsilon)
-                    if replanning is not None else None)
-        switched = False
-        while outcome < 0 and steps < horizon:
-            steps += 1
-            a1 = a1_of[node]
-            v, q, m1, m2 = nodes[node]
-            if switched:
-                a1 = fallback_a1.get(node, -1)
-                if a1 < 0:
-                    try:
-                        a1 = fallback_a1[node] = int(replanning.fallback.action(v, q, m1))
-                    except StrategyError as err:
-                        raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
-                if fallback_recorded is not None and (v, q, m1) not in fallback_recorded:
-                    off_record_steps += 1
-            elif a1 < 0:
-                try:
-                    a1 = int(strategy.action(v, q, m1))
-                except StrategyError as err:
-                    raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
-                a1_of[node] = a1
-                if recorded is not None and (v, q, m1) not in recorded:
-                    off_record.add(node)
-            if not switched and off_record and node in off_record:
-                off_record_steps += 1
-            predicted = trap_choice[p1_model.hypothesis(m1)][v]
-            drawn = p2_model.hypothesis_distribution(m2)
-            if len(drawn) == 1:
-                own = trap_choice[drawn[0][0]][v]
-            else:       # P2 draws her hypothesis (Bayesian "sample"): one uniform
-                u, k, total = uniforms.next(), 0, drawn[0][1]
-                while u >= total and k + 1 < len(drawn):
-                    k += 1
-                    total += drawn[k][1]
-                own = trap_choice[drawn[k][0]][v]
-            if p2_policy is None:
-                a2 = own
-            else:
-                a2 = int(p2_policy(rng, steps, v, own, m2))
-                if not (0 <= a2 < ts.n_sets and allowed[v, a2]):
-                    raise ValueError(f"p2_policy returned trap set {a2}, which is not "
-                                     f"available in TS state {v}")
-            cumulative, targets = chain.transitions(node, a1, a2)
-            if len(targets) == 1:
-                nxt = targets[0]
-            else:
-                u = uniforms.next()
-                k = 0
-                while u >= cumulative[k]:
-                    k += 1
-                nxt = targets[k]
-            if observer is not None:
-                w, q2 = nodes[nxt][0], nodes[nxt][1]
-                mixture: dict[int, float] = {}
-                for x, p in p1_model.hypothesis_distribution(m1):
-                    mixture[trap_choice[x][v]] = mixture.get(trap_choice[x][v], 0.0) + p
-                observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1,
-                                    a1=a1, a2=a2, predicted_a2=predicted, n_a2=n_allowed[v],
-                                    p2_memory=m2, next_state=w, next_q=q2,
-                                    prediction=tuple(sorted(mixture.items()))))
-            if p2_hypothesis[nxt] != p2_hypothesis[node]:
-                switches += 1
-            if detector is not None and not switched:
-                if detector.observe((v, q, m1), predicted, a2, n_allowed[v]).rejected:
-                    switched = True
-                    replanned += 1
-            node = nxt
-            outcome = status[node]
-        outcomes[episode] = TRUNCATED if outcome < 0 else outcome
-        lengths[episode] = steps
-        p2_switches += switches
-        p2_switched += switches > 0
+        outcomes[episode], lengths[episode] = run.episode(episode, horizon, rng, uniforms)
         bar.update(episode + 1)
     seconds = time.perf_counter() - start_time
     bar.close(seconds)
-    return _summary(outcomes, lengths, horizon, seed, seconds, off_record_steps,
-                    p2_switched, p2_switches, replanned)
+    return _summary(outcomes, lengths, horizon, seed, seconds, run.off_record_steps,
+                    run.p2_switched, run.p2_switches, run.replanned)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -34,6 +34,7 @@ from hg2prism import progress
 from hg2prism.outputs import write_json
 
 if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
+    from hg2prism.strategy.policy import Policy
     from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
     from hg2prism.strategy.records import Strategy
     from hg2prism.opponent.inference import InferenceModel
@@ -145,7 +146,7 @@ class DetectionBatch:
         return [self.first_rejection.get(e) for e in range(episodes)]
 
 
-def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horizon: int,
+def detection_batch(analysis: Analysis, strategy: Policy, episodes: int, horizon: int,
                     seed: int, alpha: float, epsilon: float, p2_policy: P2Policy | None = None,
                     p2_inference: Observer | None = None, keep_steps: bool = False,
                     progress: bool = False, track_scores: bool = False,
@@ -195,7 +196,7 @@ def _distribution(rejections: list[int | None], deviate_after: int | None = None
     return result
 
 
-def _find_seeded_episode(analysis: Analysis, strategy: Strategy, horizon: int, seed: int,
+def _find_seeded_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int,
                          alpha: float, epsilon: float, deviate_after: int, p2_policy: P2Policy
                          ) -> tuple[int, SimulationSummary, DetectionBatch]:
     """The first seed from `seed` upward whose deviating episode lasts more than
@@ -226,7 +227,7 @@ def _replanning_rates(summary: SimulationSummary) -> dict:
 
 
 def _fallback_strategy(world: World, check_result: CheckResult, fallback: str,
-                       delta: float | None) -> object:
+                       delta: float | None) -> Policy:
     """P1's strategy after a detected mismatch (docs/semantics.md §14)."""
     import json
     import tempfile
@@ -249,7 +250,7 @@ class _Batches:
     and detector, so that the batches differ only in what P2 does."""
 
     analysis: Analysis
-    strategy: Strategy
+    strategy: Strategy              # the deceptive strategy (a Policy)
     episodes: int
     horizon: int
     seed: int

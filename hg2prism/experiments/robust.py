@@ -34,6 +34,7 @@ from hg2prism import progress
 from hg2prism.errors import InputError, probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes, write_json, write_text
+from hg2prism.strategy.policy import Policy
 
 __all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
            "robust", "robust_summary_lines"]
@@ -99,13 +100,35 @@ def _choice_with_action(game, action: np.ndarray, wanted: np.ndarray) -> np.ndar
     return argmax_by_group(np.where(match, 1.0, 0.0), game.choice_state, game.n_states)
 
 
-def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
+def _choices_of(game, action: np.ndarray, wanted: np.ndarray, decides: np.ndarray) -> np.ndarray:
+    """The choice of every state: the one with move wanted[state] where P1 `decides` (see
+    _choice_with_action), the first (only) one in the intermediate states."""
+    return np.where(decides, _choice_with_action(game, action, wanted), game.choice_start[:-1])
+
+
+def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative: np.ndarray,
+                    decides: np.ndarray, ts, policy: Policy) -> np.ndarray:
+    """The choice of every state of the interval model `game` when P1 plays `policy`: its move
+    in the hypergame state of each canonical state (read off the representative's decoded
+    state), and the one choice of the intermediate states (not `decides`)."""
+    from hg2prism.opponent.inference import Memory
+
+    wanted = np.full(int(canonical.max()) + 1, -1, dtype=np.int64)
+    ts_state = ts.state(decoded.cell, decoded.traps, decoded.countdown)
+    for s in representative[~game.stop[representative]].tolist():
+        window = tuple(tuple(entry) for entry in decoded.window[s].tolist() if entry[0] >= 0)
+        memory = Memory(int(decoded.hypothesis[s]), window)
+        wanted[canonical[s]] = policy.action(int(ts_state[s]), int(decoded.q[s]), memory)
+    return _choices_of(game, moves.action, wanted[canonical], decides)
+
+
+def solve_budget(analysis, deceptive: Policy, prism_path: Path, layout, delta: float,
                  check_path: Path | None = None) -> RobustSolved:
     """Solve the interval model at `prism_path` (rendered for `delta`). `deceptive` is the
-    deceptive Strategy (with its fallback); `check_path`, the same model rendered with eps > 0,
-    is checked by Storm's robust mode and by numpy (at delta = 0 the model itself is)."""
+    deceptive strategy (a records.Strategy with its fallback); `check_path`, the same model
+    rendered with eps > 0, is checked by Storm's robust mode and by numpy (at delta = 0 the
+    model itself is)."""
     from hg2prism.engines import storm
-    from hg2prism.opponent.inference import Memory
     from hg2prism.strategy.deceptive import StormChoices
     from hg2prism.strategy.records import RecordExtras, strategy_json
     from hg2prism.strategy.robust import (IntervalGame, adversary_response, fastest_choices,
@@ -136,16 +159,14 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
     chosen = fastest_choices(game, solution, decides, moves.action)
     wanted = np.full(n_canonical, -1, dtype=np.int64)
     wanted[canonical[representative]] = moves.action[chosen[representative]]
-    strategy = _choice_with_action(game, moves.action, wanted[canonical])
-    strategy = np.where(decides, strategy, game.choice_start[:-1])
+    strategy = _choices_of(game, moves.action, wanted[canonical], decides)
     guaranteed = adversary_response(game, strategy)[game.initial]
     if guaranteed < value - WORST_CASE_TOLERANCE:
         # the fastest rule lost optimality somewhere: export strategy iteration's own choices
         progress.warn(f"delta {delta}: the fastest optimal moves guarantee {guaranteed:.10f} < "
                       f"R = {value:.10f}; exporting strategy iteration's moves")
         wanted[canonical[representative]] = moves.action[solution.strategy[representative]]
-        strategy = _choice_with_action(game, moves.action, wanted[canonical])
-        strategy = np.where(decides, strategy, game.choice_start[:-1])
+        strategy = _choices_of(game, moves.action, wanted[canonical], decides)
         guaranteed = adversary_response(game, strategy)[game.initial]
         if guaranteed < value - WORST_CASE_TOLERANCE:
             from hg2prism.errors import SolverError
@@ -160,14 +181,8 @@ def solve_budget(analysis, deceptive, prism_path: Path, layout, delta: float,
         RecordExtras(worst_cases))
 
     # The deceptive strategy under the budget: its records, the leader answer elsewhere.
-    deceptive_wanted = np.full(n_canonical, -1, dtype=np.int64)
-    ts_state = ts.state(decoded.cell, decoded.traps, decoded.countdown)
-    for s in representative[~game.stop[representative]].tolist():
-        window = tuple(tuple(entry) for entry in decoded.window[s].tolist() if entry[0] >= 0)
-        memory = Memory(int(decoded.hypothesis[s]), window)
-        deceptive_wanted[canonical[s]] = deceptive.action(int(ts_state[s]), int(decoded.q[s]), memory)
-    nominal = _choice_with_action(game, moves.action, deceptive_wanted[canonical])
-    nominal = np.where(decides, nominal, game.choice_start[:-1])
+    nominal = _policy_choices(game, moves, decoded, canonical, representative, decides,
+                              ts, deceptive)
     nominal_worst = adversary_response(game, nominal)[game.initial]
 
     check = None
