@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.opponent.observer import Observation, Observer, ObserverPrism
+from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.records import Strategy, StrategyError
 
 
@@ -56,9 +56,6 @@ class StepCounter:
 
     def hypothesis_distribution(self, memory: TimedMemory) -> tuple[tuple[int, float], ...]:
         return self.inner.hypothesis_distribution(memory.memory)
-
-    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
-        raise NotImplementedError("a step counter is for simulation only")
 
 
 class SteppedStrategy:
