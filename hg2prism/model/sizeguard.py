@@ -24,6 +24,11 @@ The bound (rigorous; every factor over-approximates one component of a canonical
            bounce). N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
   2        the merged goal and failure states.
 
+That is the CUSUM observer's memory (§5); each kind of observer says how its memory enters the
+bound (`ObserverKind.memory`, opponent/registry.py): the Bayesian one (§12) remembers no
+hypothesis beside its window (X is 1), w observations (L = 0 .. w), each with the trap set in
+force (|trap sets| walks per observation step).
+
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap
 set in force at each of those steps is a function of the TS state and x (the standing set while

@@ -15,13 +15,13 @@ compute the same doubles and the 1e-9 tie rule decides identically.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
-                                        ObserverKind, Setting)
+                                        ObserverKind, Setting, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.prism.observers import render_bayes
 
@@ -206,12 +206,8 @@ def _memory(world: World) -> MemoryBound:
 
 def _mismatches(world: World, max_score: float) -> list[Mismatch]:
     """Window +- 1 and the other decision."""
-    window, decision = world.window, world.setting("decision")
-    variants = [Mismatch(f"window {window + 1}", replace(world, window=window + 1),
-                         "window + 1", decision)]
-    if window - 1 >= 1:
-        variants.append(Mismatch(f"window {window - 1}", replace(world, window=window - 1),
-                                 "window - 1", decision))
+    decision = world.setting("decision")
+    variants = window_mismatches(world, decision)
     flipped = "sample" if decision == "map" else "map"
     variants.append(Mismatch(f"decision {flipped}", world.with_settings(decision=flipped),
                              "the other decision", flipped))

@@ -8,13 +8,13 @@ prism/observers.render_cusum, templates/inference_cusum.prism.j2).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
-                                        ObserverKind, Setting)
+                                        ObserverKind, Setting, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.prism.observers import render_cusum
 
@@ -143,12 +143,8 @@ def _memory(world: World) -> MemoryBound:
 
 def _mismatches(world: World, max_score: float) -> list[Mismatch]:
     """Window +- 1, threshold / 2 and * 2, and half the largest score P2 reached."""
-    window, threshold = world.window, world.setting("threshold")
-    variants = [Mismatch(f"window {window + 1}", replace(world, window=window + 1),
-                         "window + 1", threshold)]
-    if window - 1 >= 1:
-        variants.append(Mismatch(f"window {window - 1}", replace(world, window=window - 1),
-                                 "window - 1", threshold))
+    threshold = world.setting("threshold")
+    variants = window_mismatches(world, threshold)
     others = [(threshold / 2, "threshold / 2"), (threshold * 2, "threshold * 2")]
     # When P1's strategy keeps every CUSUM score far below the threshold (so that the variants
     # above change nothing), a P2 who changes her mind on half the largest score P1 lets her

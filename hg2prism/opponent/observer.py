@@ -1,8 +1,8 @@
 """The interface every model of P2's inference implements (docs/semantics.md §5, §12).
 
 P2 observes P1's moves and keeps a memory from which she reads her current hypothesis about P1's
-task. An observer says what that memory is, how one observation updates it, which hypothesis P2
-acts on, and how all of it is written into the hypergame's PRISM model. The hypergame, Storm's
+task. An observer says what that memory is, how one observation updates it and which hypothesis
+P2 acts on. The hypergame, Storm's
 decoding, the strategy export and the simulations use only this interface; `ObserverKind` is
 what the rest of the package knows of each kind of observer (the world file's keys, how to
 build it, its PRISM renderer, its memory's size), and `registry.py` holds one per kind, so a
@@ -15,7 +15,7 @@ on, which the figures and the replay of an episode show (§8 "The episode drawn"
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
@@ -127,6 +127,16 @@ class Mismatch:
     world: World
     why: str
     shown: object
+
+
+def window_mismatches(world: World, shown: object) -> list[Mismatch]:
+    """The variants every kind's detection experiment has: P2 remembers one more observation,
+    and one fewer when she remembers more than one."""
+    windows = [(world.window + 1, "window + 1")]
+    if world.window - 1 >= 1:
+        windows.append((world.window - 1, "window - 1"))
+    return [Mismatch(f"window {window}", replace(world, window=window), why, shown)
+            for window, why in windows]
 
 
 @dataclass(frozen=True)
