@@ -42,6 +42,7 @@ class NeverRevises:
     n_hypotheses: int
 
     kind = "never"
+    draws = False
 
     def initial_memory(self) -> Memory:
         return Memory(self.initial_hypothesis, ())

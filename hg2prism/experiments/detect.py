@@ -162,7 +162,7 @@ def detection_batch(analysis: Analysis, strategy: Strategy, episodes: int, horiz
     scored = isinstance(model, ReportsBelief) and model.belief_threshold is not None
     batch = DetectionBatch(alpha, epsilon, keep_steps,
                            scores_of=model if track_scores and scored else None,
-                           draws=getattr(model, "decision", "map") == "sample")
+                           draws=model.draws)
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, p2_policy=p2_policy,
                                  observer=batch, progress=progress, p2_inference=p2_inference,
                                  replanning=replanning)
@@ -578,7 +578,7 @@ def detection_summary_lines(result: dict) -> list[str]:
         f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
         "",
         f"P2's real inference differs from P1's model (window {result['p1_model']['window']}, "
-        f"{_setting(result['p1_model']['threshold'], result['p1_model'].get('decision'))}); "
+        f"{_setting(result['p1_model'].get('threshold'), result['p1_model'].get('decision'))}); "
         "P1 keeps playing its strategy:",
         "",
         "| P2's inference | episodes where P2's hypothesis / traps differed from P1's model "

@@ -177,7 +177,8 @@ def _with_traps(world: World, traps: int) -> World:
 
 SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
     # first: the other parameters apply to the observer it chooses
-    SweepParameter("inference", '"cusum" or "bayes"', _observer_kind, _with_observer),
+    SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
+                   _with_observer),
     SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
                    moves_traps=True),
     SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),

@@ -46,6 +46,10 @@ class BayesObserver:
     trap_choice: np.ndarray      # [X, n_ts] pi2_x(v)
 
     kind = "bayes"
+
+    @property
+    def draws(self) -> bool:
+        return self.decision == "sample"
     belief_name = "posterior p(x | W)"
 
     @property

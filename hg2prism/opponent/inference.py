@@ -35,6 +35,7 @@ class InferenceModel:
         return self.ratios.shape[0]
 
     kind = "cusum"
+    draws = False
     belief_name = "CUSUM score Z_x"
 
     @property

@@ -54,6 +54,9 @@ class Observer(Protocol):
     kind: str                  # the world file's `[inference] kind`
     window: int
     initial_hypothesis: int
+    # P2 draws the hypothesis she plays at each step (`hypothesis_distribution` may give
+    # several), so P1 predicts her traps by a mixture (§12 "sample")
+    draws: bool
 
     @property
     def n_hypotheses(self) -> int: ...

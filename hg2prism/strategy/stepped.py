@@ -37,6 +37,7 @@ class StepCounter:
         self.inner = inner
         self.cap = cap
         self.kind = inner.kind
+        self.draws = inner.draws
         self.window = inner.window
         self.initial_hypothesis = inner.initial_hypothesis
 
