@@ -30,9 +30,8 @@ from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
 from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
 from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
-from hg2prism.opponent.bayes import build_bayes
-from hg2prism.opponent.inference import build_inference
 from hg2prism.opponent.observer import Observer
+from hg2prism.opponent import registry
 from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
@@ -92,9 +91,7 @@ def analyse(world: World) -> Analysis:
 
 def build_observer(world: World, games: list[PerceptualGame]) -> Observer:
     """P2's inference as the world file sets it (`[inference] kind`)."""
-    if world.inference == "bayes":
-        return build_bayes(games, world.window, world.prior, world.decision)
-    return build_inference(games, world.window, world.threshold, world.initial_hypothesis)
+    return registry.build_observer(world, games)
 
 
 def generate(analysis: Analysis, out: Path) -> PrismModel:

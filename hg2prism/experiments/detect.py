@@ -37,8 +37,7 @@ if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import m
     from hg2prism.strategy.policy import Policy
     from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
     from hg2prism.strategy.records import Strategy
-    from hg2prism.opponent.inference import InferenceModel
-    from hg2prism.opponent.observer import Observer
+    from hg2prism.opponent.observer import Observer, ReportsBelief
     from hg2prism.pipeline import Analysis, CheckResult
 
 __all__ = ["DetectionBatch", "detection_batch", "detection_experiment", "detect",
@@ -94,13 +93,14 @@ class DetectionBatch:
     """
 
     def __init__(self, alpha: float, epsilon: float, keep_steps: bool = False,
-                 scores_of: InferenceModel | None = None, draws: bool = False) -> None:
+                 scores_of: ReportsBelief | None = None, draws: bool = False) -> None:
         from hg2prism.analyses.detection import MismatchDetector, Mixture
 
         self._make = lambda: MismatchDetector(alpha, epsilon)
         self.keep_steps = keep_steps
-        # with an InferenceModel: the largest CUSUM score max_x Z_x (x != xh) any step reached
-        # under P1's model memory (how close P2 came to changing her mind)
+        # with an observer that compares scores with a threshold (CUSUM): the largest score
+        # max_x Z_x (x != xh) any step reached under P1's model memory (how close P2 came to
+        # changing her mind)
         self._scores_of = scores_of
         self._score_cache: dict = {}
         self.max_score = 0.0
@@ -127,8 +127,8 @@ class DetectionBatch:
             key = (record.memory, record.ts_state, record.a1)
             score = self._score_cache.get(key)
             if score is None:
-                z = self._scores_of.scores(record.memory, (record.ts_state, record.a1))
-                score = self._score_cache[key] = float(z.max()) if len(z) else 0.0
+                z = self._scores_of.belief(record.memory, (record.ts_state, record.a1))
+                score = self._score_cache[key] = float(max(z)) if len(z) else 0.0
             self.max_score = max(self.max_score, score)
         if episode in self.first_rejection and not self.keep_steps:
             return
@@ -154,13 +154,16 @@ def detection_batch(analysis: Analysis, strategy: Policy, episodes: int, horizon
                     ) -> tuple[SimulationSummary, DetectionBatch]:
     """Simulate `episodes` deceptive episodes with P1's detector running in each.
     Returns (SimulationSummary, DetectionBatch). With `track_scores` the batch records the
-    largest CUSUM score of P1's model of P2's inference (DetectionBatch.max_score)."""
+    largest score of P1's model of P2's inference when she compares scores with a threshold
+    (CUSUM: DetectionBatch.max_score)."""
     from hg2prism.analyses.simulation import simulate_deceptive
+    from hg2prism.opponent.observer import ReportsBelief
 
-    cusum = analysis.inference.kind == "cusum"
+    model = analysis.inference
+    scored = isinstance(model, ReportsBelief) and model.belief_threshold is not None
     batch = DetectionBatch(alpha, epsilon, keep_steps,
-                           scores_of=analysis.inference if track_scores and cusum else None,
-                           draws=getattr(analysis.inference, "decision", "map") == "sample")
+                           scores_of=model if track_scores and scored else None,
+                           draws=model.draws)
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, p2_policy=p2_policy,
                                  observer=batch, progress=progress, p2_inference=p2_inference,
                                  replanning=replanning)
@@ -328,22 +331,33 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
                            deviate_after, seeded["detected_at"], out / "detection.png",
                            world_name=world.name, seed=seeded["seed"], replanning=replanning)
 
-    result = {
+    result = _result(world, check_result, batches, deviate_after, seeded, deviation, compliant,
+                     mismatch)
+    result["seconds"] = round(time.perf_counter() - start_time, 3)
+    if replanning is not None:
+        result["replanning"] = replanning
+    write_json(out / "detection.json", result)
+    return result
+
+
+def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_after: int,
+            seeded: dict, deviation: dict, compliant: dict, mismatch: list[dict]) -> dict:
+    """detection.json's content, but the time taken and the re-planning batches."""
+    from hg2prism.opponent.registry import observer_kind
+
+    return {
         "world": world.name,
         "world_file": str(world.path),
-        "alpha": settings.alpha,
-        "epsilon": settings.epsilon,
+        "alpha": batches.alpha,
+        "epsilon": batches.epsilon,
         "deviate_after": deviate_after,
-        "horizon": horizon,
-        "seed": seed,
-        "episodes": episodes,
+        "horizon": batches.horizon,
+        "seed": batches.seed,
+        "episodes": batches.episodes,
         "deceptive_value": check_result.results.deceptive_value,
         "storm_method": check_result.results.storm_method,
         "sound": check_result.results.sound,
-        "p1_model": {"window": world.window, "threshold": world.threshold}
-        if world.inference == "cusum" else
-        {"inference": "bayes", "window": world.window, "threshold": None,
-         "decision": world.decision, "prior": list(world.prior)},
+        "p1_model": observer_kind(world.inference).report(world),
         "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
                   "exceeds the free parameters, so the test is conservative. P1 plays its "
                   "exported records and, on states they do not cover (reachable only when P2 "
@@ -359,12 +373,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
                           "completion": compliant["completion"]},
             "variants": mismatch,
         },
-        "seconds": round(time.perf_counter() - start_time, 3),
     }
-    if replanning is not None:
-        result["replanning"] = replanning
-    write_json(out / "detection.json", result)
-    return result
 
 
 def _seeded_episode(batches: _Batches, deviate_after: int, deviating: P2Policy,
@@ -449,28 +458,24 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
                       say: Callable[[str], None]) -> list[dict]:
     """(d) P2's real inference differs from P1's model of it: one batch per variant."""
     from hg2prism.analyses.simulation import wilson_interval
-    from hg2prism.opponent.bayes import build_bayes
-    from hg2prism.opponent.inference import build_inference
+    from hg2prism.opponent.registry import build_observer, observer_kind
 
     games, episodes = batches.analysis.games, batches.episodes
     mismatch = []
-    for label, window, threshold, why in _mismatch_variants(world, max_score):
-        say(f"detection: {episodes} episodes, P2's inference uses {label} "
+    for variant in observer_kind(world.inference).mismatches(world, max_score):
+        say(f"detection: {episodes} episodes, P2's inference uses {variant.label} "
             f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
-        real = (build_inference(games, window, threshold, world.initial_hypothesis)
-                if world.inference == "cusum" else
-                build_bayes(games, window, world.prior, threshold))
-        summary, batch = batches.run(p2_inference=real)
+        summary, batch = batches.run(p2_inference=build_observer(variant.world, games))
         rejections = batch.rejections(episodes)
         detected = sum(1 for n in rejections if n is not None)
         observable = len(batch.unpredicted)
         detected_observable = sum(1 for e in batch.unpredicted if e in batch.first_rejection)
         dist = _distribution(rejections)
         mismatch.append({
-            "p2_inference": label,
-            "chosen_as": why,
-            "p2_window": window,
-            "p2_threshold": threshold,
+            "p2_inference": variant.label,
+            "chosen_as": variant.why,
+            "p2_window": variant.world.window,
+            "p2_threshold": variant.shown,
             "episodes": episodes,
             "detected": detected,
             "detection_rate": detected / episodes,
@@ -513,33 +518,6 @@ def _replanning_batches(world: World, check_result: CheckResult, batches: _Batch
         "compliant": {"without": _replanning_rates(without_c),
                       "with": _replanning_rates(with_c)},
     }
-
-
-def _mismatch_variants(world: World, max_score: float) -> list[tuple[str, int, object, str]]:
-    """P2's real inference in the other-mismatch experiment: (label, window, threshold or, for
-    the Bayesian observer, decision, why). CUSUM: window +- 1, threshold / 2 and * 2, and half the
-    largest score P2 reached; Bayesian: window +- 1 and the other decision."""
-    other = world.threshold if world.inference == "cusum" else world.decision
-    variants: list[tuple[str, int, object, str]] = [
-        (f"window {world.window + 1}", world.window + 1, other, "window + 1")]
-    if world.window - 1 >= 1:
-        variants.append((f"window {world.window - 1}", world.window - 1, other, "window - 1"))
-    if world.inference == "bayes":
-        flipped = "sample" if world.decision == "map" else "map"
-        variants.append((f"decision {flipped}", world.window, flipped, "the other decision"))
-        return variants
-    variants += [(f"threshold {world.threshold / 2:.4g}", world.window, world.threshold / 2,
-                  "threshold / 2"),
-                 (f"threshold {world.threshold * 2:.4g}", world.window, world.threshold * 2,
-                  "threshold * 2")]
-    # When P1's strategy keeps every CUSUM score far below the threshold (so that the variants
-    # above change nothing), a P2 who changes her mind on half the largest score P1 lets her
-    # reach certainly behaves differently somewhere.
-    hasty = max_score / 2
-    if 0.0 < hasty < world.threshold / 2:
-        variants.append((f"threshold {hasty:.4g}", world.window, hasty,
-                         "half the largest CUSUM score reached when P2 follows the model"))
-    return variants
 
 
 def detect(world: World, out: Path, episodes: int | None = None, seed: int | None = None,
@@ -601,7 +579,7 @@ def detection_summary_lines(result: dict) -> list[str]:
         f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
         "",
         f"P2's real inference differs from P1's model (window {result['p1_model']['window']}, "
-        f"{_setting(result['p1_model']['threshold'], result['p1_model'].get('decision'))}); "
+        f"{_setting(result['p1_model'].get('threshold'), result['p1_model'].get('decision'))}); "
         "P1 keeps playing its strategy:",
         "",
         "| P2's inference | episodes where P2's hypothesis / traps differed from P1's model "

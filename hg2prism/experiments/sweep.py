@@ -45,7 +45,9 @@ from pathlib import Path
 from typing import Any
 
 from hg2prism.errors import InputError
-from hg2prism.model.world import Cell, World, normalise_prior, prior_argmax, uniform_prior
+from hg2prism.model.world import Cell, World
+from hg2prism.opponent.bayes import normalise_prior
+from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
 from hg2prism import progress
 from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.results import Parameters
@@ -115,7 +117,7 @@ def _field(name: str) -> Callable[[World, Value], World]:
 
 
 def _observer_kind(value: object) -> str:
-    if value not in ("cusum", "bayes"):
+    if value not in KINDS:
         raise ValueError("must be")
     return str(value)
 
@@ -133,32 +135,36 @@ def _prior(value: object) -> tuple[float, ...]:
 
 
 def _with_observer(world: World, kind: str) -> World:
-    """The world with P2's observer switched (docs/semantics.md §12). To "bayes": a uniform
-    prior and the "map" decision, window and rationality kept (so P2's first guess is
-    hypothesis 0). To "cusum": refused, a Bayesian world has no threshold to give it."""
+    """The world with P2's observer switched (docs/semantics.md §12), window and rationality
+    kept, each of the new kind's settings at its default (to "bayes": a uniform prior and the
+    "map" decision, so P2's first guess is hypothesis 0). Refused when the new kind has a
+    required setting (switching to "cusum" needs a threshold)."""
     if kind == world.inference:
         return world
-    if kind == "bayes":
-        prior = uniform_prior(len(world.hypotheses))
-        return replace(world, inference="bayes", threshold=None, prior=prior, decision="map",
-                       initial_hypothesis=prior_argmax(prior))
-    raise InputError(_CLI, "--values", "switching a Bayesian world to cusum needs a threshold; "
-                                       "sweep inference from a cusum world")
+    try:
+        return configure(world, kind)
+    except ValueError as missing:
+        raise InputError(_CLI, "--values", f"switching a {observer_kind(world.inference).title} "
+                         f"world to {kind} "
+                         f"needs a {missing}; sweep inference from a {kind} world") from None
 
 
-def _with_threshold(world: World, threshold: float) -> World:
-    if world.inference == "bayes":
-        raise InputError(_CLI, "--param", "the Bayesian observer has no threshold")
-    return replace(world, threshold=threshold)
+def _with_setting(name: str) -> Callable[[World, Value], World]:
+    """Sets the observer's setting `name`, when the world's kind of observer has it."""
+    def apply(world: World, value: Value) -> World:
+        kind = observer_kind(world.inference)
+        if name not in kind.keys():
+            raise InputError(_CLI, "--param", f"the {kind.title} observer has no {name}; "
+                             f'sweeping {name} needs [inference] kind = "{owner(name).name}"')
+        return world.with_settings(**{name: value})
+    return apply
 
 
 def _with_prior(world: World, prior: tuple[float, ...]) -> World:
-    if world.inference != "bayes":
-        raise InputError(_CLI, "--param", 'sweeping prior needs [inference] kind = "bayes"')
-    if len(prior) != len(world.hypotheses):
+    if len(prior) != len(world.hypotheses) and "prior" in observer_kind(world.inference).keys():
         raise InputError(_CLI, "--values", f"prior {_value_text(prior)} has {len(prior)} "
                          f"numbers; expected one per hypothesis ({len(world.hypotheses)})")
-    return replace(world, prior=prior, initial_hypothesis=prior_argmax(prior))
+    return _with_setting("prior")(world, prior)
 
 
 def _with_traps(world: World, traps: int) -> World:
@@ -171,11 +177,13 @@ def _with_traps(world: World, traps: int) -> World:
 
 SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
     # first: the other parameters apply to the observer it chooses
-    SweepParameter("inference", '"cusum" or "bayes"', _observer_kind, _with_observer),
+    SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
+                   _with_observer),
     SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
                    moves_traps=True),
     SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
-    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True), _with_threshold),
+    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True),
+                   _with_setting("threshold")),
     SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
                    _field("rationality")),
     SweepParameter("slip", "a number in [0, 0.5)", _number(float, 0.0, False, below=0.5),

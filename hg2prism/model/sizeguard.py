@@ -24,6 +24,11 @@ The bound (rigorous; every factor over-approximates one component of a canonical
            bounce). N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
   2        the merged goal and failure states.
 
+That is the CUSUM observer's memory (§5); each kind of observer says how its memory enters the
+bound (`ObserverKind.memory`, opponent/registry.py): the Bayesian one (§12) remembers no
+hypothesis beside its window (X is 1), w observations (L = 0 .. w), each with the trap set in
+force (|trap sets| walks per observation step).
+
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap
 set in force at each of those steps is a function of the TS state and x (the standing set while
@@ -50,6 +55,7 @@ import scipy.sparse as sp
 from hg2prism.errors import InputError
 from hg2prism.model.dynamics import ACTIONS, STEP, outcome_directions
 from hg2prism.model.world import World
+from hg2prism.opponent.registry import observer_kind
 
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
 # the benchmark family (bench/results.csv, `peak_mb`): 2.3-2.5 KB per canonical state from 4e5
@@ -145,17 +151,11 @@ def estimate_states(world: World) -> int:
                                (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
     walks = np.ones(n)                                                    # N_0
     total = 0.0
-    factor = trap_parts(world) * len(world.hypotheses)
-    lengths = range(world.window)                                         # L = 0 .. w-1
-    per_observation = 1                                                   # trap sets recorded
-    if world.inference == "bayes":
-        # the memory is the window alone (no hypothesis), w observations each with a trap set
-        factor = trap_parts(world)
-        lengths = range(world.window + 1)
-        per_observation = math.comb(len(world.grid.trap_candidates), world.traps)
-    for length in lengths:
+    memory = observer_kind(world.inference).memory(world)    # CUSUM: X hypotheses, w-1 walks
+    factor = trap_parts(world) * memory.hypotheses
+    for length in range(memory.observations + 1):                        # L = 0 .. w-1 (CUSUM)
         if length:
-            walks = adjacency @ walks * per_observation
+            walks = adjacency @ walks * memory.sets_per_observation
         total += float(np.dot(q_count, walks))
         if total * factor >= BEYOND:   # a huge window: stop before the floats overflow
             return BEYOND

@@ -59,17 +59,40 @@ class World:
     hypotheses: tuple[str, ...]
     initial_hypothesis: int
     window: int
-    threshold: float | None               # None with the Bayesian observer (no threshold)
     rationality: float
     simulation: SimulationSettings = field(default_factory=SimulationSettings)
     detection: DetectionSettings = field(default_factory=DetectionSettings)
-    inference: str = "cusum"              # P2's observer: "cusum" (§5) or "bayes" (§12)
-    prior: tuple[float, ...] = ()         # bayes: the normalised prior over hypotheses
-    decision: str = "map"                 # bayes: "map" or "sample"
+    inference: str = "cusum"              # P2's observer: its kind (opponent/registry.py)
+    # the observer's own [inference] keys as its kind read them, in its kind's order: CUSUM's
+    # threshold (§5), the Bayesian prior (normalised) and decision (§12)
+    settings: tuple[tuple[str, object], ...] = ()
 
     def atomic_propositions(self) -> tuple[str, ...]:
         """`obs` first, then the region letters of the map in alphabetical order."""
         return ("obs",) + self.grid.region_letters()
+
+    def setting(self, key: str, default: object = None) -> object:
+        """The observer's setting `key` (default when its kind has no such key)."""
+        return dict(self.settings).get(key, default)
+
+    def with_settings(self, **settings: object) -> World:
+        """The world with these settings of its observer changed (registry.configure)."""
+        from hg2prism.opponent.registry import configure
+
+        return configure(self, **settings)
+
+    # The built-in observers' settings by name, as results and reports read them.
+    @property
+    def threshold(self) -> float | None:
+        return self.setting("threshold")
+
+    @property
+    def prior(self) -> tuple[float, ...]:
+        return self.setting("prior", ())
+
+    @property
+    def decision(self) -> str:
+        return self.setting("decision", "map")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -77,36 +100,6 @@ class World:
 # ---------------------------------------------------------------------------------------------
 
 MAP_LEGEND = ". # o t @ A-Z"
-INFERENCE_KINDS = ("cusum", "bayes")
-DECISIONS = ("map", "sample")
-
-
-def uniform_prior(n_hypotheses: int) -> tuple[float, ...]:
-    return tuple([1.0 / n_hypotheses] * n_hypotheses)
-
-
-def normalise_prior(numbers: list[float]) -> tuple[float, ...]:
-    """Positive finite numbers scaled to sum 1 (ValueError when that is impossible)."""
-    import math
-
-    total = math.fsum(numbers)
-    if not math.isfinite(total):
-        raise ValueError("the prior's numbers are too large to add up; scale them down")
-    scaled = tuple(p / total for p in numbers)
-    if any(p <= 0 for p in scaled):
-        raise ValueError("a prior probability vanishes once normalised; use less extreme numbers")
-    return scaled
-
-
-def prior_argmax(prior: tuple[float, ...]) -> int:
-    """P2's first guess under the Bayesian observer: the most probable hypothesis, the first
-    among ties; ties as in the observer's decision rule (within 1e-9 in log space), so that
-    this is also the MAP hypothesis of an empty memory."""
-    import math
-
-    logs = [math.log(p) for p in prior]
-    top = max(logs)
-    return next(x for x, value in enumerate(logs) if value >= top - 1e-9)
 
 # Keys allowed in each table: key -> required?
 _TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
@@ -117,9 +110,8 @@ _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "task": {"formula": True},
     "adversary": {"traps": True, "delay": False, "initial_traps": False, "hypotheses": True,
                   "initial_hypothesis": False},
-    # threshold is required with kind "cusum" and refused with "bayes" (checked by hand)
-    "inference": {"kind": False, "window": True, "threshold": False, "rationality": True,
-                  "prior": False, "decision": False},
+    # and the keys of the observers' kinds (`_Loader.inference` asks opponent/registry.py)
+    "inference": {"kind": False, "window": True, "rationality": True},
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
@@ -143,7 +135,6 @@ _MISSING_HINT = {
     "adversary.traps": "an integer >= 1",
     "adversary.hypotheses": "a non-empty array of co-safe LTL formulas",
     "inference.window": "an integer >= 1",
-    "inference.threshold": "a number > 0",
     "inference.rationality": "a number > 0",
 }
 
@@ -266,11 +257,11 @@ class _Loader:
                 raise self.fail(key, "missing required key; expected "
                                      + _MISSING_HINT.get(key, "a value"))
 
-    def table(self, root: dict, name: str) -> dict:
+    def table(self, root: dict, name: str, allowed: dict[str, bool] | None = None) -> dict:
         value = root.get(name, {})
         if not isinstance(value, dict):
             raise self.fail(name, f"must be a table [{name}], got {_toml_type(value)}")
-        self.check_keys(value, _TABLE_KEYS[name], name)
+        self.check_keys(value, _TABLE_KEYS[name] if allowed is None else allowed, name)
         return value
 
     def string(self, value: object, key: str) -> str:
@@ -287,6 +278,17 @@ class _Loader:
             raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
         if maximum is not None and value > maximum:
             raise self.fail(key, f"{name} must be <= {maximum:,} ({LIMIT_REASON[key]}), got {value:,}")
+        return value
+
+    def array(self, value: object, key: str, expected: str) -> list:
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be {expected}, got {_toml_type(value)}")
+        return value
+
+    def choice(self, value: object, key: str, what: str, options: tuple[str, ...]) -> str:
+        if value not in options:
+            raise self.fail(key, f"unknown {what} {_toml_repr(value)}; expected "
+                                 + " or ".join(f'"{option}"' for option in options))
         return value
 
     def number(self, value: object, key: str) -> float:
@@ -397,25 +399,28 @@ class _Loader:
     def load(self) -> World:
         root = self.read()
         self.check_keys(root, _TOP_KEYS, "")
-
         name = self.string(root["name"], "name") if "name" in root else self.path.stem
         if name.strip() == "":
             raise self.fail("name", "name must not be empty")
         description = (self.string(root["description"], "description")
                        if "description" in root else "")
-
         grid = self.grid(self.table(root, "grid"))
-
-        robot = self.table(root, "robot")
-        slip = self.number(robot["slip"], "robot.slip")
+        slip = self.number(self.table(root, "robot")["slip"], "robot.slip")
         if not 0.0 <= slip < 0.5:
             raise self.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
-
-        task = self.table(root, "task")
-        self.formula(task["formula"], "task.formula", grid)
-        formula = task["formula"]
-
+        formula = self.table(root, "task")["formula"]
+        self.formula(formula, "task.formula", grid)
         adv = self.table(root, "adversary")
+        adversary = self.adversary(adv, grid)
+        observer = self.inference(root, adv, adversary)
+        return World(path=self.path, name=name, description=description, grid=grid, slip=slip,
+                     formula=formula, **{**adversary, **observer},
+                     simulation=self.simulation(self.table(root, "simulation")),
+                     detection=self.detection(self.table(root, "detection")))
+
+    def adversary(self, adv: dict, grid: Grid) -> dict:
+        """[adversary]: the World fields traps, delay, initial_traps, hypotheses and
+        initial_hypothesis (which P2's observer may set instead: `inference`)."""
         traps = self.integer(adv["traps"], "adversary.traps", 1)
         n_cand = len(grid.trap_candidates)
         if traps > n_cand:
@@ -424,73 +429,84 @@ class _Loader:
                                                "the number of 't' cells")
         delay = self.integer(adv.get("delay", 0), "adversary.delay", 0)
         initial_traps = self.initial_traps(adv, grid, traps, delay)
-
-        hyp_value = adv["hypotheses"]
-        if not isinstance(hyp_value, list):
-            raise self.fail("adversary.hypotheses",
-                            f"must be an array of formulas, got {_toml_type(hyp_value)}")
-        if not hyp_value:
-            raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
-                                                    "co-safe LTL formula")
-        seen: dict[str, int] = {}
-        for i, h in enumerate(hyp_value):
-            key = f"adversary.hypotheses[{i}]"
-            canon = str(self.formula(h, key, grid))
-            if canon in seen:
-                j = seen[canon]
-                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
-                                     f"hypotheses[{j}] ({hyp_value[j]!r}); expected distinct "
-                                     "hypotheses")
-            seen[canon] = i
-        hypotheses = tuple(hyp_value)
+        hypotheses = self.hypotheses(adv["hypotheses"], grid)
         initial_hypothesis = self.integer(adv.get("initial_hypothesis", 0),
                                           "adversary.initial_hypothesis")
         if not 0 <= initial_hypothesis < len(hypotheses):
             raise self.fail("adversary.initial_hypothesis",
                             f"initial_hypothesis must be an index into hypotheses "
                             f"(0..{len(hypotheses) - 1}), got {initial_hypothesis}")
+        return dict(traps=traps, delay=delay, initial_traps=initial_traps,
+                    hypotheses=hypotheses, initial_hypothesis=initial_hypothesis)
 
-        inf = self.table(root, "inference")
-        kind = inf.get("kind", "cusum")
-        if kind not in INFERENCE_KINDS:
-            raise self.fail("inference.kind", f"unknown inference kind {_toml_repr(kind)}; "
-                                              "expected \"cusum\" or \"bayes\"")
+    def hypotheses(self, value: object, grid: Grid) -> tuple[str, ...]:
+        """[adversary] hypotheses: distinct co-safe formulas, at least one."""
+        items = self.array(value, "adversary.hypotheses", "an array of formulas")
+        if not items:
+            raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
+                                                    "co-safe LTL formula")
+        seen: dict[str, int] = {}
+        for i, h in enumerate(items):
+            key = f"adversary.hypotheses[{i}]"
+            canon = str(self.formula(h, key, grid))
+            if canon in seen:
+                j = seen[canon]
+                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
+                                     f"hypotheses[{j}] ({items[j]!r}); expected distinct "
+                                     "hypotheses")
+            seen[canon] = i
+        return tuple(items)
+
+    def inference(self, root: dict, adv: dict, adversary: dict) -> dict:
+        """[inference]: the World fields inference (the observer's kind), window, settings
+        (the kind's own keys, read by the kind: opponent/registry.py), rationality, and
+        initial_hypothesis when the kind sets P2's first guess."""
+        from hg2prism.opponent.registry import KINDS
+
+        allowed = dict(_TABLE_KEYS["inference"])
+        for kind in KINDS.values():
+            allowed.update({key: False for key in kind.keys()})
+        inf = self.table(root, "inference", allowed)
+        kind = KINDS[self.choice(inf.get("kind", "cusum"), "inference.kind", "inference kind",
+                                 tuple(KINDS))]
         window = self.integer(inf["window"], "inference.window", 1)
-        prior: tuple[float, ...] = ()
-        decision = "map"
-        if kind == "cusum":
-            for key in ("prior", "decision"):
-                if key in inf:
-                    raise self.fail(f"inference.{key}", f"{key} belongs to the Bayesian "
-                                    "observer; set kind = \"bayes\" or remove it")
-            if "threshold" not in inf:
-                raise self.fail("inference.threshold", "missing required key; expected "
-                                                       + _MISSING_HINT["inference.threshold"])
-            threshold = self.number(inf["threshold"], "inference.threshold")
-            if threshold <= 0:
-                raise self.fail("inference.threshold", f"threshold must be > 0, got {threshold}")
-        else:
-            if "threshold" in inf:
-                raise self.fail("inference.threshold", "the Bayesian observer has no "
-                                "threshold; remove it (or set kind = \"cusum\")")
+        settings = self.observer_settings(kind, inf, len(adversary["hypotheses"]))
+        fields = dict(inference=kind.name, window=window, settings=tuple(settings.items()))
+        if kind.first_guess is not None:
             if "initial_hypothesis" in adv:
-                raise self.fail("adversary.initial_hypothesis", "not allowed with kind = "
-                                "\"bayes\": P2's first guess is the prior's most probable "
-                                "hypothesis")
-            threshold = None
-            prior = self.prior(inf.get("prior"), len(hypotheses))
-            decision = inf.get("decision", "map")
-            if decision not in DECISIONS:
-                raise self.fail("inference.decision", f"unknown decision "
-                                f"{_toml_repr(decision)}; expected \"map\" or \"sample\"")
-            initial_hypothesis = prior_argmax(prior)
+                raise self.fail("adversary.initial_hypothesis", f"not allowed with kind = "
+                                f"\"{kind.name}\": P2's first guess is {kind.first_guess_rule}")
+            fields["initial_hypothesis"] = kind.first_guess(settings)
         rationality = self.number(inf["rationality"], "inference.rationality")
         if rationality <= 0:
             raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
+        return dict(fields, rationality=rationality)
 
-        sim = self.table(root, "simulation")
+    def observer_settings(self, kind, inf: dict, n_hypotheses: int) -> dict[str, object]:
+        """The keys of [inference] that belong to observer `kind`, as it reads them (a key of
+        another kind refused)."""
+        from hg2prism.opponent.registry import owner
+
+        for key in inf:
+            other = owner(key)
+            if other is not None and key not in kind.keys():
+                raise self.fail(f"inference.{key}", f"the {kind.title} observer has no {key}: "
+                                f"it belongs to the {other.title} observer; remove it or set "
+                                f"kind = \"{other.name}\"")
+        settings = {}
+        for setting in kind.settings:
+            key = f"inference.{setting.key}"
+            if setting.key in inf:
+                settings[setting.key] = setting.read(self, inf[setting.key], n_hypotheses)
+            elif setting.default is not None:
+                settings[setting.key] = setting.default(n_hypotheses)
+            else:
+                raise self.fail(key, f"missing required key; expected {setting.expected}")
+        return settings
+
+    def simulation(self, sim: dict) -> SimulationSettings:
         d = SimulationSettings()
-        simulation = SimulationSettings(
+        return SimulationSettings(
             episodes=self.integer(sim.get("episodes", d.episodes), "simulation.episodes", 1,
                                   MAX_EPISODES),
             horizon=self.integer(sim.get("horizon", d.horizon), "simulation.horizon", 1,
@@ -498,7 +514,7 @@ class _Loader:
             seed=self.integer(sim.get("seed", d.seed), "simulation.seed", 0),
         )
 
-        det = self.table(root, "detection")
+    def detection(self, det: dict) -> DetectionSettings:
         dd = DetectionSettings()
         alpha = self.number(det.get("alpha", dd.alpha), "detection.alpha")
         if not 0 < alpha < 1:
@@ -508,49 +524,7 @@ class _Loader:
             raise self.fail("detection.epsilon", f"epsilon must be in (0, 1), got {epsilon}")
         deviate_after = self.integer(det.get("deviate_after", dd.deviate_after),
                                      "detection.deviate_after", 0)
-        detection = DetectionSettings(alpha=alpha, epsilon=epsilon, deviate_after=deviate_after)
-
-        return World(
-            path=self.path,
-            name=name,
-            description=description,
-            grid=grid,
-            slip=slip,
-            formula=formula,
-            traps=traps,
-            delay=delay,
-            initial_traps=initial_traps,
-            hypotheses=hypotheses,
-            initial_hypothesis=initial_hypothesis,
-            window=window,
-            threshold=threshold,
-            rationality=rationality,
-            simulation=simulation,
-            detection=detection,
-            inference=kind,
-            prior=prior,
-            decision=decision,
-        )
-
-    def prior(self, value: object, n_hypotheses: int) -> tuple[float, ...]:
-        """The prior over hypotheses, normalised; uniform when absent."""
-        key = "inference.prior"
-        if value is None:
-            return uniform_prior(n_hypotheses)
-        if not isinstance(value, list):
-            raise self.fail(key, f"must be an array of {n_hypotheses} positive numbers (one "
-                                 f"per hypothesis), got {_toml_type(value)}")
-        if len(value) != n_hypotheses:
-            raise self.fail(key, f"prior has {len(value)} numbers but there are "
-                                 f"{n_hypotheses} hypotheses; expected one per hypothesis")
-        numbers = [self.number(p, f"{key}[{i}]") for i, p in enumerate(value)]
-        for i, p in enumerate(numbers):
-            if p <= 0:
-                raise self.fail(f"{key}[{i}]", f"prior probabilities must be > 0, got {p:g}")
-        try:
-            return normalise_prior(numbers)
-        except ValueError as err:
-            raise self.fail(key, str(err)) from None
+        return DetectionSettings(alpha=alpha, epsilon=epsilon, deviate_after=deviate_after)
 
     def initial_traps(self, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
         """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter

@@ -1,23 +1,27 @@
 """The interface every model of P2's inference implements (docs/semantics.md §5, §12).
 
 P2 observes P1's moves and keeps a memory from which she reads her current hypothesis about P1's
-task. An observer says what that memory is, how one observation updates it, which hypothesis P2
-acts on, and how all of it is written into the hypergame's PRISM model. The hypergame, Storm's
-decoding, the strategy export and the simulations use only this interface, so a new observer
-(the Bayesian one of §12) is one new module beside `inference.py` (CUSUM) and its template.
+task. An observer says what that memory is, how one observation updates it and which hypothesis
+P2 acts on. The hypergame, Storm's
+decoding, the strategy export and the simulations use only this interface; `ObserverKind` is
+what the rest of the package knows of each kind of observer (the world file's keys, how to
+build it, its PRISM renderer, its memory's size), and `registry.py` holds one per kind, so a
+new observer is one new module beside `inference.py` (CUSUM) and `bayes.py` (§12), its template
+and renderer, and one registration line.
 An observer may also implement `ReportsBelief`, the per-hypothesis numbers its decisions rest
 on, which the figures and the replay of an episode show (§8 "The episode drawn").
 """
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Sequence
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
-import numpy as np
-
-from hg2prism.model.dynamics import TransitionSystem
+if TYPE_CHECKING:
+    from hg2prism.model.world import World
+    from hg2prism.opponent.perceptual_games import PerceptualGame
+    from hg2prism.prism.observers import ObserverPrism
 
 # (TS state, P1's action index into dynamics.ACTIONS, the trap set in force during the step).
 # The CUSUM observer reads only the first two (its memory has no trap sets, §5); the Bayesian
@@ -37,29 +41,22 @@ class Memory:
     window: tuple[Observation, ...] = ()
 
 
-@dataclass(frozen=True)
-class ObserverPrism:
-    """An observer's part of the hypergame model: PRISM text for the formulas (its tables,
-    placed before the modules) and for its module, plus what decoding Storm's states needs."""
-
-    formulas: str
-    module: str
-    slots: int                 # observation slots o1 (oldest) .. o{slots} in the module
-    commands: int              # commands of its module (the module is "p2_inference")
-    slot_sets: bool = False    # slots also hold the trap set in force (o<i>_set)
-    hypothesis_variable: bool = True   # `hyp` is a variable (else derived from the slots)
-    # Set when P2 draws her hypothesis at each step: the robot module that draws it jointly
-    # with the move (it replaces the hypergame's robot and p2_traps modules).
-    robot: str = ""
-    header: str = ""           # the header line describing the inference, if not CUSUM's
+# Within this of each other two numbers a rule compares are equal: CUSUM's scores against the
+# threshold and against each other (§5), the Bayesian log-posteriors (§12), in Python and in
+# the PRISM model alike.
+TOLERANCE = 1e-9
 
 
 class Observer(Protocol):
-    """P2's inference: memory, update, the hypothesis she acts on, and its PRISM rendering."""
+    """P2's inference: memory, update and the hypothesis she acts on (its PRISM rendering is
+    its kind's `render`)."""
 
     kind: str                  # the world file's `[inference] kind`
     window: int
     initial_hypothesis: int
+    # P2 draws the hypothesis she plays at each step (`hypothesis_distribution` may give
+    # several), so P1 predicts her traps by a mixture (§12 "sample")
+    draws: bool
 
     @property
     def n_hypotheses(self) -> int: ...
@@ -78,15 +75,6 @@ class Observer(Protocol):
         """(hypothesis, probability) pairs P2 draws the hypothesis she plays from at this step;
         a single pair with probability 1 for a deterministic observer."""
 
-    def prism(self, ts: TransitionSystem, labels: dict[str, str],
-              observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
-        """The observer written into the hypergame model over `ts`; `labels` maps each move
-        to its synchronisation label; `observed` ([n_states - 1] bool, default all) marks the
-        TS states the robot can reach, where its tables must be right (elsewhere they are free
-        to take whatever values keep them short); `played`, when P2 may play another trap set
-        than her prediction (the robust model of docs/semantics.md §13), the variable holding
-        the set she played."""
-
 
 @runtime_checkable
 class ReportsBelief(Protocol):
@@ -104,3 +92,76 @@ class ReportsBelief(Protocol):
     def belief(self, memory: Hashable, observation: Observation) -> Sequence[float]:
         """One number per hypothesis: what P2 computes when she reads `observation` with
         memory `memory` (before her update)."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One key of the world file's [inference] table that belongs to a kind of observer
+    (docs/semantics.md §1), beside `kind`, `window` and `rationality`, which every kind has."""
+
+    key: str
+    expected: str              # what a value must be, for messages ("a number > 0")
+    # (the world loader, the value as written, the number of hypotheses) -> the value kept in
+    # World.settings; it raises the loader's InputError (loader.fail) on a bad value
+    read: Callable[[Any, object, int], object]
+    # the value when the key is absent, from the number of hypotheses; None: the key is required
+    default: Callable[[int], object] | None = None
+
+
+@dataclass(frozen=True)
+class MemoryBound:
+    """What the size guard (model/sizeguard.py) needs to bound P2's memories: beside the
+    window of at most `observations` walks, how many hypotheses the memory holds (1 when the
+    window determines it) and how many trap sets each observation may record (1: none)."""
+
+    hypotheses: int
+    observations: int
+    sets_per_observation: int = 1
+
+
+@dataclass(frozen=True)
+class Mismatch:
+    """P2's real inference in the detection experiment's other mismatch (docs/semantics.md §9):
+    the world with her settings, the label and reason shown, and the setting the report shows
+    beside her window (`p2_threshold` in detection.json: CUSUM's threshold, the Bayesian
+    decision)."""
+
+    label: str
+    world: World
+    why: str
+    shown: object
+
+
+def window_mismatches(world: World, shown: object) -> list[Mismatch]:
+    """The variants every kind's detection experiment has: P2 remembers one more observation,
+    and one fewer when she remembers more than one."""
+    windows = [(world.window + 1, "window + 1")]
+    if world.window - 1 >= 1:
+        windows.append((world.window - 1, "window - 1"))
+    return [Mismatch(f"window {window}", replace(world, window=window), why, shown)
+            for window, why in windows]
+
+
+@dataclass(frozen=True)
+class ObserverKind:
+    """Everything the package knows of one kind of observer, registered under the world
+    file's `[inference] kind` (opponent/registry.py): its keys, how to build it from a world,
+    its part of the PRISM model, its memory's size, and what the detection experiment varies."""
+
+    name: str                                  # `[inference] kind`
+    title: str                                 # "the <title> observer" in messages
+    settings: tuple[Setting, ...]
+    build: Callable[[World, list[PerceptualGame]], Observer]
+    # (observer, ts, labels, observed, played) -> its part of the model (prism/observers.py)
+    render: Callable[..., ObserverPrism]
+    memory: Callable[[World], MemoryBound]
+    # (world, the largest CUSUM score P2 reached when following the model) -> P2's variants
+    mismatches: Callable[[World, float], list[Mismatch]]
+    report: Callable[[World], dict]            # P1's model of P2 in detection.json
+    # P2's first hypothesis from the settings, and the rule in words ("the prior's most
+    # probable hypothesis"); None: [adversary] initial_hypothesis
+    first_guess: Callable[[dict], int] | None = None
+    first_guess_rule: str = ""
+
+    def keys(self) -> tuple[str, ...]:
+        return tuple(setting.key for setting in self.settings)

@@ -27,6 +27,7 @@ from hg2prism import __version__
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Observer
+from hg2prism.opponent.registry import observer_kind
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.model.world import World
 from hg2prism.prism.rendering import cases, lookup, prism_number, region_labels, render_template
@@ -124,7 +125,8 @@ def template_context(world: World, ts: TransitionSystem, task: DFA, games: list[
         trap_keys = [("cell", 0)]
         choosing, waiting = observed, None
     trap_tables = [lookup(choice, trap_keys, choosing) for choice in choices]
-    observer = inference.prism(ts, observer_labels, observed, trap_key if p2_deviates else None)
+    observer = observer_kind(inference.kind).render(inference, ts, observer_labels, observed,
+                                                    trap_key if p2_deviates else None)
     # The trap set in force: P2's choice under her current hypothesis (while she may move them).
     by_hypothesis = cases([(f"hyp={x}", f"trap_choice_x{x}") for x in range(len(games) - 1)],
                           f"trap_choice_x{len(games) - 1}")

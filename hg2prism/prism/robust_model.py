@@ -64,7 +64,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
         raise ValueError(f"delta must lie in [0, 1), got {delta}")
     if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
         raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
-    if getattr(inference, "decision", None) == "sample":
+    if inference.draws:
         raise InputError(str(world.path), "inference.decision",
                          'robust deception (docs/semantics.md §13) is defined here for a '
                          'Bayesian observer that plays her MAP hypothesis ("map"), not one that '

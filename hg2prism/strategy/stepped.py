@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.opponent.observer import Observation, Observer, ObserverPrism
+from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.records import Strategy, StrategyError
 
 
@@ -37,6 +37,7 @@ class StepCounter:
         self.inner = inner
         self.cap = cap
         self.kind = inner.kind
+        self.draws = inner.draws
         self.window = inner.window
         self.initial_hypothesis = inner.initial_hypothesis
 
@@ -56,9 +57,6 @@ class StepCounter:
 
     def hypothesis_distribution(self, memory: TimedMemory) -> tuple[tuple[int, float], ...]:
         return self.inner.hypothesis_distribution(memory.memory)
-
-    def prism(self, ts: TransitionSystem, labels: dict[str, str]) -> ObserverPrism:
-        raise NotImplementedError("a step counter is for simulation only")
 
 
 class SteppedStrategy:

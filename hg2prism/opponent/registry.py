@@ -1,0 +1,64 @@
+"""The kinds of P2's observer, by the world file's `[inference] kind` (docs/semantics.md §§5, 12).
+
+The world loader (which kinds exist, which keys each accepts), the pipeline (building P2's
+observer), the hypergame model (its PRISM part), detection (P2's variants), sweeps (which
+parameters apply to which kind) and the size guard (how big her memory is) ask this registry,
+never the kind's name. A new observer is a module defining its observer and its `ObserverKind`
+(opponent/observer.py), its template and renderer, and one `register` line below.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from hg2prism.model.world import World
+from hg2prism.opponent import bayes, inference
+from hg2prism.opponent.observer import Observer, ObserverKind
+from hg2prism.opponent.perceptual_games import PerceptualGame
+
+__all__ = ["KINDS", "register", "observer_kind", "build_observer", "owner", "configure"]
+
+KINDS: dict[str, ObserverKind] = {}
+
+
+def register(kind: ObserverKind) -> ObserverKind:
+    """Make `kind` known under `kind.name` (replacing a kind of that name)."""
+    KINDS[kind.name] = kind
+    return kind
+
+
+register(inference.KIND)
+register(bayes.KIND)
+
+
+def observer_kind(name: str) -> ObserverKind:
+    """The kind registered as `name` (KeyError when there is none)."""
+    return KINDS[name]
+
+
+def build_observer(world: World, games: list[PerceptualGame]) -> Observer:
+    """P2's inference as the world file sets it (`[inference] kind`)."""
+    return KINDS[world.inference].build(world, games)
+
+
+def owner(key: str) -> ObserverKind | None:
+    """The first registered kind that has the [inference] key `key`, if any."""
+    return next((kind for kind in KINDS.values() if key in kind.keys()), None)
+
+
+def configure(world: World, name: str | None = None, **settings: object) -> World:
+    """The world with P2's observer of kind `name` (default: the world's) and the given
+    settings, the others kept when the kind stays and defaulted when it changes; P2's first
+    guess follows when her kind sets it. ValueError names a required setting not given."""
+    kind = KINDS[name or world.inference]
+    n = len(world.hypotheses)
+    values = dict(world.settings) if kind.name == world.inference else {}
+    values.update(settings)
+    for setting in kind.settings:
+        if setting.key not in values:
+            if setting.default is None:
+                raise ValueError(setting.key)
+            values[setting.key] = setting.default(n)
+    first = world.initial_hypothesis if kind.first_guess is None else kind.first_guess(values)
+    return replace(world, inference=kind.name, initial_hypothesis=first,
+                   settings=tuple((s.key, values[s.key]) for s in kind.settings))

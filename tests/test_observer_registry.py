@@ -1,0 +1,130 @@
+"""The observer registry (opponent/registry.py): a third kind of observer, defined in this file
+alone and registered from the test, runs through emit, check and run (the simulations) with
+no edit to the package.
+
+The observer is P2 who never changes her mind: her hypothesis stays the initial one whatever
+P1 does. The hypergame then reduces to P1's best response to pi2 of that first guess, whose
+value the package computes independently of the hypergame as V_static
+(analyses/deception_value.static_value, docs/semantics.md §11): the deceptive value must be it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import MODELS
+from hg2prism import pipeline, progress
+from hg2prism.analyses.deception_value import static_value
+from hg2prism.errors import InputError
+from hg2prism.model import sizeguard
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.world import World, world_from_toml
+from hg2prism.opponent import registry
+from hg2prism.opponent.observer import Memory, MemoryBound, Observation, ObserverKind
+from hg2prism.prism.observers import ObserverPrism
+from hg2prism.prism.rendering import upper
+
+TOL = 1e-6
+
+
+# -- the observer: everything a new kind is, in one place -------------------------------------
+
+@dataclass(frozen=True)
+class NeverRevises:
+    """P2 acts on her initial hypothesis forever; her memory is that hypothesis alone."""
+
+    window: int
+    initial_hypothesis: int
+    n_hypotheses: int
+
+    kind = "never"
+    draws = False
+
+    def initial_memory(self) -> Memory:
+        return Memory(self.initial_hypothesis, ())
+
+    def update(self, memory: Memory, observation: Observation) -> Memory:
+        return memory
+
+    def hypothesis(self, memory: Memory) -> int:
+        return memory.hypothesis
+
+    def hypothesis_distribution(self, memory: Memory) -> tuple[tuple[int, float], ...]:
+        return ((memory.hypothesis, 1.0),)
+
+
+def render_never(observer: NeverRevises, ts: TransitionSystem, labels: dict[str, str],
+                 observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
+    """`hyp` set once and kept: per move and hypothesis a command that keeps it (Storm drops
+    a variable no update writes, and its states would then lose P2's hypothesis)."""
+    commands = "\n".join(f"  [{labels[a]}] hyp={h} -> (hyp'={h});" for a in ACTIONS
+                          for h in range(observer.n_hypotheses))
+    module = (f"module p2_inference\n  hyp : [0..{upper(observer.n_hypotheses)}] init "
+              f"{observer.initial_hypothesis};   // never revised\n{commands}\nendmodule")
+    return ObserverPrism(formulas="// P2 never revises her hypothesis: no tables", module=module,
+                         slots=0, commands=len(ACTIONS) * observer.n_hypotheses,
+                         header="// inference    never revises her first guess")
+
+
+NEVER = ObserverKind(
+    name="never", title="never-revising", settings=(),
+    build=lambda world, games: NeverRevises(world.window, world.initial_hypothesis, len(games)),
+    render=render_never,
+    memory=lambda world: MemoryBound(hypotheses=1, observations=0),
+    mismatches=lambda world, max_score: [],
+    report=lambda world: {"inference": "never", "window": world.window})
+
+
+@pytest.fixture
+def never(monkeypatch: pytest.MonkeyPatch) -> ObserverKind:
+    """The kind registered for one test (monkeypatch removes it afterwards)."""
+    monkeypatch.setitem(registry.KINDS, NEVER.name, NEVER)
+    return NEVER
+
+
+# -- the tests --------------------------------------------------------------------------------
+
+def _never_world(name: str, initial_hypothesis: int) -> World:
+    text = (MODELS / f"{name}.toml").read_text()
+    text = text.replace("[inference]\n", '[inference]\nkind = "never"\n')
+    text = "\n".join(line for line in text.splitlines() if not line.startswith("threshold"))
+    text = "\n".join(line if not line.startswith("initial_hypothesis") else
+                     f"initial_hypothesis = {initial_hypothesis}" for line in text.splitlines())
+    return world_from_toml(text, f"{name}_never.toml")
+
+
+def test_an_unregistered_kind_is_refused() -> None:
+    with pytest.raises(InputError, match="unknown inference kind"):
+        _never_world("world3", 0)
+
+
+def test_the_registered_kind_is_loaded_and_its_foreign_keys_refused(never) -> None:
+    world = _never_world("world3", 1)
+    assert (world.inference, world.settings, world.initial_hypothesis) == ("never", (), 1)
+    text = (MODELS / "world3.toml").read_text().replace("[inference]\n",
+                                                        '[inference]\nkind = "never"\n')
+    with pytest.raises(InputError, match="never-revising observer has no threshold"):
+        world_from_toml(text)
+
+
+@pytest.mark.parametrize("name, first", [("world3", 0), ("world3", 1), ("world2", 0)])
+def test_never_revising_p2_runs_and_her_value_is_v_static(never, name: str, first: int,
+                                                          tmp_path: Path) -> None:
+    world = _never_world(name, first)
+    with progress.quiet():
+        model = pipeline.emit(world, tmp_path / "emit")
+        result = pipeline.run(world, tmp_path / "run", episodes=200)
+    assert model.commands["p2_inference"] == len(ACTIONS) * len(world.hypotheses)
+    assert "never revises her first guess" in (tmp_path / "emit" / "hypergame.prism").read_text()
+    analysis = result.check.analysis
+    assert set(result.check.decoded.hypothesis.tolist()) <= {first}
+    v_static = static_value(analysis.ts, analysis.task, analysis.games, first).value
+    assert result.check.results.deceptive_value == pytest.approx(v_static, abs=TOL)
+    assert result.results.v_static == pytest.approx(v_static, abs=TOL)
+    assert (tmp_path / "run" / "strategy.json").exists()
+    # the size guard bounds her hypergame through her kind's MemoryBound
+    assert result.check.results.states <= sizeguard.estimate_states(world)
