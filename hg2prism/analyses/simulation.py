@@ -29,6 +29,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,6 +43,9 @@ from hg2prism.progress import Bar
 from hg2prism.strategy.records import Fallback, StrategyError
 from hg2prism.opponent.observer import Memory
 from hg2prism.opponent.observer import Observer
+
+if TYPE_CHECKING:
+    from hg2prism.results import Analysis
 
 __all__ = [
     "FAIL", "GOAL", "TRUNCATED",
@@ -195,7 +199,7 @@ class _Uniforms:
 # P1's strategy
 # ---------------------------------------------------------------------------------------------
 
-def leader_fallback(analysis) -> Fallback:
+def leader_fallback(analysis: Analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
     predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of docs/semantics.md §7,
     ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` (first best in N, E, S, W order).
@@ -222,7 +226,7 @@ class LeaderStrategy:
     P2 knows its task and plays the leader game's trap set pi2_lead(v, q); P1 answers with its
     fastest optimal move of that game (the leader baseline's P1, docs/semantics.md §7)."""
 
-    def __init__(self, analysis) -> None:
+    def __init__(self, analysis: Analysis) -> None:
         from hg2prism.opponent.perceptual_games import fastest_answers
 
         self.n_q = analysis.task.n_states
@@ -394,7 +398,7 @@ class _Chain:
         return move
 
 
-def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: int,
+def simulate_deceptive(analysis: Analysis, strategy, episodes: int, horizon: int, seed: int,
                        p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
                        p2_inference: Observer | None = None,
@@ -403,7 +407,7 @@ def simulate_deceptive(analysis, strategy, episodes: int, horizon: int, seed: in
                        episode_streams: bool = False) -> SimulationSummary:
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
-    `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
+    `analysis` is a results.Analysis (its ts, task, games and inference are used).
     `strategy` is a Strategy (or any object whose ``action(ts_state, q, memory)`` returns P1's
     action index; it must be deterministic, since transitions are memoised per state).
     `p2_policy(rng, n, ts_state, predicted, memory) -> a2` replaces P2's model behaviour; there
