@@ -16,14 +16,10 @@ from __future__ import annotations
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from hg2prism.model.world import World, load_world, world_from_toml
-from hg2prism.results import CheckResults, StrategyObjective
+from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
-
-if TYPE_CHECKING:
-    from hg2prism.pipeline import CheckResult
 
 __all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "Solution",
            "Strategy", "Baselines", "Simulation"]
@@ -31,25 +27,41 @@ __all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "S
 _MOVES = ("N", "E", "S", "W")
 
 
+def _reported(name: str, doc: str) -> property:
+    """A Solution attribute read from its CheckResults (not a copy)."""
+    return property(lambda self: getattr(self.results, name), doc=doc)
+
+
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """The deceptive value and strategy of a world (what `hg2prism check` computes)."""
+    """The deceptive value and strategy of a world (what `hg2prism check` computes): a view of
+    the pipeline's CheckResult (hg2prism.results), with P1's strategy read from its records."""
 
     world: World
-    deceptive_value: float          # Pmax of reaching the goal in the hypergame MDP
-    v_lead: float                   # the leader baseline (docs/semantics.md §7)
-    states: int                     # canonical hypergame states
-    transitions: int
-    storm_method: str
-    sound: bool                     # False for the "fast" method: the value is not certified
     strategy: Strategy              # P1's move in every reachable hypergame state
-    objective: StrategyObjective    # what the strategy optimises: name, bound, value, steps
-    results: CheckResults = field(repr=False)   # everything `check` computes (hg2prism.results)
-    _checked: CheckResult | None = field(repr=False, default=None)
+    check: CheckResult = field(repr=False)   # everything `check` computed (hg2prism.results)
+
+    deceptive_value = _reported("deceptive_value", "Pmax of reaching the goal in the hypergame MDP")
+    v_lead = _reported("v_lead", "the leader baseline (docs/semantics.md §7)")
+    states = _reported("states", "canonical hypergame states")
+    transitions = _reported("transitions", "canonical hypergame transitions")
+    storm_method = _reported("storm_method", "how Pmax was solved")
+    sound = _reported("sound", 'False for the "fast" method: the value is not certified')
+    objective = _reported("objective", "what the strategy optimises: name, bound, value, steps")
+
+    @property
+    def results(self) -> CheckResults:
+        """Everything `check` reports: results.json's fields as typed attributes."""
+        return self.check.results
 
     def to_json(self) -> dict:
         """The content of results.json."""
         return self.results.to_json()
+
+    def __repr__(self) -> str:
+        shown = ("world", "deceptive_value", "v_lead", "states", "transitions", "storm_method",
+                 "sound", "strategy", "objective")
+        return "Solution(" + ", ".join(f"{name}={getattr(self, name)!r}" for name in shown) + ")"
 
 
 def solve(world: World | str | Path, *, out: str | Path | None = None,
@@ -84,11 +96,8 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
         with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
             checked = pipeline.check(world, Path(scratch), storm_method, objective, bound)
             records = tuple(checked.records)
-    r = checked.results
-    return Solution(world=world, deceptive_value=r.deceptive_value, v_lead=r.v_lead,
-                    states=r.states, transitions=r.transitions, storm_method=storm_method,
-                    sound=r.sound, strategy=Strategy.from_records(records, checked.analysis.ts),
-                    objective=r.objective, results=r, _checked=checked)
+    return Solution(world=world, strategy=Strategy.from_records(records, checked.analysis.ts),
+                    check=checked)
 
 
 @dataclass(frozen=True)
@@ -138,7 +147,7 @@ def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int | None 
     from hg2prism.analyses.simulation import simulate_deceptive
     from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 
-    checked = solution._checked
+    checked = solution.check
     analysis, strategy = checked.analysis, solution.strategy
     bounded = checked.bounded
     if horizon is None:

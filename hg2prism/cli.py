@@ -7,10 +7,12 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 from hg2prism import __version__, progress
-from hg2prism.engines.storm import STORM_METHODS
+from hg2prism.engines import default as default_engine
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.model import sizeguard
 from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
@@ -30,69 +32,101 @@ def _exit_on_signal(signum: int, frame: object) -> None:
     raise SystemExit(128 + signum)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="hg2prism", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"hg2prism {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+# ---------------------------------------------------------------------------------------------
+# The parsers, one per command (the help texts are the documentation of the options)
+# ---------------------------------------------------------------------------------------------
 
-    def add(name: str, help: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help, description=help)
-        p.add_argument("world", help="world file (TOML, see README)")
-        return p
+OUT_DEFAULT = (" OUT defaults to the folder next to the world file named after it "
+               "(models/world1.toml -> models/world1/).")
+Subparsers = argparse._SubParsersAction     # what add_subparsers returns
 
-    add("validate", "Check a world file and print a summary; writes nothing.")
 
-    def solver_options(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--max-states", type=int, metavar="N",
-                       help="refuse worlds whose estimated hypergame size exceeds N "
-                            f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
-        p.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
-                       help="sound (default: a fast solver's strategy, evaluated exactly and "
-                            "certified optimal to 1e-10, else Storm's sound solver), storm-sound "
-                            "(Storm's sound solver alone, precision 1e-10), sound-ovi (Storm's "
-                            "optimistic value iteration, also sound; occasionally stuck) or fast "
-                            "(plain value iteration to 1e-12, not sound: flagged in the outputs)")
-    for name, help in (
-        ("emit", "Write the hypergame PRISM model: OUT/hypergame.prism and OUT/hypergame.props."),
-        ("check", "Emit, then check with Storm: writes OUT/strategy.json and OUT/results.json too, "
-                  "the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) and the DTMC P1's "
-                  "strategy induces (induced.tra/.sta/.lab for PRISM, induced.drn for Storm)."),
-        ("run", "Everything computed for a world: check, the symmetric baselines (Nash, leader), "
-                "PRISM-games exports (symmetric.prism, perceptual_<i>.prism), online simulation, "
-                "the completion table (table.md), the figures (world, belief, completion; PNG "
-                "and SVG) and the replay of one episode (replay.gif)."),
-    ):
-        p = add(name, help + " OUT defaults to the folder next to the world file named after it "
-                "(models/world1.toml -> models/world1/).")
-        p.add_argument("--out", metavar="OUT", help="output folder")
-        if name == "emit":
-            p.add_argument("--max-states", type=int, metavar="N",
-                           help="refuse worlds whose estimated hypergame size exceeds N "
-                                f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
-        else:
-            solver_options(p)
-            p.add_argument("--objective", choices=OBJECTIVES, default="pmax",
-                           help="what P1's exported strategy optimises (docs/semantics.md §6): "
-                                "pmax (default: Pmax, the fastest optimal moves by a discounted "
-                                "score), lexicographic (Pmax, then the fewest expected steps) or "
-                                "bounded (Pmax of reaching the goal within --bound steps; a "
-                                "strategy that depends on the steps taken)")
-            p.add_argument("--bound", type=int, metavar="H",
-                           help="steps of the bounded objective (default: the simulation horizon)")
-        if name == "run":
-            p.add_argument("--episodes", type=int, help="simulated episodes (default: the world's)")
-            p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
-            p.add_argument("--seed", type=int, help="random seed (default: the world's)")
-            p.add_argument("--episode", metavar="RULE", default="median",
-                           help="the episode world.png, belief.png and replay.gif draw: median "
-                                "(default: a median-length completed episode of the seeds "
-                                "SEED..SEED+49), shortest (the shortest of them) or seed=N "
-                                "(the episode of seed N)")
+def _add(sub: Subparsers, name: str, help: str) -> argparse.ArgumentParser:
+    p = sub.add_parser(name, help=help, description=help)
+    p.add_argument("world", help="world file (TOML, see README)")
+    return p
 
-    p = add("sweep", "Re-solve the world at every point of a grid of parameter values and "
-            "compare the deceptive value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, "
-            "sweep.png/.svg and a folder per point (its model and strategy). Points run in parallel "
-            "on Dask (docs/semantics.md §7, Sweeps).")
+
+def _max_states_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--max-states", type=int, metavar="N",
+                   help="refuse worlds whose estimated hypergame size exceeds N "
+                        f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+
+
+def _solver_options(p: argparse.ArgumentParser) -> None:
+    _max_states_option(p)
+    p.add_argument("--storm-method", choices=default_engine().methods, default="sound",
+                   help="sound (default: a fast solver's strategy, evaluated exactly and "
+                        "certified optimal to 1e-10, else Storm's sound solver), storm-sound "
+                        "(Storm's sound solver alone, precision 1e-10), sound-ovi (Storm's "
+                        "optimistic value iteration, also sound; occasionally stuck) or fast "
+                        "(plain value iteration to 1e-12, not sound: flagged in the outputs)")
+
+
+def _objective_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--objective", choices=OBJECTIVES, default="pmax",
+                   help="what P1's exported strategy optimises (docs/semantics.md §6): "
+                        "pmax (default: Pmax, the fastest optimal moves by a discounted "
+                        "score), lexicographic (Pmax, then the fewest expected steps) or "
+                        "bounded (Pmax of reaching the goal within --bound steps; a "
+                        "strategy that depends on the steps taken)")
+    p.add_argument("--bound", type=int, metavar="H",
+                   help="steps of the bounded objective (default: the simulation horizon)")
+
+
+def _validate_parser(sub: Subparsers) -> None:
+    _add(sub, "validate", "Check a world file and print a summary; writes nothing.")
+
+
+def _emit_parser(sub: Subparsers) -> None:
+    p = _add(sub, "emit", "Write the hypergame PRISM model: OUT/hypergame.prism and "
+             "OUT/hypergame.props." + OUT_DEFAULT)
+    p.add_argument("--out", metavar="OUT", help="output folder")
+    _max_states_option(p)
+
+
+def _episode_options(p: argparse.ArgumentParser, episodes_help: str) -> None:
+    """--episodes, --horizon and --seed of the commands that simulate (run, detect)."""
+    p.add_argument("--episodes", type=int, help=episodes_help)
+    p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
+    p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+
+
+def _solving_parser(sub: Subparsers, name: str, help: str) -> argparse.ArgumentParser:
+    """The parser of a command that solves the world and writes into OUT (check, run)."""
+    p = _add(sub, name, help + OUT_DEFAULT)
+    p.add_argument("--out", metavar="OUT", help="output folder")
+    _solver_options(p)
+    _objective_options(p)
+    return p
+
+
+def _check_parser(sub: Subparsers) -> None:
+    _solving_parser(sub, "check", "Emit, then check with Storm: writes OUT/strategy.json and "
+                    "OUT/results.json too, the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) "
+                    "and the DTMC P1's strategy induces (induced.tra/.sta/.lab for PRISM, "
+                    "induced.drn for Storm).")
+
+
+def _run_parser(sub: Subparsers) -> None:
+    p = _solving_parser(sub, "run", "Everything computed for a world: check, the symmetric "
+                        "baselines (Nash, leader), PRISM-games exports (symmetric.prism, "
+                        "perceptual_<i>.prism), online simulation, the completion table "
+                        "(table.md), the figures (world, belief, completion; PNG and SVG) and the "
+                        "replay of one episode (replay.gif).")
+    _episode_options(p, "simulated episodes (default: the world's)")
+    p.add_argument("--episode", metavar="RULE", default="median",
+                   help="the episode world.png, belief.png and replay.gif draw: median "
+                        "(default: a median-length completed episode of the seeds "
+                        "SEED..SEED+49), shortest (the shortest of them) or seed=N "
+                        "(the episode of seed N)")
+
+
+def _sweep_parser(sub: Subparsers) -> None:
+    p = _add(sub, "sweep", "Re-solve the world at every point of a grid of parameter values and "
+             "compare the deceptive value with V_lead and V_NE; writes OUT/sweep.json, sweep.csv, "
+             "sweep.png/.svg and a folder per point (its model and strategy). Points run in "
+             "parallel on Dask (docs/semantics.md §7, Sweeps).")
     p.add_argument("--param", required=True, action="append", metavar="NAME",
                    help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
                         + "; repeat --param NAME --values V... to sweep the grid of several")
@@ -105,37 +139,222 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the points on the Dask cluster whose scheduler is at ADDRESS "
                         "(e.g. tcp://host:8786) instead of a local one")
-    solver_options(p)
-    p = add("detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded episode where P2 deviates "
-            "after detection.deviate_after steps, the detection-step distribution, the false-alarm "
-            "rate, and P2 running another window or threshold; writes OUT/detection.json and "
-            "OUT/detection.png and detection.svg.")
+    _solver_options(p)
+
+
+def _detect_parser(sub: Subparsers) -> None:
+    p = _add(sub, "detect", "Detect a wrong opponent model (docs/semantics.md §9): the seeded "
+             "episode where P2 deviates after detection.deviate_after steps, the detection-step "
+             "distribution, the false-alarm rate, and P2 running another window or threshold; "
+             "writes OUT/detection.json and OUT/detection.png and detection.svg.")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
-    p.add_argument("--episodes", type=int, help="episodes per batch (default: min(world's, 2000))")
-    p.add_argument("--horizon", type=int, help="steps before an episode is cut (default: the world's)")
-    p.add_argument("--seed", type=int, help="random seed (default: the world's)")
+    _episode_options(p, "episodes per batch (default: min(world's, 2000))")
     p.add_argument("--fallback", choices=("robust", "leader"),
                    help="re-planning (docs/semantics.md §14): after the detector's first rejection P1 "
                         "plays this strategy; reports completion with and without re-planning")
     p.add_argument("--fallback-delta", metavar="DELTA",
                    help="deviation budget of the robust fallback, in [0, 1) (default 0.1)")
-    solver_options(p)
+    _solver_options(p)
 
-    p = add("robust", "Robust deception (docs/semantics.md §13): for each deviation budget delta, the "
-            "interval model (OUT/robust_<delta>/robust.prism), the robust value, the deceptive "
-            "strategy's worst case and the robust strategy (OUT/robust_<delta>/strategy.json); "
-            "writes OUT/robust.json, robust.csv, robust.png and robust.svg.")
+
+def _robust_parser(sub: Subparsers) -> None:
+    p = _add(sub, "robust", "Robust deception (docs/semantics.md §13): for each deviation budget "
+             "delta, the interval model (OUT/robust_<delta>/robust.prism), the robust value, the "
+             "deceptive strategy's worst case and the robust strategy "
+             "(OUT/robust_<delta>/strategy.json); writes OUT/robust.json, robust.csv, robust.png "
+             "and robust.svg.")
     p.add_argument("--deltas", nargs="+", metavar="DELTA", default=["0", "0.02", "0.05", "0.1", "0.2"],
                    help="deviation budgets in [0, 1) (default: 0 0.02 0.05 0.1 0.2)")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
-    p.add_argument("--max-states", type=int, metavar="N",
-                   help="refuse worlds whose estimated hypergame size exceeds N "
-                        f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+    _max_states_option(p)
 
+
+def _bench_parser(sub: Subparsers) -> None:
     sub.add_parser("bench", add_help=False,
                    help="Scaling benchmark: worlds of growing size through every stage; writes "
                         "bench/results.csv and bench/scaling.png and .svg (see `hg2prism bench --help`).")
 
+
+# ---------------------------------------------------------------------------------------------
+# What each command checks before any work, and what it does
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a command hands back to be printed: `check`/`run` results for the summary, else a
+    table of its own; sweep points that failed."""
+
+    results: object | None = None
+    table: str | None = None
+    failed: tuple[dict, ...] = ()
+
+
+def _guard_size(args: argparse.Namespace, world: object) -> None:
+    sizeguard.check_size(world, args.max_states)
+
+
+def _guard_sweep(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.experiments import sweep
+
+    if len(args.param) != len(args.values):
+        raise InputError("command line", "--values", "each --param needs its own "
+                         "--values, right after it")
+    if args.workers is not None and args.workers < 1:
+        raise InputError("command line", "--workers", "must be at least 1")
+    if args.workers is not None and args.scheduler is not None:
+        raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
+                         "its own workers; leave out --workers")
+    # every point is guarded before the first is solved: all refused refuses the sweep
+    sweep.check_grid(world, list(zip(args.param, args.values)), args.max_states)
+
+
+def _guard_robust(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.experiments import robust
+
+    _guard_size(args, world)
+    robust.parse_deltas(args.deltas)
+
+
+def _guard_detect(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.experiments import detect
+
+    _guard_size(args, world)
+    detect.parse_fallback(args.fallback, args.fallback_delta)
+
+
+def _simulation_options(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.model import world as world_mod
+
+    for option, most in (("episodes", world_mod.MAX_EPISODES), ("horizon", world_mod.MAX_HORIZON)):
+        given = getattr(args, option)
+        if given is not None and given < 1:
+            raise InputError("command line", f"--{option}", "must be at least 1")
+        if given is not None and given > most:
+            raise InputError("command line", f"--{option}", f"must be at most {most:,} "
+                             f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
+    if args.seed is not None and args.seed < 0:
+        raise InputError("command line", "--seed", "must be at least 0")
+
+
+def _bound_option(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.model.world import MAX_HORIZON
+
+    if args.bound is None:
+        return
+    if args.objective != "bounded":
+        raise InputError("command line", "--bound", "needs --objective bounded")
+    if args.bound < 1:
+        raise InputError("command line", "--bound", "must be at least 1")
+    if args.bound > MAX_HORIZON:
+        raise InputError("command line", "--bound", f"must be at most {MAX_HORIZON:,}, got {args.bound:,}")
+    if args.command == "run" and args.bound != (args.horizon or world.simulation.horizon):
+        raise InputError("command line", "--bound", "with run, the bound is the "
+                         "simulation horizon; use --horizon instead")
+
+
+def _run_options(args: argparse.Namespace, world: object) -> None:
+    from hg2prism.analyses.episodes import parse_episode_rule
+
+    _simulation_options(args, world)
+    parse_episode_rule(args.episode)
+    _bound_option(args, world)
+
+
+def _emit(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism import pipeline
+
+    pipeline.emit(world, stage)
+    return Outcome()
+
+
+def _check(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism import pipeline
+
+    return Outcome(pipeline.check(world, stage, args.storm_method, args.objective,
+                                  args.bound).results)
+
+
+def _run(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism import pipeline
+
+    result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
+                          storm_method=args.storm_method, episode=args.episode,
+                          objective=args.objective, bound=args.bound)
+    return Outcome(result.results, result.table)
+
+
+def _sweep(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism.experiments import sweep
+
+    workers = args.workers if args.workers is not None else sweep.default_workers()
+    run = sweep.sweep_grid(world, list(zip(args.param, args.values)), stage,
+                           storm_method=args.storm_method, workers=workers,
+                           scheduler=args.scheduler, max_states=args.max_states)
+    return Outcome(table="\n".join(sweep.sweep_summary_lines(
+        [name for name, _ in run.parameters], run.rows, world.name)), failed=run.failed)
+
+
+def _robust(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism.experiments import robust
+
+    result = robust.robust(world, args.deltas, stage)
+    return Outcome(table="\n".join(robust.robust_summary_lines(result)))
+
+
+def _detect(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism.experiments import detect
+
+    detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
+                              storm_method=args.storm_method, fallback=args.fallback,
+                              fallback_delta=args.fallback_delta)
+    return Outcome(table="\n".join(detect.detection_summary_lines(detection)))
+
+
+Check = Callable[[argparse.Namespace, object], None]
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command: its parser, what it refuses before the output folder is probed (`guard`)
+    and after (`options`), and what it does in the staging folder (`act`; None: validate)."""
+
+    parser: Callable[[Subparsers], object]
+    guard: Check | None = None
+    options: Check | None = None
+    act: Callable[[argparse.Namespace, object, Path], Outcome] | None = None
+
+
+def _nothing(args: argparse.Namespace, world: object) -> None:
+    """Nothing more to refuse."""
+
+
+COMMANDS: dict[str, Command] = {     # in the order `hg2prism --help` lists them
+    "validate": Command(_validate_parser),
+    "emit": Command(_emit_parser, _guard_size, _nothing, _emit),
+    "check": Command(_check_parser, _guard_size, _bound_option, _check),
+    "run": Command(_run_parser, _guard_size, _run_options, _run),
+    "sweep": Command(_sweep_parser, _guard_sweep, _nothing, _sweep),
+    "detect": Command(_detect_parser, _guard_detect, _simulation_options, _detect),
+    "robust": Command(_robust_parser, _guard_robust, _nothing, _robust),
+    "bench": Command(_bench_parser),      # bench.main parses its own options
+}
+
+
+# ---------------------------------------------------------------------------------------------
+# The program
+# ---------------------------------------------------------------------------------------------
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="hg2prism", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"hg2prism {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for command in COMMANDS.values():
+        command.parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == ["bench"]:
         from hg2prism.experiments import bench
@@ -161,110 +380,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _command(args: argparse.Namespace) -> int:
+    """Run the command `args` names; errors become one line on stderr and an exit status."""
     try:
-        from hg2prism.model import world as world_mod
-
-        world = world_mod.load_world(args.world)
-        if args.command == "validate":
-            print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
-                  f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
-            return 0
-        from hg2prism import pipeline
-        from hg2prism.experiments import detect, robust, sweep
-        from hg2prism.report import tables
-
-        out = _out_dir(Path(args.world), args.out)
-        if args.max_states is not None and args.max_states < 1:
-            raise InputError("command line", "--max-states", "must be at least 1")
-        if args.command == "sweep":
-            if len(args.param) != len(args.values):
-                raise InputError("command line", "--values", "each --param needs its own "
-                                 "--values, right after it")
-            grid = list(zip(args.param, args.values))
-            if args.workers is not None and args.workers < 1:
-                raise InputError("command line", "--workers", "must be at least 1")
-            if args.workers is not None and args.scheduler is not None:
-                raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
-                                 "its own workers; leave out --workers")
-            # every point is guarded before the first is solved: all refused refuses the sweep
-            sweep.check_grid(world, grid, args.max_states)
-        else:
-            sizeguard.check_size(world, args.max_states)
-        if args.command == "robust":
-            robust.parse_deltas(args.deltas)
-        if args.command == "detect":
-            detect.parse_fallback(args.fallback, args.fallback_delta)
-        check_writable(out)
-        if args.command in ("run", "detect"):
-            for option, most in (("episodes", world_mod.MAX_EPISODES),
-                                 ("horizon", world_mod.MAX_HORIZON)):
-                given = getattr(args, option)
-                if given is not None and given < 1:
-                    raise InputError("command line", f"--{option}", "must be at least 1")
-                if given is not None and given > most:
-                    raise InputError("command line", f"--{option}", f"must be at most {most:,} "
-                                     f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
-            if args.seed is not None and args.seed < 0:
-                raise InputError("command line", "--seed", "must be at least 0")
-        if args.command == "run":
-            from hg2prism.analyses.episodes import parse_episode_rule
-
-            parse_episode_rule(args.episode)
-        if args.command in ("check", "run") and args.bound is not None:
-            if args.objective != "bounded":
-                raise InputError("command line", "--bound", "needs --objective bounded")
-            if args.bound < 1:
-                raise InputError("command line", "--bound", "must be at least 1")
-            if args.bound > world_mod.MAX_HORIZON:
-                raise InputError("command line", "--bound",
-                                 f"must be at most {world_mod.MAX_HORIZON:,}, got {args.bound:,}")
-            if (args.command == "run"
-                    and args.bound != (args.horizon or world.simulation.horizon)):
-                raise InputError("command line", "--bound", "with run, the bound is the "
-                                 "simulation horizon; use --horizon instead")
-        table = None
-        failed: tuple[dict, ...] = ()
-        owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
-        with staged(out, owns=owns) as stage:
-            if args.command == "emit":
-                pipeline.emit(world, stage)
-                results = None
-            elif args.command == "check":
-                results = pipeline.check(world, stage, args.storm_method, args.objective,
-                                         args.bound).results
-            elif args.command == "sweep":
-                workers = (args.workers if args.workers is not None
-                           else sweep.default_workers())
-                run = sweep.sweep_grid(world, grid, stage, storm_method=args.storm_method,
-                                       workers=workers, scheduler=args.scheduler,
-                                       max_states=args.max_states)
-                failed = run.failed
-                results, table = None, "\n".join(sweep.sweep_summary_lines(
-                    [name for name, _ in run.parameters], run.rows, world.name))
-            elif args.command == "robust":
-                result = robust.robust(world, args.deltas, stage)
-                results, table = None, "\n".join(robust.robust_summary_lines(result))
-            elif args.command == "detect":
-                detection = detect.detect(world, stage, args.episodes, args.seed, args.horizon,
-                                          storm_method=args.storm_method, fallback=args.fallback,
-                                          fallback_delta=args.fallback_delta)
-                results, table = None, "\n".join(detect.detection_summary_lines(detection))
-            else:
-                result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
-                                      storm_method=args.storm_method, episode=args.episode,
-                                      objective=args.objective, bound=args.bound)
-                results, table = result.results, result.table
-            files = sorted(p.name for p in stage.iterdir())
-        print(tables.summary(results, out, files) if results is not None
-              else tables.written(out, files))
-        if table:
-            print()
-            print(table)
-        for point in failed:     # the other points' outputs are written; these have none
-            where = sweep.point_label({k: v for k, v in point.items() if k != "error"})
-            print(f"hg2prism: error: {args.world}: sweep point {where}: {point['error']}",
-                  file=sys.stderr)
-        return 1 if failed else 0
+        return _perform(args)
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
@@ -284,3 +402,39 @@ def _command(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print("hg2prism: interrupted", file=sys.stderr)
         return 130
+
+
+def _perform(args: argparse.Namespace) -> int:
+    """Load the world, refuse what the command cannot do before any work, then do it in a
+    staging folder that becomes OUT, and print what was written."""
+    from hg2prism.model.world import load_world
+    from hg2prism.report import tables
+
+    world = load_world(args.world)
+    command = COMMANDS[args.command]
+    if command.act is None:
+        print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
+              f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
+        return 0
+    out = _out_dir(Path(args.world), args.out)
+    if args.max_states is not None and args.max_states < 1:
+        raise InputError("command line", "--max-states", "must be at least 1")
+    command.guard(args, world)
+    check_writable(out)
+    command.options(args, world)
+    owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
+    with staged(out, owns=owns) as stage:
+        outcome = command.act(args, world, stage)
+        files = sorted(p.name for p in stage.iterdir())
+    print(tables.summary(outcome.results, out, files) if outcome.results is not None
+          else tables.written(out, files))
+    if outcome.table:
+        print()
+        print(outcome.table)
+    for point in outcome.failed:     # the other points' outputs are written; these have none
+        from hg2prism.experiments.sweep import point_label
+
+        where = point_label({k: v for k, v in point.items() if k != "error"})
+        print(f"hg2prism: error: {args.world}: sweep point {where}: {point['error']}",
+              file=sys.stderr)
+    return 1 if outcome.failed else 0

@@ -7,18 +7,18 @@ import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
 from hg2prism import __version__
-from hg2prism.engines import storm
-from hg2prism.model.automata import DFA, to_dot, to_hoa, translate
+from hg2prism.engines.engine import CheckedModel, ExplicitModel, ModelChecker, Transitions
+from hg2prism.engines import default as default_engine
+from hg2prism.model.automata import to_dot, to_hoa, translate
 from hg2prism.model.dynamics import TransitionSystem, build_transition_system
-from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, perceptual_game,
-                            solve_game)
+from hg2prism.opponent.perceptual_games import PerceptualGame, perceptual_game, solve_game
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
 from hg2prism.strategy.canonical import CanonicalMDP, canonical_mdp, canonical_values
@@ -27,15 +27,22 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_e
                                        stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
-from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
+from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json
 from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
+from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent import registry
 from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.model.world import World
-from hg2prism.results import (CheckResults, DrawnEpisode, Parameters, RunResults, SimulatedRow,
-                              Simulations, StrategyObjective)
+from hg2prism.results import (Analysis, CheckResult, CheckResults, DrawnEpisode, Parameters,
+                              RunResult, RunResults, SimulatedRow, Simulations, StrategyObjective)
+
+if TYPE_CHECKING:
+    from hg2prism.analyses.baselines import NashBaseline
+    from hg2prism.analyses.deception_value import DeceptionValues
+    from hg2prism.analyses.episodes import ChosenEpisode, EpisodeRule
+    from hg2prism.analyses.simulation import SimulationSummary
 
 # The step-bounded objective keeps a move per (state, step): this many at most (about 50 MB),
 # and as many states in its induced DTMC.
@@ -47,20 +54,6 @@ def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
     start = time.perf_counter()
     yield
     timings[stage] = time.perf_counter() - start
-
-
-@dataclass(frozen=True, eq=False)
-class Analysis:
-    """Everything P1 knows before the interaction starts: the games and the opponent model."""
-
-    world: World
-    ts: TransitionSystem
-    task: DFA
-    games: list[PerceptualGame]
-    inference: Observer       # P2's inference: CUSUM (§5) or Bayesian (§12)
-    leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (docs/semantics.md §7)
-    v_lead: float
-    timings: dict[str, float] = field(default_factory=dict)
 
 
 def analyse(world: World) -> Analysis:
@@ -108,27 +101,6 @@ def emit(world: World, out: Path) -> PrismModel:
     return generate(analyse(world), out)
 
 
-@dataclass(frozen=True, eq=False)
-class CheckResult:
-    analysis: Analysis
-    prism: PrismModel
-    checked: storm.CheckedModel
-    decoded: storm.DecodedStates
-    strategy: StormChoices          # P1's choice in each of Storm's states
-    results: CheckResults           # results.json's content: results.to_json()
-    out: Path                       # the folder holding hypergame.prism, strategy.json, ...
-    extras: RecordExtras | None = None     # keys the records gain after "action"
-    dtmc: InducedDTMC | None = None        # the DTMC the exported strategy induces (induced.*)
-    bounded: Bounded | None = None         # the step-dependent strategy of --objective bounded
-
-    @functools.cached_property
-    def records(self) -> list[dict]:
-        """The strategy's records (strategy.json's content), built on first use: writing the
-        file does not need them, and they cost seconds on million-state models."""
-        return strategy_records(self.decoded, self.strategy, storm.transitions(
-            self.checked.model), self.analysis.ts, self.extras)
-
-
 def automata_files(analysis: Analysis) -> dict[str, str]:
     """task.hoa/.dot and hypothesis_<i>.hoa/.dot: every DFA, numbered as hg2prism numbers it."""
     names = analysis.ts.label_names
@@ -141,26 +113,27 @@ def automata_files(analysis: Analysis) -> dict[str, str]:
 
 @dataclass(frozen=True, eq=False)
 class ModelStructure:
-    """What the export stage reads off Storm's model, independent of the values (so it is read
-    while Storm solves)."""
+    """What the export stage reads off the engine's model, independent of the values (so it is
+    read while the engine solves)."""
 
-    moves: storm.Transitions
-    decoded: storm.DecodedStates
+    moves: Transitions
+    decoded: DecodedStates
     mdp: CanonicalMDP
     size: tuple[int, int]          # canonical states and transitions (docs/semantics.md §6)
+    initial: int                   # the engine's initial state
 
 
-def read_model(model: object, prism: PrismModel, analysis: Analysis) -> ModelStructure:
-    """Storm's transitions, its states decoded, the canonical MDP and its size."""
-    moves = storm.transitions(model)
-    decoded = storm.decode_states(model, prism.layout, analysis.ts, analysis.task,
-                                  getattr(analysis.inference, "window_hypotheses", None))
+def read_model(model: ExplicitModel, prism: PrismModel, analysis: Analysis) -> ModelStructure:
+    """The engine's transitions, its states decoded, the canonical MDP and its size."""
+    moves = model.transitions
+    decoded = decode_states(model, prism.layout, analysis.ts, analysis.task,
+                            getattr(analysis.inference, "window_hypotheses", None))
     return ModelStructure(moves, decoded, canonical_mdp(decoded, moves),
-                          storm.canonical_size(decoded, moves))
+                          canonical_size(decoded, moves), model.initial)
 
 
 def _objective_strategy(objective: str, bound: int | None, structure: ModelStructure,
-                        checked: storm.CheckedModel, ts: TransitionSystem
+                        checked: CheckedModel, ts: TransitionSystem
                         ) -> tuple[StormChoices, RecordExtras, Callable[[], InducedDTMC],
                                    Bounded | None, float]:
     """P1's strategy for the objective, the records' extra keys, the maker of its induced DTMC,
@@ -168,7 +141,7 @@ def _objective_strategy(objective: str, bound: int | None, structure: ModelStruc
     §6)."""
     decoded, moves, mdp = structure.decoded, structure.moves, structure.mdp
     values = canonical_values(decoded, checked.values)
-    initial = int(decoded.canonical[checked.model.initial_states[0]])
+    initial = int(decoded.canonical[structure.initial])
     move_values = mdp.by_state(mdp.choice_values(values))
     action = deceptive_actions(mdp, values)
     if objective == "pmax":
@@ -198,28 +171,36 @@ def _objective_strategy(objective: str, bound: int | None, structure: ModelStruc
     return strategy, extras, dtmc, bounded, bounded.value
 
 
-def check(world: World, out: Path, storm_method: str = "sound", objective: str = "pmax",
-          bound: int | None = None) -> CheckResult:
-    """Emit, check with Storm and export P1's strategy for `objective` (docs/semantics.md §6:
-    "pmax", the default, "lexicographic" or "bounded" with `bound` steps, by default the
-    world's simulation horizon)."""
+def _objective_bound(world: World, objective: str, bound: int | None) -> int | None:
+    """The bound of the bounded objective (by default the world's simulation horizon), None for
+    the others; an unknown objective or a bound below 1 is refused."""
     if objective not in OBJECTIVES:
         raise InputError("command line", "--objective",
                          f"must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
-    if objective == "bounded":
-        bound = world.simulation.horizon if bound is None else bound
-        if bound < 1:
-            raise InputError("command line", "--bound", "must be at least 1")
-    else:
-        bound = None
+    if objective != "bounded":
+        return None
+    bound = world.simulation.horizon if bound is None else bound
+    if bound < 1:
+        raise InputError("command line", "--bound", "must be at least 1")
+    return bound
+
+
+def check(world: World, out: Path, storm_method: str = "sound", objective: str = "pmax",
+          bound: int | None = None, engine: ModelChecker | None = None) -> CheckResult:
+    """Emit, check with the model checker `engine` (default: Storm) by its method
+    `storm_method` and export P1's strategy for `objective` (docs/semantics.md §6: "pmax", the
+    default, "lexicographic" or "bounded" with `bound` steps, by default the world's simulation
+    horizon)."""
+    engine = engine or default_engine()
+    bound = _objective_bound(world, objective, bound)
     analysis = analyse(world)
     prism = generate(analysis, out)
     say(f"storm: building and checking {PROPERTY} ({storm_method})")
-    if storm_method not in storm.SOUND_METHODS:
+    if storm_method not in engine.sound_methods:
         warn(f"Storm method {storm_method!r} is not sound: the deceptive value is not "
                  "certified to 1e-10")
-    checked = storm.check(out / "hypergame.prism", PROPERTY, storm_method,
-                          alongside=lambda model: read_model(model, prism, analysis))
+    checked = engine.check(out / "hypergame.prism", PROPERTY, storm_method,
+                           alongside=lambda model: read_model(model, prism, analysis))
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
     structure: ModelStructure = checked.alongside
@@ -256,13 +237,13 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
         hg2prism_version=__version__,
         deceptive_value=checked.value,
         storm_method=storm_method,
-        sound=storm_method in storm.SOUND_METHODS,
+        sound=storm_method in engine.sound_methods,
         v_lead=analysis.v_lead,
         states=states,
         transitions=transitions,
-        storm_states=checked.model.nr_states,
-        storm_transitions=checked.model.nr_transitions,
-        storm_choices=checked.model.nr_choices,
+        storm_states=checked.size[0],
+        storm_transitions=checked.size[1],
+        storm_choices=checked.size[2],
         model_commands=dict(prism.commands),
         parameters=Parameters.of(world),
         timings=dict(analysis.timings),   # a snapshot: run() goes on timing its own stages
@@ -274,17 +255,10 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     write_json(out / "results.json", results.to_json())
     for name, text in automata_files(analysis).items():
         write_text(out / name, text)
-    say(f"storm: {checked.model.nr_states} states ({states} canonical), "
+    say(f"storm: {checked.size[0]} states ({states} canonical), "
              f"build {checked.timings['build']:.2f} s, check {checked.timings['check']:.2f} s")
-    return CheckResult(analysis, prism, checked, decoded, strategy, results, out,
+    return CheckResult(analysis, prism, checked, decoded, strategy, results, out, engine,
                        extras=extras, dtmc=dtmc, bounded=bounded)
-
-
-@dataclass(frozen=True, eq=False)
-class RunResult:
-    check: CheckResult
-    results: RunResults             # results.json's content: results.to_json()
-    table: str                      # table.md's content
 
 
 def run(world: World, out: Path, episodes: int | None = None, horizon: int | None = None,
@@ -298,12 +272,9 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     "The episode drawn").
     With the bounded objective the bound is the simulation's horizon (the default), so that the
     simulated rate estimates the bounded value."""
-    from hg2prism.analyses import baselines, deception_value
-    from hg2prism.analyses.episodes import belief_trace, choose_episode, parse_episode_rule
+    from hg2prism.analyses.episodes import parse_episode_rule
     from hg2prism.prism import game_models
-    from hg2prism.report import plots, replay
     from hg2prism.report import tables
-    from hg2prism.analyses import simulation
 
     n_episodes = episodes or world.simulation.episodes
     horizon = horizon or world.simulation.horizon
@@ -317,11 +288,35 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
         bound = horizon
     checked = check(world, out, storm_method, objective, bound)
     analysis, timings = checked.analysis, checked.analysis.timings
-
     with _timed(timings, "exports"):
         written = game_models.write_game_models(analysis, out)
     say(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
+    nash = _nash_stage(analysis)
+    worth = _deception_stage(checked)
+    with _timed(timings, "simulation"):
+        played = _simulations(checked, nash, worth, n_episodes, horizon, seed, show_progress)
+    drawn, frames = _figures(world, out, analysis, played, horizon, seed, rule)
+    results = RunResults.extending(
+        checked.results, timings=dict(timings), v_ne=nash.v_ne,
+        v_ne_p1_guaranteed=nash.v_ne_p1_guaranteed, v_ne_bounds=nash.v_ne_bounds,
+        v_static=worth.v_static, v_naive=worth.v_naive,
+        value_of_deception=worth.value_of_deception,
+        simulation=played.rows(horizon, seed), episode=DrawnEpisode(
+            rule=str(drawn.rule), seed=drawn.seed, steps=drawn.n_steps, outcome=drawn.outcome,
+            chosen_as=drawn.describe(), seed_set=drawn.seeds,
+            completed_in_seed_set=len(drawn.completed_lengths) if drawn.seeds else None,
+            replay_frames=frames))
+    table = tables.completion_table(results)
+    write_text(out / "table.md", table)
+    write_json(out / "results.json", results.to_json())
+    return RunResult(checked, results, table)
 
+
+def _nash_stage(analysis: Analysis) -> NashBaseline:
+    """The symmetric Nash baseline with its sound bracket (docs/semantics.md §7), reported."""
+    from hg2prism.analyses import baselines
+
+    timings = analysis.timings
     with _timed(timings, "nash"):
         nash = baselines.nash_baseline(analysis.ts, analysis.task)
     low, high = nash.v_ne_bounds
@@ -332,94 +327,105 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     if nash.warn:
         warn(f"P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
+    return nash
 
+
+def _deception_stage(checked: CheckResult) -> DeceptionValues:
+    """V_static and V_naive (docs/semantics.md §11), reported."""
+    from hg2prism.analyses import deception_value
+
+    timings = checked.analysis.timings
     with _timed(timings, "deception"):
-        worth = deception_value.deception_values(analysis, checked.results.deceptive_value)
+        worth = deception_value.deception_values(checked.analysis,
+                                                 checked.results.deceptive_value)
     say(f"deception: V_static = {worth.v_static:.6f}, V_naive = {worth.v_naive:.6f} "
         f"({worth.naive_chain.size} states), value of deception "
         f"{worth.value_of_deception:.6f} ({timings['deception']:.2f} s)")
+    return worth
 
-    with _timed(timings, "simulation"):
-        played = analysis
-        if checked.bounded is None:
-            strategy = Strategy.from_records(checked.records, analysis.ts)
-            deceptive_within = storm.induced_within(checked.checked, checked.strategy, horizon)
-        else:
-            # P1's move depends on the steps taken: P1 tracks them beside P2's memory.
-            strategy = SteppedStrategy(checked.records, analysis.ts, checked.bounded.bound)
-            played = dataclasses.replace(analysis, inference=StepCounter(
-                analysis.inference, checked.bounded.bound - 1))
-            deceptive_within = checked.results.objective.goal_probability
-        deceptive = simulation.simulate_deceptive(played, strategy, n_episodes, horizon, seed,
-                                                  progress=show_progress)
-        n_q = analysis.task.n_states
-        nash_sim = simulation.simulate_nash(
-            analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
-            nash.p2.reshape(analysis.ts.n_states * n_q, -1), n_episodes, horizon, seed,
-            progress=show_progress)
-        leader_p1, leader_p2 = _leader_strategies(analysis)
-        leader_sim = simulation.simulate_nash(analysis.ts, analysis.task, leader_p1, leader_p2,
-                                              n_episodes, horizon, seed, progress=show_progress,
-                                              label="simulate leader")
-        static_p1, static_p2 = worth.static.policy.mixed(), np.eye(analysis.ts.n_sets)[worth.static.p2]
-        static_sim = simulation.simulate_nash(analysis.ts, analysis.task, static_p1, static_p2,
-                                              n_episodes, horizon, seed, progress=show_progress,
-                                              label="simulate static")
-        naive_sim = simulation.simulate_deceptive(analysis, worth.naive, n_episodes, horizon, seed,
-                                                  progress=show_progress, label="simulate naive")
-        within = {
-            "deceptive": deceptive_within,
-            "nash": simulation.exact_completion(analysis.ts, analysis.task, nash.p1.reshape(-1, 4),
-                                                nash.p2.reshape(analysis.ts.n_states * n_q, -1),
-                                                horizon),
-            "leader": simulation.exact_completion(analysis.ts, analysis.task, leader_p1, leader_p2,
-                                                  horizon),
-            "static": simulation.exact_completion(analysis.ts, analysis.task, static_p1, static_p2,
-                                                  horizon),
-            "naive": worth.naive_chain.within(horizon),
-        }
 
+@dataclass(frozen=True, eq=False)
+class _Played:
+    """The online simulations of `run` (docs/semantics.md §8): each pair's summary and its exact
+    probability of completing within the horizon, and what the deceptive episodes were played
+    with (the figures draw one of them)."""
+
+    analysis: Analysis             # P2's observer counts P1's steps under a bounded strategy
+    strategy: Strategy | SteppedStrategy
+    summaries: dict[str, SimulationSummary]   # deceptive, nash, leader, static, naive
+    within: dict[str, float]
+
+    def rows(self, horizon: int, seed: int) -> Simulations:
+        def row(name: str, switches: bool = False) -> SimulatedRow:
+            return SimulatedRow.of(self.summaries[name], self.within[name], switches=switches)
+
+        return Simulations(horizon=horizon, seed=seed, deceptive=row("deceptive", True),
+                           nash=row("nash"), leader=row("leader"), static=row("static"),
+                           naive=row("naive", True))
+
+
+def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValues,
+                 n_episodes: int, horizon: int, seed: int, show_progress: bool) -> _Played:
+    """Every strategy pair played online, and exactly within the horizon."""
+    from hg2prism.analyses import simulation
+
+    analysis = checked.analysis
+    ts, task = analysis.ts, analysis.task
+    played = analysis
+    if checked.bounded is None:
+        strategy = Strategy.from_records(checked.records, ts)
+        deceptive_within = checked.engine.induced_within(checked.checked,
+                                                         checked.strategy.choice, horizon)
+    else:
+        # P1's move depends on the steps taken: P1 tracks them beside P2's memory.
+        strategy = SteppedStrategy(checked.records, ts, checked.bounded.bound)
+        played = dataclasses.replace(analysis, inference=StepCounter(
+            analysis.inference, checked.bounded.bound - 1))
+        deceptive_within = checked.results.objective.goal_probability
+    pairs = {"nash": (nash.p1.reshape(-1, 4), nash.p2.reshape(ts.n_states * task.n_states, -1)),
+             "leader": _leader_strategies(analysis),
+             "static": (worth.static.policy.mixed(), np.eye(ts.n_sets)[worth.static.p2])}
+    summaries = {"deceptive": simulation.simulate_deceptive(
+        played, strategy, n_episodes, horizon, seed, progress=show_progress)}
+    for name, (p1, p2) in pairs.items():
+        summaries[name] = simulation.simulate_nash(
+            ts, task, p1, p2, n_episodes, horizon, seed, progress=show_progress,
+            **({} if name == "nash" else {"label": f"simulate {name}"}))
+    summaries["naive"] = simulation.simulate_deceptive(
+        analysis, worth.naive, n_episodes, horizon, seed, progress=show_progress,
+        label="simulate naive")
+    within = {"deceptive": deceptive_within}
+    within.update({name: simulation.exact_completion(ts, task, p1, p2, horizon)
+                   for name, (p1, p2) in pairs.items()})
+    within["naive"] = worth.naive_chain.within(horizon)
+    return _Played(played, strategy, summaries, within)
+
+
+def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horizon: int,
+             seed: int, rule: EpisodeRule) -> tuple[ChosenEpisode, int]:
+    """world.png, belief.png, completion.png (and .svg) and replay.gif of the episode `rule`
+    names (P2's belief as `analysis`'s observer holds it); the episode and the replay's
+    frames."""
+    from hg2prism.analyses.episodes import belief_trace, choose_episode
+    from hg2prism.report import plots, replay
+
+    timings = analysis.timings
     with _timed(timings, "plots"):
-        drawn = choose_episode(played, strategy, horizon, seed, rule)
+        drawn = choose_episode(played.analysis, played.strategy, horizon, seed, rule)
         trace = belief_trace(analysis.inference, drawn.steps)
         plots.world_figure(world, analysis.ts, drawn, out / "world.png")
         plots.belief_figure(world, trace, drawn, out / "belief.png")
         plots.completion_figure(world.name, [
-            ("deceptive vs inference-driven P2", deceptive, within["deceptive"]),
-            ("symmetric, Nash", nash_sim, within["nash"]),
-            ("symmetric, leader", leader_sim, within["leader"])], out / "completion.png")
+            ("deceptive vs inference-driven P2", played.summaries["deceptive"],
+             played.within["deceptive"]),
+            ("symmetric, Nash", played.summaries["nash"], played.within["nash"]),
+            ("symmetric, leader", played.summaries["leader"], played.within["leader"])],
+            out / "completion.png")
     say(f"plots: {drawn.describe()}: seed {drawn.seed}, {drawn.n_steps} steps, {drawn.outcome}")
     with _timed(timings, "replay"):
         frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")
     say(f"replay: replay.gif, {frames} frames ({timings['replay']:.2f} s)")
-
-    results = RunResults.extending(
-        checked.results,
-        timings=dict(timings),
-        v_ne=nash.v_ne,
-        v_ne_p1_guaranteed=nash.v_ne_p1_guaranteed,
-        v_ne_bounds=nash.v_ne_bounds,
-        v_static=worth.v_static,
-        v_naive=worth.v_naive,
-        value_of_deception=worth.value_of_deception,
-        simulation=Simulations(
-            horizon=horizon, seed=seed,
-            deceptive=SimulatedRow.of(deceptive, within["deceptive"], switches=True),
-            nash=SimulatedRow.of(nash_sim, within["nash"]),
-            leader=SimulatedRow.of(leader_sim, within["leader"]),
-            static=SimulatedRow.of(static_sim, within["static"]),
-            naive=SimulatedRow.of(naive_sim, within["naive"], switches=True),
-        ),
-        episode=DrawnEpisode(
-            rule=str(drawn.rule), seed=drawn.seed, steps=drawn.n_steps, outcome=drawn.outcome,
-            chosen_as=drawn.describe(), seed_set=drawn.seeds,
-            completed_in_seed_set=len(drawn.completed_lengths) if drawn.seeds else None,
-            replay_frames=frames),
-    )
-    table = tables.completion_table(results)
-    write_text(out / "table.md", table)
-    write_json(out / "results.json", results.to_json())
-    return RunResult(checked, results, table)
+    return drawn, frames
 
 
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:

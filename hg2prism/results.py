@@ -1,25 +1,41 @@
-"""What `check` and `run` compute for one world, as typed values (docs/semantics.md §§6–8).
+"""What the pipeline computes for one world, in one place (docs/semantics.md §§6–8).
 
-:func:`hg2prism.pipeline.check` returns a :class:`CheckResults`, :func:`hg2prism.pipeline.run`
-a :class:`RunResults` (the check's fields, the symmetric baselines of §7, V_static and V_naive of §11 and the
-simulations of §8). Each ``to_json()`` returns the content of ``results.json``: the keys in the order the file
-lists them, the numbers unchanged except the timings, rounded to 0.1 ms. The report
-(:mod:`hg2prism.report.tables`), the experiments and the Python API read the attributes.
+Two layers. What the stages hand on: :class:`Analysis` (the games and the opponent model, before
+any model checking), :class:`CheckResult` (what :func:`hg2prism.pipeline.check` computes: the
+model, the engine's answer, the strategy) and :class:`RunResult` (:func:`hg2prism.pipeline.run`).
+And the numbers they report: a CheckResult's :class:`CheckResults`, a RunResult's
+:class:`RunResults` (the check's fields, the symmetric baselines of §7, V_static and V_naive of
+§11 and the simulations of §8). Each ``to_json()`` returns the content of ``results.json``: the
+keys in the order the file lists them, the numbers unchanged except the timings, rounded to
+0.1 ms. The report (:mod:`hg2prism.report.tables`), the experiments and the Python API
+(:class:`hg2prism.api.Solution` wraps a CheckResult) read the attributes.
 
 Probabilities are in [0, 1] (docs/semantics.md §10), sizes are counts, times are seconds.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING
+import functools
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from hg2prism.analyses.simulation import SimulationSummary
+    from hg2prism.engines.engine import CheckedModel, ModelChecker
+    from hg2prism.model.automata import DFA
+    from hg2prism.model.dynamics import TransitionSystem
     from hg2prism.model.world import World
+    from hg2prism.opponent.observer import Observer
+    from hg2prism.opponent.perceptual_games import GameSolution, PerceptualGame
+    from hg2prism.prism.decoding import DecodedStates
+    from hg2prism.prism.hypergame import PrismModel
+    from hg2prism.strategy.deceptive import StormChoices
+    from hg2prism.strategy.exports import InducedDTMC
+    from hg2prism.strategy.objectives import Bounded
+    from hg2prism.strategy.records import RecordExtras
 
-__all__ = ["Parameters", "StrategyObjective", "CheckResults", "SimulatedRow", "Simulations", "DrawnEpisode",
-           "RunResults"]
+__all__ = ["Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObjective", "CheckResults",
+           "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults"]
 
 TIMING_DIGITS = 4
 """Timings are written to results.json rounded to this many decimals (0.1 ms)."""
@@ -136,6 +152,17 @@ class CheckResults:
         }
 
 
+class Summary(Protocol):
+    """What a row reads of a simulation (analyses/simulation.py SimulationSummary)."""
+
+    rate: float
+    ci95: tuple[float, float]
+    episodes: int
+    truncated: int
+    p2_switched: int
+    p2_switches: int
+
+
 @dataclass(frozen=True)
 class SimulatedRow:
     """One strategy pair played online (docs/semantics.md §8): a row of the completion table."""
@@ -151,7 +178,7 @@ class SimulatedRow:
     p2_switches_mean: float | None = None
 
     @classmethod
-    def of(cls, summary: SimulationSummary, exact_within_horizon: float,
+    def of(cls, summary: Summary, exact_within_horizon: float,
            switches: bool = False) -> SimulatedRow:
         """The row of a simulation; with `switches`, P2's changes of hypothesis too."""
         return cls(rate=summary.rate, ci95=tuple(summary.ci95), episodes=summary.episodes,
@@ -251,3 +278,58 @@ class RunResults(CheckResults):
             "simulation": self.simulation.to_json(),
             **({"episode": self.episode.to_json()} if self.episode is not None else {}),
         }
+
+
+# ---------------------------------------------------------------------------------------------
+# What the stages hand on
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class Analysis:
+    """Everything P1 knows before the interaction starts: the games and the opponent model."""
+
+    world: World
+    ts: TransitionSystem
+    task: DFA
+    games: list[PerceptualGame]
+    inference: Observer       # P2's inference: CUSUM (§5) or Bayesian (§12)
+    leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (docs/semantics.md §7)
+    v_lead: float
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class CheckResult:
+    """What `check` computes for a world: the analysis, the model, the engine's answer and P1's
+    strategy on the engine's states, and `results` (results.json's content)."""
+
+    analysis: Analysis
+    prism: PrismModel
+    checked: CheckedModel
+    decoded: DecodedStates
+    strategy: StormChoices          # P1's choice in each of the engine's states
+    results: CheckResults           # results.json's content: results.to_json()
+    out: Path                       # the folder holding hypergame.prism, strategy.json, ...
+    engine: ModelChecker            # the model checker that built and checked the model
+    extras: RecordExtras | None = None     # keys the records gain after "action"
+    dtmc: InducedDTMC | None = None        # the DTMC the exported strategy induces (induced.*)
+    bounded: Bounded | None = None         # the step-dependent strategy of --objective bounded
+
+    @functools.cached_property
+    def records(self) -> list[dict]:
+        """The strategy's records (strategy.json's content), built on first use: writing the
+        file does not need them, and they cost seconds on million-state models."""
+        from hg2prism.strategy.records import strategy_records
+
+        return strategy_records(self.decoded, self.strategy, self.engine.explicit(
+            self.checked.model).transitions, self.analysis.ts, self.extras)
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """What `run` computes for a world: the check, `results` (results.json's content) and the
+    completion table."""
+
+    check: CheckResult
+    results: RunResults             # results.json's content: results.to_json()
+    table: str                      # table.md's content

@@ -14,8 +14,8 @@ Conventions (the contract with the package under test):
   written (border included);
 * a TS state is ``"trapped"``, ``(x, y)`` when delay == 0, or ``(x, y, T, c)`` when delay > 0
   with ``T`` the tuple of trap cells in candidate numbering (map reading order);
-* DFA states are Spot's state numbers of
-  ``spot.translate(formula, "deterministic", "complete", "sbacc")``.
+* DFA states are those of ``spot.translate(formula, "deterministic", "complete", "sbacc")``,
+  renumbered breadth-first from the initial state over the label classes (semantics §3).
 
 Choices where the semantics are silent (kept deliberately simple):
 
@@ -325,6 +325,39 @@ class DFA:
                     good.add(q)
                     changed = True
         self.sink = set(range(self.n)) - good
+        self._renumber(aut, labels)
+
+    def _renumber(self, aut, labels):
+        """Semantics §3: states numbered breadth-first from the initial state, successors in
+        label-class order (none, obs, the region letters sorted); states no word of classes
+        reaches follow, breadth-first over every valuation of the automaton's propositions
+        (in class order, then by name; binary order, the last varying fastest)."""
+        classes = [None] + [lab for lab in ("obs",) if lab in labels] + sorted(
+            lab for lab in labels if lab not in (None, "obs"))
+        aps = [str(a) for a in aut.ap()]
+        aps = [lab for lab in classes if lab in aps] + sorted(set(aps) - set(classes))
+
+        def successor(q, true_aps):
+            assign = buddy.bddtrue
+            for ap in aps:
+                var = aut.register_ap(ap)
+                assign = buddy.bdd_and(assign, buddy.bdd_ithvar(var) if ap in true_aps
+                                       else buddy.bdd_nithvar(var))
+            return next(e.dst for e in aut.out(q) if buddy.bdd_and(e.cond, assign) != buddy.bddfalse)
+
+        valuations = [{ap for ap, bit in zip(aps, bits) if bit}
+                      for bits in itertools.product((False, True), repeat=len(aps))]
+        order = [self.init]
+        for letters in ([{lab} if lab else set() for lab in classes], valuations):
+            for q in order:          # grows while walked: a queue
+                for true_aps in letters:
+                    target = successor(q, true_aps)
+                    if target not in order:
+                        order.append(target)
+        new = {old: i for i, old in enumerate(order)}
+        self.delta = {new[q]: {lab: new[d] for lab, d in row.items()} for q, row in self.delta.items()}
+        self.init, self.acc, self.sink = new[self.init], {new[q] for q in self.acc}, {new[q] for q in self.sink}
+        self.aut = None     # Spot's numbering no longer applies
 
     def step(self, q, lab):
         return self.delta[q][lab]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from hg2prism.model.automata import is_cosafe, translate
+from hg2prism.model.automata import is_cosafe, to_hoa, translate
 
 LABELS = ("", "obs", "A", "B", "C")
 TASK = "(!obs U A) & (!(B | obs) U C)"
@@ -156,3 +156,81 @@ def test_dfa_accepts_a_finite_word_exactly_when_it_is_a_good_prefix(index: int) 
             counterexample = spot.formula(f"({prefix}) & {world_only} & {negation}")
             is_good_prefix = spot.translate(counterexample).is_empty()
             assert (q in dfa.accepting) == is_good_prefix, (formula, word, letters)
+
+
+# ------------------------------------------------------------------ canonical numbering
+# docs/semantics.md §3: DFA states are numbered breadth-first from the initial state, so the
+# numbering does not depend on what the process translated before (Spot's own does).
+
+import json
+import subprocess
+import sys
+
+# "F A & F B" first: in the fresh process nothing is translated before it.
+NUMBERED = ["F A & F B", TASK, "!obs U (A & F B)", "(!obs U A) & F B", "F (A & F B)",
+            "!B U A", "(!A U B) | F C", "F(A & X B)", "X (A U B)"]
+# Twenty co-safe formulas (Spot's randltl, seed 5) after which Spot numbers "F A & F B"
+# otherwise than a fresh process does.
+UNRELATED = ["Xobs & (B U obs)", "XXD & FD", "D", "B | C", "((!A & !B) | (A & B)) & (B | XD)",
+             "XF!C", "X((D & X((D & obs) | (!D & !obs))) | (!D & X((!D & obs) | (D & !obs))))",
+             "F(C & XC)", "F!D", "FA", "(obs | X!C) & (B | FC)", "F(B | C | (!D U B))", "F!B",
+             "X(XD | (C & F!B))", "(C & !D) | (!C & D)",
+             "((D & X!A) | (!D & XA)) M X(!obs | FA)", "D M ((D & obs) | (!D & !obs))",
+             "C | X(D M !A)", "XFC", "((A & obs) | (!A & !obs)) & (C | D | XD)"]
+TRANSLATING = """
+import json, sys
+import spot
+from hg2prism.model.automata import to_hoa, translate
+before, targets, labels = json.loads(sys.argv[1])
+for formula in before:
+    translate(formula, tuple(labels))
+result = {}
+for formula in targets:
+    spots = spot.translate(spot.formula(formula), "deterministic", "complete", "sbacc")
+    dfa = translate(formula, tuple(labels))
+    result[formula] = {"initial": dfa.initial, "delta": dfa.delta.tolist(),
+                       "accepting": sorted(dfa.accepting), "sink": sorted(dfa.sink),
+                       "hoa": to_hoa(dfa, tuple(labels)), "spot": spots.to_str("hoa")}
+print(json.dumps(result))
+"""
+
+
+def _translated_in_a_process(before: list[str], labels: tuple[str, ...]) -> dict:
+    """NUMBERED translated in a fresh interpreter after `before`."""
+    done = subprocess.run([sys.executable, "-c", TRANSLATING,
+                           json.dumps([before, NUMBERED, list(labels)])],
+                          capture_output=True, text=True, check=True)
+    return json.loads(done.stdout)
+
+
+def test_numbering_is_breadth_first_in_label_class_order() -> None:
+    """The paper's task: q0 = 0, then its successors on {}, obs, A, B, C in that order."""
+    dfa = translate(TASK, LABELS)
+    assert dfa.initial == 0
+    assert dfa.delta.tolist() == [[0, 1, 2, 1, 3], [1] * 5, [2, 1, 2, 1, 4], [3, 1, 4, 3, 3],
+                                  [4] * 5]
+    assert dfa.accepting == {4} and dfa.sink == {1}
+
+
+def test_numbering_does_not_depend_on_what_was_translated_before() -> None:
+    """Each formula translated after twenty unrelated ones is numbered as in a fresh process
+    (same initial state, delta, final and sink states) and task.hoa's text is byte-identical,
+    although Spot's own automaton differs for some of them (so the test can fail)."""
+    labels = ("", "obs", "A", "B", "C", "D")
+    fresh = _translated_in_a_process([], labels)
+    after = _translated_in_a_process(UNRELATED, labels)
+    assert any(fresh[f]["spot"] != after[f]["spot"] for f in NUMBERED)
+    for formula in NUMBERED:
+        assert fresh[formula] | {"spot": None} == after[formula] | {"spot": None}, formula
+    here = translate(TASK, labels)     # and in this process, after whatever the suite ran
+    assert here.delta.tolist() == fresh[TASK]["delta"] and here.initial == fresh[TASK]["initial"]
+    assert to_hoa(here, labels) == fresh[TASK]["hoa"]
+
+
+def test_renumbering_keeps_the_language() -> None:
+    """The renumbered automaton is Spot's up to isomorphism: the two accept the same words."""
+    for formula in NUMBERED + UNRELATED:
+        dfa = translate(formula, ("", "obs", "A", "B", "C", "D"))
+        original = spot.translate(spot.formula(formula), "deterministic", "complete", "sbacc")
+        assert dfa.automaton.num_states() == original.num_states()
+        assert spot.are_equivalent(dfa.automaton, original), formula

@@ -17,7 +17,7 @@ import pytest
 import reference_bayes
 import worldgen
 from hg2prism import pipeline, progress
-from hg2prism.engines import storm
+from hg2prism.prism.decoding import DecodedStates
 from hg2prism.errors import InputError
 from hg2prism.model.world import load_world, world_from_toml
 from hg2prism.opponent.observer import Memory
@@ -81,23 +81,16 @@ def world_path(name: str, folder: str) -> Path:
     return path
 
 
-REFERENCES: dict[Path, reference_bayes.BayesWorld] = {}
-
-
+@functools.cache
 def reference_world(path: Path) -> reference_bayes.BayesWorld:
-    return REFERENCES[path]
+    return reference_bayes.BayesWorld(path)
 
 
 @functools.cache
 def run(name: str, folder: str) -> pipeline.CheckResult:
     path = world_path(name, folder)
     with progress.quiet():
-        result = pipeline.check(load_world(path), Path(folder) / name)
-    # Spot numbers a DFA's states depending on its process-wide state (the propositions met so
-    # far), so the reference translates its DFAs right after the pipeline, as tests/test_core.py
-    # does: the records' q then means the same DFA state to both.
-    REFERENCES[path] = reference_bayes.BayesWorld(path)
-    return result
+        return pipeline.check(load_world(path), Path(folder) / name)
 
 
 @pytest.fixture(params=CASE_NAMES)
@@ -113,7 +106,7 @@ def test_cases_cover_windows_priors_and_decisions() -> None:
     assert {c[3] for c in CASES} == {"map", "sample"}
 
 
-def _memory(decoded: storm.DecodedStates, s: int) -> Memory:
+def _memory(decoded: DecodedStates, s: int) -> Memory:
     return Memory(int(decoded.hypothesis[s]),
                   tuple(tuple(int(o) for o in entry) for entry in decoded.window[s] if entry[0] >= 0))
 
@@ -125,7 +118,7 @@ def test_storm_transitions_are_those_of_the_python_observer(case) -> None:
     W + (v, a1, pi2_x(v)), last w kept."""
     _, result, _ = case
     decoded, observer, ts = result.decoded, result.analysis.inference, result.analysis.ts
-    moves = storm.transitions(result.checked.model)
+    moves = result.engine.explicit(result.checked.model).transitions
     compared = 0
     for choice in range(len(moves.source)):
         s = int(moves.source[choice])
@@ -289,10 +282,10 @@ def test_simulation_agrees_with_the_exact_value_within_the_horizon(name: str,
     strategy = Strategy.from_records(result.records, result.analysis.ts)
     horizon, episodes = 30, 3000
     summary = simulate_deceptive(result.analysis, strategy, episodes, horizon, 7, progress=False)
-    exact = storm.induced_within(result.checked, result.strategy, horizon)
+    exact = result.engine.induced_within(result.checked, result.strategy.choice, horizon)
     low, high = summary.interval(0.999)
     assert low <= exact <= high
-    assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(
+    assert result.engine.induced_probability(result.checked, result.strategy.choice) == pytest.approx(
         result.results.deceptive_value, abs=TOL)
     _, batch = detection_batch(result.analysis, strategy, 200, horizon, 7, 0.05, 0.01)
     # P2 behaves as modelled: the test may raise a rare false alarm, never in most episodes
@@ -343,7 +336,7 @@ def test_v_naive_is_the_naive_strategy_on_storms_model_and_at_most_the_deceptive
     ts, deceptive = analysis.ts, result.results.deceptive_value
     worth = deception_values(analysis, deceptive)
     assert worth.v_naive <= deceptive + 1e-9
-    moves = storm.transitions(result.checked.model)
+    moves = result.engine.explicit(result.checked.model).transitions
     representative = result.strategy.representative
     action = np.zeros(len(representative), dtype=np.int64)
     for c, s in enumerate(representative.tolist()):
@@ -352,5 +345,5 @@ def test_v_naive_is_the_naive_strategy_on_storms_model_and_at_most_the_deceptive
         v = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         action[c] = worth.naive.action(v, int(decoded.q[s]), _memory(decoded, s))
     fixed = storm_choices(decoded, moves, representative, action)
-    assert storm.induced_probability(result.checked, fixed) == pytest.approx(worth.v_naive,
+    assert result.engine.induced_probability(result.checked, fixed.choice) == pytest.approx(worth.v_naive,
                                                                               abs=TOL)

@@ -16,6 +16,7 @@ import worldgen
 from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.engines import storm
+from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTIONS
 from hg2prism.opponent.inference import Memory
 from hg2prism.model.world import load_world
@@ -102,7 +103,7 @@ def test_exported_strategy_is_optimal(case) -> None:
     result, ref = case
     value = result.results.deceptive_value
     # The DTMC Storm's scheduler induces, checked by Storm ...
-    assert storm.induced_probability(result.checked, result.strategy) == pytest.approx(value, abs=TOL)
+    assert result.engine.induced_probability(result.checked, result.strategy.choice) == pytest.approx(value, abs=TOL)
     # ... and the exported JSON strategy, evaluated by the independent solver.
     assert ref.strategy_value(result.records) == pytest.approx(value, abs=TOL)
 
@@ -121,7 +122,7 @@ def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
     """Every transition Storm built moves P2's memory exactly as inference.update does."""
     result, _ = case
     decoded, inference, ts = result.decoded, result.analysis.inference, result.analysis.ts
-    moves = storm.transitions(result.checked.model)
+    moves = result.engine.explicit(result.checked.model).transitions
     checked = 0
     for choice in range(len(moves.source)):
         s = int(moves.source[choice])
@@ -170,7 +171,7 @@ def test_python_inference_matches_reference(case) -> None:
             assert (ours.hypothesis, _reference_window(ts, ours.window)) == theirs
 
 
-def _memory(decoded: storm.DecodedStates, s: int) -> Memory:
+def _memory(decoded: DecodedStates, s: int) -> Memory:
     return Memory(int(decoded.hypothesis[s]),
                   tuple((int(v), int(a)) for v, a in decoded.window[s] if v >= 0))
 
@@ -249,7 +250,7 @@ def test_deceptive_moves_are_the_fastest_optimal_ones(case) -> None:
     within 1e-8 of the state's, the first (in move order) maximising the discounted (0.9)
     probability W of reaching the goal; W iterated here state by state in plain Python."""
     result, _ = case
-    moves = storm.transitions(result.checked.model)
+    moves = result.engine.explicit(result.checked.model).transitions
     mdp = canonical_mdp(result.decoded, moves)
     values = canonical_values(result.decoded, result.checked.values)
     branches: dict[int, list[tuple[int, float]]] = {}

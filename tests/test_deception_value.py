@@ -85,9 +85,8 @@ def test_values_match_reference_and_invariants(name: str, solved) -> None:
                                   "fam21_d0_l1_w2_x4"])
 def test_naive_chain_is_the_naive_strategy(name: str, solved) -> None:
     """The package's chain is the reference's naive chain: walked together from the initial
-    state, every state has the same TS state, P2 memory and move, and the same successors with
-    the same probabilities. (DFA states are matched through the walk, not by number: Spot's
-    numbering may depend on what was translated before in the process.)"""
+    state, every state has the same TS state, DFA state (both number it as docs/semantics.md §3
+    says), P2 memory and move, and the same successors with the same probabilities."""
     path, checked, worth = solved(name)
     ref = reference_deception.Deception(path)
     w, ts = ref.w, checked.analysis.ts
@@ -103,12 +102,12 @@ def test_naive_chain_is_the_naive_strategy(name: str, solved) -> None:
     def key(i: int):
         if i in (deception_value.GOAL, deception_value.FAIL):
             return ("goal", "fail")[i]
-        v, _, memory = chain.states[i]
-        return (ref_state(v), (memory.hypothesis,
+        v, q, memory = chain.states[i]
+        return (ref_state(v), int(q), (memory.hypothesis,
                                tuple((ref_state(o), "NESW"[a]) for o, a in memory.window)))
 
     def ref_key(s):
-        return s if s in ("goal", "fail") else (s[0], s[2])
+        return s if s in ("goal", "fail") else (s[0], s[1], s[2])
 
     pairs = {chain.start: s0}
     queue = [chain.start]
@@ -159,25 +158,6 @@ def test_static_and_naive_simulations(name: str, solved) -> None:
     assert worth.naive_chain.within(10**6) == pytest.approx(worth.v_naive, abs=1e-6)
 
 
-def _dfa_numbering(checked, ref) -> dict[int, int]:
-    """The package's task DFA state -> the reference's, found by walking both automata from
-    their initial states over the world's letters (Spot's numbering may differ between two
-    translations of the same formula in one process)."""
-    task, ts = checked.analysis.task, checked.analysis.ts
-    letters = [None if name == "" else name for name in ts.label_names]
-    mapping = {int(task.initial): ref.dfa.init}
-    queue = [int(task.initial)]
-    while queue:
-        q = queue.pop()
-        for k, letter in enumerate(letters):
-            mine, theirs = int(task.delta[q, k]), ref.dfa.step(mapping[q], letter)
-            if mine not in mapping:
-                mapping[mine] = theirs
-                queue.append(mine)
-            assert mapping[mine] == theirs
-    return mapping
-
-
 # Worlds whose deceptive strategy makes P2 change her mind with probability 0.06 to 0.83 within
 # 30 steps, once or (fam20) up to twice.
 @pytest.mark.parametrize("name", ["fam09_d0_l2_w1_x3", "fam19_d1_l1_w1_x2", "fam20_d2_l1_w1_x3",
@@ -190,9 +170,7 @@ def test_simulated_switches_agree_with_exact(name: str, solved) -> None:
     sim = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed=11,
                                         progress=False)
     ref = reference_deception.Deception(path)
-    numbering = _dfa_numbering(checked, ref)
-    records = [dict(record, q=numbering[record["q"]]) for record in checked.records]
-    exact = reference_deception.switch_probability(ref.w, records, horizon)
+    exact = reference_deception.switch_probability(ref.w, checked.records, horizon)
     low, high = simulation.wilson_interval(sim.p2_switched, episodes, 0.999)
     assert low <= exact <= high, (sim.p2_switched, exact)
     assert sim.p2_switches >= sim.p2_switched
@@ -212,9 +190,7 @@ def test_world3_deception_steers_belief(solved) -> None:
     sim = simulation.simulate_deceptive(analysis, strategy, episodes, horizon, seed=3,
                                         progress=False)
     ref = reference_deception.Deception(path)
-    numbering = _dfa_numbering(checked, ref)
-    records = [dict(record, q=numbering[record["q"]]) for record in checked.records]
-    exact = reference_deception.switch_probability(ref.w, records, horizon)
+    exact = reference_deception.switch_probability(ref.w, checked.records, horizon)
     low, high = simulation.wilson_interval(sim.p2_switched, episodes, 0.999)
     assert low <= exact <= high
     assert sim.p2_switched >= episodes / 2 and exact >= 0.5

@@ -24,7 +24,6 @@ import worldgen
 from conftest import MODELS
 from hg2prism import cli, pipeline
 from hg2prism.analyses import simulation
-from hg2prism.engines import storm
 from hg2prism.model.world import load_world
 
 TOL = 1e-6
@@ -241,8 +240,8 @@ def test_bounded_value_is_exact_within_horizon_of_its_dtmc(name: str, bound: int
                                                                                abs=TOL)
     # ... at least what the default strategy completes within the horizon
     default = checked(name, "pmax", folder)
-    assert objective.value >= storm.induced_within(default.checked, default.strategy,
-                                                   horizon) - TOL
+    assert objective.value >= default.engine.induced_within(
+        default.checked, default.strategy.choice, horizon) - TOL
     # every record's schedule covers the steps 0..H-1 and starts with the record's move
     for record in json.loads((result.out / "strategy.json").read_text()):
         runs = record["schedule"]
@@ -296,4 +295,4 @@ def test_run_simulates_the_bounded_strategy(folder: str, tmp_path: Path) -> None
     assert low <= objective.value <= high
     # the same world under the default strategy completes less within 7 steps, or as much
     default = checked("gen_d1", "pmax", folder)
-    assert storm.induced_within(default.checked, default.strategy, 7) <= objective.value + TOL
+    assert default.engine.induced_within(default.checked, default.strategy.choice, 7) <= objective.value + TOL

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -37,6 +38,9 @@ from hg2prism.model.product import product
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
 from hg2prism.strategy.policy import Policy, ProductPolicy
+
+if TYPE_CHECKING:
+    from hg2prism.results import Analysis
 
 __all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
            "induced_chain", "DeceptionValues", "deception_values"]
@@ -274,8 +278,8 @@ class DeceptionValues:
     naive_chain: InducedChain
 
 
-def deception_values(analysis, deceptive_value: float) -> DeceptionValues:
-    """V_static, V_naive and the value of deception of a pipeline.Analysis, given the
+def deception_values(analysis: Analysis, deceptive_value: float) -> DeceptionValues:
+    """V_static, V_naive and the value of deception of a results.Analysis, given the
     deceptive value Storm computed for it."""
     ts, task, games, observer = analysis.ts, analysis.task, analysis.games, analysis.inference
     first_guess = observer.hypothesis(observer.initial_memory())

@@ -19,9 +19,13 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from hg2prism.errors import InputError
 from hg2prism.strategy.policy import Policy
+
+if TYPE_CHECKING:
+    from hg2prism.results import Analysis
 
 __all__ = ["EPISODE_SEEDS", "EpisodeRule", "ChosenEpisode", "parse_episode_rule", "choose_episode",
            "outcome_text", "Move", "episode_moves", "BeliefTrace", "belief_trace"]
@@ -101,7 +105,7 @@ def outcome_text(code: int) -> str:
         int(code), "cut by the horizon")
 
 
-def _one_episode(analysis, strategy: Policy, horizon: int, seed: int) -> tuple[list, int]:
+def _one_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int) -> tuple[list, int]:
     from hg2prism.analyses import simulation
 
     steps: list = []
@@ -110,10 +114,10 @@ def _one_episode(analysis, strategy: Policy, horizon: int, seed: int) -> tuple[l
     return steps, int(summary.outcomes[0])
 
 
-def choose_episode(analysis, strategy: Policy, horizon: int, seed: int,
+def choose_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int,
                    rule: EpisodeRule | str | None = None) -> ChosenEpisode:
     """The deceptive episode `rule` names (module docstring); `analysis` is a
-    pipeline.Analysis, `strategy` P1's Policy (a records.Strategy), `seed` the simulation's seed."""
+    results.Analysis, `strategy` P1's Policy (a records.Strategy), `seed` the simulation's seed."""
     from hg2prism.analyses import simulation
 
     rule = parse_episode_rule(rule)

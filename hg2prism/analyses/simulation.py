@@ -29,6 +29,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,6 +46,9 @@ from hg2prism.strategy.policy import Policy, ProductPolicy
 from hg2prism.strategy.records import Fallback, StrategyError
 from hg2prism.opponent.observer import Memory
 from hg2prism.opponent.observer import Observer
+
+if TYPE_CHECKING:
+    from hg2prism.results import Analysis
 
 __all__ = [
     "FAIL", "GOAL", "TRUNCATED",
@@ -199,7 +203,7 @@ class _Uniforms:
 # P1's strategy
 # ---------------------------------------------------------------------------------------------
 
-def leader_fallback(analysis) -> Fallback:
+def leader_fallback(analysis: Analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
     predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of docs/semantics.md §7,
     ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` (first best in N, E, S, W order).
@@ -226,7 +230,7 @@ class LeaderStrategy(ProductPolicy):
     P2 knows its task and plays the leader game's trap set pi2_lead(v, q); P1 answers with its
     fastest optimal move of that game (the leader baseline's P1, docs/semantics.md §7)."""
 
-    def __init__(self, analysis) -> None:
+    def __init__(self, analysis: Analysis) -> None:
         from hg2prism.opponent.perceptual_games import fastest_answers
 
         super().__init__(fastest_answers(analysis.ts, analysis.task, analysis.leader),
@@ -365,7 +369,7 @@ class _DeceptiveRun:
     met, P1's policies and their memoised moves, P2's deviation, the step observer, and the
     counters of the summary (off-record steps, P2's switches, re-planned episodes)."""
 
-    def __init__(self, analysis, strategy: Policy, p2_policy: P2Policy | None,
+    def __init__(self, analysis: Analysis, strategy: Policy, p2_policy: P2Policy | None,
                  observer: StepCallback | None, p2_inference: Observer | None,
                  replanning: Replanning | None) -> None:
         ts, task, games = analysis.ts, analysis.task, analysis.games
@@ -485,7 +489,7 @@ class _DeceptiveRun:
                                  prediction=tuple(sorted(mixture.items()))))
 
 
-def simulate_deceptive(analysis, strategy: Policy, episodes: int, horizon: int, seed: int,
+def simulate_deceptive(analysis: Analysis, strategy: Policy, episodes: int, horizon: int, seed: int,
                        p2_policy: P2Policy | None = None, observer: StepCallback | None = None,
                        progress: bool = True,
                        p2_inference: Observer | None = None,
@@ -494,7 +498,7 @@ def simulate_deceptive(analysis, strategy: Policy, episodes: int, horizon: int, 
                        episode_streams: bool = False) -> SimulationSummary:
     """Play `episodes` episodes of P1's deceptive strategy against P2's inference (docs/semantics.md §8).
 
-    `analysis` is a pipeline.Analysis (its ts, task, games and inference are used).
+    `analysis` is a results.Analysis (its ts, task, games and inference are used).
     `strategy` is P1's Policy (deterministic: its moves are memoised per state), e.g. a
     Strategy.
     `p2_policy(rng, n, ts_state, predicted, memory) -> a2` replaces P2's model behaviour; there

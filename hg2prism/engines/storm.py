@@ -1,7 +1,6 @@
-"""Storm through stormpy: build the hypergame model, check Pmax, export the strategy (docs/semantics.md §6).
-
-Storm's states encode (v, q_prev, M) with the DFA one step behind, so several of them can be
-one canonical state (v, q, M) of docs/semantics.md §6; `canonical_states` maps each to its canonical id.
+"""Storm through stormpy, the engine of hg2prism/engines/engine.py: build a PRISM model, check
+Pmax soundly (docs/semantics.md §§6, 10), hand the built model back as arrays, and check the
+chains a fixed strategy induces and interval models (§13). The only module importing stormpy.
 """
 
 from __future__ import annotations
@@ -14,7 +13,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 from pathlib import Path
 
 import numpy as np
@@ -24,13 +23,9 @@ from stormpy import developer
 from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
-from hg2prism.model.automata import DFA
-from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.engines.engine import CheckedModel, ExplicitModel, Transitions
+from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS
 from hg2prism.errors import StormError, probability
-from hg2prism.prism.hypergame import Layout
-
-if TYPE_CHECKING:
-    from hg2prism.strategy.deceptive import StormChoices
 
 PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
 
@@ -46,13 +41,8 @@ def sound_environment() -> developer.Environment:
 
 
 @dataclass(frozen=True, eq=False)
-class CheckedModel:
-    model: object                  # stormpy sparse MDP
-    value: float
-    values: np.ndarray             # value of every Storm state
-    formula: object                # the checked property's formula
-    timings: dict[str, float]      # parse, build, check
-    alongside: object = None       # what check(..., alongside=...) computed beside Storm
+class StormChecked(CheckedModel):
+    """A CheckedModel whose model is a stormpy sparse MDP."""
 
     @functools.cached_property
     def scheduler(self) -> object:
@@ -96,10 +86,10 @@ def solver_environment(method: str) -> developer.Environment:
 
 
 def check(prism_path: Path, prop: str, method: str = "sound",
-          alongside: Callable[[object], object] | None = None) -> CheckedModel:
+          alongside: Callable[[ExplicitModel], object] | None = None) -> StormChecked:
     """Parse, build and solve `prop` (a Pmax reachability property) with one of STORM_METHODS.
-    `alongside(model)`, when given, runs on a second thread while Storm solves (Storm releases
-    the GIL): its result is the CheckedModel's `alongside`."""
+    `alongside(explicit model)`, when given, runs on a second thread while Storm solves (Storm
+    releases the GIL): its result is the CheckedModel's `alongside`."""
     try:
         return _check(prism_path, prop, method, alongside)
     except RuntimeError as err:  # stormpy reports parse and build failures as RuntimeError
@@ -107,19 +97,21 @@ def check(prism_path: Path, prop: str, method: str = "sound",
 
 
 def _check(prism_path: Path, prop: str, method: str,
-           alongside: Callable[[object], object] | None) -> CheckedModel:
+           alongside: Callable[[ExplicitModel], object] | None) -> StormChecked:
     solver_environment(method)   # an unknown method fails before the build
     model, formula, timings = build(prism_path, prop)
     start = time.perf_counter()
     with ThreadPoolExecutor(max_workers=1) as pool:
-        beside = pool.submit(alongside, model) if alongside is not None else None
+        beside = (pool.submit(lambda: alongside(explicit(model))) if alongside is not None
+                  else None)
         values, scheduler = solve(model, formula, method)
         prepared = beside.result() if beside is not None else None
     timings["check"] = time.perf_counter() - start
     initial = model.initial_states[0]
     value = probability(values[initial], "Storm's value at the initial state")
-    checked = CheckedModel(model=model, value=value, values=values, formula=formula,
-                           timings=timings, alongside=prepared)
+    checked = StormChecked(model=model, value=value, values=values, formula=formula,
+                           timings=timings, alongside=prepared,
+                           size=(model.nr_states, model.nr_transitions, model.nr_choices))
     if scheduler is not None:   # the certified route has one already: no second solve for it
         checked.__dict__["scheduler"] = scheduler
     return checked
@@ -199,115 +191,13 @@ def _certified_values(model: object, formula: object) -> tuple[np.ndarray, objec
     return np.asarray(result.get_value_vector()), None
 
 
-@dataclass(frozen=True, eq=False)
-class DecodedStates:
-    """Storm's states as docs/semantics.md §6 hypergame states."""
-
-    cell: np.ndarray          # cell index (the TRAPPED formula's value once trapped)
-    traps: np.ndarray         # standing trap set (0 when delay is 0)
-    countdown: np.ndarray
-    q: np.ndarray             # DFA state after reading the current cell's label
-    hypothesis: np.ndarray
-    window: np.ndarray        # [n, slots, 2] (TS state, action), or [n, slots, 3] with the trap
-                              # set in force (Bayesian observer); -1 for empty slots
-    goal: np.ndarray          # bool
-    fail: np.ndarray          # bool
-    canonical: np.ndarray     # canonical id; goal states share one id, failure states another
-    n_canonical: int
-
-
-def decode_states(model: object, layout: Layout, ts: TransitionSystem, task: DFA,
-                  window_hypotheses: Callable[[np.ndarray], np.ndarray] | None = None
-                  ) -> DecodedStates:
-    """Storm's states as hypergame states. When the layout has no `hyp` variable, P2's
-    hypothesis is derived from each state's window by `window_hypotheses`."""
-    def column(name: str) -> np.ndarray:
-        return state_variable(model, name)
-
-    cell = column("cell")
-    label = np.append(ts.cell_label, 0)[cell]
-    q = task.delta[column("q"), label]
-    width = 3 if layout.slot_sets else 2
-    window = np.stack([np.stack([column(name) for name in names], axis=1)
-                       for names in (layout.slot_variables(i) for i in range(1, layout.slots + 1))],
-                      axis=1) if layout.slots else np.zeros((model.nr_states, 0, width), dtype=np.int64)
-    goal = _label_mask(model, "goal")
-    fail = _label_mask(model, "fail")
-    traps, countdown = column("traps"), column("countdown")
-    if layout.hypothesis_variable:
-        hypothesis = column("hyp")
-    else:
-        if window_hypotheses is None:
-            raise ValueError("decoding this model needs the observer's window_hypotheses")
-        hypothesis = np.asarray(window_hypotheses(window), dtype=np.int64)
-    key = np.column_stack([cell, traps, countdown, q, hypothesis, window.reshape(model.nr_states, -1)])
-    key[goal] = -2
-    key[fail] = -3
-    canonical = _dense_ids(_row_keys(key))
-    return DecodedStates(cell=cell, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
-                         window=window, goal=goal, fail=fail, canonical=canonical,
-                         n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
-
-
-def state_variable(model: object, name: str) -> np.ndarray:
-    """The value of an integer PRISM variable in every Storm state (0 where the model has none)."""
+def _state_variable(model: object, name: str) -> np.ndarray | None:
+    """The value of an integer PRISM variable in every Storm state (None: no such variable)."""
     valuations = model.state_valuations
     variables = {v.name: v for v in valuations.get_all_variables()}
     if name not in variables:
-        return np.zeros(model.nr_states, dtype=np.int64)
+        return None
     return np.asarray(valuations.get_int64_values(variables[name]), dtype=np.int64)
-
-
-def row_keys(rows: np.ndarray) -> np.ndarray:
-    """One integer per row of `rows`, equal exactly when the rows are equal, numbered 0..n-1
-    in key order: how canonical states are numbered."""
-    return _dense_ids(_row_keys(rows))
-
-
-def _row_keys(rows: np.ndarray) -> np.ndarray:
-    """One integer per row, equal exactly when the rows are equal: sorting one column is far
-    faster than np.unique(axis=0) on millions of rows."""
-    shifted = rows - rows.min(axis=0)
-    radix = shifted.max(axis=0) + 1
-    if np.sum(np.log2(radix.astype(float))) < 62:
-        key = np.zeros(len(rows), dtype=np.int64)
-        for column, base in zip(shifted.T, radix):
-            key = key * int(base) + column
-        return key
-    _, inverse = np.unique(rows, axis=0, return_inverse=True)   # keys too wide for int64
-    return inverse.reshape(-1)
-
-
-def _dense_ids(keys: np.ndarray) -> np.ndarray:
-    """0..n-1 numbering of the distinct keys, in key order (np.unique's inverse, by sorting:
-    numpy 2.4's np.unique is many times slower on millions of keys)."""
-    order = np.argsort(keys, kind="stable")
-    ordered = keys[order]
-    ids = np.empty(len(keys), dtype=np.int64)
-    ids[order] = np.cumsum(np.r_[True, ordered[1:] != ordered[:-1]]) - 1
-    return ids
-
-
-def _count_distinct(keys: np.ndarray) -> int:
-    ordered = np.sort(keys)
-    return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
-
-
-def _label_mask(model: object, label: str) -> np.ndarray:
-    return read_structure(model).labels[label]
-
-
-@dataclass(frozen=True, eq=False)
-class Transitions:
-    """Every choice of Storm's model: source state, action index (-1 unlabelled), successors."""
-
-    source: np.ndarray
-    action: np.ndarray
-    row_start: np.ndarray      # successors of choice i: target[row_start[i]:row_start[i+1]]
-    target: np.ndarray
-    probability: np.ndarray    # of an interval model: the lower bounds
-    labels: dict[str, np.ndarray]   # state labels as boolean masks
-    upper: np.ndarray | None = None   # of an interval model: the upper bounds
 
 
 # The last model read and its structure. The model is kept so that its id cannot be reused by
@@ -372,30 +262,19 @@ def _read_structure(model: object) -> Transitions:
     return structure
 
 
-def transitions(model: object) -> Transitions:
-    return read_structure(model)
+def explicit(model: object) -> ExplicitModel:
+    """Storm's model as arrays (engines/engine.py): its structure, read once through the UMB
+    export, and its state valuations, read per variable when asked."""
+    return ExplicitModel(n_states=model.nr_states, initial=int(model.initial_states[0]),
+                         transitions=read_structure(model),
+                         read_variable=functools.partial(_state_variable, model))
 
 
-def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int]:
-    """docs/semantics.md §6: canonical states, and (state, action, successor) triples after merging."""
-    absorbing = decoded.goal | decoded.fail
-    counts = np.diff(moves.row_start)
-    choice_of_entry = np.repeat(np.arange(len(moves.source)), counts)
-    src = moves.source[choice_of_entry]
-    keep = ~absorbing[src] & (moves.probability > 0)
-    n = decoded.n_canonical   # one integer per (state, action, successor): n*n*5 < 2**63
-    key = ((decoded.canonical[src[keep]] * 5 + moves.action[choice_of_entry[keep]] + 1) * n
-           + decoded.canonical[moves.target[keep]])
-    n_triples = _count_distinct(key)
-    loops = int(decoded.goal.any()) + int(decoded.fail.any())
-    return decoded.n_canonical, n_triples + loops
-
-
-def _induced_dtmc(checked: CheckedModel, strategy: StormChoices) -> object:
+def _induced_dtmc(checked: StormChecked, choice: np.ndarray) -> object:
     matrix = checked.model.transition_matrix
     scheduler = checked.scheduler
     for s in range(checked.model.nr_states):
-        local = int(strategy.choice[s]) - matrix.get_row_group_start(s)
+        local = int(choice[s]) - matrix.get_row_group_start(s)
         scheduler.set_choice(developer.storage.SchedulerChoice[float](local), s)
     return checked.model.apply_scheduler(scheduler, True)
 
@@ -406,21 +285,22 @@ def _dtmc_value(dtmc: object, prop: str) -> float:
     return float(result.get_value_vector()[dtmc.initial_states[0]])
 
 
-def induced_probability(checked: CheckedModel, strategy: StormChoices,
+def induced_probability(checked: StormChecked, choice: np.ndarray,
                         prop: str = 'P=? [F "goal"]') -> float:
-    """A property of the DTMC that P1's strategy induces, checked by Storm."""
-    return _dtmc_value(_induced_dtmc(checked, strategy), prop)
+    """A property of the DTMC that fixing choice[state] (global choice indices) induces,
+    checked by Storm."""
+    return _dtmc_value(_induced_dtmc(checked, choice), prop)
 
 
 CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
 
 
-def induced_within(checked: CheckedModel, strategy: StormChoices, horizon: int) -> float:
-    """P(goal within `horizon` steps) under P1's strategy. Storm's bounded reachability costs
+def induced_within(checked: StormChecked, choice: np.ndarray, horizon: int) -> float:
+    """P(goal within `horizon` steps) when P1 takes choice[state] (global choice indices). Storm's bounded reachability costs
     one sweep per step, so the bound doubles from 1024 and stops at the horizon or as soon as
     the bounded probability is within CONVERGED of the unbounded one (it only increases
     towards it): a horizon of millions of steps costs what convergence needs."""
-    dtmc = _induced_dtmc(checked, strategy)
+    dtmc = _induced_dtmc(checked, choice)
     unbounded = _dtmc_value(dtmc, 'P=? [F "goal"]')
     bound = min(horizon, 1024)
     while True:
@@ -477,3 +357,33 @@ def check_robust(prism_path: Path, prop: str) -> float:
     except RuntimeError as err:
         raise StormError(f"{prism_path}: {err}") from err
     return float(result.get_value_vector()[model.initial_states[0]])
+
+
+class StormEngine:
+    """Storm as the pipeline's model checker (engines/engine.py ModelChecker)."""
+
+    methods = STORM_METHODS
+    sound_methods = SOUND_METHODS
+
+    def check(self, prism_path: Path, prop: str, method: str = "sound",
+              alongside: Callable[[ExplicitModel], object] | None = None) -> StormChecked:
+        return check(prism_path, prop, method, alongside)
+
+    def explicit(self, model: object) -> ExplicitModel:
+        return explicit(model)
+
+    def induced_within(self, checked: StormChecked, choice: np.ndarray, horizon: int) -> float:
+        return induced_within(checked, choice, horizon)
+
+    def induced_probability(self, checked: StormChecked, choice: np.ndarray,
+                            prop: str = 'P=? [F "goal"]') -> float:
+        return induced_probability(checked, choice, prop)
+
+    def build_interval(self, prism_path: Path) -> tuple[object, dict[str, float]]:
+        return build_interval_model(prism_path)
+
+    def check_robust(self, prism_path: Path, prop: str) -> float:
+        return check_robust(prism_path, prop)
+
+
+STORM = StormEngine()

@@ -417,7 +417,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
-    from hg2prism.engines.storm import STORM_METHODS
+    from hg2prism.engines import default
 
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
@@ -425,7 +425,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="only the worlds below 2e5 states without delay (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
-    parser.add_argument("--storm-method", choices=STORM_METHODS, default="sound",
+    parser.add_argument("--storm-method", choices=default().methods, default="sound",
                         help="how Storm solves Pmax, as for `hg2prism check` (default: sound)")
     args = parser.parse_args(argv)
     # SIGTERM unwinds like Ctrl-C, so that the running world's process is killed (measure_world).

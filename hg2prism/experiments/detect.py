@@ -38,7 +38,7 @@ if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import m
     from hg2prism.analyses.simulation import P2Policy, Replanning, SimulationSummary, StepRecord
     from hg2prism.strategy.records import Strategy
     from hg2prism.opponent.observer import Observer, ReportsBelief
-    from hg2prism.pipeline import Analysis, CheckResult
+    from hg2prism.results import Analysis, CheckResult
 
 __all__ = ["DetectionBatch", "detection_batch", "detection_experiment", "detect",
            "detection_summary_lines", "FALLBACKS", "DEFAULT_FALLBACK_DELTA", "parse_fallback"]

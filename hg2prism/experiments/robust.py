@@ -27,14 +27,21 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from hg2prism import progress
+from hg2prism.engines import default
+from hg2prism.engines.engine import ModelChecker
 from hg2prism.errors import InputError, probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.strategy.policy import Policy
+
+if TYPE_CHECKING:
+    from hg2prism.prism.hypergame import Layout
+    from hg2prism.results import Analysis, CheckResult
 
 __all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
            "robust", "robust_summary_lines"]
@@ -122,36 +129,52 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
     return _choices_of(game, moves.action, wanted[canonical], decides)
 
 
-def solve_budget(analysis, deceptive: Policy, prism_path: Path, layout, delta: float,
-                 check_path: Path | None = None) -> RobustSolved:
-    """Solve the interval model at `prism_path` (rendered for `delta`). `deceptive` is the
-    deceptive strategy (a records.Strategy with its fallback); `check_path`, the same model
-    rendered with eps > 0, is checked by Storm's robust mode and by numpy (at delta = 0 the
-    model itself is)."""
-    from hg2prism.engines import storm
+def _cross_check(engine: ModelChecker, check_path: Path, value: float) -> dict:
+    """The interval model at `check_path` (eps > 0) checked by the engine's robust mode and by
+    numpy, beside the exact value R_delta."""
+    from hg2prism.prism.robust_model import MOVE_VARIABLE, STORM_PROPERTY
+    from hg2prism.strategy.robust import IntervalGame, solve_robust
+
+    storm_value = engine.check_robust(check_path, STORM_PROPERTY)
+    eps_model = engine.explicit(engine.build_interval(check_path)[0])
+    eps_moves = eps_model.transitions
+    eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
+                               eps_model.initial, chance=eps_model.variable(MOVE_VARIABLE) >= 0)
+    numpy_value = solve_robust(eps_game).value(eps_game.initial)
+    return {"storm_robust_value_eps": storm_value, "numpy_value_eps": numpy_value,
+            "storm_minus_numpy": storm_value - numpy_value, "eps_minus_exact": numpy_value - value}
+
+
+def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout: Layout,
+                 delta: float, check_path: Path | None = None,
+                 engine: ModelChecker | None = None) -> RobustSolved:
+    """Solve the interval model at `prism_path` (rendered for `delta`), built by the model
+    checker `engine` (default: Storm). `deceptive` is the deceptive strategy (a Policy: a
+    records.Strategy with its fallback); `check_path`, the same model rendered with eps > 0, is
+    checked by the engine's robust mode and by numpy (at delta = 0 the model itself is)."""
+    from hg2prism.prism.decoding import decode_states, row_keys
     from hg2prism.strategy.deceptive import StormChoices
     from hg2prism.strategy.records import RecordExtras, strategy_json
     from hg2prism.strategy.robust import (IntervalGame, adversary_response, fastest_choices,
                                           move_values, solve_robust)
-    from hg2prism.prism.robust_model import MOVE_VARIABLE, PLAYED_VARIABLE, STORM_PROPERTY
+    from hg2prism.prism.robust_model import MOVE_VARIABLE, PLAYED_VARIABLE
 
+    engine = engine or default()
     ts, task = analysis.ts, analysis.task
-    model, _ = storm.build_interval_model(prism_path)
-    moves = storm.read_structure(model)
-    decoded = storm.decode_states(model, layout, ts, task)
-    decides = storm.state_variable(model, MOVE_VARIABLE) == -1
-    game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial_states[0],
-                           chance=~decides)
+    model = engine.explicit(engine.build_interval(prism_path)[0])
+    moves = model.transitions
+    decoded = decode_states(model, layout, ts, task)
+    decides = model.variable(MOVE_VARIABLE) == -1
+    game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial, chance=~decides)
     solution = solve_robust(game)
     value = probability(solution.value(game.initial), f"R_{delta} at the initial state")
 
     # Canonical states: the hypergame state, and for intermediate states the move and set.
-    canonical = storm.row_keys(np.column_stack([
-        decoded.canonical, storm.state_variable(model, MOVE_VARIABLE),
-        storm.state_variable(model, PLAYED_VARIABLE)]))
+    canonical = row_keys(np.column_stack([
+        decoded.canonical, model.variable(MOVE_VARIABLE), model.variable(PLAYED_VARIABLE)]))
     n_canonical = int(canonical.max()) + 1
     first = np.full(n_canonical, -1, dtype=np.int64)
-    first[canonical[::-1]] = np.arange(model.nr_states)[::-1]
+    first[canonical[::-1]] = np.arange(model.n_states)[::-1]
     representative = first[np.unique(canonical[decides])]
     states = int(len(representative))
 
@@ -185,27 +208,16 @@ def solve_budget(analysis, deceptive: Policy, prism_path: Path, layout, delta: f
                               ts, deceptive)
     nominal_worst = adversary_response(game, nominal)[game.initial]
 
-    check = None
-    if check_path is not None:
-        storm_value = storm.check_robust(check_path, STORM_PROPERTY)
-        eps_model, _ = storm.build_interval_model(check_path)
-        eps_moves = storm.read_structure(eps_model)
-        eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
-                                   eps_model.initial_states[0],
-                                   chance=storm.state_variable(eps_model, MOVE_VARIABLE) >= 0)
-        numpy_value = solve_robust(eps_game).value(eps_game.initial)
-        check = {"storm_robust_value_eps": storm_value, "numpy_value_eps": numpy_value,
-                 "storm_minus_numpy": storm_value - numpy_value,
-                 "eps_minus_exact": numpy_value - value}
+    check = None if check_path is None else _cross_check(engine, check_path, value)
     return RobustSolved(
         delta=delta, robust_value=value,
         nominal_worst_case=probability(nominal_worst, "the deceptive strategy's worst case"),
         robust_strategy_nominal_value=probability(robust_nominal, "the robust strategy's value"),
-        states=states, storm_states=int(model.nr_states), rounds=solution.rounds,
+        states=states, storm_states=int(model.n_states), rounds=solution.rounds,
         residual=solution.residual, records_json=records_json, storm_check=check)
 
 
-def solve_budgets(world: World, check_result, deltas: Sequence[float], folder: Path,
+def solve_budgets(world: World, check_result: CheckResult, deltas: Sequence[float], folder: Path,
                   storm_check: bool = True) -> list[tuple[RobustSolved, float]]:
     """Render and solve the interval model of every budget, each into
     ``folder/robust_<delta>/`` (robust.prism, robust.props): (solution, seconds) per budget.
@@ -235,12 +247,13 @@ def solve_budgets(world: World, check_result, deltas: Sequence[float], folder: P
                                                    CHECK_EPS)
                     check_path, _ = write_robust_model(eps_model, Path(scratch) / f"eps_{delta}")
             result = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
-                                  check_path)
+                                  check_path, check_result.engine)
             solved.append((result, time.perf_counter() - start))
     return solved
 
 
-def robust_strategy_for(world: World, check_result, delta: float, folder: Path) -> bytes:
+def robust_strategy_for(world: World, check_result: CheckResult, delta: float, folder: Path
+                        ) -> bytes:
     """The robust strategy's records (strategy.json's text) for one budget; the model is
     rendered below `folder`. `check_result` is pipeline.check(world, ...)."""
     ((solved, _),) = solve_budgets(world, check_result, [delta], folder, storm_check=False)

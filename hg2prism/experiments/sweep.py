@@ -358,9 +358,9 @@ _CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "stat
 
 def results_sound(storm_method: str) -> bool:
     """Whether values from `storm_method` are certified (docs/semantics.md §10)."""
-    from hg2prism.engines.storm import SOUND_METHODS
+    from hg2prism.engines import default
 
-    return storm_method in SOUND_METHODS
+    return storm_method in default().sound_methods
 
 
 # ---------------------------------------------------------------------------------------------

@@ -23,6 +23,7 @@ it has no parser for csg at all): tests/test_game_exports.py checks both in othe
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, PERPENDICULAR, Trans
 from hg2prism.prism.hypergame import cell_map
 from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
 from hg2prism.model.world import World
+
+if TYPE_CHECKING:
+    from hg2prism.results import Analysis
 
 PROPERTY = '<<p1>> Pmax=? [F "goal"]'
 
@@ -99,10 +103,10 @@ def render_perceptual(world: World, ts: TransitionSystem, dfa: DFA, index: int) 
     return text, props
 
 
-def write_game_models(analysis: object, out_dir: Path) -> list[Path]:
+def write_game_models(analysis: Analysis, out_dir: Path) -> list[Path]:
     """Write symmetric.prism/.props and perceptual_<i>.prism/.props (i = hypothesis index).
 
-    `analysis` is a pipeline.Analysis (world, ts, task, games)."""
+    `analysis` is a results.Analysis (world, ts, task, games)."""
     from hg2prism.outputs import write_text
 
     out_dir = Path(out_dir)

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.engines.storm import DecodedStates, Transitions
+from hg2prism.engines.engine import Transitions
+from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTIONS
 
 

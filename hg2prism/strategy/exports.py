@@ -23,7 +23,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse import csgraph
 
 from hg2prism.engines.certify import backward_reach
-from hg2prism.engines.storm import DecodedStates
+from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,

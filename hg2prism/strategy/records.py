@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hg2prism.engines.storm import DecodedStates, Transitions
+from hg2prism.engines.engine import Transitions
+from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.opponent.observer import Memory
 from hg2prism.strategy.columns import Field, Lines, Texts, Vocabulary, integers, literal, tokens

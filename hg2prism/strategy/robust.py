@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from hg2prism.engines.storm import Transitions
+from hg2prism.engines.engine import Transitions
 from hg2prism.errors import SolverError
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this

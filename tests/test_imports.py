@@ -1,0 +1,106 @@
+"""The package's import graph: no module imports, directly or through others, a module that
+imports it back (issue 22: engines/storm.py imported strategy/deceptive.py, which imported
+engines/storm.py), and only the Storm adapter knows stormpy.
+
+Every import counts: at module level, inside functions and under TYPE_CHECKING, since any of
+them ties the two modules together. A package's import of its own parent package is left out
+(importing hg2prism.x runs hg2prism/__init__.py, which imports the API, by design).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "hg2prism"
+
+
+def _modules() -> dict[str, Path]:
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = ("hg2prism",) + path.relative_to(PACKAGE).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def _imported(path: Path, modules: set[str] | frozenset[str] = frozenset()) -> set[str]:
+    """Every module `path` imports: `import m` imports m; `from p import x` imports p.x when
+    p.x is one of `modules`, else p."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            names |= {f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in modules
+                      else node.module for alias in node.names}
+        elif isinstance(node, ast.Import):
+            names |= {alias.name for alias in node.names}
+    return names
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the hg2prism modules it imports (its own parent packages left out)."""
+    modules = _modules()
+    return {name: {n for n in _imported(path, set(modules)) & set(modules)
+                   if n != name and not name.startswith(n + ".")}
+            for name, path in modules.items()}
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_the_graph_sees_deferred_and_type_checking_imports() -> None:
+    graph = import_graph()
+    assert "hg2prism.analyses.baselines" in graph["hg2prism.pipeline"]      # inside run()
+    assert "hg2prism.engines.engine" in graph["hg2prism.engines.storm"]
+    assert "hg2prism.engines.storm" in graph["hg2prism.engines"]            # inside default()
+
+
+def test_the_package_has_no_import_cycle() -> None:
+    assert cycles(import_graph()) == []
+
+
+def test_only_the_storm_adapter_imports_stormpy() -> None:
+    users = {name for name, path in _modules().items()
+             if any(n == "stormpy" or n.startswith("stormpy.") for n in _imported(path))}
+    assert users == {"hg2prism.engines.storm"}
+
+
+def test_hypergame_decoding_and_strategies_do_not_import_the_storm_adapter() -> None:
+    graph = import_graph()
+    for name in graph:
+        if name.startswith(("hg2prism.prism", "hg2prism.strategy", "hg2prism.pipeline",
+                            "hg2prism.experiments", "hg2prism.api", "hg2prism.analyses")):
+            assert "hg2prism.engines.storm" not in graph[name], name
