@@ -17,7 +17,9 @@ import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hg2prism.model.world import World, load_world, world_from_toml
+from hg2prism.model.world import World
+
+from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
 

@@ -223,7 +223,7 @@ def _guard_detect(args: argparse.Namespace, world: object) -> None:
 
 
 def _simulation_options(args: argparse.Namespace, world: object) -> None:
-    from hg2prism.model import world as world_mod
+    from hg2prism import worldfile as world_mod
 
     for option, most in (("episodes", world_mod.MAX_EPISODES), ("horizon", world_mod.MAX_HORIZON)):
         given = getattr(args, option)
@@ -237,7 +237,7 @@ def _simulation_options(args: argparse.Namespace, world: object) -> None:
 
 
 def _bound_option(args: argparse.Namespace, world: object) -> None:
-    from hg2prism.model.world import MAX_HORIZON
+    from hg2prism.worldfile import MAX_HORIZON
 
     if args.bound is None:
         return
@@ -407,7 +407,7 @@ def _command(args: argparse.Namespace) -> int:
 def _perform(args: argparse.Namespace) -> int:
     """Load the world, refuse what the command cannot do before any work, then do it in a
     staging folder that becomes OUT, and print what was written."""
-    from hg2prism.model.world import load_world
+    from hg2prism.worldfile import load_world
     from hg2prism.report import tables
 
     world = load_world(args.world)

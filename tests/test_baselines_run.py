@@ -15,7 +15,7 @@ from hg2prism.model.automata import translate
 from hg2prism.model.dynamics import build_transition_system
 from hg2prism.opponent.perceptual_games import solve_game
 from hg2prism.analyses.simulation import wilson_interval
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 FAMILY = dict(worldgen.world_family())
 # Non-trivial worlds: delay 0, 1 and 2, one and two traps, windows 1-3.

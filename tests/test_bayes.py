@@ -19,7 +19,7 @@ import worldgen
 from hg2prism import pipeline, progress
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.errors import InputError
-from hg2prism.model.world import load_world, world_from_toml
+from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.opponent.observer import Memory
 
 TOL = 1e-6

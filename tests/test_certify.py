@@ -20,7 +20,7 @@ import scipy.sparse as sp
 
 from hg2prism import pipeline
 from hg2prism.engines import certify, storm
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 from hg2prism.prism.hypergame import PROPERTY
 
 import worldgen

@@ -19,7 +19,7 @@ from hg2prism.engines import storm
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTIONS
 from hg2prism.opponent.inference import Memory
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 
 FAMILY = dict(worldgen.world_family())

@@ -25,7 +25,7 @@ import worldgen
 from conftest import MODELS
 from hg2prism import pipeline, progress
 from hg2prism.analyses import deception_value, simulation
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 from hg2prism.strategy.records import Strategy
 
 FAMILY = dict(worldgen.world_family())

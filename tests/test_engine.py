@@ -14,7 +14,7 @@ import worldgen
 from hg2prism import engines, pipeline, progress
 from hg2prism.engines.engine import ExplicitModel, Transitions
 from hg2prism.experiments import robust
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 WORLD = dict(worldgen.world_family())["fam00_d0_l1_w1_x2"]
 

@@ -17,7 +17,7 @@ from hg2prism.model.dynamics import ACTIONS, build_transition_system
 from hg2prism.errors import InputError
 from hg2prism.analyses.simulation import deviating_policy, leader_fallback
 from hg2prism.strategy.records import Strategy
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 WORLD2 = MODELS / "world2.toml"
 

@@ -24,7 +24,7 @@ import worldgen
 from conftest import MODELS
 from hg2prism import cli, pipeline
 from hg2prism.analyses import simulation
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 TOL = 1e-6
 STUCK = """name = "stuck"

@@ -18,7 +18,7 @@ from conftest import MODELS
 from hg2prism import cli
 from hg2prism.analyses import episodes, simulation
 from hg2prism.model.dynamics import ACTIONS
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 from hg2prism.report import plots, replay
 from hg2prism.strategy.records import Strategy
 

@@ -39,7 +39,7 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.opponent.perceptual_games import solve_game
 from hg2prism.prism.game_models import ACTION_LABELS, PROPERTY, write_game_models
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 TOL = 1e-6
 MOVES = ("N", "E", "S", "W")

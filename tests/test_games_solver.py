@@ -14,7 +14,7 @@ from conftest import MODELS
 from hg2prism.model.automata import translate
 from hg2prism.model.dynamics import build_transition_system
 from hg2prism.opponent.perceptual_games import is_certified, TurnBasedGame
-from hg2prism.model.world import load_world, world_from_toml
+from hg2prism.worldfile import load_world, world_from_toml
 
 FAMILY = dict(worldgen.world_family())
 CASES = ["world1"] + sorted(FAMILY)[::5]

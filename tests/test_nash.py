@@ -14,7 +14,7 @@ from hg2prism.analyses.baselines import (ConcurrentGame, concurrent_game, guaran
                                 solve_nash)
 from hg2prism.model.dynamics import build_transition_system
 from hg2prism.opponent.perceptual_games import TurnBasedGame, solve_game
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 WORLD1 = Path(__file__).resolve().parent.parent / "models" / "world1.toml"
 

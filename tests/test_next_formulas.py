@@ -14,7 +14,7 @@ import pytest
 import reference
 from conftest import MODELS
 from hg2prism import pipeline
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 SLIP = 0.1
 MOVE = 1 - 2 * SLIP          # the chosen move happens

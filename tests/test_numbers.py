@@ -21,7 +21,7 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.analyses import baselines
 from hg2prism.errors import SolverError, probability
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 FAMILY = dict(worldgen.world_family())
 NAMES = ["world1", "world2", "fam00_d0_l1_w1_x2", "fam04_d1_l1_w2_x2", "fam09_d0_l2_w1_x3",

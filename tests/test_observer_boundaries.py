@@ -26,7 +26,7 @@ import test_bayes
 import test_core
 import worldgen
 from hg2prism import pipeline, progress
-from hg2prism.model.world import load_world, world_from_toml
+from hg2prism.worldfile import load_world, world_from_toml
 
 FAMILY = dict(worldgen.world_family())
 # (family world, P1's first move): its CUSUM score is the threshold. Windows 1 (P2's next

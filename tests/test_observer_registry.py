@@ -22,7 +22,8 @@ from hg2prism.analyses.deception_value import static_value
 from hg2prism.errors import InputError
 from hg2prism.model import sizeguard
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
-from hg2prism.model.world import World, world_from_toml
+from hg2prism.model.world import World
+from hg2prism.worldfile import world_from_toml
 from hg2prism.opponent import registry
 from hg2prism.opponent.observer import Memory, MemoryBound, Observation, ObserverKind
 from hg2prism.prism.observers import ObserverPrism
@@ -75,7 +76,7 @@ NEVER = ObserverKind(
     build=lambda world, games: NeverRevises(world.window, world.initial_hypothesis, len(games)),
     render=render_never,
     memory=lambda world: MemoryBound(hypotheses=1, observations=0),
-    mismatches=lambda world, max_score: [],
+    mismatches=lambda world, max_score, vary: [],
     report=lambda world: {"inference": "never", "window": world.window})
 
 

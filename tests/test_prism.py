@@ -37,7 +37,7 @@ from hg2prism import pipeline
 from hg2prism.analyses import baselines
 from hg2prism.experiments.sweep import sweep_world
 from hg2prism.prism.game_models import write_game_models
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 import worldgen
 

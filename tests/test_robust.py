@@ -27,7 +27,7 @@ from hg2prism.analyses.simulation import (LeaderStrategy, Replanning, deviating_
                                           leader_fallback, simulate_deceptive)
 from hg2prism.cli import main
 from hg2prism.experiments import robust
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 from hg2prism.prism.robust_model import CHECK_EPS, build_robust_model, write_robust_model
 from hg2prism.strategy.records import Strategy
 

@@ -17,7 +17,7 @@ from hg2prism import cli, pipeline
 from hg2prism.experiments import bench
 from hg2prism.model import sizeguard
 from hg2prism.errors import InputError
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 # Observed estimate / canonical size on these worlds: 1.17 .. 4.43 (fam08, delay 2, window 3);
 # over the whole test family of 46 worlds it is 1.2 .. 52 (the largest ratios on tiny worlds

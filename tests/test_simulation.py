@@ -23,7 +23,7 @@ from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSumma
                                           deviating_policy, leader_fallback, model_policy,
                                           simulate_deceptive, simulate_nash, wilson_interval)
 from hg2prism.strategy.records import Strategy, StrategyError
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 WORLD1 = MODELS / "world1.toml"
 HORIZON = 200

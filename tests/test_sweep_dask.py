@@ -24,7 +24,7 @@ from hg2prism import cli
 from hg2prism.errors import InputError
 from hg2prism.experiments import sweep
 from hg2prism.model.sizeguard import estimate_states
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 TOL = 1e-6
 GRID = [("delay", [0, 1]), ("traps", [1, 2]), ("slip", [0.0, 0.1]), ("window", [1, 2])]

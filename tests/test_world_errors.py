@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from hg2prism.errors import InputError
-from hg2prism.model.world import load_world
+from hg2prism.worldfile import load_world
 
 REPO = Path(__file__).resolve().parent.parent
 MODELS = REPO / "models"

@@ -192,7 +192,7 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     """Runs `pipeline.check` on one world (in the calling process) and returns its row."""
     from hg2prism import pipeline
     from hg2prism.model import sizeguard
-    from hg2prism.model.world import load_world
+    from hg2prism.worldfile import load_world
     from hg2prism.results import TIMING_DIGITS
 
     world = load_world(world_path)

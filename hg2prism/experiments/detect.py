@@ -458,14 +458,14 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
                       say: Callable[[str], None]) -> list[dict]:
     """(d) P2's real inference differs from P1's model of it: one batch per variant."""
     from hg2prism.analyses.simulation import wilson_interval
-    from hg2prism.opponent.registry import build_observer, observer_kind
+    from hg2prism.opponent import registry
 
     games, episodes = batches.analysis.games, batches.episodes
     mismatch = []
-    for variant in observer_kind(world.inference).mismatches(world, max_score):
+    for variant in registry.mismatches(world, max_score):
         say(f"detection: {episodes} episodes, P2's inference uses {variant.label} "
             f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
-        summary, batch = batches.run(p2_inference=build_observer(variant.world, games))
+        summary, batch = batches.run(p2_inference=registry.build_observer(variant.world, games))
         rejections = batch.rejections(episodes)
         detected = sum(1 for n in rejections if n is not None)
         observable = len(batch.unpredicted)

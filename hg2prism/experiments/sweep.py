@@ -156,7 +156,7 @@ def _with_setting(name: str) -> Callable[[World, Value], World]:
         if name not in kind.keys():
             raise InputError(_CLI, "--param", f"the {kind.title} observer has no {name}; "
                              f'sweeping {name} needs [inference] kind = "{owner(name).name}"')
-        return world.with_settings(**{name: value})
+        return configure(world, **{name: value})
     return apply
 
 
@@ -399,7 +399,7 @@ class PointOutcome:
 
 
 def _world_of(task: PointTask) -> World:
-    from hg2prism.model.world import world_from_toml
+    from hg2prism.worldfile import world_from_toml
 
     if task.world is not None:
         base = task.world
@@ -476,7 +476,7 @@ def default_workers() -> int:
 def _world_text(world: World) -> str | None:
     """The world file's text when it gives exactly `world` (less name, path and the swept
     fields, which travel as changes); None for a world built in Python."""
-    from hg2prism.model.world import world_from_toml
+    from hg2prism.worldfile import world_from_toml
 
     try:
         text = Path(world.path).read_text(encoding="utf-8")

@@ -15,6 +15,7 @@ compute the same doubles and the 1e-9 tie rule decides identically.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,6 @@ from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
                                         ObserverKind, Setting, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
-from hg2prism.prism.observers import render_bayes
 
 __all__ = ["BayesObserver", "build_bayes", "KIND", "DECISIONS", "uniform_prior",
            "normalise_prior", "prior_argmax"]
@@ -208,12 +208,13 @@ def _memory(world: World) -> MemoryBound:
                                                       world.traps))
 
 
-def _mismatches(world: World, max_score: float) -> list[Mismatch]:
+def _mismatches(world: World, max_score: float, vary: Callable[..., World]
+                ) -> list[Mismatch]:
     """Window +- 1 and the other decision."""
     decision = world.setting("decision")
     variants = window_mismatches(world, decision)
     flipped = "sample" if decision == "map" else "map"
-    variants.append(Mismatch(f"decision {flipped}", world.with_settings(decision=flipped),
+    variants.append(Mismatch(f"decision {flipped}", vary(world, decision=flipped),
                              "the other decision", flipped))
     return variants
 
@@ -223,7 +224,7 @@ KIND = ObserverKind(
     settings=(Setting("prior", "an array of positive numbers, one per hypothesis", _read_prior,
                       uniform_prior),
               Setting("decision", '"map" or "sample"', _read_decision, lambda n: "map")),
-    build=_build, render=render_bayes, memory=_memory, mismatches=_mismatches,
+    build=_build, memory=_memory, mismatches=_mismatches,
     report=lambda world: {"inference": "bayes", "window": world.window, "threshold": None,
                           "decision": world.setting("decision"),
                           "prior": list(world.setting("prior"))},

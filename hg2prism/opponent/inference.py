@@ -8,6 +8,7 @@ prism/observers.render_cusum, templates/inference_cusum.prism.j2).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,7 +17,6 @@ from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
                                         ObserverKind, Setting, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
-from hg2prism.prism.observers import render_cusum
 
 __all__ = ["Memory", "InferenceModel", "build_inference", "KIND"]
 
@@ -142,7 +142,8 @@ def _memory(world: World) -> MemoryBound:
     return MemoryBound(hypotheses=len(world.hypotheses), observations=world.window - 1)
 
 
-def _mismatches(world: World, max_score: float) -> list[Mismatch]:
+def _mismatches(world: World, max_score: float, vary: Callable[..., World]
+                ) -> list[Mismatch]:
     """Window +- 1, threshold / 2 and * 2, and half the largest score P2 reached."""
     threshold = world.setting("threshold")
     variants = window_mismatches(world, threshold)
@@ -154,7 +155,7 @@ def _mismatches(world: World, max_score: float) -> list[Mismatch]:
     if 0.0 < hasty < threshold / 2:
         others.append((hasty, "half the largest CUSUM score reached when P2 follows the model"))
     for value, why in others:
-        variants.append(Mismatch(f"threshold {value:.4g}", world.with_settings(threshold=value),
+        variants.append(Mismatch(f"threshold {value:.4g}", vary(world, threshold=value),
                                  why, value))
     return variants
 
@@ -162,5 +163,5 @@ def _mismatches(world: World, max_score: float) -> list[Mismatch]:
 KIND = ObserverKind(
     name="cusum", title="CUSUM",
     settings=(Setting("threshold", "a number > 0", _read_threshold),),
-    build=_build, render=render_cusum, memory=_memory, mismatches=_mismatches,
+    build=_build, memory=_memory, mismatches=_mismatches,
     report=lambda world: {"window": world.window, "threshold": world.setting("threshold")})

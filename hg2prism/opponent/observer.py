@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 if TYPE_CHECKING:
     from hg2prism.model.world import World
     from hg2prism.opponent.perceptual_games import PerceptualGame
-    from hg2prism.prism.observers import ObserverPrism
 
 # (TS state, P1's action index into dynamics.ACTIONS, the trap set in force during the step).
 # The CUSUM observer reads only the first two (its memory has no trap sets, §5); the Bayesian
@@ -152,16 +151,20 @@ class ObserverKind:
     title: str                                 # "the <title> observer" in messages
     settings: tuple[Setting, ...]
     build: Callable[[World, list[PerceptualGame]], Observer]
-    # (observer, ts, labels, observed, played) -> its part of the model (prism/observers.py)
-    render: Callable[..., ObserverPrism]
     memory: Callable[[World], MemoryBound]
-    # (world, the largest CUSUM score P2 reached when following the model) -> P2's variants
-    mismatches: Callable[[World, float], list[Mismatch]]
+    # (world, the largest CUSUM score P2 reached when following the model, vary) -> P2's
+    # variants; vary(world, **settings) is the world with other settings of its observer
+    # (registry.configure: the opponent layer does not import the registry above it)
+    mismatches: Callable[[World, float, Callable[..., World]], list[Mismatch]]
     report: Callable[[World], dict]            # P1's model of P2 in detection.json
     # P2's first hypothesis from the settings, and the rule in words ("the prior's most
     # probable hypothesis"); None: [adversary] initial_hypothesis
     first_guess: Callable[[dict], int] | None = None
     first_guess_rule: str = ""
+    # (observer, ts, labels, observed, played) -> its part of the PRISM model, an
+    # ObserverPrism: a renderer of prism/observers.py, attached by registry.register (so
+    # that opponent/ does not import prism/, which imports it)
+    render: Callable[..., Any] | None = None
 
     def keys(self) -> tuple[str, ...]:
         return tuple(setting.key for setting in self.settings)

@@ -9,26 +9,34 @@ never the kind's name. A new observer is a module defining its observer and its 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 from hg2prism.model.world import World
 from hg2prism.opponent import bayes, inference
 from hg2prism.opponent.observer import Observer, ObserverKind
 from hg2prism.opponent.perceptual_games import PerceptualGame
+from hg2prism.prism.observers import render_bayes, render_cusum
 
-__all__ = ["KINDS", "register", "observer_kind", "build_observer", "owner", "configure"]
+__all__ = ["KINDS", "register", "observer_kind", "build_observer", "owner", "configure",
+           "mismatches"]
 
 KINDS: dict[str, ObserverKind] = {}
 
 
-def register(kind: ObserverKind) -> ObserverKind:
-    """Make `kind` known under `kind.name` (replacing a kind of that name)."""
+def register(kind: ObserverKind, render: Callable[..., object] | None = None) -> ObserverKind:
+    """Make `kind` known under `kind.name` (replacing a kind of that name), with `render`, its
+    part of the PRISM model (prism/observers.py), when the kind does not carry one."""
+    if render is not None:
+        kind = replace(kind, render=render)
+    if kind.render is None:
+        raise ValueError(f"observer kind {kind.name!r} has no PRISM renderer")
     KINDS[kind.name] = kind
     return kind
 
 
-register(inference.KIND)
-register(bayes.KIND)
+register(inference.KIND, render_cusum)
+register(bayes.KIND, render_bayes)
 
 
 def observer_kind(name: str) -> ObserverKind:
@@ -62,3 +70,9 @@ def configure(world: World, name: str | None = None, **settings: object) -> Worl
     first = world.initial_hypothesis if kind.first_guess is None else kind.first_guess(values)
     return replace(world, inference=kind.name, initial_hypothesis=first,
                    settings=tuple((s.key, values[s.key]) for s in kind.settings))
+
+
+def mismatches(world: World, max_score: float) -> list:
+    """P2's variants for the detection experiment (ObserverKind.mismatches), `max_score` the
+    largest score P2 reached when following the model."""
+    return KINDS[world.inference].mismatches(world, max_score, configure)
