@@ -19,12 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.sparse import csgraph
 
-from hg2prism.engines.certify import backward_reach
+from hg2prism import numeric
 from hg2prism.engines.storm import DecodedStates
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.numeric import Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
                                        render_grouped, tokens)
@@ -276,57 +275,12 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
 # Numbers of the DTMC
 # ---------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class Steps:
-    """Expected numbers of steps of the exported strategy from the initial state."""
-
-    goal_probability: float        # P(F "goal")
-    to_end: float | None           # E[steps until goal, failure (or the horizon)]; None if infinite
-    to_goal: float | None          # E[steps | the goal is reached]; None if it is never reached
-
-
 def expected_steps(dtmc: InducedDTMC) -> Steps:
     """P(F goal), the expected steps until an absorbing state, and the expected steps to the
-    goal given that it is reached (docs/semantics.md §6 "Timing"), by sparse linear solves over
-    the states the initial state reaches, with one LU factorisation."""
-    n = dtmc.n
-    absorbing = np.zeros(n, dtype=bool)
+    goal given that it is reached (docs/semantics.md §6 "Timing"): `numeric.expected_steps`
+    on the DTMC, every labelled state absorbing."""
+    absorbing = np.zeros(dtmc.n, dtype=bool)
     for mask in dtmc.labels.values():
         absorbing |= mask
-    goal = dtmc.labels["goal"]
-    if absorbing[dtmc.initial]:
-        hit = bool(goal[dtmc.initial])
-        return Steps(float(hit), 0.0, 0.0 if hit else None)
-    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(n, n))
-    reached = np.zeros(n, dtype=bool)
-    reached[csgraph.breadth_first_order(matrix, dtmc.initial, directed=True,
-                                        return_predecessors=False)] = True
-    transient = np.flatnonzero(reached & ~absorbing)
-    rows = matrix[transient]
-    inner = rows[:, transient]
-    to_goal = np.asarray(rows[:, np.flatnonzero(goal)].sum(axis=1)).ravel()
-    exits = np.asarray(rows[:, np.flatnonzero(absorbing)].sum(axis=1)).ravel()
-    s0 = int(np.searchsorted(transient, dtmc.initial))
-
-    # Every state here is reached from the initial state with positive probability, so the
-    # expected time is finite iff each of them can reach an absorbing state; then I - P is
-    # invertible on all of them. Otherwise P(F goal) and the steps to the goal are solved on
-    # the states that can reach the goal, where it is invertible too.
-    edges = inner.tocoo()
-    ends = backward_reach(edges.row, edges.col, np.flatnonzero(exits > 0), len(transient))
-    solve_on = (np.arange(len(transient)) if ends.all() else
-                np.flatnonzero(backward_reach(edges.row, edges.col, np.flatnonzero(to_goal > 0),
-                                              len(transient))))
-    if s0 not in solve_on:      # the goal is unreachable
-        return Steps(0.0, None, None)
-    sub = inner[solve_on][:, solve_on] if len(solve_on) < len(transient) else inner
-    lu = spla.splu(sp.identity(len(solve_on), format="csc") - sub.tocsc())
-    at = int(np.searchsorted(solve_on, s0))
-    reach = lu.solve(to_goal[solve_on])
-    end = float(lu.solve(np.ones(len(solve_on)))[at]) if ends.all() else None
-    probability = float(np.clip(reach[at], 0.0, 1.0))
-    if probability <= 0.0:
-        return Steps(probability, end, None)
-    # E[T 1{goal}] = y with y = x + P y, x = P(F goal).
-    weighted = float(lu.solve(reach)[at])
-    return Steps(probability, end, weighted / probability)
+    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(dtmc.n, dtmc.n))
+    return numeric.expected_steps(matrix, dtmc.initial, dtmc.labels["goal"], absorbing)
