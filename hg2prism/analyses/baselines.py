@@ -350,7 +350,7 @@ def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     rest every stationary P2 strategy reaches goal or those states with probability 1, so
     policy iteration with exact evaluation converges to the minimum (numeric/policy.py)."""
     model = _mixed_model(game, p1, player=2)
-    rank, _ = numeric.attractor(model, game.goal, every=True, stop=game.zero)
+    rank = numeric.attractor(model, game.goal, every=True, stop=game.zero)
     first = model.first_best(model.matrix @ game.goal.astype(float), sense=-1.0)
     found = numeric.optimal_reach(model, game.goal, first, maximise=False, stop=rank < 0)
     if not found.converged:
@@ -369,7 +369,8 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray,
     (numeric/policy.py proves that it terminates). V_static (docs/semantics.md §11) asks for an
     improvement of 1e-12."""
     model = _mixed_model(game, p2, player=1)
-    _, progress = numeric.attractor(model, game.goal, stop=game.zero)
+    rank = numeric.attractor(model, game.goal, stop=game.zero)
+    progress = numeric.progress_choices(model, rank)
     first = np.where(progress >= 0, progress, model.group_start[:-1])
     found = numeric.optimal_reach(model, game.goal, first, stop=game.zero, floor=improvement)
     if not found.converged:

@@ -6,10 +6,10 @@ simulation) solves it here."""
 
 from hg2prism.numeric.chains import (ChainValue, Steps, bounded_reach, chain_reach,
                                      expected_steps, solve_m_matrix)
-from hg2prism.numeric.graph import attractor, backward_reach, can_reach
+from hg2prism.numeric.graph import attractor, backward_reach, can_reach, progress_choices
 from hg2prism.numeric.model import ExplicitModel
 from hg2prism.numeric.policy import OptimalReach, optimal_reach
 
 __all__ = ["ChainValue", "Steps", "bounded_reach", "chain_reach", "expected_steps",
-           "solve_m_matrix", "attractor", "backward_reach", "can_reach", "ExplicitModel",
+           "solve_m_matrix", "attractor", "backward_reach", "can_reach", "progress_choices", "ExplicitModel",
            "OptimalReach", "optimal_reach"]

@@ -45,32 +45,55 @@ def can_reach(model: ExplicitModel, target: np.ndarray, stop: np.ndarray | None 
     return backward_reach(rows, columns, np.flatnonzero(target), model.n_states)
 
 
-def attractor(model: ExplicitModel, target: np.ndarray, every: bool = False,
-              stop: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The positive attractor of `target`, level by level: rank[s] is the least k such that from
-    s some (every, with `every`) choice of s has a positive chance of entering the states of
-    rank < k; rank 0 on the target, -1 outside the attractor. `stop` states never enter
-    (their choices are ignored), nor do states without a choice. Also returns, per state of
-    rank > 0, its first choice (in choice order) with an edge into a lower rank, else -1.
+def attractor(model: ExplicitModel, target: np.ndarray, every: bool | np.ndarray = False,
+              stop: np.ndarray | None = None, allowed: np.ndarray | None = None) -> np.ndarray:
+    """The positive attractor of `target`: rank[s] is the least k such that from s some choice
+    (every choice, where `every` holds: a bool or a mask over states) has a positive chance of
+    entering the states of rank < k; rank 0 on the target, -1 outside. Only the `allowed`
+    choices count (all by default); `stop` states and states without an allowed choice never
+    enter.
 
-    Level by level, each choice is looked at once per level; the models here are solved in a
-    handful of levels per state layer, so this stays far below the cost of the solves."""
+    Breadth-first from the target over the choices' predecessor lists, so each choice is
+    looked at once per successor that enters, not once per level."""
     n = model.n_states
-    rank = np.where(target, 0, -1)
-    progress = np.full(n, -1, dtype=np.int64)
-    candidate = ~target & (model.counts > 0)
+    allowed = np.ones(model.n_choices, dtype=bool) if allowed is None else allowed
+    owner = model.choice_state
+    choices = np.bincount(owner[allowed], minlength=n)
+    needed = np.where(np.broadcast_to(every, (n,)), choices, 1)
+    candidate = ~target & (choices > 0)
     if stop is not None:
         candidate &= ~stop
-    graph = model.matrix.copy()
-    graph.data = (graph.data > 0).astype(float)
-    owner = model.choice_state
-    for level in range(1, n + 1):
-        closer = (graph @ (rank >= 0).astype(float)) > 0                # [choices]
-        hits = np.bincount(owner, weights=closer, minlength=n)
-        new = candidate & (rank < 0) & ((hits == model.counts) if every else (hits > 0))
-        if not new.any():
-            break
-        first = np.flatnonzero(closer & new[owner])[::-1]
-        progress[owner[first]] = first          # reversed: each state's first choice wins
-        rank[new] = level
-    return rank, progress
+    predecessors = model.predecessors
+    hit = ~allowed | ~candidate[owner]       # a choice counts once, when it first hits
+    hits = np.zeros(n, dtype=np.int64)
+    rank = np.where(target, 0, -1)
+    frontier = np.flatnonzero(target)
+    level = 0
+    while frontier.size:
+        level += 1
+        found = predecessors[frontier].indices
+        found = np.unique(found[~hit[found]])
+        hit[found] = True
+        states, counts = np.unique(owner[found], return_counts=True)
+        hits[states] += counts
+        frontier = states[(rank[states] < 0) & (hits[states] >= needed[states])]
+        rank[frontier] = level
+    return rank
+
+
+def progress_choices(model: ExplicitModel, rank: np.ndarray,
+                     allowed: np.ndarray | None = None) -> np.ndarray:
+    """Per state of rank > 0 (an `attractor`'s ranks), its first allowed choice (in choice
+    order) with a positive chance of entering a lower rank; -1 elsewhere."""
+    graph = model.matrix
+    entries = np.repeat(np.arange(model.n_choices), np.diff(graph.indptr))
+    into = rank[graph.indices]
+    closer = (graph.data > 0) & (into >= 0) & (into < rank[model.choice_state[entries]])
+    good = np.zeros(model.n_choices, dtype=bool)
+    good[entries[closer]] = True
+    if allowed is not None:
+        good &= allowed
+    first = np.flatnonzero(good)[::-1]
+    progress = np.full(model.n_states, -1, dtype=np.int64)
+    progress[model.choice_state[first]] = first      # reversed: each state's first choice wins
+    return progress

@@ -59,6 +59,14 @@ class ExplicitModel:
         """[choices] the state each choice belongs to."""
         return np.repeat(np.arange(self.n_states), self.counts)
 
+    @functools.cached_property
+    def predecessors(self) -> sp.csr_matrix:
+        """[states x choices]: row t lists the choices with a positive chance of entering t."""
+        positive = self.matrix.copy()
+        positive.data = (positive.data > 0).astype(np.int8)
+        positive.eliminate_zeros()
+        return positive.T.tocsr()
+
     def chain(self, choice: np.ndarray) -> sp.csr_matrix:
         """[states x states] the Markov chain of a memoryless strategy (`choice`: a global
         choice index per state; the rows of states without a choice are empty)."""
