@@ -56,27 +56,43 @@ def attractor(model: ExplicitModel, target: np.ndarray, every: bool | np.ndarray
     Breadth-first from the target over the choices' predecessor lists, so each choice is
     looked at once per successor that enters, not once per level."""
     n = model.n_states
-    allowed = np.ones(model.n_choices, dtype=bool) if allowed is None else allowed
-    owner = model.choice_state
-    choices = np.bincount(owner[allowed], minlength=n)
-    needed = np.where(np.broadcast_to(every, (n,)), choices, 1)
+    if allowed is None:
+        choices = model.counts
+        fresh = np.ones(model.n_choices, dtype=bool)       # a choice counts once, when it hits
+    else:
+        choices = np.zeros(n, dtype=np.int64)
+        has = model.counts > 0
+        choices[has] = np.add.reduceat(allowed.astype(np.int64), model.group_start[:-1][has])
+        fresh = allowed.copy()
+    every = np.broadcast_to(every, (n,))
     candidate = ~target & (choices > 0)
     if stop is not None:
         candidate &= ~stop
-    predecessors = model.predecessors
-    hit = ~allowed | ~candidate[owner]       # a choice counts once, when it first hits
-    hits = np.zeros(n, dtype=np.int64)
+    start, choice_of, owner = (model.predecessors.indptr, model.predecessors.indices,
+                               model.choice_state)
+    hits = np.zeros(n, dtype=np.int64)      # distinct choices of a state that hit, if `every`
+    scratch = np.empty(n, dtype=np.int64)
     rank = np.where(target, 0, -1)
     frontier = np.flatnonzero(target)
     level = 0
     while frontier.size:
         level += 1
-        found = predecessors[frontier].indices
-        found = np.unique(found[~hit[found]])
-        hit[found] = True
-        states, counts = np.unique(owner[found], return_counts=True)
-        hits[states] += counts
-        frontier = states[(rank[states] < 0) & (hits[states] >= needed[states])]
+        lengths = start[frontier + 1] - start[frontier]
+        gather = np.arange(lengths.sum()) + np.repeat(start[frontier] - np.cumsum(lengths)
+                                                      + lengths, lengths)
+        found = choice_of[gather]
+        found = found[fresh[found]]
+        fresh[found] = False
+        states = owner[found]
+        keep = candidate[states] & (rank[states] < 0)
+        found, states = found[keep], states[keep]
+        counted = every[states]
+        np.add.at(hits, owner[np.unique(found[counted])], 1)
+        enter = states[~counted | (hits[states] >= choices[states])]
+        # distinct, without sorting: each state's last position wins a scatter of positions
+        order = np.arange(enter.size)
+        scratch[enter] = order
+        frontier = enter[scratch[enter] == order]
         rank[frontier] = level
     return rank
 

@@ -15,7 +15,6 @@ from 9-151 s to 3-30 s, README "Scaling"). The result is certified:
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,8 +26,6 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
-from hg2prism import numeric
-from hg2prism.numeric import ExplicitModel
 
 TIE = 1e-6              # P2's tie tolerance between trap sets (docs/semantics.md §4)
 # Value iteration only seeds the strategies: strategy iteration then evaluates them exactly and
@@ -80,6 +77,7 @@ class TurnBasedGame:
         self.goal, self.zero_fixed = arena.goal, arena.fail
         self.free = arena.free
         self.size = arena.size
+        self._reverse: tuple[np.ndarray, np.ndarray] | None = None
         standing = _standing_sets(ts)
         self.standing = None if standing is None else np.repeat(standing, n_q)
 
@@ -95,38 +93,48 @@ class TurnBasedGame:
         best = q.max(axis=1)
         return np.where(self.allowed, best, np.inf).min(axis=1)
 
-    @functools.cached_property
-    def _layers(self) -> ExplicitModel:
-        """The game as an explicit model in two layers: game state g (P2's turn) has one
-        choice per trap set a2, into the state G + g * A2 + a2 (P1's turn), whose choices are
-        P1's moves a1 (choice G * A2 + (g * A2 + a2) * 4 + a1) with their successors among the
-        game states."""
-        g, n_moves, n_sets, k = self.next.shape
-        pairs = g * n_sets
-        successor = self.next.transpose(0, 2, 1, 3).reshape(-1)              # [(g, a2, a1, k)]
-        weight = self.prob.transpose(0, 2, 1, 3).reshape(-1)
-        rows = np.r_[np.arange(pairs), pairs + np.repeat(np.arange(pairs * n_moves), k)]
-        cols = np.r_[g + np.arange(pairs), successor]
-        matrix = sp.csr_matrix((np.r_[np.ones(pairs), weight], (rows, cols)),
-                               shape=(pairs * (1 + n_moves), g + pairs))
-        group_start = np.r_[np.arange(g) * n_sets, pairs + np.arange(pairs + 1) * n_moves]
-        return ExplicitModel(matrix=matrix, group_start=group_start)
+    def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
+        """(moves, start): moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat
+        indices into [G, 4, A2], that reach game state t with positive probability."""
+        if self._reverse is None:
+            positive = np.flatnonzero(self.prob.reshape(-1) > 0)
+            target = self.next.reshape(-1)[positive]
+            order = np.argsort(target, kind="stable")
+            start = np.searchsorted(target[order], np.arange(self.size + 1))
+            self._reverse = (positive[order] // 3, start)
+        return self._reverse
 
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
         """Rank of each state in P1's attractor for reaching the goal with positive probability
         (P2 picks a2 first); -1 outside. `actions` [G, 4, A2] restricts P1's moves.
 
-        `numeric.attractor` on the two-layer model (`_layers`): every allowed trap set, then
-        some allowed move, so a game state of rank r enters at level 2r."""
-        g, n_sets = self.size, self.ts.n_sets
-        moves = (np.ones(g * 4 * n_sets, dtype=bool) if actions is None
-                 else actions.transpose(0, 2, 1).reshape(-1))
-        rank = numeric.attractor(
-            self._layers, np.r_[self.goal, np.zeros(g * n_sets, dtype=bool)],
-            every=np.r_[np.ones(g, dtype=bool), np.zeros(g * n_sets, dtype=bool)],
-            stop=np.r_[~self.free, np.repeat(~self.free, n_sets)],
-            allowed=np.r_[self.allowed.reshape(-1), moves])
-        return np.where(rank[:g] >= 0, rank[:g] // 2, -1)
+        Breadth-first from the goal over the predecessor moves, so each move is looked at
+        once per state that enters the attractor, not once per level."""
+        moves, start = self._predecessors()
+        n_moves = 4 * self.ts.n_sets
+        allowed_moves = None if actions is None else actions.reshape(-1)
+        reach = np.zeros(self.size * n_moves, dtype=bool)     # move reaches the attractor
+        rank = np.where(self.goal, 0, -1)
+        frontier = np.flatnonzero(self.goal)
+        level = 0
+        while frontier.size:
+            level += 1
+            lengths = start[frontier + 1] - start[frontier]
+            offsets = np.repeat(start[frontier] - np.cumsum(lengths) + lengths, lengths)
+            found = moves[np.arange(lengths.sum()) + offsets]
+            if allowed_moves is not None:
+                found = found[allowed_moves[found]]
+            reach[found] = True
+            # sorted distinct states by marking: numpy's hash-based unique is several times slower
+            marked = np.zeros(self.size, dtype=bool)
+            marked[found // n_moves] = True
+            candidates = np.flatnonzero(marked)
+            candidates = candidates[self.free[candidates] & (rank[candidates] < 0)]
+            hit = reach.reshape(self.size, 4, -1)[candidates].any(axis=1)
+            ok = (hit | ~self.allowed[candidates]).all(axis=1)
+            frontier = candidates[ok]
+            rank[frontier] = level
+        return rank
 
 
 def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
