@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from hg2prism import numeric
 from hg2prism.engines.storm import DecodedStates
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
-from hg2prism.numeric import Steps
+from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
                                        render_grouped, tokens)
@@ -40,9 +40,7 @@ class InducedDTMC:
 
     variables: tuple[str, ...]
     valuations: np.ndarray        # [n, variables] int
-    source: np.ndarray            # transitions, sorted by source then target, merged
-    target: np.ndarray
-    probability: np.ndarray
+    chain: ExplicitModel          # one choice per state, its successors sorted, merged
     initial: int
     labels: dict[str, np.ndarray]  # label name -> [n] bool ("goal", "fail", ...; not "init")
     action: np.ndarray            # [n] P1's move index, -1 in absorbing states
@@ -50,6 +48,19 @@ class InducedDTMC:
     @property
     def n(self) -> int:
         return len(self.valuations)
+
+    @functools.cached_property
+    def source(self) -> np.ndarray:
+        """The transitions' sources, sorted (then by target: `target`, `probability`)."""
+        return np.repeat(np.arange(self.n), np.diff(self.chain.matrix.indptr))
+
+    @functools.cached_property
+    def target(self) -> np.ndarray:
+        return self.chain.matrix.indices.astype(np.int64)
+
+    @property
+    def probability(self) -> np.ndarray:
+        return self.chain.matrix.data
 
     @functools.cached_property
     def numbers(self) -> Field:
@@ -99,15 +110,14 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
     return tuple(names), np.column_stack(columns).astype(np.int64)
 
 
-def _merged(source: np.ndarray, target: np.ndarray, probability: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Transitions sorted by (source, target) with equal pairs' probabilities summed."""
-    matrix = sp.coo_matrix((probability, (source, target)),
-                           shape=(int(source.max()) + 1, int(target.max()) + 1)).tocsr()
+def _chain(source: np.ndarray, target: np.ndarray, probability: np.ndarray, n: int
+           ) -> ExplicitModel:
+    """The DTMC's transitions as a chain, each state's successors sorted and equal pairs'
+    probabilities summed."""
+    matrix = sp.coo_matrix((probability, (source, target)), shape=(n, n)).tocsr()
     matrix.sum_duplicates()
     matrix.sort_indices()
-    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
-    return rows, matrix.indices.astype(np.int64), matrix.data
+    return ExplicitModel(matrix=matrix, group_start=np.arange(n + 1))
 
 
 def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedStates,
@@ -134,9 +144,9 @@ def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedState
     values = np.vstack([values, np.full((1, len(names)), GOAL_VALUE, dtype=np.int64),
                         np.full((1, len(names)), FAIL_VALUE, dtype=np.int64)])
     labels = {"goal": np.arange(n_live + 2) == goal_id, "fail": np.arange(n_live + 2) == fail_id}
-    source, target, probability = _merged(source, target, probability)
-    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
-                       probability=probability, initial=int(index[initial]),
+    return InducedDTMC(variables=names, valuations=values,
+                       chain=_chain(source, target, probability, n_live + 2),
+                       initial=int(index[initial]),
                        labels=labels, action=np.r_[action[live], -1, -1])
 
 
@@ -201,9 +211,8 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
     moves = (np.concatenate([action_at(t)[layer] for t, layer in enumerate(layers)])
              if layers else np.zeros(0, dtype=np.int64))
     start = 0 if n_live else (goal_id if mdp.goal[initial] else fail_id)
-    source, target, probability = _merged(source, target, probability)
-    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
-                       probability=probability, initial=start,
+    return InducedDTMC(variables=names, valuations=values,
+                       chain=_chain(source, target, probability, n), initial=start,
                        labels=labels, action=np.r_[moves, -1, -1, -1])
 
 
@@ -282,5 +291,5 @@ def expected_steps(dtmc: InducedDTMC) -> Steps:
     absorbing = np.zeros(dtmc.n, dtype=bool)
     for mask in dtmc.labels.values():
         absorbing |= mask
-    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(dtmc.n, dtmc.n))
-    return numeric.expected_steps(matrix, dtmc.initial, dtmc.labels["goal"], absorbing)
+    return numeric.expected_steps(dtmc.chain.matrix, dtmc.initial, dtmc.labels["goal"],
+                                  absorbing)
