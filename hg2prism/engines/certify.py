@@ -43,12 +43,6 @@ class Certificate:
     reason: str                 # why not certified ("" when certified)
 
 
-def choice_matrix(row_start: np.ndarray, target: np.ndarray, probability: np.ndarray,
-                  n_states: int) -> sp.csr_matrix:
-    """The [choices x states] transition matrix from its flat arrays."""
-    return sp.csr_matrix((probability, target, row_start), shape=(len(row_start) - 1, n_states))
-
-
 def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.ndarray,
                      estimate: np.ndarray, slack: float = SLACK) -> np.ndarray:
     """A strategy (a global choice index per state) from approximate values: among the choices

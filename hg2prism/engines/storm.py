@@ -24,6 +24,7 @@ from stormpy import developer
 from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
+from hg2prism.numeric import ExplicitModel
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
 from hg2prism.errors import StormError, probability
@@ -164,8 +165,8 @@ def certificate(model: object, formula: object, max_rounds: int = certify.MAX_RO
     estimate = np.asarray(result.get_value_vector())
     structure = read_structure(model)
     group_start = np.searchsorted(structure.source, np.arange(model.nr_states + 1))
-    matrix = certify.choice_matrix(structure.row_start, structure.target, structure.probability,
-                                   model.nr_states)
+    matrix = ExplicitModel.from_arrays(structure.row_start, structure.target,
+                                       structure.probability, group_start).matrix
     goal = structure.labels["goal"]
     choice = certify.initial_strategy(matrix, group_start, goal, estimate)
     if perturb is not None:
