@@ -5,23 +5,26 @@ up to a bound e on the error (`chains.chain_reach`), so every computed one-step 
 sum_s' P(s' | s, a) x(s') is within e (plus the rounding of the sum) of the exact one. (e is
 computed with the evaluation's own LU factors and includes the rounding of the residual, which
 dominates on ill-conditioned chains: where P2's mixed strategy plays a set with probability
-2e-9, as on maze 113 of tests/mazegen.py, e reaches 1e-6 and a flat margin let the iteration
-cycle.) A state
-switches only when its best choice beats its current one by more than the margin
-`floor + 2 e`, with `floor` above the summation's rounding: so every switch is a strict
-improvement in exact arithmetic, never a tie that rounding made look better. For the
-maximiser the strategy then stays "proper" (every state of positive value reaches the target
-or a state of value 0 with probability 1): a set C the new strategy never leaves without the
-target would contain, at its state of largest value, a switched state (whose exact q exceeds
-its value, impossible inside C) or an old-strategy state all of whose successors share that
-largest value, which by induction makes C closed under the old strategy too, hence of value 0.
-A proper strategy's value is the unique fixed point of its operator, so the new values are at
-least the old ones and strictly larger at every switched state: no strategy comes back, and
-the iteration stops after finitely many rounds (at most the number of memoryless strategies).
-For the minimiser the states from which it can avoid the target surely are `stop` states of
-value 0, so every strategy is proper on the rest, and the same argument applies. Rounding then
-never makes the iteration cycle: a margin of 1e-14 alone did, where values within rounding of
-1 made a move that stalls look better by a few 1e-13 (issue 22, item 9).
+2e-9, as on maze 113 of tests/mazegen.py, e reaches 1e-6.) A state switches only when its best
+choice beats its current value by more than the margin `floor + 2 e`, with `floor` above the
+summation's rounding: so every switch is a strict improvement in exact arithmetic, never a tie
+that rounding made look better.
+
+Then, for the maximiser, let C be a set of states the new strategy never leaves and that holds
+no target state, and M the states of C of largest old value x. A switched state of M would
+have q > x(s) with all its successors in C, of value at most x(s): impossible. So the states
+of M keep their old choice, whose successors (in C, x(s) being their average) are all in M: M
+is closed under the old strategy, which never reaches the target from it, so x = 0 on M, hence
+on C, and no state of C switched (it would need a successor of positive value). The new
+strategy's chain therefore ends, with probability 1, in the target or in sets where the old
+value is 0; with T' its one-step operator, x <= T'(x) (equal where nothing switched), so its
+value lim T'^k(x) is at least x, and strictly larger at every switched state. No strategy comes
+back and the iteration stops after finitely many rounds (at most the number of memoryless
+strategies). For the minimiser the states from which it can avoid the target surely are `stop`
+states of value 0, so every strategy reaches the target or them with probability 1 from the
+rest, and the same argument applies with the inequalities reversed. A margin of 1e-14 alone
+did let the iteration cycle (issue 22, item 9): where values are within rounding of 1, a move
+that stalls looked better by a few 1e-13, and on maze 113 the solve's error was 1e-6.
 
 When it stops, no state gains more than the margin: the values are a fixed point of the
 Bellman operator within `max(tolerance, margin)`.
