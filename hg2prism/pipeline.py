@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 import numpy as np
 
 from hg2prism import __version__
-from hg2prism.engines.engine import CheckedModel, ExplicitModel, ModelChecker, Transitions
+from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
 from hg2prism.model.dynamics import TransitionSystem, build_transition_system
@@ -123,7 +123,7 @@ class ModelStructure:
     initial: int                   # the engine's initial state
 
 
-def read_model(model: ExplicitModel, prism: PrismModel, analysis: Analysis) -> ModelStructure:
+def read_model(model: BuiltModel, prism: PrismModel, analysis: Analysis) -> ModelStructure:
     """The engine's transitions, its states decoded, the canonical MDP and its size."""
     moves = model.transitions
     decoded = decode_states(model, prism.layout, analysis.ts, analysis.task,

@@ -2,7 +2,8 @@
 
 Written from the semantics alone, importing nothing from ``hg2prism``: it builds on the explicit
 world, games, inference and hypergame of ``tests/reference.py`` (itself written from the
-semantics) and computes, with dictionaries and breadth-first search,
+semantics; ``tests/reference_bayes.py`` for the Bayesian observer of §12, "map" decision) and
+computes, with dictionaries and breadth-first search,
 
 * V_static: the MDP on (v, q) (task DFA state tracked) in which P2 plays pi2 of her initial
   hypothesis at every step, solved exactly by ``reference.solve_reach_game``;
@@ -16,12 +17,14 @@ semantics) and computes, with dictionaries and breadth-first search,
 
 from __future__ import annotations
 
+import tomllib
 from collections import deque
 
 import numpy as np
 import scipy.sparse as sp
 
 from reference import ACTIONS, TIE_P2, TRAPPED, World, dtmc_reach, solve_reach_game
+from reference_bayes import BayesWorld
 
 ANSWER_TIE = 1e-9
 DISCOUNT = 0.9
@@ -36,6 +39,10 @@ class Deception:
         self.dfa = self.w.task_dfa
         self._leader_a2 = {}
         self._speed = None
+
+    def hypothesis(self, M) -> int:
+        """The hypothesis P2 acts on with memory M (CUSUM, §5: the first entry)."""
+        return M[0]
 
     # ----- helpers on the task's product -----
     def _step(self, q, v2):
@@ -54,11 +61,15 @@ class Deception:
         return self._step(self.dfa.init, w.v0) if w.v0 != TRAPPED else "fail"
 
     # ----- V_static -----
-    def v_static(self) -> float:
+    def static_mdp(self):
+        """(order, rows): the states (v, q) of the MDP where P2 plays pi2 of her initial
+        hypothesis at every step, reachable from the start, and per state one successor
+        dictionary {state index, "goal" or "fail": probability} per move of ACTIONS. None
+        when the start is already "goal" or "fail"."""
         w = self.w
         s0 = self._start()
         if s0 in ("goal", "fail"):
-            return 1.0 if s0 == "goal" else 0.0
+            return None
         index = {s0: 0}
         order = [s0]
         queue = deque([s0])
@@ -75,16 +86,23 @@ class Deception:
                         index[t] = len(order)
                         order.append(t)
                         queue.append(t)
-                    succ[t] = succ.get(t, 0.0) + p
+                    key = t if t in ("goal", "fail") else index[t]
+                    succ[key] = succ.get(key, 0.0) + p
                 rows.append(succ)
             rows_of.append(rows)
+        return order, rows_of
+
+    def v_static(self) -> float:
+        mdp = self.static_mdp()
+        if mdp is None:
+            return 1.0 if self._start() == "goal" else 0.0
+        _, rows_of = mdp
         state_pairs, pair_rows, row_succ = [], [], []
         for i, rows in enumerate(rows_of):
             ids = []
             for succ in rows:
                 ids.append(len(row_succ))
-                row_succ.append([(t if t in ("goal", "fail") else index[t], p)
-                                 for t, p in succ.items()])
+                row_succ.append(list(succ.items()))
             state_pairs.append([i])
             pair_rows.append(ids)
         x = solve_reach_game(state_pairs, pair_rows, row_succ)
@@ -181,7 +199,7 @@ class Deception:
         while queue:
             s = queue.popleft()
             v, q, M = s
-            table[s] = self.naive_move(v, q, w.pi2(M[0], v))
+            table[s] = self.naive_move(v, q, w.pi2(self.hypothesis(M), v))
             for t in w.hyper_successors(s, table[s]):
                 if t not in ("goal", "fail") and t not in seen:
                     seen.add(t)
@@ -193,15 +211,44 @@ class Deception:
         return chain_value(self.w, s0, table)
 
 
+class BayesDeception(Deception):
+    """The §11 values against the Bayesian observer of §12 with the "map" decision (her memory
+    is the window W; she acts on the posterior's first most probable hypothesis; V_static's
+    first guess is the prior's)."""
+
+    def __init__(self, path) -> None:
+        super().__init__(path)
+        self.w = BayesWorld(path)
+        self.dfa = self.w.task_dfa
+        if self.w.decision != "map":
+            raise ValueError("the naive value here needs the 'map' decision")
+
+    def hypothesis(self, M) -> int:
+        (x,) = self.w.draw(M)
+        return x
+
+
+def deception(path) -> Deception:
+    """The §11 reference of a world file, for its observer (`[inference] kind`)."""
+    with open(path, "rb") as fh:
+        kind = tomllib.load(fh)["inference"].get("kind", "cusum")
+    return BayesDeception(path) if kind == "bayes" else Deception(path)
+
+
+def chain_successors(w: World, table) -> list:
+    """The chain the move table {state: move} induces on the hypergame, states numbered in
+    the table's order: per state its [(state index, "goal" or "fail", probability)]."""
+    index = {s: i for i, s in enumerate(table)}
+    return [[(t if t in ("goal", "fail") else index[t], p)
+             for t, p in w.hyper_successors(s, table[s]).items()] for s in table]
+
+
 def chain_value(w: World, s0, table) -> float:
     """P(F goal) from s0 in the chain the move table induces on the hypergame."""
     if s0 in ("goal", "fail"):
         return 1.0 if s0 == "goal" else 0.0
-    order = list(table)
-    index = {s: i for i, s in enumerate(order)}
-    succs = [[(t if t in ("goal", "fail") else index[t], p)
-              for t, p in w.hyper_successors(s, table[s]).items()] for s in order]
-    x = dtmc_reach(succs)
+    index = {s: i for i, s in enumerate(table)}
+    x = dtmc_reach(chain_successors(w, table))
     return min(1.0, max(0.0, float(x[index[s0]])))
 
 

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from conftest import MODELS, ROOT
 from hg2prism import __version__
-from hg2prism.analyses.simulation import bounded_reach
+from hg2prism.numeric import bounded_reach
 
 WORLD1 = str(MODELS / "world1.toml")
 

@@ -12,7 +12,7 @@ import pytest
 
 import worldgen
 from hg2prism import engines, pipeline, progress
-from hg2prism.engines.engine import ExplicitModel, Transitions
+from hg2prism.engines.engine import BuiltModel, Transitions
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
 
@@ -96,7 +96,7 @@ def test_a_missing_variable_reads_as_zeros() -> None:
     empty = Transitions(source=np.zeros(0, dtype=np.int64), action=np.zeros(0, dtype=np.int64),
                         row_start=np.zeros(1, dtype=np.int64), target=np.zeros(0, dtype=np.int64),
                         probability=np.zeros(0), labels={})
-    model = ExplicitModel(n_states=3, initial=0, transitions=empty,
+    model = BuiltModel(n_states=3, initial=0, transitions=empty,
                           read_variable=lambda name: np.arange(3) if name == "x" else None)
     assert model.variable("x").tolist() == [0, 1, 2]
     assert model.variable("y").tolist() == [0, 0, 0]

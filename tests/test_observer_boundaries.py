@@ -102,7 +102,6 @@ def bayes_run(base: str, window: int, action: int, folder: str
     path = _write(Path(folder), name, bayes_text(base, window, bayes_prior(base, window, action)))
     with progress.quiet():
         result = pipeline.check(load_world(path), Path(folder) / name)
-    test_bayes.REFERENCES[path] = reference_bayes.BayesWorld(path)
     return name, result, path
 
 

@@ -38,14 +38,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.optimize import linprog
 
+from hg2prism import numeric
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
+from hg2prism.numeric import ExplicitModel
 
 VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
@@ -329,113 +329,53 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
 
 
-def _evaluate(nxt: np.ndarray, weight: np.ndarray, goal: np.ndarray, solve: np.ndarray,
-              policy: np.ndarray) -> np.ndarray:
-    """[G] reach probability of the goal when each state plays the column `policy` of the
-    outcome tables nxt/weight [G, choices, outcomes]: one sparse linear system over the
-    `solve` states (0 elsewhere, 1 on goal states). The policy must reach the goal or leave
-    `solve` with probability 1, so that the system is regular."""
-    idx = np.flatnonzero(solve)
-    pos = np.full(goal.size, -1)
-    pos[idx] = np.arange(idx.size)
-    sub_next, sub_w = nxt[idx, policy[idx]], weight[idx, policy[idx]]       # [n, outcomes]
-    inner = solve[sub_next] & (sub_w > 0)
-    r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
-    matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
-        (sub_w[inner], (r, pos[sub_next[inner]])), shape=(idx.size, idx.size))
-    rhs = (sub_w * goal[sub_next]).sum(axis=1)
-    x = goal.astype(float)
-    if idx.size:
-        x[idx] = spla.spsolve(matrix.tocsc(), rhs)
-    return x
+def _mixed_model(game: ConcurrentGame, mix: np.ndarray, player: int) -> ExplicitModel:
+    """The MDP left to one player (1 or 2) when the other mixes with the stationary strategy
+    `mix` [G, the other's actions]: its choices are the player's actions (P2's allowed ones
+    only), their outcomes every (other action, successor) with its weight."""
+    g, n1, n2, k = game.next.shape
+    if player == 1:
+        weight = mix[:, None, :, None] * game.prob                       # [G, A1, A2, K]
+        return ExplicitModel.from_tables(game.next.reshape(g, n1, n2 * k),
+                                         weight.reshape(g, n1, n2 * k))
+    weight = (mix[:, :, None, None] * game.prob).transpose(0, 2, 1, 3)   # [G, A2, A1, K]
+    return ExplicitModel.from_tables(game.next.transpose(0, 2, 1, 3).reshape(g, n2, n1 * k),
+                                     weight.reshape(g, n2, n1 * k), game.allowed)
 
 
 def guaranteed_value(game: ConcurrentGame, p1: np.ndarray) -> np.ndarray:
     """[G] reach probability P1 guarantees with the stationary mixed strategy p1: P2 minimises in
-    the MDP where p1 is fixed. Solved exactly: the states where P2 can avoid the goal surely get
-    0; on the rest every stationary P2 strategy reaches goal or those states with probability 1,
-    so policy iteration with exact (sparse linear) evaluation converges to the minimum."""
-    g, n1, n2, k = game.next.shape
-    # Outcomes of (g, a2) with P1 mixing: [G, A2, A1*K].
-    nxt = game.next.transpose(0, 2, 1, 3).reshape(g, n2, n1 * k)
-    weight = (p1[:, :, None, None] * game.prob).transpose(0, 2, 1, 3).reshape(g, n2, n1 * k)
-    positive = weight > 0
-
-    # Greatest fixed point: states from which P2 keeps P1 out of the goal forever.
-    avoid = ~game.goal
-    while True:
-        stays = ((~positive | avoid[nxt]).all(axis=-1) & game.allowed).any(axis=1)
-        new = avoid & (game.zero | stays)
-        if (new == avoid).all():
-            break
-        avoid = new
-    solve = game.free & ~avoid
-
-    rows = np.arange(g)
-
-    def q_of(x: np.ndarray) -> np.ndarray:
-        """[G, A2] reach probability of each P2 action, one step then x."""
-        return np.where(game.allowed, (weight * x[nxt]).sum(axis=-1), np.inf)
-
-    x = game.goal.astype(float)
-    policy = q_of(x).argmin(axis=1)
-    for _ in range(10_000):
-        x = _evaluate(nxt, weight, game.goal, solve, policy)
-        q = q_of(x)
-        best = q.argmin(axis=1)
-        # Switch only on a strict improvement, so the iteration cannot cycle on ties.
-        improve = solve & (q[rows, best] < q[rows, policy] - 1e-14)
-        if not improve.any():
-            return x
-        policy = np.where(improve, best, policy)
-    raise SolverError("policy iteration for P1's guaranteed value did not converge")
+    the MDP where p1 is fixed. Solved exactly (hg2prism/numeric): the states where P2 can avoid
+    the goal surely (outside the attractor where every P2 action risks the goal) get 0; on the
+    rest every stationary P2 strategy reaches goal or those states with probability 1, so
+    policy iteration with exact evaluation converges to the minimum (numeric/policy.py)."""
+    model = _mixed_model(game, p1, player=2)
+    rank = numeric.attractor(model, game.goal, every=True, stop=game.zero)
+    first = model.first_best(model.matrix @ game.goal.astype(float), sense=-1.0)
+    found = numeric.optimal_reach(model, game.goal, first, maximise=False, stop=rank < 0)
+    if not found.converged:
+        raise SolverError("policy iteration for P1's guaranteed value did not converge")
+    return found.values
 
 
 def best_response_value(game: ConcurrentGame, p2: np.ndarray,
-                        improvement: float = 1e-14) -> np.ndarray:
+                        improvement: float = numeric.policy.FLOOR) -> np.ndarray:
     """[G] P1's maximal reach probability against P2's stationary mixed strategy p2 (an MDP).
-    Solved exactly: the states from which no move of P1 can reach the goal get 0; on the others
-    policy iteration starts from an attractor policy (each move gives a positive chance of
-    getting closer to the goal, so the goal or a zero-value state is reached with probability
-    1) and switches a move only on a strict improvement (by more than `improvement`), so every
-    policy stays of that kind and each evaluation is one sparse linear system.
-
-    Where values are within rounding of 1, a linear solve can make a move that stalls look
-    better by a few 1e-13; switching to it would leave the goal unreachable, and the iteration
-    would cycle. V_static (docs/semantics.md §11) therefore asks for an improvement of 1e-12."""
-    g, n1, n2, k = game.next.shape
-    # Outcomes of (g, a1) with P2 mixing: [G, A1, A2*K].
-    nxt = game.next.reshape(g, n1, n2 * k)
-    weight = (p2[:, None, :, None] * game.prob).reshape(g, n1, n2 * k)
-    positive = weight > 0
-    rows = np.arange(g)
-
-    # Attractor of the goal: rank = number of steps with a positive chance of reaching it.
-    rank = np.where(game.goal, 0, -1)
-    policy = np.zeros(g, dtype=int)
-    for step in range(1, g + 1):
-        reached = rank >= 0
-        closer = (positive & reached[nxt]).any(axis=-1)            # [G, A1]
-        new = game.free & ~reached & closer.any(axis=1)
-        if not new.any():
-            break
-        policy[new] = closer[new].argmax(axis=1)
-        rank[new] = step
-    solve = game.free & (rank > 0)
-
-    def q_of(x: np.ndarray) -> np.ndarray:
-        """[G, A1] reach probability of each P1 move, one step then x."""
-        return (weight * x[nxt]).sum(axis=-1)
-
-    for _ in range(10_000):
-        x = _evaluate(nxt, weight, game.goal, solve, policy)
-        q = q_of(x)
-        best = q.argmax(axis=1)
-        improve = solve & (q[rows, best] > q[rows, policy] + improvement)
-        if not improve.any():
-            return x
-        policy = np.where(improve, best, policy)
-    raise SolverError("policy iteration for P1's best response did not converge")
+    Solved exactly (hg2prism/numeric): policy iteration starts from an attractor policy (each
+    move gives a positive chance of getting closer to the goal, so the goal or a state of value
+    0 is reached with probability 1) and switches a move only on a strict improvement: by more
+    than `improvement` plus twice the bound on the evaluation's rounding error, so that a move
+    that stalls never looks better by rounding where values are within rounding of 1
+    (numeric/policy.py proves that it terminates). V_static (docs/semantics.md §11) asks for an
+    improvement of 1e-12."""
+    model = _mixed_model(game, p2, player=1)
+    rank = numeric.attractor(model, game.goal, stop=game.zero)
+    progress = numeric.progress_choices(model, rank)
+    first = np.where(progress >= 0, progress, model.group_start[:-1])
+    found = numeric.optimal_reach(model, game.goal, first, stop=game.zero, floor=improvement)
+    if not found.converged:
+        raise SolverError("policy iteration for P1's best response did not converge")
+    return found.values
 
 
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:

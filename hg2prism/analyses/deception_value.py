@@ -26,15 +26,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.csgraph as csgraph
-import scipy.sparse.linalg as spla
 
+from hg2prism import numeric
 from hg2prism.analyses.baselines import ConcurrentGame, best_response_value, concurrent_game
 from hg2prism.analyses.successor import GOAL as REACHED, RUNNING, Hypergame, HypergameState
 from hg2prism.errors import SolverError, probability
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.product import product
+from hg2prism.numeric import ExplicitModel
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
 from hg2prism.strategy.policy import Policy, ProductPolicy
@@ -103,13 +103,8 @@ def _certify_mdp(game: ConcurrentGame, p2: np.ndarray, values: np.ndarray) -> No
     residual = np.abs(best - values)[free].max(initial=0.0)
     if residual > RESIDUAL:
         raise SolverError(f"V_static: the MDP operator moves the values by {residual:.2e}")
-    # The positive attractor: states from which some sequence of moves reaches the goal.
-    can = game.goal.copy()
-    while True:
-        new = can | (free & ((prob > 0) & can[nxt]).any(axis=-1).any(axis=1))
-        if (new == can).all():
-            break
-        can = new
+    # The states from which some sequence of moves reaches the goal.
+    can = numeric.can_reach(ExplicitModel.from_tables(nxt, prob), game.goal, ~free)
     if (values[~can] > 1e-12).any():
         raise SolverError("V_static: positive value where the goal cannot be reached")
 
@@ -182,31 +177,12 @@ class InducedChain:
         return np.arange(self.size) <= FAIL
 
     def reach(self) -> np.ndarray:
-        """[states] the probability of reaching the goal from each state, exact up to rounding:
-        0 where the goal cannot be reached, one sparse linear system elsewhere, checked by its
-        residual."""
-        matrix = self.matrix
-        goal = self.goal
-        # States that reach the goal with positive probability: breadth-first backwards.
-        order = csgraph.breadth_first_order(matrix.T.tocsr(), GOAL, directed=True,
-                                            return_predecessors=False)
-        live = np.zeros(self.size, dtype=bool)
-        live[order] = True
-        live[:FAIL + 1] = False
-        x = goal.astype(float)
-        idx = np.flatnonzero(live)
-        if idx.size:
-            sub = matrix[idx][:, idx]
-            rhs = np.asarray(matrix[idx][:, [GOAL]].todense()).ravel()
-            system = (sp.identity(idx.size, format="csc") - sub).tocsc()
-            solution = np.atleast_1d(spla.spsolve(system, rhs))
-            # One step of iterative refinement, then the residual must be at rounding level.
-            solution = solution + np.atleast_1d(spla.spsolve(system, rhs - system @ solution))
-            residual = np.abs(system @ solution - rhs).max(initial=0.0)
-            if residual > RESIDUAL:
-                raise SolverError(f"the induced chain's linear system has residual {residual:.2e}")
-            x[idx] = solution
-        return x
+        """[states] the probability of reaching the goal from each state, exact up to rounding
+        (`numeric.chain_reach`), whose error bound must be at the residual's level."""
+        reach = numeric.chain_reach(self.matrix, self.goal, self.stop)
+        if reach.error > RESIDUAL:
+            raise SolverError(f"the induced chain's linear solve may be off by {reach.error:.2e}")
+        return reach.values
 
     def value(self, what: str) -> float:
         """The probability of reaching the goal from the initial state."""
@@ -214,9 +190,7 @@ class InducedChain:
 
     def within(self, horizon: int) -> float:
         """The probability of reaching the goal within `horizon` steps (docs/semantics.md §8)."""
-        from hg2prism.analyses.simulation import bounded_reach
-
-        return bounded_reach(self.matrix, self.goal, self.stop, self.start, horizon)
+        return numeric.bounded_reach(self.matrix, self.goal, self.stop, self.start, horizon)
 
 
 def induced_chain(game: Hypergame, strategy: Policy) -> InducedChain:

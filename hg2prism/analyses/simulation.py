@@ -33,7 +33,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.stats import norm
 
 from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
@@ -41,6 +40,7 @@ from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.numeric import bounded_reach
 from hg2prism.progress import Bar
 from hg2prism.strategy.policy import Policy, ProductPolicy
 from hg2prism.strategy.records import Fallback, StrategyError
@@ -569,42 +569,6 @@ def exact_completion(ts: TransitionSystem, dfa: DFA, p1: np.ndarray, p2: np.ndar
                            shape=(arena.size, arena.size))
     matrix = sp.diags((~stop).astype(float)) @ matrix
     return bounded_reach(matrix, arena.goal, stop, arena.start, horizon)
-
-
-CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
-
-
-def bounded_reach(matrix: sp.csr_matrix, goal: np.ndarray, stop: np.ndarray, start: int,
-                  horizon: int) -> float:
-    """P(goal within `horizon` steps) from `start` in the DTMC `matrix` (rows of the absorbing
-    `stop` states are ignored). The k-step probabilities increase towards the unbounded one,
-    computed exactly first; the iteration stops at the horizon or as soon as it is within
-    CONVERGED of it, so a horizon of millions of steps costs only what convergence needs."""
-    matrix = sp.csr_matrix(matrix, copy=True)
-    matrix.eliminate_zeros()       # an edge of probability 0 must not count as a path
-    # Unbounded: 0 where the goal cannot be reached, else one sparse linear system.
-    can = goal.copy()
-    reverse = matrix.T.tocsr()
-    frontier = np.flatnonzero(goal)
-    while frontier.size:
-        before = reverse[frontier].indices
-        fresh = np.unique(before[~can[before] & ~stop[before]])
-        can[fresh] = True
-        frontier = fresh
-    solve = np.flatnonzero(can & ~stop)
-    unbounded = goal.astype(float)
-    if solve.size:
-        sub = matrix[solve][:, solve]
-        rhs = np.asarray(matrix[solve] @ goal.astype(float)).ravel()
-        unbounded[solve] = spla.spsolve((sp.identity(solve.size, format="csc") - sub).tocsc(), rhs)
-    limit = float(unbounded[start])
-
-    reach = goal.astype(float)
-    for _ in range(horizon):
-        reach = np.where(stop, goal.astype(float), matrix @ reach)
-        if reach[start] >= limit - CONVERGED:
-            break
-    return float(reach[start])
 
 
 def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: np.ndarray,

@@ -7,7 +7,7 @@ V is the least fixed point of the Bellman operator T, so T(x) = x gives V <= x, 
 strategy's value is computed exactly on its induced Markov chain: the states that cannot reach the
 target in the chain get 0 by graph analysis (so the chain's linear system has a unique solution,
 and x is the chain's least solution, not merely some solution), the others by a sparse direct
-solve. Both checks are made in floating point with the tolerances below.
+solve (hg2prism/numeric). Both checks are made in floating point with the tolerances below.
 
 numpy and scipy only: engines/storm.py supplies the model's arrays and the first strategy.
 """
@@ -19,11 +19,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
-import scipy.sparse.linalg as spla
+
+from hg2prism.numeric import ExplicitModel, optimal_reach
 
 BELLMAN_RESIDUAL = 1e-11   # max_a Q(s, a) - x(s) on every state: x is a fixed point of T
 LINEAR_ERROR = 1e-11       # bound on the error of the chain's solve: x is the strategy's value
-IMPROVEMENT = 1e-12        # a state switches its choice only when another is better by more
+IMPROVEMENT = 1e-12        # a state switches only when another choice is better by more (plus
+                           # twice the evaluation's error bound: numeric/policy.py)
 MAX_ROUNDS = 30            # strategy-improvement rounds before giving up
 SLACK = 1e-6               # choices this close to the best by the fast solver's values are good
 
@@ -39,62 +41,6 @@ class Certificate:
     linear_error: float         # bound on the error of the strategy's evaluation
     rounds: int                 # strategy evaluations made
     reason: str                 # why not certified ("" when certified)
-
-
-def choice_matrix(row_start: np.ndarray, target: np.ndarray, probability: np.ndarray,
-                  n_states: int) -> sp.csr_matrix:
-    """The [choices x states] transition matrix from its flat arrays."""
-    return sp.csr_matrix((probability, target, row_start), shape=(len(row_start) - 1, n_states))
-
-
-def backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
-                    ) -> np.ndarray:
-    """The states with a path (along the edges rows[i] -> columns[i]) into `sources`: a
-    breadth-first search from an extra node n, linked to every source, along reversed edges."""
-    reverse = sp.csr_matrix(
-        (np.ones(rows.size + sources.size, dtype=np.int8),
-         (np.concatenate([columns, np.full(sources.size, n)]), np.concatenate([rows, sources]))),
-        shape=(n + 1, n + 1))
-    found = np.zeros(n + 1, dtype=bool)
-    found[csgraph.breadth_first_order(reverse, n, directed=True,
-                                      return_predecessors=False)] = True
-    return found[:n]
-
-
-def strategy_value(matrix: sp.csr_matrix, choice: np.ndarray, target: np.ndarray
-                   ) -> tuple[np.ndarray, float]:
-    """Exact probability of reaching `target` (boolean mask) from every state when each state s
-    takes choice[s], and a bound on its floating-point error.
-
-    Graph analysis on the chain first: 0 where it cannot reach the target, 1 where it cannot
-    reach those states without passing the target (so the linear system has a unique solution,
-    the chain's least one, and no state of value 1 sits in it, where long cycles would make it
-    ill-conditioned). The rest by a sparse LU solve of (I - A) x = b with one step of iterative
-    refinement. (I - A)^-1 is nonnegative (its entries are expected visits), so the error of x is
-    at most (I - A)^-1 |b - (I - A) x| state by state, which the same factorisation gives."""
-    n = len(target)
-    chain = matrix[choice]                                       # [states x states]
-    free = ~target
-    rows = np.repeat(np.arange(n), np.diff(chain.indptr))
-    edge = free[rows] & (chain.data > 0)
-    rows, columns = rows[edge], chain.indices[edge]
-    reaches = backward_reach(rows, columns, np.flatnonzero(target), n)
-    zero = free & ~reaches
-    sure = free & ~backward_reach(rows, columns, np.flatnonzero(zero), n)
-    values = (target | sure).astype(float)
-    solve = np.flatnonzero(free & reaches & ~sure)
-    if solve.size == 0:
-        return values, 0.0
-    sub = chain[solve]
-    rhs = sub @ values                                           # one step out, weighted
-    system = (sp.identity(solve.size, format="csr") - sub[:, solve]).tocsc()
-    factor = spla.splu(system)
-    x = factor.solve(rhs)
-    x += factor.solve(rhs - system @ x)                          # one step of refinement
-    values[solve] = x
-    # (I - A)^-1 is nonnegative, so the error is at most (I - A)^-1 |residual| state by state
-    error = factor.solve(np.abs(rhs - system @ x))
-    return values, float(np.abs(error).max())
 
 
 def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.ndarray,
@@ -144,38 +90,24 @@ def certify_reachability(matrix: sp.csr_matrix, group_start: np.ndarray, target:
                          choice: np.ndarray, max_rounds: int = MAX_ROUNDS) -> Certificate:
     """Maximal probability of reaching `target` on the MDP `matrix` (choices of state s are rows
     group_start[s]..group_start[s+1]-1), certified from the first strategy `choice` (a global
-    choice index per state) by strategy improvement: evaluate exactly, switch every state whose
-    best choice beats its value by more than IMPROVEMENT, until x is a fixed point of T within
-    BELLMAN_RESIDUAL (certified) or `max_rounds` evaluations have been made (not certified)."""
-    n = len(target)
-    source = np.repeat(np.arange(n), np.diff(group_start))
-    has_choice = np.diff(group_start) > 0
-    choice = np.asarray(choice, dtype=np.int64).copy()
-    values, linear, bellman = target.astype(float), 0.0, np.inf
-    for rounds in range(1, max_rounds + 1):
-        values, linear = strategy_value(matrix, choice, target)
-        q = matrix @ values
-        best = np.full(n, -np.inf)
-        best[has_choice] = np.maximum.reduceat(q, group_start[:-1][has_choice])
-        gain = np.where(target | ~has_choice, 0.0, best - values)
-        bellman = float(gain.max(initial=0.0))
-        if bellman <= BELLMAN_RESIDUAL:
-            # (a strategy still to improve may stall, with a badly conditioned chain: only the
-            # last one's error matters)
-            if linear > LINEAR_ERROR:
-                return Certificate(False, values, choice, bellman, linear, rounds,
-                                   f"the strategy's linear solve may be off by {linear:.1e}")
-            if values.min(initial=0.0) < -1e-9 or values.max(initial=0.0) > 1 + 1e-9:
-                return Certificate(False, values, choice, bellman, linear, rounds,
-                                   "values outside [0, 1]")
-            return Certificate(True, values, choice, bellman, linear, rounds, "")
-        improve = gain > IMPROVEMENT
-        # the first best choice of every improving state
-        is_best = q >= best[source]
-        first = np.full(n, -1, dtype=np.int64)
-        best_rows = np.flatnonzero(is_best)
-        first[source[best_rows[::-1]]] = best_rows[::-1]
-        choice[improve] = first[improve]
-    return Certificate(False, values, choice, bellman, linear, max_rounds,
-                       f"not a fixed point after {max_rounds} strategy evaluations "
-                       f"(Bellman residual {bellman:.1e})")
+    choice index per state) by strategy improvement (`numeric.optimal_reach`: evaluate exactly,
+    switch every state whose best choice beats its value by more than IMPROVEMENT plus twice the
+    evaluation's error bound) until x is a fixed point of T within BELLMAN_RESIDUAL
+    (certified) or `max_rounds` evaluations have been made (not certified)."""
+    model = ExplicitModel(matrix=matrix, group_start=np.asarray(group_start, dtype=np.int64))
+    found = optimal_reach(model, target, choice, floor=IMPROVEMENT, tolerance=BELLMAN_RESIDUAL,
+                          max_rounds=max_rounds)
+    values, choice, linear, bellman = found.values, found.choice, found.error, found.residual
+    if bellman > BELLMAN_RESIDUAL:
+        return Certificate(False, values, choice, bellman, linear, found.rounds,
+                           f"not a fixed point after {found.rounds} strategy evaluations "
+                           f"(Bellman residual {bellman:.1e})")
+    # (a strategy still to improve may stall, with a badly conditioned chain: only the last
+    # one's error matters)
+    if linear > LINEAR_ERROR:
+        return Certificate(False, values, choice, bellman, linear, found.rounds,
+                           f"the strategy's linear solve may be off by {linear:.1e}")
+    if values.min(initial=0.0) < -1e-9 or values.max(initial=0.0) > 1 + 1e-9:
+        return Certificate(False, values, choice, bellman, linear, found.rounds,
+                           "values outside [0, 1]")
+    return Certificate(True, values, choice, bellman, linear, found.rounds, "")

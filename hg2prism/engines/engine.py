@@ -33,7 +33,7 @@ class Transitions:
 
 
 @dataclass(frozen=True, eq=False)
-class ExplicitModel:
+class BuiltModel:
     """A built model as arrays: its transitions and labels, its initial state, and the value of
     each integer PRISM variable in every state (read on demand: `variable`)."""
 
@@ -68,11 +68,11 @@ class ModelChecker(Protocol):
     sound_methods: tuple[str, ...]   # those certified to 1e-10 (docs/semantics.md §10)
 
     def check(self, prism_path: Path, prop: str, method: str,
-              alongside: Callable[[ExplicitModel], object] | None = None) -> CheckedModel:
+              alongside: Callable[[BuiltModel], object] | None = None) -> CheckedModel:
         """Build the PRISM model at `prism_path` and solve `prop` (Pmax=? [F "goal"]) with
         `method`; `alongside(explicit model)` runs while the engine solves."""
 
-    def explicit(self, model: object) -> ExplicitModel:
+    def explicit(self, model: object) -> BuiltModel:
         """The engine's built model (CheckedModel.model, or an interval model) as arrays."""
 
     def induced_within(self, checked: CheckedModel, choice: np.ndarray, horizon: int) -> float:

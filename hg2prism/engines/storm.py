@@ -23,8 +23,9 @@ from stormpy import developer
 from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
-from hg2prism.engines.engine import CheckedModel, ExplicitModel, Transitions
+from hg2prism.engines.engine import BuiltModel, CheckedModel, Transitions
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS
+from hg2prism.numeric import ExplicitModel
 from hg2prism.errors import StormError, probability
 
 PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
@@ -86,7 +87,7 @@ def solver_environment(method: str) -> developer.Environment:
 
 
 def check(prism_path: Path, prop: str, method: str = "sound",
-          alongside: Callable[[ExplicitModel], object] | None = None) -> StormChecked:
+          alongside: Callable[[BuiltModel], object] | None = None) -> StormChecked:
     """Parse, build and solve `prop` (a Pmax reachability property) with one of STORM_METHODS.
     `alongside(explicit model)`, when given, runs on a second thread while Storm solves (Storm
     releases the GIL): its result is the CheckedModel's `alongside`."""
@@ -97,7 +98,7 @@ def check(prism_path: Path, prop: str, method: str = "sound",
 
 
 def _check(prism_path: Path, prop: str, method: str,
-           alongside: Callable[[ExplicitModel], object] | None) -> StormChecked:
+           alongside: Callable[[BuiltModel], object] | None) -> StormChecked:
     solver_environment(method)   # an unknown method fails before the build
     model, formula, timings = build(prism_path, prop)
     start = time.perf_counter()
@@ -156,8 +157,8 @@ def certificate(model: object, formula: object, max_rounds: int = certify.MAX_RO
     estimate = np.asarray(result.get_value_vector())
     structure = read_structure(model)
     group_start = np.searchsorted(structure.source, np.arange(model.nr_states + 1))
-    matrix = certify.choice_matrix(structure.row_start, structure.target, structure.probability,
-                                   model.nr_states)
+    matrix = ExplicitModel.from_arrays(structure.row_start, structure.target,
+                                       structure.probability, group_start).matrix
     goal = structure.labels["goal"]
     choice = certify.initial_strategy(matrix, group_start, goal, estimate)
     if perturb is not None:
@@ -262,10 +263,10 @@ def _read_structure(model: object) -> Transitions:
     return structure
 
 
-def explicit(model: object) -> ExplicitModel:
+def explicit(model: object) -> BuiltModel:
     """Storm's model as arrays (engines/engine.py): its structure, read once through the UMB
     export, and its state valuations, read per variable when asked."""
-    return ExplicitModel(n_states=model.nr_states, initial=int(model.initial_states[0]),
+    return BuiltModel(n_states=model.nr_states, initial=int(model.initial_states[0]),
                          transitions=read_structure(model),
                          read_variable=functools.partial(_state_variable, model))
 
@@ -366,10 +367,10 @@ class StormEngine:
     sound_methods = SOUND_METHODS
 
     def check(self, prism_path: Path, prop: str, method: str = "sound",
-              alongside: Callable[[ExplicitModel], object] | None = None) -> StormChecked:
+              alongside: Callable[[BuiltModel], object] | None = None) -> StormChecked:
         return check(prism_path, prop, method, alongside)
 
-    def explicit(self, model: object) -> ExplicitModel:
+    def explicit(self, model: object) -> BuiltModel:
         return explicit(model)
 
     def induced_within(self, checked: StormChecked, choice: np.ndarray, horizon: int) -> float:

@@ -13,7 +13,7 @@ from typing import Callable
 
 import numpy as np
 
-from hg2prism.engines.engine import ExplicitModel, Transitions
+from hg2prism.engines.engine import BuiltModel, Transitions
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.prism.hypergame import Layout
@@ -36,7 +36,7 @@ class DecodedStates:
     n_canonical: int
 
 
-def decode_states(model: ExplicitModel, layout: Layout, ts: TransitionSystem, task: DFA,
+def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task: DFA,
                   window_hypotheses: Callable[[np.ndarray], np.ndarray] | None = None
                   ) -> DecodedStates:
     """The engine's states as hypergame states, read off their PRISM variables and labels.

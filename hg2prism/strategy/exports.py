@@ -19,12 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from scipy.sparse import csgraph
 
-from hg2prism.engines.certify import backward_reach
+from hg2prism import numeric
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
                                        render_grouped, tokens)
@@ -41,9 +40,7 @@ class InducedDTMC:
 
     variables: tuple[str, ...]
     valuations: np.ndarray        # [n, variables] int
-    source: np.ndarray            # transitions, sorted by source then target, merged
-    target: np.ndarray
-    probability: np.ndarray
+    chain: ExplicitModel          # one choice per state, its successors sorted, merged
     initial: int
     labels: dict[str, np.ndarray]  # label name -> [n] bool ("goal", "fail", ...; not "init")
     action: np.ndarray            # [n] P1's move index, -1 in absorbing states
@@ -51,6 +48,19 @@ class InducedDTMC:
     @property
     def n(self) -> int:
         return len(self.valuations)
+
+    @functools.cached_property
+    def source(self) -> np.ndarray:
+        """The transitions' sources, sorted (then by target: `target`, `probability`)."""
+        return np.repeat(np.arange(self.n), np.diff(self.chain.matrix.indptr))
+
+    @functools.cached_property
+    def target(self) -> np.ndarray:
+        return self.chain.matrix.indices.astype(np.int64)
+
+    @property
+    def probability(self) -> np.ndarray:
+        return self.chain.matrix.data
 
     @functools.cached_property
     def numbers(self) -> Field:
@@ -100,15 +110,14 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
     return tuple(names), np.column_stack(columns).astype(np.int64)
 
 
-def _merged(source: np.ndarray, target: np.ndarray, probability: np.ndarray
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Transitions sorted by (source, target) with equal pairs' probabilities summed."""
-    matrix = sp.coo_matrix((probability, (source, target)),
-                           shape=(int(source.max()) + 1, int(target.max()) + 1)).tocsr()
+def _chain(source: np.ndarray, target: np.ndarray, probability: np.ndarray, n: int
+           ) -> ExplicitModel:
+    """The DTMC's transitions as a chain, each state's successors sorted and equal pairs'
+    probabilities summed."""
+    matrix = sp.coo_matrix((probability, (source, target)), shape=(n, n)).tocsr()
     matrix.sum_duplicates()
     matrix.sort_indices()
-    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
-    return rows, matrix.indices.astype(np.int64), matrix.data
+    return ExplicitModel(matrix=matrix, group_start=np.arange(n + 1))
 
 
 def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedStates,
@@ -135,9 +144,9 @@ def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedState
     values = np.vstack([values, np.full((1, len(names)), GOAL_VALUE, dtype=np.int64),
                         np.full((1, len(names)), FAIL_VALUE, dtype=np.int64)])
     labels = {"goal": np.arange(n_live + 2) == goal_id, "fail": np.arange(n_live + 2) == fail_id}
-    source, target, probability = _merged(source, target, probability)
-    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
-                       probability=probability, initial=int(index[initial]),
+    return InducedDTMC(variables=names, valuations=values,
+                       chain=_chain(source, target, probability, n_live + 2),
+                       initial=int(index[initial]),
                        labels=labels, action=np.r_[action[live], -1, -1])
 
 
@@ -202,9 +211,8 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
     moves = (np.concatenate([action_at(t)[layer] for t, layer in enumerate(layers)])
              if layers else np.zeros(0, dtype=np.int64))
     start = 0 if n_live else (goal_id if mdp.goal[initial] else fail_id)
-    source, target, probability = _merged(source, target, probability)
-    return InducedDTMC(variables=names, valuations=values, source=source, target=target,
-                       probability=probability, initial=start,
+    return InducedDTMC(variables=names, valuations=values,
+                       chain=_chain(source, target, probability, n), initial=start,
                        labels=labels, action=np.r_[moves, -1, -1, -1])
 
 
@@ -276,57 +284,12 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
 # Numbers of the DTMC
 # ---------------------------------------------------------------------------------------------
 
-@dataclass(frozen=True)
-class Steps:
-    """Expected numbers of steps of the exported strategy from the initial state."""
-
-    goal_probability: float        # P(F "goal")
-    to_end: float | None           # E[steps until goal, failure (or the horizon)]; None if infinite
-    to_goal: float | None          # E[steps | the goal is reached]; None if it is never reached
-
-
 def expected_steps(dtmc: InducedDTMC) -> Steps:
     """P(F goal), the expected steps until an absorbing state, and the expected steps to the
-    goal given that it is reached (docs/semantics.md §6 "Timing"), by sparse linear solves over
-    the states the initial state reaches, with one LU factorisation."""
-    n = dtmc.n
-    absorbing = np.zeros(n, dtype=bool)
+    goal given that it is reached (docs/semantics.md §6 "Timing"): `numeric.expected_steps`
+    on the DTMC, every labelled state absorbing."""
+    absorbing = np.zeros(dtmc.n, dtype=bool)
     for mask in dtmc.labels.values():
         absorbing |= mask
-    goal = dtmc.labels["goal"]
-    if absorbing[dtmc.initial]:
-        hit = bool(goal[dtmc.initial])
-        return Steps(float(hit), 0.0, 0.0 if hit else None)
-    matrix = sp.csr_matrix((dtmc.probability, (dtmc.source, dtmc.target)), shape=(n, n))
-    reached = np.zeros(n, dtype=bool)
-    reached[csgraph.breadth_first_order(matrix, dtmc.initial, directed=True,
-                                        return_predecessors=False)] = True
-    transient = np.flatnonzero(reached & ~absorbing)
-    rows = matrix[transient]
-    inner = rows[:, transient]
-    to_goal = np.asarray(rows[:, np.flatnonzero(goal)].sum(axis=1)).ravel()
-    exits = np.asarray(rows[:, np.flatnonzero(absorbing)].sum(axis=1)).ravel()
-    s0 = int(np.searchsorted(transient, dtmc.initial))
-
-    # Every state here is reached from the initial state with positive probability, so the
-    # expected time is finite iff each of them can reach an absorbing state; then I - P is
-    # invertible on all of them. Otherwise P(F goal) and the steps to the goal are solved on
-    # the states that can reach the goal, where it is invertible too.
-    edges = inner.tocoo()
-    ends = backward_reach(edges.row, edges.col, np.flatnonzero(exits > 0), len(transient))
-    solve_on = (np.arange(len(transient)) if ends.all() else
-                np.flatnonzero(backward_reach(edges.row, edges.col, np.flatnonzero(to_goal > 0),
-                                              len(transient))))
-    if s0 not in solve_on:      # the goal is unreachable
-        return Steps(0.0, None, None)
-    sub = inner[solve_on][:, solve_on] if len(solve_on) < len(transient) else inner
-    lu = spla.splu(sp.identity(len(solve_on), format="csc") - sub.tocsc())
-    at = int(np.searchsorted(solve_on, s0))
-    reach = lu.solve(to_goal[solve_on])
-    end = float(lu.solve(np.ones(len(solve_on)))[at]) if ends.all() else None
-    probability = float(np.clip(reach[at], 0.0, 1.0))
-    if probability <= 0.0:
-        return Steps(probability, end, None)
-    # E[T 1{goal}] = y with y = x + P y, x = P(F goal).
-    weighted = float(lu.solve(reach)[at])
-    return Steps(probability, end, weighted / probability)
+    return numeric.expected_steps(dtmc.chain.matrix, dtmc.initial, dtmc.labels["goal"],
+                                  absorbing)

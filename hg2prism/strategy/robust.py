@@ -34,10 +34,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.errors import SolverError
+from hg2prism.numeric import solve_m_matrix
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
 P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
@@ -237,12 +237,12 @@ def _chance_elimination(game: IntervalGame, live: np.ndarray, strategy: np.ndarr
 
 def _solve_chain(matrix: sp.csr_matrix, reach: np.ndarray, eliminate: np.ndarray | None
                  ) -> np.ndarray:
-    """x = matrix x + reach, exactly (sparse LU). The states `eliminate` (no edge among
-    themselves) are substituted out first: x_C = P_CK x_K + r_C, so the system shrinks to
-    (I - P_KK - P_KC P_CK) x_K = r_K + P_KC r_C."""
+    """x = matrix x + reach, exactly (`numeric.solve_m_matrix`: sparse LU and a step of
+    refinement). The states `eliminate` (no edge among themselves) are substituted out first:
+    x_C = P_CK x_K + r_C, so the system shrinks to (I - P_KK - P_KC P_CK) x_K = r_K + P_KC r_C."""
     n = matrix.shape[0]
     if eliminate is None:
-        return np.atleast_1d(spla.spsolve((sp.identity(n, format="csc") - matrix).tocsc(), reach))
+        return solve_m_matrix(sp.identity(n, format="csc") - matrix, reach)[0]
     keep = np.ones(n, dtype=bool)
     keep[eliminate] = False
     kept = np.flatnonzero(keep)
@@ -251,7 +251,7 @@ def _solve_chain(matrix: sp.csr_matrix, reach: np.ndarray, eliminate: np.ndarray
     reduced = (p_kk + p_kc @ p_ck).tocsc()
     rhs = reach[kept] + p_kc @ reach[eliminate]
     x = np.empty(n)
-    x[kept] = np.atleast_1d(spla.spsolve(sp.identity(kept.size, format="csc") - reduced, rhs))
+    x[kept] = solve_m_matrix(sp.identity(kept.size, format="csc") - reduced, rhs)[0]
     x[eliminate] = p_ck @ x[kept] + reach[eliminate]
     return x
 

@@ -1,0 +1,115 @@
+"""Graph analysis of explicit models: which states have a path into a set, and attractors."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.csgraph as csgraph
+
+from hg2prism.numeric.model import ExplicitModel
+
+
+def backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
+                   ) -> np.ndarray:
+    """[n] bool: the states with a path (along the edges rows[i] -> columns[i]) into `sources`
+    (indices): a breadth-first search from an extra node n, linked to every source, along
+    reversed edges."""
+    reverse = sp.csr_matrix(
+        (np.ones(rows.size + sources.size, dtype=np.int8),
+         (np.concatenate([columns, np.full(sources.size, n)]), np.concatenate([rows, sources]))),
+        shape=(n + 1, n + 1))
+    found = np.zeros(n + 1, dtype=bool)
+    found[csgraph.breadth_first_order(reverse, n, directed=True,
+                                      return_predecessors=False)] = True
+    return found[:n]
+
+
+def edges(matrix: sp.csr_matrix, free: np.ndarray, owner: np.ndarray | None = None
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The edges (source state, successor) of the positive entries of `matrix` whose row
+    belongs to a `free` state: row i belongs to state owner[i] (to state i by default)."""
+    rows = np.repeat(np.arange(matrix.shape[0]), np.diff(matrix.indptr))
+    if owner is not None:
+        rows = owner[rows]
+    edge = free[rows] & (matrix.data > 0)
+    return rows[edge], matrix.indices[edge]
+
+
+def can_reach(model: ExplicitModel, target: np.ndarray, stop: np.ndarray | None = None
+              ) -> np.ndarray:
+    """[n] bool: the states of `model` from which some sequence of choices reaches `target`
+    with positive probability (the target among them) without passing a `stop` state (the
+    choices of target and stop states are ignored)."""
+    free = ~target if stop is None else ~(target | stop)
+    rows, columns = edges(model.matrix, free, model.choice_state)
+    return backward_reach(rows, columns, np.flatnonzero(target), model.n_states)
+
+
+def attractor(model: ExplicitModel, target: np.ndarray, every: bool | np.ndarray = False,
+              stop: np.ndarray | None = None, allowed: np.ndarray | None = None) -> np.ndarray:
+    """The positive attractor of `target`: rank[s] is the least k such that from s some choice
+    (every choice, where `every` holds: a bool or a mask over states) has a positive chance of
+    entering the states of rank < k; rank 0 on the target, -1 outside. Only the `allowed`
+    choices count (all by default); `stop` states and states without an allowed choice never
+    enter.
+
+    Breadth-first from the target over the choices' predecessor lists, so each choice is
+    looked at once per successor that enters, not once per level."""
+    n = model.n_states
+    if allowed is None:
+        choices = model.counts
+        fresh = np.ones(model.n_choices, dtype=bool)       # a choice counts once, when it hits
+    else:
+        choices = np.zeros(n, dtype=np.int64)
+        has = model.counts > 0
+        choices[has] = np.add.reduceat(allowed.astype(np.int64), model.group_start[:-1][has])
+        fresh = allowed.copy()
+    every = np.broadcast_to(every, (n,))
+    candidate = ~target & (choices > 0)
+    if stop is not None:
+        candidate &= ~stop
+    start, choice_of, owner = (model.predecessors.indptr, model.predecessors.indices,
+                               model.choice_state)
+    hits = np.zeros(n, dtype=np.int64)      # distinct choices of a state that hit, if `every`
+    scratch = np.empty(n, dtype=np.int64)
+    rank = np.where(target, 0, -1)
+    frontier = np.flatnonzero(target)
+    level = 0
+    while frontier.size:
+        level += 1
+        lengths = start[frontier + 1] - start[frontier]
+        gather = np.arange(lengths.sum()) + np.repeat(start[frontier] - np.cumsum(lengths)
+                                                      + lengths, lengths)
+        found = choice_of[gather]
+        found = found[fresh[found]]
+        fresh[found] = False
+        states = owner[found]
+        keep = candidate[states] & (rank[states] < 0)
+        found, states = found[keep], states[keep]
+        counted = every[states]
+        np.add.at(hits, owner[np.unique(found[counted])], 1)
+        enter = states[~counted | (hits[states] >= choices[states])]
+        # distinct, without sorting: each state's last position wins a scatter of positions
+        order = np.arange(enter.size)
+        scratch[enter] = order
+        frontier = enter[scratch[enter] == order]
+        rank[frontier] = level
+    return rank
+
+
+def progress_choices(model: ExplicitModel, rank: np.ndarray,
+                     allowed: np.ndarray | None = None) -> np.ndarray:
+    """Per state of rank > 0 (an `attractor`'s ranks), its first allowed choice (in choice
+    order) with a positive chance of entering a lower rank; -1 elsewhere."""
+    graph = model.matrix
+    entries = np.repeat(np.arange(model.n_choices), np.diff(graph.indptr))
+    into = rank[graph.indices]
+    closer = (graph.data > 0) & (into >= 0) & (into < rank[model.choice_state[entries]])
+    good = np.zeros(model.n_choices, dtype=bool)
+    good[entries[closer]] = True
+    if allowed is not None:
+        good &= allowed
+    first = np.flatnonzero(good)[::-1]
+    progress = np.full(model.n_states, -1, dtype=np.int64)
+    progress[model.choice_state[first]] = first      # reversed: each state's first choice wins
+    return progress

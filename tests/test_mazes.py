@@ -1,0 +1,81 @@
+"""Issue 22, item 9: `run` stopped with "policy iteration for P1's best response did not
+converge" on small worlds that `check` solves. Now
+
+* `run` completes on the issue's world (deceptive value 0.9, V_lead 0) and on two random mazes
+  (tests/mazegen.py), one of them maze 113, where P2's Nash strategy plays a trap set with
+  probability 2e-9 and the old solve cycled;
+* on 200 random small mazes (walls at random, trap candidates on the shortest paths to the
+  regions, delay 0-2, CUSUM and Bayesian observers) the baselines complete, computed in this
+  process: V_lead, V_static and V_naive equal the independent reference
+  (tests/reference.py, tests/reference_deception.py), and the bracket of V_NE holds (the
+  guaranteed value of P1's strategy and value iteration's value, both below V_NE, are at most
+  P1's best response to P2's strategy and the reference's V_lead). V_NE itself has no independent reference
+  (an LP per state and sweep in pure Python would take minutes); value iteration stops here
+  at a change of 1e-6 instead of 1e-10, as a few mazes need 10^5 sweeps to reach 1e-10.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import mazegen
+import reference_deception
+from hg2prism import pipeline, progress
+from hg2prism.analyses import baselines, deception_value
+from hg2prism.cli import main
+from hg2prism.worldfile import load_world
+
+TOL = 1e-9
+NASH_TOLERANCE = 1e-6
+RUNS = {"issue": mazegen.ISSUE_WORLD, "maze113": mazegen.maze_world(113),
+        "maze8": mazegen.maze_world(8)}
+
+
+@pytest.mark.parametrize("name", list(RUNS))
+def test_run_completes(name: str, tmp_path: Path) -> None:
+    path = tmp_path / f"{name}.toml"
+    path.write_text(RUNS[name])
+    assert main(["run", str(path), "--out", str(tmp_path / name), "--episodes", "200"]) == 0
+    results = json.loads((tmp_path / name / "results.json").read_text())
+    ref = reference_deception.deception(path)
+    assert results["v_static"] == pytest.approx(ref.v_static(), abs=TOL)
+    assert results["v_naive"] == pytest.approx(ref.v_naive(), abs=TOL)
+    low, high = results["v_ne_bounds"]
+    assert low - TOL <= results["v_ne"] <= high + TOL
+    if name == "issue":
+        assert results["deceptive_value"] == pytest.approx(0.9, abs=1e-9)
+        assert results["v_lead"] == 0.0
+
+
+def reference_v_lead(ref: reference_deception.Deception) -> float:
+    """V_lead from the reference: the leader game G(phi) at (v0, delta(iota, L(v0)))."""
+    w, dfa = ref.w, ref.w.task_dfa
+    return w.V(w.task, w.v0, dfa.step(dfa.init, w.label(w.v0)))
+
+
+@pytest.mark.parametrize("seed", range(200))
+def test_maze_baselines_match_reference(seed: int, tmp_path: Path) -> None:
+    path = tmp_path / f"maze{seed}.toml"
+    path.write_text(mazegen.maze_world(seed))
+    with progress.quiet():
+        analysis = pipeline.analyse(load_world(path))
+    worth = deception_value.deception_values(analysis, 0.0)
+    game = baselines.concurrent_game(analysis.ts, analysis.task)
+    nash = baselines.solve_nash(game, NASH_TOLERANCE)
+    start = analysis.ts.start_state * analysis.task.n_states + int(
+        analysis.task.delta[analysis.task.initial,
+                            analysis.ts.cell_label[analysis.ts.decode(analysis.ts.start_state)[0]]])
+    guaranteed = baselines.guaranteed_value(game, nash.p1)[start]
+    best = baselines.best_response_value(game, nash.p2)[start]
+    ref = reference_deception.deception(path)
+    v_lead = reference_v_lead(ref)
+    assert analysis.v_lead == pytest.approx(v_lead, abs=TOL)
+    assert worth.v_static == pytest.approx(ref.v_static(), abs=TOL)
+    assert worth.v_naive == pytest.approx(ref.v_naive(), abs=TOL)
+    # both are below V_NE, itself below the best response to P2's strategy and below V_lead
+    lower = max(guaranteed, nash.values[start])
+    assert lower <= best + TOL
+    assert lower <= v_lead + TOL

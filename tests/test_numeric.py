@@ -1,0 +1,264 @@
+"""The numeric core (hg2prism/numeric) against closed forms and the independent reference.
+
+* closed forms: gambler's ruin, an unreachable target (0) and a sure one (1), bounded
+  reachability of a two-state chain, expected steps of a geometric chain, a hand-made MDP's
+  attractor ranks and optimal values (maximiser and minimiser), and a chain left with
+  probability 1e-9 whose error bound must cover the solve's actual error;
+* the 50 generated worlds of tests/worldgen.py: the models come from the reference
+  (tests/reference_deception.py: the MDP of V_static, the chain of the naive strategy, built
+  from the semantics without hg2prism); the numeric core's attractor equals the states of
+  positive value of the reference's solver and a naive level-by-level fixed point, its
+  optimal values equal `reference.solve_reach_game`'s, its chain values `reference.dtmc_reach`'s,
+  its bounded reachability a step-by-step iteration over dictionaries, and its expected steps a
+  dense solve.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import reference
+import reference_deception
+import worldgen
+from hg2prism import numeric
+from hg2prism.numeric import ExplicitModel
+
+FAMILY = worldgen.world_family()
+TOL = 1e-10
+
+
+def model_of(rows_of: list[list[dict]]) -> tuple[ExplicitModel, np.ndarray, np.ndarray]:
+    """An ExplicitModel from successor dictionaries {state index, "goal" or "fail": p}, per
+    state and choice; states n and n + 1 are goal and fail (no choices). Also the goal and
+    fail masks."""
+    n = len(rows_of)
+    where = {"goal": n, "fail": n + 1}
+    rows, cols, probs = [], [], []
+    all_choices = [succ for choices in rows_of for succ in choices]
+    for r, succ in enumerate(all_choices):
+        rows += [r] * len(succ)
+        cols += [where.get(t, t) for t in succ]
+        probs += list(succ.values())
+    counts = [len(choices) for choices in rows_of] + [0, 0]
+    n_choices = len(all_choices)
+    matrix = sp.csr_matrix((probs, (rows, cols)), shape=(n_choices, n + 2))
+    model = ExplicitModel(matrix=matrix, group_start=np.r_[0, np.cumsum(counts)])
+    goal, fail = np.zeros(n + 2, dtype=bool), np.zeros(n + 2, dtype=bool)
+    goal[n], fail[n + 1] = True, True
+    return model, goal, fail
+
+
+def chain_of(succs: list[list[tuple]]) -> tuple[ExplicitModel, np.ndarray, np.ndarray]:
+    """model_of for a chain: one choice per state."""
+    return model_of([[dict(_merge(s))] for s in succs])
+
+
+def _merge(succ):
+    merged: dict = {}
+    for t, p in succ:
+        merged[t] = merged.get(t, 0.0) + p
+    return merged.items()
+
+
+# ---------------------------------------------------------------------------------------------
+# Closed forms
+# ---------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("p", [0.3, 0.5, 0.7])
+def test_gamblers_ruin(p: float) -> None:
+    """From i of 0..N, up with p, down with 1 - p: P(reach N) = (1 - r^i) / (1 - r^N), r =
+    (1 - p) / p (i / N when p = 1/2); 0 is the ruin."""
+    n = 20
+    succs = [[("fail", 1.0)]] + [[(i + 1 if i + 1 < n else "goal", p), (i - 1 if i > 1 else 0,
+                                                                        1 - p)]
+                                 for i in range(1, n)]
+    succs[0] = [("fail", 1.0)]
+    model, goal, fail = chain_of(succs)
+    got = numeric.chain_reach(model.chain(model.group_start[:-1]), goal, fail)
+    i = np.arange(1, n)
+    r = (1 - p) / p
+    exact = i / n if p == 0.5 else (1 - r ** i) / (1 - r ** n)
+    assert np.abs(got.values[1:n] - exact).max() <= got.error + 1e-15
+    assert got.values[0] == 0.0 and got.error < 1e-13
+
+
+def test_unreachable_target_is_zero_and_sure_target_is_one() -> None:
+    """0 exactly where the chain cannot reach the target; 1 exactly where it cannot avoid it
+    (a cycle left only towards the goal): graph analysis, not a solve."""
+    succs = [[(1, 0.5), (0, 0.5)], [(0, 0.9), ("goal", 0.1)], [(3, 1.0)], [(2, 0.4), ("fail", 0.6)]]
+    model, goal, fail = chain_of(succs)
+    got = numeric.chain_reach(model.chain(model.group_start[:-1]), goal, fail)
+    assert got.values.tolist() == [1.0, 1.0, 0.0, 0.0, 1.0, 0.0]
+    assert got.error == 0.0
+
+
+@pytest.mark.parametrize("horizon", [0, 1, 2, 7, 1000])
+def test_bounded_reach_of_two_states(horizon: int) -> None:
+    """State 0 enters the goal with probability p each step, else stays: 1 - (1 - p)^k."""
+    p = 0.3
+    model, goal, fail = chain_of([[("goal", p), (0, 1 - p)]])
+    got = numeric.bounded_reach(model.chain(model.group_start[:-1]), goal, goal | fail, 0,
+                                horizon)
+    assert got == pytest.approx(1 - (1 - p) ** horizon, abs=1e-12)
+
+
+def test_expected_steps_of_a_geometric_chain() -> None:
+    """Goal with a, fail with b, stay with 1 - a - b: P(goal) = a / (a + b), and the time to
+    either end, with or without conditioning on the goal, is geometric with mean 1 / (a + b)."""
+    a, b = 0.1, 0.15
+    model, goal, fail = chain_of([[("goal", a), ("fail", b), (0, 1 - a - b)]])
+    steps = numeric.expected_steps(model.chain(model.group_start[:-1]), 0, goal, goal | fail)
+    assert steps.goal_probability == pytest.approx(a / (a + b), rel=1e-14)
+    assert steps.to_end == pytest.approx(1 / (a + b), rel=1e-14)
+    assert steps.to_goal == pytest.approx(1 / (a + b), rel=1e-14)
+    never = numeric.expected_steps(model.chain(model.group_start[:-1]), 0, fail & ~fail,
+                                   goal | fail)
+    assert (never.goal_probability, never.to_goal) == (0.0, None)
+
+
+def hand_mdp() -> tuple[ExplicitModel, np.ndarray, np.ndarray]:
+    """0: stay, or a fair coin to 1 or fail; 1: goal w.p. 0.5 else back to 0, or stay;
+    2: to 0 surely, or to fail; 3: only stays."""
+    return model_of([[{0: 1.0}, {1: 0.5, "fail": 0.5}],
+                     [{"goal": 0.5, 0: 0.5}, {1: 1.0}],
+                     [{0: 1.0}, {"fail": 1.0}],
+                     [{3: 1.0}]])
+
+
+def test_attractor_ranks_and_choices() -> None:
+    model, goal, fail = hand_mdp()
+    rank = numeric.attractor(model, goal, stop=fail)
+    assert rank.tolist() == [2, 1, 3, -1, 0, -1]
+    assert numeric.progress_choices(model, rank).tolist() == [1, 2, 4, -1, -1, -1]
+    every = numeric.attractor(model, goal, every=True, stop=fail)
+    assert every.tolist() == [-1, -1, -1, -1, 0, -1]
+    assert numeric.can_reach(model, goal, fail).tolist() == [True, True, True, False, True,
+                                                             False]
+
+
+def test_optimal_values_of_a_hand_mdp() -> None:
+    """Maximiser: 0 -> 1 and 1 -> goal: x1 = 0.5 + 0.5 x0, x0 = 0.5 x1 give x0 = 1/3, x1 = 2/3;
+    2 takes 0. Minimiser: everyone stays (or fails) and nothing reaches the goal."""
+    model, goal, fail = hand_mdp()
+    progress = numeric.progress_choices(model, numeric.attractor(model, goal, stop=fail))
+    first = np.where(progress >= 0, progress, model.group_start[:-1])
+    best = numeric.optimal_reach(model, goal, first, stop=fail)
+    assert best.converged
+    np.testing.assert_allclose(best.values, [1 / 3, 2 / 3, 1 / 3, 0, 1, 0], atol=1e-15)
+    rank = numeric.attractor(model, goal, every=True, stop=fail)
+    worst = numeric.optimal_reach(model, goal, model.group_start[:-1], maximise=False,
+                                  stop=rank < 0)
+    assert worst.values.tolist() == [0, 0, 0, 0, 1, 0]
+
+
+def test_a_chain_left_with_probability_1e9() -> None:
+    """A class of two states swapping, left with probability 1e-9 towards the goal (0.7) or
+    failure (0.3): the value 0.7 is exact while the system is ill-conditioned; the error
+    bound must cover the solve's actual error (the cause of issue 22's item 9 on maze 113)."""
+    eps = 1e-9
+    model, goal, fail = chain_of([[(1, 1 - eps), ("goal", 0.7 * eps), ("fail", 0.3 * eps)],
+                                  [(0, 1 - eps), ("goal", 0.7 * eps), ("fail", 0.3 * eps)]])
+    got = numeric.chain_reach(model.chain(model.group_start[:-1]), goal, fail)
+    assert np.abs(got.values[:2] - 0.7).max() <= got.error
+    assert got.error < 1e-5
+
+
+# ---------------------------------------------------------------------------------------------
+# The generated worlds, against the reference
+# ---------------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=None)
+def reference_models(name: str, tmp: str):
+    """(the static MDP's successor rows or None, the naive chain's successors)."""
+    path = __import__("pathlib").Path(tmp) / f"{name}.toml"
+    path.write_text(dict(FAMILY)[name])
+    ref = reference_deception.Deception(path)
+    mdp = ref.static_mdp()
+    _, table = ref.naive_table()
+    chain = reference_deception.chain_successors(ref.w, table) if table else None
+    return (None if mdp is None else mdp[1]), chain
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory: pytest.TempPathFactory) -> str:
+    return str(tmp_path_factory.mktemp("numeric"))
+
+
+def naive_attractor(rows_of: list[list[dict]]) -> list[int]:
+    """Level by level, with sets: the rank of each state for "some choice has a positive
+    chance of entering a lower rank" (goal rank 0), -1 outside."""
+    rank = {"goal": 0}
+    level = 0
+    while True:
+        level += 1
+        new = [i for i, choices in enumerate(rows_of) if i not in rank and any(
+            any(p > 0 and t in rank for t, p in succ.items()) for succ in choices)]
+        if not new:
+            return [rank.get(i, -1) for i in range(len(rows_of))]
+        rank.update((i, level) for i in new)
+
+
+def dictionary_bounded(succs: list[list[tuple]], start: int, horizon: int) -> float:
+    """P(goal within `horizon` steps), one step at a time over dictionaries."""
+    reach = [0.0] * len(succs)
+    for _ in range(horizon):
+        reach = [sum(p * (1.0 if t == "goal" else 0.0 if t == "fail" else reach[t])
+                     for t, p in succ) for succ in succs]
+    return reach[start]
+
+
+def dense_steps(succs: list[list[tuple]]) -> tuple[float, float]:
+    """P(goal) and E[steps to the end] from state 0 by a dense solve (finite only when every
+    state ends)."""
+    n = len(succs)
+    matrix, to_goal = np.zeros((n, n)), np.zeros(n)
+    for i, succ in enumerate(succs):
+        for t, p in succ:
+            if t == "goal":
+                to_goal[i] += p
+            elif t != "fail":
+                matrix[i, t] += p
+    system = np.eye(n) - matrix
+    return (float(np.linalg.solve(system, to_goal)[0]),
+            float(np.linalg.solve(system, np.ones(n))[0]))
+
+
+@pytest.mark.parametrize("name", [name for name, _ in FAMILY])
+def test_family_against_reference(name: str, folder: str) -> None:
+    rows_of, succs = reference_models(name, folder)
+    if rows_of is not None:
+        model, goal, fail = model_of(rows_of)
+        rank = numeric.attractor(model, goal, stop=fail)
+        progress = numeric.progress_choices(model, rank)
+        assert rank[:-2].tolist() == naive_attractor(rows_of)
+        state_pairs = [[i] for i in range(len(rows_of))]
+        pair_rows = [list(range(4 * i, 4 * i + 4)) for i in range(len(rows_of))]
+        row_succ = [list(succ.items()) for choices in rows_of for succ in choices]
+        exact = reference.solve_reach_game(state_pairs, pair_rows, row_succ)
+        np.testing.assert_array_equal(rank[:-2] >= 0, exact > 0)
+        first = np.where(progress >= 0, progress, model.group_start[:-1])
+        best = numeric.optimal_reach(model, goal, first, stop=fail)
+        assert best.converged and best.error < 1e-10
+        np.testing.assert_allclose(best.values[:-2], exact, atol=TOL)
+    if succs is None:
+        return
+    model, goal, fail = chain_of(succs)
+    chain = model.chain(model.group_start[:-1])
+    got = numeric.chain_reach(chain, goal, fail)
+    np.testing.assert_allclose(got.values[:-2], reference.dtmc_reach(succs), atol=TOL)
+    for horizon in (1, 3, 10, 40):
+        assert numeric.bounded_reach(chain, goal, goal | fail, 0, horizon) == pytest.approx(
+            dictionary_bounded(succs, 0, horizon), abs=TOL)
+    steps = numeric.expected_steps(chain, 0, goal, goal | fail)
+    assert steps.goal_probability == pytest.approx(got.values[0], abs=TOL)
+    ends = numeric.can_reach(model, goal | fail)[:-2].all()
+    if ends:
+        probability, to_end = dense_steps(succs)
+        assert steps.goal_probability == pytest.approx(probability, abs=TOL)
+        assert steps.to_end == pytest.approx(to_end, rel=1e-9)
+    else:
+        assert steps.to_end is None
