@@ -17,7 +17,7 @@ from hg2prism import __version__
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
-from hg2prism.model.dynamics import TransitionSystem, build_transition_system
+from hg2prism.model.dynamics import ACTIONS, TransitionSystem, build_transition_system
 from hg2prism.opponent.perceptual_games import PerceptualGame, perceptual_game, solve_game
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
@@ -382,7 +382,7 @@ def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValue
         played = dataclasses.replace(analysis, inference=StepCounter(
             analysis.inference, checked.bounded.bound - 1))
         deceptive_within = checked.results.objective.goal_probability
-    pairs = {"nash": (nash.p1.reshape(-1, 4), nash.p2.reshape(ts.n_states * task.n_states, -1)),
+    pairs = {"nash": (nash.p1.reshape(-1, len(ACTIONS)), nash.p2.reshape(ts.n_states * task.n_states, -1)),
              "leader": _leader_strategies(analysis),
              "static": (worth.static.policy.mixed(), np.eye(ts.n_sets)[worth.static.p2])}
     summaries = {"deceptive": simulation.simulate_deceptive(

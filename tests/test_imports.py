@@ -104,3 +104,26 @@ def test_hypergame_decoding_and_strategies_do_not_import_the_storm_adapter() -> 
         if name.startswith(("hg2prism.prism", "hg2prism.strategy", "hg2prism.pipeline",
                             "hg2prism.experiments", "hg2prism.api", "hg2prism.analyses")):
             assert "hg2prism.engines.storm" not in graph[name], name
+
+
+MAX_FUNCTION_LINES = 80     # issue 22: a function that does one thing fits on a screen
+
+
+def long_functions(source: str) -> list[tuple[str, int]]:
+    """(name, lines) of every function in `source` longer than MAX_FUNCTION_LINES."""
+    return [(node.name, node.end_lineno - node.lineno + 1)
+            for node in ast.walk(ast.parse(source))
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES]
+
+
+def test_the_length_check_sees_a_long_function() -> None:
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES))
+    assert long_functions(f"def f():\n{body}\n") == [("f", MAX_FUNCTION_LINES + 1)]
+    assert long_functions(f"def f():\n{body[:body.rindex(chr(10))]}\n") == []
+
+
+def test_no_function_of_the_package_is_longer_than_80_lines() -> None:
+    found = {f"{path.relative_to(PACKAGE)}:{name}": lines
+             for path in _modules().values() for name, lines in long_functions(path.read_text())}
+    assert found == {}

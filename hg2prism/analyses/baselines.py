@@ -42,7 +42,7 @@ from scipy.optimize import linprog
 
 from hg2prism import numeric
 from hg2prism.model.automata import DFA
-from hg2prism.model.product import product
+from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
 from hg2prism.numeric import ExplicitModel
@@ -387,7 +387,7 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     n_q = dfa.n_states
     start_cell = ts.decode(ts.start_state)[0]
     q0 = int(dfa.delta[dfa.initial, ts.cell_label[start_cell]])
-    g0 = ts.start_state * n_q + q0
+    g0 = product_state(ts.start_state, q0, n_q)
     v_guaranteed = probability(guaranteed[g0], "P1's guaranteed Nash value")
     upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
     if v_guaranteed > upper + 1e-9:

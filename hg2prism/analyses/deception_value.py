@@ -33,7 +33,7 @@ from hg2prism.analyses.successor import GOAL as REACHED, RUNNING, Hypergame, Hyp
 from hg2prism.errors import SolverError, probability
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.model.product import product
+from hg2prism.model.product import product, product_state
 from hg2prism.numeric import ExplicitModel
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
@@ -145,7 +145,8 @@ class NaiveStrategy:
         self.n_q = game.task.n_states
 
     def action(self, ts_state: int, q: int, memory: Hashable) -> int:
-        return int(self.answers[ts_state * self.n_q + q, self.game.predicted(ts_state, memory)])
+        return int(self.answers[product_state(ts_state, q, self.n_q),
+                                self.game.predicted(ts_state, memory)])
 
 
 # ---------------------------------------------------------------------------------------------

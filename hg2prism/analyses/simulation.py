@@ -38,7 +38,7 @@ from scipy.stats import norm
 from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
                                          TrackedObserver)
 from hg2prism.model.automata import DFA
-from hg2prism.model.product import product
+from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import ACTIONS, TransitionSystem
 from hg2prism.numeric import bounded_reach
 from hg2prism.progress import Bar
@@ -220,7 +220,7 @@ def leader_fallback(analysis: Analysis) -> Fallback:
 
     def fallback(ts_state: int, q: int, memory: Memory) -> int:
         a2 = model.predicted(ts_state, memory)
-        return int(np.argmax(q_values[ts_state * n_q + q, :, a2]))
+        return int(np.argmax(q_values[product_state(ts_state, q, n_q), :, a2]))
 
     return fallback
 

@@ -101,7 +101,7 @@ def _nominal_game(game, action: np.ndarray):
 
 def _choice_with_action(game, action: np.ndarray, wanted: np.ndarray) -> np.ndarray:
     """The choice of each Storm state whose move is wanted[state] (-1: the state's first)."""
-    from hg2prism.strategy.deceptive import argmax_by_group
+    from hg2prism.numeric import argmax_by_group
 
     match = (action == wanted[game.choice_state]) & (action >= 0)
     return argmax_by_group(np.where(match, 1.0, 0.0), game.choice_state, game.n_states)

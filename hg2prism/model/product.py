@@ -40,7 +40,13 @@ class Product:
         return ~(self.goal | self.fail)
 
     def state(self, s: int, q: int) -> int:
-        return s * self.dfa.n_states + q
+        return product_state(s, q, self.dfa.n_states)
+
+
+def product_state(s, q, n_q: int):
+    """g = s * n_q + q: the product state of TS state s and DFA state q (numbers or arrays),
+    the one numbering of TS x DFA every game, baseline and policy uses."""
+    return s * n_q + q
 
 
 def product(ts: TransitionSystem, dfa: DFA) -> Product:
@@ -49,14 +55,14 @@ def product(ts: TransitionSystem, dfa: DFA) -> Product:
     label = ts.state_label()
     # The DFA reads the label of the state being entered: q' = delta(q, L(v')).
     succ_q = dfa.delta[:, label[ts.succ]]                             # [n_q, S, 4, A2, K]
-    nxt = (ts.succ[None] * n_q + succ_q).transpose(1, 0, 2, 3, 4).reshape(
+    nxt = product_state(ts.succ[None], succ_q, n_q).transpose(1, 0, 2, 3, 4).reshape(
         ts.n_states * n_q, *ts.succ.shape[1:])
     q_of = np.tile(np.arange(n_q), ts.n_states)
     s_of = np.repeat(np.arange(ts.n_states), n_q)
     trapped = s_of == ts.trapped                     # tried first: trapped is a failure
     goal = np.isin(q_of, list(dfa.accepting)) & ~trapped
     fail = trapped | (np.isin(q_of, list(dfa.sink)) & ~goal)
-    start = ts.start_state * n_q + int(dfa.delta[dfa.initial, label[ts.start_state]])
+    start = product_state(ts.start_state, int(dfa.delta[dfa.initial, label[ts.start_state]]), n_q)
     return Product(ts=ts, dfa=dfa, next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
                    allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, fail=fail,
                    start=int(start))

@@ -1,15 +1,17 @@
 """The numeric core for explicit models (docs/semantics.md §10): graph analysis, exact values of
 Markov chains with a bound on their rounding error, policy iteration for optimal reachability,
-bounded reachability and expected steps. numpy and scipy only; every analysis that solves an
+bounded reachability and expected steps, and the first best choice of each state (the tie rule
+every strategy is read with). numpy and scipy only; every analysis that solves an
 explicit model (certification, baselines, the value of deception, robust deception, exports,
 simulation) solves it here."""
 
 from hg2prism.numeric.chains import (ChainValue, Steps, bounded_reach, chain_reach,
                                      expected_steps, solve_m_matrix)
 from hg2prism.numeric.graph import attractor, backward_reach, can_reach, progress_choices
-from hg2prism.numeric.model import ExplicitModel
+from hg2prism.numeric.model import ExplicitModel, argmax_by_group, first_best
 from hg2prism.numeric.policy import OptimalReach, optimal_reach
 
 __all__ = ["ChainValue", "Steps", "bounded_reach", "chain_reach", "expected_steps",
            "solve_m_matrix", "attractor", "backward_reach", "can_reach", "progress_choices", "ExplicitModel",
+           "argmax_by_group", "first_best",
            "OptimalReach", "optimal_reach"]

@@ -92,3 +92,25 @@ class ExplicitModel:
         first = np.full(self.n_states, -1, dtype=np.int64)
         first[self.choice_state[rows]] = rows
         return first
+
+
+def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
+                     relative_tie: float = 0.0) -> np.ndarray:
+    """Index of the first score in each group within `relative_tie` (relative) of the group's
+    maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
+    choice)."""
+    best = first_best(score, group, relative_tie)
+    if len(best) != n_groups:
+        raise ValueError("every group needs at least one member")
+    return best
+
+
+def first_best(score: np.ndarray, group: np.ndarray, relative_tie: float = 0.0) -> np.ndarray:
+    """Index of the first score in each run of equal `group` labels within `relative_tie`
+    (relative) of the run's maximum, run after run."""
+    if len(score) == 0:
+        return np.zeros(0, dtype=np.int64)
+    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    best = np.repeat(np.maximum.reduceat(score, start), np.diff(np.r_[start, len(score)]))
+    candidates = np.flatnonzero(score >= best - relative_tie * np.abs(best))
+    return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]

@@ -23,7 +23,7 @@ import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from hg2prism.model.automata import DFA
-from hg2prism.model.product import product
+from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -260,7 +260,7 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     other state each of her strategies reaches the goal or those states for sure, so her
     operator has a single fixed point, and switching where a trap set is better by more than
     IMPROVEMENT lowers the values until it is reached."""
-    answers = p1[:, None, :] == np.arange(4)[None, :, None]           # [G, 4, A2]
+    answers = p1[:, None, :] == np.arange(game.next.shape[1])[None, :, None]   # [G, A1, A2]
     pinned = zero | (game.positive_attractor(answers) < 0)
     rows = np.arange(game.size)
     solve = game.free & ~pinned
@@ -351,7 +351,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
 def is_certified(game: TurnBasedGame, p1: np.ndarray, x: np.ndarray) -> bool:
     """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever: outside the
     positive attractor of the goal when P1 answers each a2 with p1[g, a2]."""
-    answers = p1[:, None, :] == np.arange(4)[None, :, None]           # [G, 4, A2]
+    answers = p1[:, None, :] == np.arange(game.next.shape[1])[None, :, None]   # [G, A1, A2]
     avoid = game.positive_attractor(answers) < 0
     return bool((x[avoid] <= 1e-12).all())
 
@@ -408,7 +408,7 @@ def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> Perce
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
-    g = np.arange(ts.n_states) * dfa.n_states + fresh_q
+    g = product_state(np.arange(ts.n_states), fresh_q, dfa.n_states)
     q = game.q_values(flat)[g]                                        # [S, 4, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
     choice = trap_rule(worst, _standing_sets(ts))

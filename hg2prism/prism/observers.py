@@ -166,8 +166,8 @@ def ratio_classes(observer: InferenceModel, hypothesis: int, observed: np.ndarra
     vectors = observer.ratios[hypothesis, :, :n_obs, :][:, kept].transpose(1, 2, 0)
     vectors = vectors.reshape(-1, observer.n_hypotheses) + 0.0   # -0.0 and 0.0 are the same ratio
     class_ratios, found = np.unique(vectors, axis=0, return_inverse=True)
-    classes = np.zeros((n_obs, 4), dtype=np.int64)
-    classes[kept] = found.reshape(-1, 4)
+    classes = np.zeros((n_obs, len(ACTIONS)), dtype=np.int64)
+    classes[kept] = found.reshape(-1, len(ACTIONS))
     return classes, class_ratios
 
 

@@ -358,13 +358,7 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
                               ("v_ne", "symmetric, Nash", "^:")):
         if all(key in row for row in rows):
             ax.plot(xs, [row[key] for row in rows], style, label=label)
-    ax.set_ylabel("P1's completion probability")
-    ax.set_ylim(0, 1.02)
-    ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", ncol=3, fontsize=8, frameon=False)
-    title = f"completion probability at the initial state against {parameter}"
-    ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
-    return _save(fig, path)
+    return _finish_sweep(fig, ax, path, parameter, world_name, ncol=3, fontsize=8)
 
 
 DETECTION_ZOOM = 6      # steps shown either side of the detection in the zoomed panel
@@ -392,11 +386,17 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
                 label=f"deceptive, {label}")
         ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
                 label=f"V_lead, {label}")
+    return _finish_sweep(fig, ax, path, " x ".join(parameters), world_name, ncol=2, fontsize=7)
+
+
+def _finish_sweep(fig, ax, path: Path, against: str, world_name: str | None, ncol: int,
+                  fontsize: int) -> list[Path]:
+    """The axis, legend and title every sweep figure shares; saves the figure."""
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
-    title = f"completion probability at the initial state against {' x '.join(parameters)}"
+    fig.legend(loc="outside lower center", ncol=ncol, fontsize=fontsize, frameon=False)
+    title = f"completion probability at the initial state against {against}"
     ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
     return _save(fig, path)
 

@@ -26,6 +26,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from hg2prism.model.dynamics import ACTIONS
+from hg2prism.model.product import product_state
 
 __all__ = ["Policy", "ProductPolicy"]
 
@@ -49,7 +50,7 @@ class ProductPolicy:
         self.n_q = int(n_q)
 
     def action(self, ts_state: int, q: int, memory: Hashable) -> int:
-        return self.answers[ts_state * self.n_q + q]
+        return self.answers[product_state(ts_state, q, self.n_q)]
 
     def mixed(self) -> np.ndarray:
         """[G, len(ACTIONS)] the policy as a (degenerate) mixed strategy, one row per product state: what

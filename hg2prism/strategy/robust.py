@@ -332,7 +332,7 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
     `decides` marks the states where P1 chooses a move (the others are the intermediate states
     of a step, with one choice each); `action` is each choice's move (-1 for none). The discount
     applies once per step, when an intermediate state moves on."""
-    from hg2prism.strategy.deceptive import argmax_by_group
+    from hg2prism.numeric import argmax_by_group
 
     optimal = (solution.q_values >= solution.values[game.choice_state] - OPTIMAL_SLACK)
     optimal &= (action >= 0) | ~decides[game.choice_state]
