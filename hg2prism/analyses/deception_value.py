@@ -160,7 +160,7 @@ class InducedChain:
     the merged goal and failure (absorbing); the others are (v, q, M)."""
 
     states: list[tuple[int, int, Hashable] | None]   # None for GOAL and FAIL
-    matrix: sp.csr_matrix     # one-step probabilities (absorbing rows empty)
+    chain: ExplicitModel      # one choice per state: its one-step probabilities (absorbing: empty)
     hypothesis: np.ndarray    # P2's hypothesis in each state (-1 for GOAL and FAIL)
     action: np.ndarray        # P1's move in each state (-1 for GOAL and FAIL)
     start: int                # the initial state (GOAL or FAIL when already absorbing)
@@ -168,6 +168,11 @@ class InducedChain:
     @property
     def size(self) -> int:
         return len(self.states)
+
+    @property
+    def matrix(self) -> sp.csr_matrix:
+        """[states x states] the one-step probabilities."""
+        return self.chain.matrix
 
     @property
     def goal(self) -> np.ndarray:
@@ -233,7 +238,8 @@ def induced_chain(game: Hypergame, strategy: Policy) -> InducedChain:
         i += 1
     n = len(states)
     matrix = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
-    return InducedChain(states=states, matrix=matrix, hypothesis=np.array(hypothesis),
+    return InducedChain(states=states, chain=ExplicitModel(matrix, np.arange(n + 1)),
+                        hypothesis=np.array(hypothesis),
                         action=np.array(action), start=start)
 
 

@@ -93,7 +93,7 @@ def _nominal_game(game, action: np.ndarray):
 
     interval = action[game.branch_choice] >= 0
     fixed = np.where(game.upper >= 1.0, 1.0, 0.0)
-    return IntervalGame(choice_start=game.choice_start, row_start=game.row_start,
+    return IntervalGame.build(choice_start=game.choice_start, row_start=game.row_start,
                         target=game.target, lower=np.where(interval, fixed, game.lower),
                         upper=np.where(interval, fixed, game.upper), goal=game.goal,
                         stop=game.stop, initial=game.initial, chance=game.chance)

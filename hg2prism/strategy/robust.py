@@ -37,7 +37,7 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.errors import SolverError
-from hg2prism.numeric import solve_m_matrix
+from hg2prism.numeric import ExplicitModel, solve_m_matrix
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
 P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
@@ -52,15 +52,13 @@ MAX_DISCOUNT_SWEEPS = 1000
 
 @dataclass(frozen=True, eq=False)
 class IntervalGame:
-    """An interval MDP as arrays: the choices of state s are choice_start[s]:choice_start[s+1],
-    the branches of choice c are row_start[c]:row_start[c+1]. Absorbing states (`stop`) keep
-    their choices but are never solved: goal states have value 1, the others 0."""
+    """An interval MDP: the explicit model of its lower bounds (numeric.ExplicitModel: the
+    choices of state s are choice_start[s]:choice_start[s+1], the branches of choice c are
+    row_start[c]:row_start[c+1]) and the upper bound of every branch. Absorbing states (`stop`)
+    keep their choices but are never solved: goal states have value 1, the others 0."""
 
-    choice_start: np.ndarray
-    row_start: np.ndarray
-    target: np.ndarray
-    lower: np.ndarray
-    upper: np.ndarray
+    model: ExplicitModel      # the structure, with the lower bounds as its probabilities
+    upper: np.ndarray         # [branches] the upper bounds, in the model's branch order
     goal: np.ndarray          # bool per state
     stop: np.ndarray          # bool per state: goal or failure
     initial: int
@@ -68,13 +66,39 @@ class IntervalGame:
     # the intermediate states of the robust model. Linear solves eliminate them first.
     chance: np.ndarray | None = None
 
+    @classmethod
+    def build(cls, choice_start: np.ndarray, row_start: np.ndarray, target: np.ndarray,
+              lower: np.ndarray, upper: np.ndarray, **rest) -> "IntervalGame":
+        """From flat arrays: choices, their branches' targets and lower and upper bounds."""
+        model = ExplicitModel.from_arrays(np.asarray(row_start), np.asarray(target),
+                                          np.asarray(lower, dtype=float),
+                                          np.asarray(choice_start))
+        return cls(model=model, upper=np.asarray(upper, dtype=float), **rest)
+
+    # the model's arrays, by the names the algorithms below read
+    @property
+    def choice_start(self) -> np.ndarray:
+        return self.model.group_start
+
+    @property
+    def row_start(self) -> np.ndarray:
+        return self.model.matrix.indptr
+
+    @property
+    def target(self) -> np.ndarray:
+        return self.model.matrix.indices
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self.model.matrix.data
+
     @property
     def n_states(self) -> int:
-        return len(self.choice_start) - 1
+        return self.model.n_states
 
     @property
     def n_choices(self) -> int:
-        return len(self.row_start) - 1
+        return self.model.n_choices
 
     @classmethod
     def of(cls, moves: Transitions, goal: np.ndarray, fail: np.ndarray, initial: int,
@@ -84,7 +108,7 @@ class IntervalGame:
         n_states = len(goal)
         choice_start = np.searchsorted(moves.source, np.arange(n_states + 1))
         upper = moves.probability if moves.upper is None else moves.upper
-        return cls(choice_start=choice_start, row_start=np.asarray(moves.row_start),
+        return cls.build(choice_start=choice_start, row_start=np.asarray(moves.row_start),
                    target=np.asarray(moves.target), lower=np.asarray(moves.probability),
                    upper=np.asarray(upper), goal=np.asarray(goal, dtype=bool),
                    stop=np.asarray(goal, dtype=bool) | np.asarray(fail, dtype=bool),
