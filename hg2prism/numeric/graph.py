@@ -113,3 +113,57 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     progress = np.full(model.n_states, -1, dtype=np.int64)
     progress[model.choice_state[first]] = first      # reversed: each state's first choice wins
     return progress
+
+
+def move_predecessors(successor: np.ndarray, probability: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """(moves, start) of a game given as outcome tables successor/probability [G, A1, A2, K]:
+    moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat indices into [G, A1, A2],
+    with a positive chance of entering state t, in increasing order."""
+    outcomes = successor.shape[-1]
+    positive = np.flatnonzero(probability.reshape(-1) > 0)
+    target = successor.reshape(-1)[positive]
+    order = np.argsort(target, kind="stable")
+    start = np.searchsorted(target[order], np.arange(successor.shape[0] + 1))
+    return positive[order] // outcomes, start
+
+
+def alternating_attractor(predecessors: tuple[np.ndarray, np.ndarray], shape: tuple[int, int, int],
+                          target: np.ndarray, free: np.ndarray, allowed: np.ndarray,
+                          actions: np.ndarray | None = None) -> np.ndarray:
+    """The positive attractor of `target` in a turn-based game where the opponent moves first
+    (docs/semantics.md §4): rank[g] is the least k such that for every allowed opponent action
+    a2 (`allowed` [G, A2]) some move a1 (of `actions` [G, A1, A2], all by default) has a
+    positive chance of entering the states of rank < k; rank 0 on the target, -1 outside; only
+    `free` states enter. `predecessors` are the game's `move_predecessors`, `shape` (G, A1, A2).
+
+    The alternating form of `attractor` (there: some, or every, choice of a state), kept apart
+    because its quantifiers pair up per a2 and because it runs dozens of times per game on
+    products of 10^5 states: breadth-first from the target over the predecessor moves, so each
+    move is looked at once per state that enters, not once per level."""
+    moves, start = predecessors
+    size, n_a1, n_a2 = shape
+    n_moves = n_a1 * n_a2
+    allowed_moves = None if actions is None else actions.reshape(-1)
+    reach = np.zeros(size * n_moves, dtype=bool)     # move reaches the attractor
+    rank = np.where(target, 0, -1)
+    frontier = np.flatnonzero(target)
+    level = 0
+    while frontier.size:
+        level += 1
+        lengths = start[frontier + 1] - start[frontier]
+        offsets = np.repeat(start[frontier] - np.cumsum(lengths) + lengths, lengths)
+        found = moves[np.arange(lengths.sum()) + offsets]
+        if allowed_moves is not None:
+            found = found[allowed_moves[found]]
+        reach[found] = True
+        # sorted distinct states by marking: numpy's hash-based unique is several times slower
+        marked = np.zeros(size, dtype=bool)
+        marked[found // n_moves] = True
+        candidates = np.flatnonzero(marked)
+        candidates = candidates[free[candidates] & (rank[candidates] < 0)]
+        hit = reach.reshape(size, n_a1, -1)[candidates].any(axis=1)
+        ok = (hit | ~allowed[candidates]).all(axis=1)
+        frontier = candidates[ok]
+        rank[frontier] = level
+    return rank

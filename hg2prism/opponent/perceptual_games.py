@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.csgraph as csgraph
 import scipy.sparse.linalg as spla
 
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
+from hg2prism.numeric import alternating_attractor, backward_reach, move_predecessors
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -94,47 +94,17 @@ class TurnBasedGame:
         return np.where(self.allowed, best, np.inf).min(axis=1)
 
     def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
-        """(moves, start): moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat
-        indices into [G, 4, A2], that reach game state t with positive probability."""
+        """The moves (g, a1, a2) entering each game state (numeric.move_predecessors), once."""
         if self._reverse is None:
-            positive = np.flatnonzero(self.prob.reshape(-1) > 0)
-            target = self.next.reshape(-1)[positive]
-            order = np.argsort(target, kind="stable")
-            start = np.searchsorted(target[order], np.arange(self.size + 1))
-            self._reverse = (positive[order] // 3, start)
+            self._reverse = move_predecessors(self.next, self.prob)
         return self._reverse
 
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
         """Rank of each state in P1's attractor for reaching the goal with positive probability
-        (P2 picks a2 first); -1 outside. `actions` [G, 4, A2] restricts P1's moves.
-
-        Breadth-first from the goal over the predecessor moves, so each move is looked at
-        once per state that enters the attractor, not once per level."""
-        moves, start = self._predecessors()
-        n_moves = 4 * self.ts.n_sets
-        allowed_moves = None if actions is None else actions.reshape(-1)
-        reach = np.zeros(self.size * n_moves, dtype=bool)     # move reaches the attractor
-        rank = np.where(self.goal, 0, -1)
-        frontier = np.flatnonzero(self.goal)
-        level = 0
-        while frontier.size:
-            level += 1
-            lengths = start[frontier + 1] - start[frontier]
-            offsets = np.repeat(start[frontier] - np.cumsum(lengths) + lengths, lengths)
-            found = moves[np.arange(lengths.sum()) + offsets]
-            if allowed_moves is not None:
-                found = found[allowed_moves[found]]
-            reach[found] = True
-            # sorted distinct states by marking: numpy's hash-based unique is several times slower
-            marked = np.zeros(self.size, dtype=bool)
-            marked[found // n_moves] = True
-            candidates = np.flatnonzero(marked)
-            candidates = candidates[self.free[candidates] & (rank[candidates] < 0)]
-            hit = reach.reshape(self.size, 4, -1)[candidates].any(axis=1)
-            ok = (hit | ~self.allowed[candidates]).all(axis=1)
-            frontier = candidates[ok]
-            rank[frontier] = level
-        return rank
+        (P2 picks a2 first); -1 outside. `actions` [G, A1, A2] restricts P1's moves
+        (numeric.alternating_attractor)."""
+        return alternating_attractor(self._predecessors(), self.next.shape[:3], self.goal,
+                                     self.free, self.allowed, actions)
 
 
 def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
@@ -323,15 +293,8 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
     # States that can reach the goal in this chain (the rest have value 0): a breadth-first
     # search from the goal along reversed edges, entering only states to solve.
     edge = solve[:, None] & (prob > 0)
-    goal_states = np.flatnonzero(game.goal)
-    reverse = sp.csr_matrix(
-        (np.ones(int(edge.sum()) + goal_states.size, dtype=np.int8),
-         (np.r_[nxt[edge], np.full(goal_states.size, n)],
-          np.r_[np.broadcast_to(rows[:, None], nxt.shape)[edge], goal_states])),
-        shape=(n + 1, n + 1))
-    can = np.zeros(n + 1, dtype=bool)
-    can[csgraph.breadth_first_order(reverse, n, directed=True, return_predecessors=False)] = True
-    solve &= can[:n]
+    solve &= backward_reach(np.broadcast_to(rows[:, None], nxt.shape)[edge], nxt[edge],
+                            np.flatnonzero(game.goal), n)
     x = game.goal.astype(float)
     idx = np.flatnonzero(solve)
     if idx.size:
