@@ -5,6 +5,7 @@ values of strategy.json and the induced DTMC are computed on it."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -13,12 +14,15 @@ import scipy.sparse as sp
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import ACTIONS
+from hg2prism.numeric import ExplicitModel
 
 
 @dataclass(frozen=True, eq=False)
 class CanonicalMDP:
     """Canonical states 0..n-1 (goal states merged into one, failure states into another) and
-    the labelled choices of the non-absorbing ones, grouped by state, in move order."""
+    the labelled choices of the non-absorbing ones, in state order and, within a state, in
+    move order: an explicit model (`model`, a numeric.ExplicitModel) whose choices carry a
+    move and Storm's choice."""
 
     n: int
     representative: np.ndarray   # [n] the first Storm state of each canonical state
@@ -35,10 +39,18 @@ class CanonicalMDP:
     def absorbing(self) -> np.ndarray:
         return self.goal | self.fail
 
+    @functools.cached_property
+    def model(self) -> ExplicitModel:
+        """The MDP as the numeric core reads it: choices of state s are group_start[s]..
+        group_start[s+1]-1 (none for absorbing states), duplicate successors summed."""
+        matrix = sp.csr_matrix((self.entry_prob, (self.entry_choice, self.entry_target)),
+                               shape=(len(self.choice_state), self.n))
+        group_start = np.r_[0, np.cumsum(np.bincount(self.choice_state, minlength=self.n))]
+        return ExplicitModel(matrix=matrix, group_start=group_start.astype(np.int64))
+
     def matrix(self) -> sp.csr_matrix:
         """[choices, n] successor probabilities of every choice (duplicates summed)."""
-        return sp.csr_matrix((self.entry_prob, (self.entry_choice, self.entry_target)),
-                             shape=(len(self.choice_state), self.n))
+        return self.model.matrix
 
     def choice_values(self, values: np.ndarray) -> np.ndarray:
         """[choices] sum_s' P(s' | s, a) values[s'] of every choice."""
@@ -67,7 +79,9 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions) -> CanonicalMDP:
     fail[canonical[decoded.fail]] = True
     is_rep = representative[canonical[moves.source]] == moves.source
     keep = is_rep & (moves.action >= 0) & ~absorbing[moves.source]
-    chosen = np.flatnonzero(keep)                    # sorted: grouped by state, in move order
+    chosen = np.flatnonzero(keep)                    # grouped by state, in move order
+    # in canonical state order (stable: each state's choices keep their move order)
+    chosen = chosen[np.argsort(canonical[moves.source[chosen]], kind="stable")]
     counts = np.diff(moves.row_start)[chosen]
     starts = moves.row_start[chosen]
     entry_choice = np.repeat(np.arange(len(chosen)), counts)
