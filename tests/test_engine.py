@@ -12,6 +12,7 @@ import pytest
 
 import worldgen
 from hg2prism import engines, pipeline, progress
+from hg2prism.cli import main
 from hg2prism.engines.engine import BuiltModel, Transitions
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
@@ -79,7 +80,8 @@ def test_the_robust_experiment_builds_interval_models_through_the_engine(world, 
 
 def test_the_explicit_model_decodes_to_the_layout(world, tmp_path: Path) -> None:
     """Storm's explicit model: one source per choice, successors inside the model, goal and
-    fail labels; decoding reads the PRISM variables (0 for a variable the model lacks)."""
+    fail labels; decoding reads the PRISM variables; a variable the model lacks is an error
+    unless its (initial) value is given."""
     with progress.quiet():
         checked = pipeline.check(world, tmp_path / "check")
     model = checked.engine.explicit(checked.checked.model)
@@ -87,16 +89,63 @@ def test_the_explicit_model_decodes_to_the_layout(world, tmp_path: Path) -> None
     assert model.n_states == checked.checked.size[0] and len(moves.source) == checked.checked.size[2]
     assert moves.target.max() < model.n_states and {"goal", "fail"} <= set(moves.labels)
     assert np.array_equal(model.variable("cell"), checked.decoded.cell)
-    assert not model.variable("no_such_variable").any()
-    assert model.variable("no_such_variable").shape == (model.n_states,)
+    with pytest.raises(KeyError, match="no_such_variable"):
+        model.variable("no_such_variable")
+    assert model.variable("no_such_variable", 7).tolist() == [7] * model.n_states
     assert checked.decoded.goal[model.initial] == False  # noqa: E712
 
 
-def test_a_missing_variable_reads_as_zeros() -> None:
+def test_a_missing_variable_is_its_default_or_an_error() -> None:
     empty = Transitions(source=np.zeros(0, dtype=np.int64), action=np.zeros(0, dtype=np.int64),
                         row_start=np.zeros(1, dtype=np.int64), target=np.zeros(0, dtype=np.int64),
                         probability=np.zeros(0), labels={})
     model = BuiltModel(n_states=3, initial=0, transitions=empty,
                           read_variable=lambda name: np.arange(3) if name == "x" else None)
     assert model.variable("x").tolist() == [0, 1, 2]
-    assert model.variable("y").tolist() == [0, 0, 0]
+    assert model.variable("x", 5).tolist() == [0, 1, 2]
+    assert model.variable("y", 4).tolist() == [4, 4, 4]
+    with pytest.raises(KeyError):
+        model.variable("y")
+
+
+# A maze where P2 can never revise her first guess x1: Storm leaves the constant `hyp` out of
+# its states. Decoding used to read it as 0, so strategy.json had no record of the real start
+# state and `run` stopped with a StrategyError traceback (found running all 200 mazes).
+CONSTANT_HYPOTHESIS = """name = "maze3"
+[grid]
+map = \"\"\"
+#######
+#B@.tC#
+###A#.#
+###...#
+#######
+\"\"\"
+[robot]
+slip = 0.0
+[task]
+formula = "F A & F B"
+[adversary]
+traps = 1
+delay = 1
+initial_traps = [[4, 3]]
+hypotheses = ["F B & F C", "!obs U A"]
+initial_hypothesis = 1
+[inference]
+window = 2
+rationality = 3.0
+threshold = 0.75
+"""
+
+
+def test_a_variable_storm_leaves_out_keeps_its_initial_value(tmp_path: Path) -> None:
+    path = tmp_path / "maze3.toml"
+    path.write_text(CONSTANT_HYPOTHESIS)
+    with progress.quiet():
+        checked = pipeline.check(load_world(path), tmp_path / "check")
+    model = checked.engine.explicit(checked.checked.model)
+    assert model.read_variable("hyp") is None           # Storm dropped it: it never changes
+    assert checked.prism.layout.initial_value("hyp") == 1
+    assert set(checked.decoded.hypothesis.tolist()) == {1}
+    starts = [r for r in checked.records if r["window"] == [] and r["cell"] == [2, 3]]
+    assert starts and all(r["hypothesis"] == 1 for r in starts)
+    assert main(["run", str(path), "--out", str(tmp_path / "run"), "--episodes", "20"]) == 0

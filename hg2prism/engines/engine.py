@@ -42,10 +42,17 @@ class BuiltModel:
     transitions: Transitions
     read_variable: Callable[[str], np.ndarray | None]   # None: the model has no such variable
 
-    def variable(self, name: str) -> np.ndarray:
-        """The value of PRISM variable `name` in every state (0 where the model has none)."""
+    def variable(self, name: str, default: int | None = None) -> np.ndarray:
+        """The value of PRISM variable `name` in every state. An engine may leave out a
+        variable whose value never changes (Storm does): then every state has `default`, its
+        initial value (the model's Layout knows it); without a default that is an error, not
+        a silent 0."""
         values = self.read_variable(name)
-        return np.zeros(self.n_states, dtype=np.int64) if values is None else values
+        if values is not None:
+            return values
+        if default is None:
+            raise KeyError(f"the built model has no variable {name!r}")
+        return np.full(self.n_states, default, dtype=np.int64)
 
 
 @dataclass(frozen=True, eq=False)

@@ -129,9 +129,9 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
     return _choices_of(game, moves.action, wanted[canonical], decides)
 
 
-def _cross_check(engine: ModelChecker, check_path: Path, value: float) -> dict:
-    """The interval model at `check_path` (eps > 0) checked by the engine's robust mode and by
-    numpy, beside the exact value R_delta."""
+def _cross_check(engine: ModelChecker, check_path: Path, layout: Layout, value: float) -> dict:
+    """The interval model at `check_path` (eps > 0, laid out as `layout`) checked by the
+    engine's robust mode and by numpy, beside the exact value R_delta."""
     from hg2prism.prism.robust_model import MOVE_VARIABLE, STORM_PROPERTY
     from hg2prism.strategy.robust import IntervalGame, solve_robust
 
@@ -139,7 +139,8 @@ def _cross_check(engine: ModelChecker, check_path: Path, value: float) -> dict:
     eps_model = engine.explicit(engine.build_interval(check_path)[0])
     eps_moves = eps_model.transitions
     eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
-                               eps_model.initial, chance=eps_model.variable(MOVE_VARIABLE) >= 0)
+                               eps_model.initial, chance=eps_model.variable(
+                                   MOVE_VARIABLE, layout.initial_value(MOVE_VARIABLE)) >= 0)
     numpy_value = solve_robust(eps_game).value(eps_game.initial)
     return {"storm_robust_value_eps": storm_value, "numpy_value_eps": numpy_value,
             "storm_minus_numpy": storm_value - numpy_value, "eps_minus_exact": numpy_value - value}
@@ -164,14 +165,17 @@ def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout
     model = engine.explicit(engine.build_interval(prism_path)[0])
     moves = model.transitions
     decoded = decode_states(model, layout, ts, task)
-    decides = model.variable(MOVE_VARIABLE) == -1
+    def column(name: str) -> np.ndarray:
+        return model.variable(name, layout.initial_value(name))
+
+    decides = column(MOVE_VARIABLE) == -1
     game = IntervalGame.of(moves, decoded.goal, decoded.fail, model.initial, chance=~decides)
     solution = solve_robust(game)
     value = probability(solution.value(game.initial), f"R_{delta} at the initial state")
 
     # Canonical states: the hypergame state, and for intermediate states the move and set.
     canonical = row_keys(np.column_stack([
-        decoded.canonical, model.variable(MOVE_VARIABLE), model.variable(PLAYED_VARIABLE)]))
+        decoded.canonical, column(MOVE_VARIABLE), column(PLAYED_VARIABLE)]))
     n_canonical = int(canonical.max()) + 1
     first = np.full(n_canonical, -1, dtype=np.int64)
     first[canonical[::-1]] = np.arange(model.n_states)[::-1]
@@ -208,7 +212,7 @@ def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout
                               ts, deceptive)
     nominal_worst = adversary_response(game, nominal)[game.initial]
 
-    check = None if check_path is None else _cross_check(engine, check_path, value)
+    check = None if check_path is None else _cross_check(engine, check_path, layout, value)
     return RobustSolved(
         delta=delta, robust_value=value,
         nominal_worst_case=probability(nominal_worst, "the deceptive strategy's worst case"),

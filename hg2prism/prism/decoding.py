@@ -42,7 +42,9 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
     """The engine's states as hypergame states, read off their PRISM variables and labels.
     When the layout has no `hyp` variable, P2's hypothesis is derived from each state's window
     by `window_hypotheses`."""
-    column = model.variable
+    def column(name: str) -> np.ndarray:
+        return model.variable(name, layout.initial_value(name))
+
     cell = column("cell")
     label = np.append(ts.cell_label, 0)[cell]
     q = task.delta[column("q"), label]
@@ -52,7 +54,10 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
                       axis=1) if layout.slots else np.zeros((model.n_states, 0, width), dtype=np.int64)
     goal = model.transitions.labels["goal"]
     fail = model.transitions.labels["fail"]
-    traps, countdown = column("traps"), column("countdown")
+    if layout.delay:
+        traps, countdown = column("traps"), column("countdown")
+    else:       # no standing traps without delay (docs/semantics.md §2): both are 0
+        traps, countdown = (np.zeros(model.n_states, dtype=np.int64) for _ in range(2))
     if layout.hypothesis_variable:
         hypothesis = column("hyp")
     else:

@@ -18,6 +18,7 @@ reachable with P2's choices) and free elsewhere, which keeps them small under de
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,6 +36,9 @@ from hg2prism.prism.rendering import cases, lookup, prism_number, region_labels,
 PROPERTY = 'Pmax=? [F "goal"]'
 
 
+_DECLARATION = re.compile(r"^\s*(\w+)\s*:\s*\[[^\]]*\]\s*init\s+(-?\d+)\s*;", re.MULTILINE)
+
+
 @dataclass(frozen=True)
 class Layout:
     """How hypergame states are encoded in PRISM variables (for decoding Storm's states)."""
@@ -43,6 +47,17 @@ class Layout:
     delay: int
     slot_sets: bool = False         # slots also hold the trap set in force (Bayesian observer)
     hypothesis_variable: bool = True   # P2's hypothesis is the variable `hyp` (CUSUM)
+    # every variable's initial value: Storm leaves out of its states a variable whose value
+    # never changes (no command that writes it is ever enabled), which then keeps this value
+    initial: tuple[tuple[str, int], ...] = ()
+
+    def initial_value(self, name: str) -> int | None:
+        return dict(self.initial).get(name)
+
+    @staticmethod
+    def initial_values(text: str) -> tuple[tuple[str, int], ...]:
+        """(variable, initial value) of every integer variable declared in PRISM `text`."""
+        return tuple((name, int(value)) for name, value in _DECLARATION.findall(text))
 
     def slot_variables(self, i: int) -> tuple[str, ...]:
         if self.slot_sets:
@@ -82,7 +97,8 @@ def build_model(world: World, ts: TransitionSystem, task: DFA, games: list[Perce
     return PrismModel(text=model_text, properties=properties,
                       layout=Layout(slots=context["observer"].slots, delay=ts.delay,
                                     slot_sets=context["observer"].slot_sets,
-                                    hypothesis_variable=context["observer"].hypothesis_variable),
+                                    hypothesis_variable=context["observer"].hypothesis_variable,
+                                    initial=Layout.initial_values(model_text)),
                       commands=commands)
 
 

@@ -84,7 +84,8 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
     prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
                        layout=Layout(slots=context["observer"].slots, delay=ts.delay,
                                      slot_sets=context["observer"].slot_sets,
-                                     hypothesis_variable=context["observer"].hypothesis_variable),
+                                     hypothesis_variable=context["observer"].hypothesis_variable,
+                                     initial=Layout.initial_values(text)),
                        commands=count_commands(text))
     return RobustModel(prism=prism, delta=float(delta), eps=float(eps))
 
