@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 sweep-demo test bench clean
+.PHONY: world1 world2 world3 sweep-demo test mazes bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,11 @@ sweep-demo: $(STAMP)
 world3: $(STAMP)
 	$(BIN)/hg2prism run models/world3.toml
 	$(BIN)/hg2prism run models/world3_bayes.toml
+
+# All 200 random mazes of tests/test_mazes.py through `run` (make test runs every fifth; this
+# takes about 3 minutes on two cores).
+mazes: $(STAMP)
+	HG2PRISM_ALL_MAZES=1 $(BIN)/python -m pytest -q -n 2 tests/test_mazes.py -k run_completes
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench
