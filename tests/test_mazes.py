@@ -4,7 +4,9 @@ converge" on small worlds that `check` solves. Now
 * `run` completes on the issue's world (deceptive value 0.9, V_lead 0), on maze 113, where
   P2's Nash strategy plays a trap set with probability 2e-9 and the old solve cycled, and on
   every fifth of the 200 random mazes (tests/mazegen.py) and maze 3 (`make mazes`, or
-  HG2PRISM_ALL_MAZES=1, runs all 200);
+  HG2PRISM_ALL_MAZES=1, runs all 200); on those, where PRISM is installed, PRISM-games' csg
+  engine computes V_NE from the exported symmetric.prism, an engine independent of ours, and
+  it lies in our bracket (within 1e-6, as in tests/test_prism.py);
 * on 200 random small mazes (walls at random, trap candidates on the shortest paths to the
   regions, delay 0-2, CUSUM and Bayesian observers) the baselines complete, computed in this
   process: V_lead, V_static and V_naive equal the independent reference
@@ -29,6 +31,7 @@ from hg2prism import pipeline, progress
 from hg2prism.analyses import baselines, deception_value
 from hg2prism.cli import main
 from hg2prism.worldfile import load_world
+from test_prism import PRISM, TOL as PRISM_TOL, prism_value
 
 TOL = 1e-9
 NASH_TOLERANCE = 1e-6
@@ -53,6 +56,10 @@ def test_run_completes_on_mazes(seed: int, tmp_path: Path) -> None:
     assert results["v_naive"] <= results["deceptive_value"] + TOL
     low, high = results["v_ne_bounds"]
     assert low - TOL <= results["v_ne"] <= high + TOL
+    if PRISM is not None:
+        # V_NE by an independent engine: PRISM-games' csg engine on the exported game
+        value = prism_value(tmp_path / "out" / "symmetric.prism", epsilon="1e-9")
+        assert low - PRISM_TOL <= value <= high + PRISM_TOL, (value, low, high)
 
 
 @pytest.mark.parametrize("name", list(RUNS))
