@@ -28,6 +28,14 @@ class ChainValue:
     error: float            # max over states of the bound on |values - exact|
 
 
+def solve_plain(system: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+    """x with system @ x = rhs by one sparse LU solve, without refinement or error bound: for
+    the inner rounds of a strategy iteration whose result is certified afterwards (P2's games
+    by their Bellman residual and attractor check, the expected-steps iteration of the
+    lexicographic objective by its improvement test), where a round costs one factorisation."""
+    return np.atleast_1d(spla.spsolve(sp.csc_matrix(system), rhs))
+
+
 def solve_m_matrix(system: sp.spmatrix, rhs: np.ndarray) -> tuple[np.ndarray, float]:
     """x with system @ x = rhs for system = I - A (A >= 0, I - A regular), by a sparse LU
     factorisation and one step of iterative refinement, and the bound on the error of x

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
-from hg2prism.numeric import alternating_attractor, backward_reach, move_predecessors
+from hg2prism.numeric import (alternating_attractor, backward_reach, move_predecessors,
+                              solve_plain)
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -307,7 +307,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
         matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
             (sub_prob[inner], (r, c)), shape=(idx.size, idx.size))
         rhs = (sub_prob * game.goal[sub_next]).sum(axis=1)
-        x[idx] = spla.spsolve(matrix.tocsc(), rhs)
+        x[idx] = solve_plain(matrix, rhs)
     return x
 
 

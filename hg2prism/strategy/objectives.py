@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from hg2prism.model.dynamics import ACTIONS
+from hg2prism.numeric import solve_plain
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
 
@@ -114,7 +114,7 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     for _ in range(MAX_POLICY_ITERATIONS):
         rows = matrix[choice_of[states, policy[states]]][:, states]
         system = sp.identity(len(states), format="csc") - rows.tocsc()
-        solution = np.atleast_1d(spla.spsolve(system, np.ones(len(states)))) if len(states) else []
+        solution = solve_plain(system, np.ones(len(states))) if len(states) else []
         expected[:] = 0.0
         expected[states] = solution
         q = 1.0 + matrix @ expected
