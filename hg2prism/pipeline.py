@@ -17,7 +17,9 @@ from hg2prism import __version__
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem, build_transition_system
+from hg2prism.frontends import transition_system as build_transition_system
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.perceptual_games import PerceptualGame, perceptual_game, solve_game
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn

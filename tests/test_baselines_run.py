@@ -12,7 +12,7 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.analyses import baselines
 from hg2prism.model.automata import translate
-from hg2prism.model.dynamics import build_transition_system
+from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.opponent.perceptual_games import solve_game
 from hg2prism.analyses.simulation import wilson_interval
 from hg2prism.worldfile import load_world

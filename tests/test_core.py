@@ -17,7 +17,7 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.engines import storm
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.inference import Memory
 from hg2prism.worldfile import load_world
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values

@@ -13,7 +13,8 @@ import pytest
 from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
-from hg2prism.model.dynamics import ACTIONS, build_transition_system
+from hg2prism.frontends import transition_system as build_transition_system
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.errors import InputError
 from hg2prism.analyses.simulation import deviating_policy, leader_fallback
 from hg2prism.strategy.records import Strategy

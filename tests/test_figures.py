@@ -17,7 +17,7 @@ from PIL import Image
 from conftest import MODELS
 from hg2prism import cli
 from hg2prism.analyses import episodes, simulation
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.worldfile import load_world
 from hg2prism.report import plots, replay
 from hg2prism.strategy.records import Strategy

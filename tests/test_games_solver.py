@@ -12,7 +12,7 @@ import pytest
 import worldgen
 from conftest import MODELS
 from hg2prism.model.automata import translate
-from hg2prism.model.dynamics import build_transition_system
+from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.opponent.perceptual_games import is_certified, TurnBasedGame
 from hg2prism.worldfile import load_world, world_from_toml
 

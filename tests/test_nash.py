@@ -12,7 +12,7 @@ from scipy.optimize import linprog
 from hg2prism.model.automata import translate
 from hg2prism.analyses.baselines import (ConcurrentGame, concurrent_game, guaranteed_value, nash_baseline,
                                 solve_nash)
-from hg2prism.model.dynamics import build_transition_system
+from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.opponent.perceptual_games import TurnBasedGame, solve_game
 from hg2prism.worldfile import load_world
 

@@ -21,7 +21,8 @@ from hg2prism import pipeline, progress
 from hg2prism.analyses.deception_value import static_value
 from hg2prism.errors import InputError
 from hg2prism.model import sizeguard
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.model.world import World
 from hg2prism.worldfile import world_from_toml
 from hg2prism.opponent import registry

@@ -33,7 +33,7 @@ from hg2prism import pipeline, progress
 from hg2prism.analyses import deception_value
 from hg2prism.analyses.simulation import LeaderStrategy, leader_fallback
 from hg2prism.analyses.successor import GOAL, RUNNING, Hypergame, TrackedObserver
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.worldfile import load_world
 from hg2prism.strategy.policy import Policy, ProductPolicy
 from hg2prism.strategy.records import Strategy

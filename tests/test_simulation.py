@@ -17,7 +17,7 @@ import scipy.sparse as sp
 import reference
 from conftest import MODELS
 from hg2prism import pipeline
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.inference import build_inference
 from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary,
                                           deviating_policy, leader_fallback, model_policy,

@@ -168,7 +168,7 @@ class Move:
 
 def episode_moves(ts, steps) -> list[Move]:
     """The steps (simulation.StepRecord) of an episode on `ts` as Moves."""
-    from hg2prism.model.dynamics import ACTIONS, outcome_directions
+    from hg2prism.frontends.grid import ACTIONS, outcome_directions
 
     moves = []
     for step in steps:

@@ -39,7 +39,8 @@ from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
                                          TrackedObserver)
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import bounded_reach
 from hg2prism.progress import Bar
 from hg2prism.strategy.policy import Policy, ProductPolicy

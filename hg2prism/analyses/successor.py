@@ -52,12 +52,12 @@ class Hypergame:
 
     def status(self, v: int, q: int) -> int:
         """GOAL, FAIL or RUNNING: trapped is a failure; then a final q is a goal, a sink q a
-        failure."""
+        failure, and so is a terminal arena state."""
         if v == self.ts.trapped:
             return FAIL
         if q in self.task.accepting:
             return GOAL
-        if q in self.task.sink:
+        if q in self.task.sink or self.ts.terminal[v]:
             return FAIL
         return RUNNING
 

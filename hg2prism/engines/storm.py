@@ -24,7 +24,7 @@ from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
 from hg2prism.engines.engine import BuiltModel, CheckedModel, Transitions
-from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS
+from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS
 from hg2prism.numeric import ExplicitModel
 from hg2prism.errors import StormError, probability
 

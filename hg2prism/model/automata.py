@@ -33,7 +33,8 @@ def translate(formula: str, label_names: tuple[str, ...],
               occurring: Iterable[int] | None = None) -> DFA:
     """DFA of a syntactically co-safe formula, its letters being the label classes of the world.
 
-    label_names[0] is the empty label; every other class sets exactly one proposition.
+    label_names[0] is the empty label; every other class sets the propositions its name joins
+    with '&' (a grid's each set one).
     occurring: the label classes the world's states actually produce (default: all of them).
     The final states and the sink are computed over these letters only (docs/semantics.md §3): a final
     state is one from which every continuation over them is accepted (a good prefix has been
@@ -59,7 +60,7 @@ def translate(formula: str, label_names: tuple[str, ...],
 def _letters(aut: spot.twa_graph, label_names: tuple[str, ...]) -> list[object]:
     """The BDD of each label class over the automaton's propositions: the class's proposition
     true (if the automaton has it), every other one false."""
-    return [_valuation(aut, {name}) for name in label_names]
+    return [_valuation(aut, set(name.split("&")) - {""}) for name in label_names]
 
 
 def _valuation(aut: spot.twa_graph, true_aps: set[str]) -> object:
@@ -93,7 +94,7 @@ def _renumbered(aut: spot.twa_graph, letters: list[object],
     name), and each state's edges are listed in the new order.
     """
     present = {str(ap) for ap in aut.ap()}
-    names = [n for n in label_names if n in present]
+    names = list(dict.fromkeys(p for n in label_names for p in n.split("&") if p in present))
     names += sorted(present - set(names))
     valuations = [_valuation(aut, {name for name, bit in zip(names, bits) if bit})
                   for bits in itertools.product((False, True), repeat=len(names))]

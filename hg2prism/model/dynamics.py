@@ -1,8 +1,12 @@
-"""The transition system TS of docs/semantics.md §2 as numpy tables.
+"""The transition system TS of docs/semantics.md §§2 and 15: an arena unfolded with P2's
+actions, as numpy tables.
 
-TS states are numbered: with delay 0, state i is cell i; with delay k > 0, state
-(cell * n_sets + traps) * (k + 1) + countdown. The last state is `trapped`.
-Cells are the non-wall cells in map reading order (top row first, left to right).
+TS states are numbered: with delay 0, state i is arena state i; with delay k > 0, state
+(arena state * |A2| + standing action) * (k + 1) + countdown. The last state is `trapped`
+(reached only when P2 sets traps). Terminal arena states (no P1 action) and `trapped` end an
+episode: every action slot is a self-loop there. At a state with fewer P1 actions than the
+largest number, the missing slots repeat its first action and `enabled` is False for them, so a
+maximum over slots is right even unmasked; a softmax or a choice over actions reads `enabled`.
 """
 
 from __future__ import annotations
@@ -12,53 +16,79 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.model.world import Cell, World
-
-ACTIONS = ("N", "E", "S", "W")
-# Action labels in generated PRISM: E, S and W are PRISM keywords.
-ACTION_LABELS = {"N": "north", "E": "east", "S": "south", "W": "west"}
-STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
-# The two directions perpendicular to each move, in a fixed order: its slips.
-PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}
-OUTCOMES = 3  # intended direction, then the two perpendicular slips
-
-
-def outcome_directions(action: int) -> tuple[int, int, int]:
-    """The directions (indices into ACTIONS) of a move's outcomes: the move itself, then its two
-    slips, in the order of the `succ`/`prob` tables' last axis."""
-    name = ACTIONS[action]
-    return (action, *(ACTIONS.index(p) for p in PERPENDICULAR[name]))
+from hg2prism.model.arena import Arena, class_name
 
 
 @dataclass(frozen=True, eq=False)
 class TransitionSystem:
-    cells: tuple[Cell, ...]
-    cell_index: dict[Cell, int]
-    label_names: tuple[str, ...]      # label class names: "" (none), "obs", region letters
-    cell_label: np.ndarray            # [n_cells] label class of each cell
-    move: np.ndarray                  # [n_cells, 4] cell reached by a move in each direction (walls bounce)
-    candidates: tuple[int, ...]       # cell index of each trap candidate, in candidate order
-    trap_sets: tuple[tuple[int, ...], ...]   # candidate numbers of each P2 action, combinations order
-    set_cells: np.ndarray             # [n_sets, n_cells] bool: does trap set T cover the cell
+    arena: Arena
+    label_names: tuple[str, ...]      # label class names: "" (none), then propositions joined by &
+    place_label: np.ndarray           # [n_places] label class of each arena state
+    a2_names: tuple[str, ...]         # P2's actions: general names, or the trap sets' members
+    trap_sets: tuple[tuple[int, ...], ...]   # trap mode: candidate numbers of each P2 action
+    set_places: np.ndarray | None     # trap mode: [n_a2, n_places] bool, does set j cover the state
     delay: int
-    slip: float
     start_state: int
-    succ: np.ndarray                  # [n_states, 4, n_sets, 3] successor state of each outcome
-    prob: np.ndarray                  # [n_states, 4, n_sets, 3] its probability (0 for dropped outcomes)
-    allowed: np.ndarray               # [n_states, n_sets] bool: A2(v)
+    succ: np.ndarray                  # [n_states, A1max, n_a2, K] successor state of each outcome
+    prob: np.ndarray                  # [n_states, A1max, n_a2, K] its probability
+    allowed: np.ndarray               # [n_states, n_a2] bool: A2(v)
+    enabled: np.ndarray               # [n_states, A1max] bool: P1's action slot i exists at v
+    terminal: np.ndarray              # [n_states] bool: the episode ends here (trapped included)
+    geometry: object = None           # LEGACY (being removed): the grid front end's geometry
+
+    # ---- LEGACY grid accessors, for consumers not yet moved to the arena ----
+    @property
+    def cells(self):
+        return self.geometry.cells
 
     @property
-    def n_cells(self) -> int:
-        return len(self.cells)
+    def cell_index(self):
+        return self.geometry.cell_index
+
+    @property
+    def move(self):
+        return self.geometry.move
+
+    @property
+    def slip(self):
+        return self.geometry.slip
+
+    @property
+    def candidates(self):
+        return self.arena.trap_candidates
+
+    @property
+    def cell_label(self):
+        return self.place_label
+
+    @property
+    def n_cells(self):
+        return self.n_places
+
+    @property
+    def set_cells(self):
+        return self.set_places
+
+    def trap_cells(self, trap_set: int):
+        return tuple(self.cells[p] for p in self.trap_places(trap_set))
+
+    @property
+    def n_places(self) -> int:
+        return self.arena.n_states
+
+    @property
+    def n_actions(self) -> int:
+        return self.succ.shape[1]
 
     @property
     def letters(self) -> tuple[int, ...]:
-        """The label classes the world's states produce: its cells' and none (trapped)."""
-        return tuple(sorted(set(self.cell_label.tolist()) | {0}))
+        """The label classes the world's states produce: its arena states' and none (trapped)."""
+        return tuple(sorted(set(self.place_label.tolist()) | {0}))
 
     @property
     def n_sets(self) -> int:
-        return len(self.trap_sets)
+        """|A2|: P2's actions (trap sets in trap mode)."""
+        return len(self.a2_names)
 
     @property
     def n_states(self) -> int:
@@ -73,29 +103,45 @@ class TransitionSystem:
         """Countdown values 0..delay."""
         return self.delay + 1
 
-    def state(self, cell: int, traps: int = 0, countdown: int = 0) -> int:
+    @property
+    def traps_mode(self) -> bool:
+        return self.set_places is not None
+
+    def state(self, place: int, standing: int = 0, countdown: int = 0) -> int:
         if self.delay == 0:
-            return cell
-        return (cell * self.n_sets + traps) * self.phases + countdown
+            return place
+        return (place * self.n_sets + standing) * self.phases + countdown
 
     def decode(self, state: int) -> tuple[int, int, int]:
-        """(cell, traps, countdown) of a non-trapped state (traps = countdown = 0 when delay is 0)."""
+        """(arena state, standing action, countdown) of a non-trapped state (standing =
+        countdown = 0 when delay is 0)."""
         if self.delay == 0:
             return state, 0, 0
-        cell, rest = divmod(state, self.n_sets * self.phases)
-        traps, countdown = divmod(rest, self.phases)
-        return cell, traps, countdown
+        place, rest = divmod(state, self.n_sets * self.phases)
+        standing, countdown = divmod(rest, self.phases)
+        return place, standing, countdown
+
+    def places_of(self) -> np.ndarray:
+        """[n_states - 1] the arena state of every TS state but `trapped`."""
+        if self.delay == 0:
+            return np.arange(self.n_states - 1)
+        return np.arange(self.n_states - 1) // (self.n_sets * self.phases)
 
     def state_label(self) -> np.ndarray:
         """[n_states] label class of every TS state (`trapped` has the empty label)."""
-        cells = np.array([self.decode(s)[0] for s in range(self.n_states - 1)], dtype=np.int64)
-        return np.append(self.cell_label[cells], 0)
+        return np.append(self.place_label[self.places_of()], 0)
+
+    def action_names(self, state: int) -> tuple[str, ...]:
+        """P1's actions at TS state `state` (none at `trapped` and terminal states)."""
+        if state == self.trapped:
+            return ()
+        return self.arena.actions[self.decode(state)[0]]
 
     def reachable(self, p2_sets: np.ndarray | None = None) -> np.ndarray:
-        """[n_states] bool: the TS states reachable from the start, P1 playing every move (and
-        every slip), P2 playing at each state v one of p2_sets[:, v] ([k, n_states] trap sets:
-        her choice under each hypothesis, say), or any set A2(v) allows when p2_sets is None.
-        The hypergame's tables are only ever read at these states."""
+        """[n_states] bool: the TS states reachable from the start, P1 playing every action
+        (and every outcome), P2 playing at each state v one of p2_sets[:, v] ([k, n_states]
+        actions: her choice under each hypothesis, say), or any action A2(v) allows when
+        p2_sets is None. The hypergame's tables are only ever read at these states."""
         plays = self.allowed.copy()
         if p2_sets is not None:
             plays[:] = False
@@ -112,108 +158,116 @@ class TransitionSystem:
             seen[frontier] = True
         return seen
 
-    def trap_cells(self, trap_set: int) -> tuple[Cell, ...]:
-        return tuple(self.cells[self.candidates[c]] for c in self.trap_sets[trap_set])
+    def trap_places(self, a2: int) -> tuple[int, ...]:
+        """The arena states trap set `a2` covers (none for a general P2 action)."""
+        if not self.traps_mode:
+            return ()
+        return tuple(self.arena.trap_candidates[c] for c in self.trap_sets[a2])
 
     def describe_state(self, state: int) -> dict:
-        """A TS state as JSON-ready fields: cell [x, y], traps, countdown (null when delay is 0)."""
+        """A TS state as JSON-ready fields: its arena state, P2's standing action and the
+        countdown (both null when delay is 0); all null for `trapped`."""
+        if self.geometry is not None:       # LEGACY grid form
+            if state == self.trapped:
+                return {"cell": None, "traps": None, "countdown": None}
+            cell, traps, countdown = self.decode(state)
+            if self.delay == 0:
+                return {"cell": list(self.cells[cell]), "traps": None, "countdown": None}
+            return {"cell": list(self.cells[cell]),
+                    "traps": [list(c) for c in self.trap_cells(traps)], "countdown": countdown}
         if state == self.trapped:
-            return {"cell": None, "traps": None, "countdown": None}
-        cell, traps, countdown = self.decode(state)
+            return {"state": "trapped", "standing": None, "countdown": None}
+        place, standing, countdown = self.decode(state)
+        name = self.arena.states[place]
         if self.delay == 0:
-            return {"cell": list(self.cells[cell]), "traps": None, "countdown": None}
-        return {"cell": list(self.cells[cell]),
-                "traps": [list(c) for c in self.trap_cells(traps)], "countdown": countdown}
+            return {"state": name, "standing": None, "countdown": None}
+        return {"state": name, "standing": self.a2_names[standing], "countdown": countdown}
 
 
-def _cells(world: World) -> tuple[tuple[Cell, ...], dict[Cell, int], np.ndarray, np.ndarray]:
-    """The non-wall cells in map reading order, their index, label class and the cell each
-    move reaches (walls bounce)."""
-    grid = world.grid
-    cells = tuple(
-        (x, grid.height - 1 - row)
-        for row in range(grid.height)
-        for x in range(grid.width)
-        if (x, grid.height - 1 - row) not in grid.walls
-    )
-    cell_index = {cell: i for i, cell in enumerate(cells)}
-    cell_label = np.zeros(len(cells), dtype=np.int64)
-    for i, cell in enumerate(cells):
-        if cell in grid.obstacles:
-            cell_label[i] = 1
-    for k, (_, region) in enumerate(grid.regions):
-        for cell in region:
-            cell_label[cell_index[cell]] = 2 + k
-    move = np.empty((len(cells), 4), dtype=np.int64)
-    for i, (x, y) in enumerate(cells):
-        for d, action in enumerate(ACTIONS):
-            dx, dy = STEP[action]
-            move[i, d] = cell_index.get((x + dx, y + dy), i)
-    return cells, cell_index, cell_label, move
+def a2_actions(arena: Arena, traps: int) -> tuple[tuple[str, ...], tuple[tuple[int, ...], ...]]:
+    """P2's actions: (names, trap sets). General actions are named by the arena; a trap set
+    (the `traps`-subsets of the candidates, in combinations order) by its states joined by '+'."""
+    if not arena.traps_mode:
+        return arena.p2_actions, ()
+    sets = tuple(itertools.combinations(range(len(arena.trap_candidates)), traps))
+    names = tuple("+".join(arena.states[arena.trap_candidates[c]] for c in members)
+                  for members in sets)
+    return names, sets
 
 
-def build_transition_system(world: World) -> TransitionSystem:
-    grid = world.grid
-    cells, cell_index, cell_label, move = _cells(world)
-    label_names = ("", "obs") + grid.region_letters()
-    candidates = tuple(cell_index[c] for c in grid.trap_candidates)
-    trap_sets = tuple(itertools.combinations(range(len(candidates)), world.traps))
-    set_cells = np.zeros((len(trap_sets), len(cells)), dtype=bool)
-    for t, members in enumerate(trap_sets):
-        for c in members:
-            set_cells[t, candidates[c]] = True
+def build_transition_system(arena: Arena, traps: int = 0, delay: int = 0,
+                            initial_standing: int = 0) -> TransitionSystem:
+    """Unfold `arena` with P2's actions (`traps` per set in trap mode), the delay and the
+    action standing at the start (an index into A2; used when delay > 0)."""
+    classes, place_label = arena.label_classes()
+    label_names = tuple(class_name(c, arena.propositions) for c in classes)
+    a2_names, trap_sets = a2_actions(arena, traps)
+    n_places, n_sets, phases = arena.n_states, len(a2_names), delay + 1
+    set_places = None
+    if arena.traps_mode:
+        set_places = np.zeros((n_sets, n_places), dtype=bool)
+        for t, members in enumerate(trap_sets):
+            set_places[t, [arena.trap_candidates[c] for c in members]] = True
 
-    n_sets, phases, delay = len(trap_sets), world.delay + 1, world.delay
-    n_cells = len(cells)
-    n_states = (n_cells * n_sets * phases if delay else n_cells) + 1
+    n_states = (n_places * n_sets * phases if delay else n_places) + 1
     trapped = n_states - 1
-
-    # Outcome directions and probabilities, [4 actions, 3 outcomes].
-    directions = np.array([[ACTIONS.index(a), *(ACTIONS.index(p) for p in PERPENDICULAR[a])]
-                           for a in ACTIONS])
-    outcome_prob = np.array([1 - 2 * world.slip, world.slip, world.slip])
-
-    # Per non-trapped state: cell, standing traps, countdown.
     if delay:
         idx = np.arange(n_states - 1)
-        state_cell, rest = np.divmod(idx, n_sets * phases)
-        state_traps, state_count = np.divmod(rest, phases)
+        state_place, rest = np.divmod(idx, n_sets * phases)
+        state_standing, state_count = np.divmod(rest, phases)
     else:
-        state_cell = np.arange(n_cells)
-        state_traps = np.zeros(n_cells, dtype=np.int64)
-        state_count = np.zeros(n_cells, dtype=np.int64)
+        state_place = np.arange(n_places)
+        state_standing = np.zeros(n_places, dtype=np.int64)
+        state_count = np.zeros(n_places, dtype=np.int64)
 
-    target = move[state_cell][:, directions]                        # [S, 4, 3] cell reached
+    # Padding: a missing action slot repeats the state's first action; a terminal state loops.
+    counts = np.array([len(a) for a in arena.actions], dtype=np.int64)
+    first = np.zeros_like(arena.dest[:, :1])
+    dest, prob = arena.dest.copy(), arena.prob.copy()
+    pad = np.arange(arena.n_actions)[None, :] >= counts[:, None]
+    dest = np.where(pad[:, :, None, None], dest[:, :1], dest)
+    prob = np.where(pad[:, :, None, None], prob[:, :1], prob)
+    ends = counts == 0
+    loop = np.arange(n_places)[:, None, None, None] + first
+    dest[ends] = loop[ends]
+    prob[ends] = 0.0
+    prob[ends, :, :, 0] = 1.0
+
+    shape = (len(state_place), arena.n_actions, n_sets, arena.dest.shape[3])
+    target = np.broadcast_to(dest[state_place], shape)          # [S, A1, n_a2, K] arena state
+    tprob = np.broadcast_to(prob[state_place], shape)
     a2 = np.arange(n_sets)
-    hit = set_cells[a2[None, None, :, None], target[:, :, None, :]]  # [S, 4, n_sets, 3]
+    if set_places is not None:
+        hit = set_places[a2[None, None, :, None], target]
+    else:
+        hit = np.zeros(shape, dtype=bool)
     if delay:
-        changed = a2[None, :] != state_traps[:, None]                # [S, n_sets]
+        changed = a2[None, :] != state_standing[:, None]              # [S, n_a2]
         next_count = np.where(changed, delay, np.maximum(state_count[:, None] - 1, 0))
-        next_state = ((target[:, :, None, :] * n_sets + a2[None, None, :, None]) * phases
+        next_state = ((target * n_sets + a2[None, None, :, None]) * phases
                       + next_count[:, None, :, None])
     else:
-        next_state = np.broadcast_to(target[:, :, None, :], hit.shape)
-    succ = np.where(hit, trapped, next_state)
-    succ = np.concatenate([succ, np.full((1, 4, n_sets, OUTCOMES), trapped)], axis=0)
-    prob = np.broadcast_to(outcome_prob, succ.shape).copy()
-    prob[trapped] = 0.0
+        next_state = target
+    ended = ends[state_place]
+    here = np.arange(len(state_place))[:, None, None, None]
+    succ = np.where(hit & ~ended[:, None, None, None], trapped, next_state)
+    succ = np.where(ended[:, None, None, None], here, succ)
+    succ = np.concatenate([succ, np.full((1,) + shape[1:], trapped)], axis=0)
+    prob = np.concatenate([tprob, np.zeros((1,) + shape[1:])], axis=0)
     prob[trapped, :, :, 0] = 1.0
 
     allowed = np.ones((n_states, n_sets), dtype=bool)
     if delay:
         waiting = state_count > 0
         allowed[:-1][waiting] = False
-        allowed[np.flatnonzero(waiting), state_traps[waiting]] = True
+        allowed[np.flatnonzero(waiting), state_standing[waiting]] = True
+    enabled = np.ones((n_states, arena.n_actions), dtype=bool)
+    enabled[:-1] = arena.enabled[state_place] | ended[:, None]
+    terminal = np.append(ended, True)
 
-    start_cell = cell_index[grid.start]
-    if delay:
-        initial = tuple(sorted(grid.trap_candidates.index(c) for c in world.initial_traps))
-        start_state = (start_cell * n_sets + trap_sets.index(initial)) * phases
-    else:
-        start_state = start_cell
+    start_state = (arena.initial * n_sets + initial_standing) * phases if delay else arena.initial
     return TransitionSystem(
-        cells=cells, cell_index=cell_index, label_names=label_names, cell_label=cell_label,
-        move=move, candidates=candidates, trap_sets=trap_sets, set_cells=set_cells,
-        delay=delay, slip=world.slip, start_state=start_state,
-        succ=succ, prob=prob, allowed=allowed,
+        arena=arena, label_names=label_names, place_label=place_label, a2_names=a2_names,
+        trap_sets=trap_sets, set_places=set_places, delay=delay, start_state=int(start_state),
+        succ=succ, prob=prob, allowed=allowed, enabled=enabled, terminal=terminal,
     )

@@ -61,7 +61,8 @@ def product(ts: TransitionSystem, dfa: DFA) -> Product:
     s_of = np.repeat(np.arange(ts.n_states), n_q)
     trapped = s_of == ts.trapped                     # tried first: trapped is a failure
     goal = np.isin(q_of, list(dfa.accepting)) & ~trapped
-    fail = trapped | (np.isin(q_of, list(dfa.sink)) & ~goal)
+    # a terminal arena state ends the episode: a goal when q is final, else a failure
+    fail = trapped | ((np.isin(q_of, list(dfa.sink)) | ts.terminal[s_of]) & ~goal)
     start = product_state(ts.start_state, int(dfa.delta[dfa.initial, label[ts.start_state]]), n_q)
     return Product(ts=ts, dfa=dfa, next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
                    allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, fail=fail,

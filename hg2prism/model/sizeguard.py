@@ -53,7 +53,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.errors import InputError
-from hg2prism.model.dynamics import ACTIONS, STEP, outcome_directions
+from hg2prism.frontends.grid import ACTIONS, STEP, outcome_directions
 from hg2prism.model.world import World
 from hg2prism.opponent.registry import observer_kind
 

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from hg2prism.model.arena import Arena
 
 Cell = tuple[int, int]
 
@@ -50,7 +54,7 @@ class World:
     path: Path
     name: str
     description: str
-    grid: Grid
+    grid: Grid | None                     # None for an arena world
     slip: float
     formula: str
     traps: int
@@ -66,9 +70,16 @@ class World:
     # the observer's own [inference] keys as its kind read them, in its kind's order: CUSUM's
     # threshold (§5), the Bayesian prior (normalised) and decision (§12)
     settings: tuple[tuple[str, object], ...] = ()
+    # an arena world (docs/semantics.md §15) carries its arena (and `grid` is None), with P2's
+    # action standing at the start as an index into A2
+    arena: "Arena | None" = None
+    initial_standing: int = 0
 
     def atomic_propositions(self) -> tuple[str, ...]:
-        """`obs` first, then the region letters of the map in alphabetical order."""
+        """AP: a grid's are `obs`, then the region letters of the map in alphabetical order;
+        an arena world's are its arena's."""
+        if self.arena is not None:
+            return self.arena.propositions
         return ("obs",) + self.grid.region_letters()
 
     def setting(self, key: str, default: object = None) -> object:

@@ -29,7 +29,8 @@ import numpy as np
 
 from hg2prism import __version__
 from hg2prism.model.automata import DFA
-from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, PERPENDICULAR, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS, PERPENDICULAR
 from hg2prism.prism.hypergame import cell_map
 from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
 from hg2prism.model.world import World

@@ -26,7 +26,8 @@ import numpy as np
 
 from hg2prism import __version__
 from hg2prism.model.automata import DFA
-from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent.registry import observer_kind
 from hg2prism.opponent.perceptual_games import PerceptualGame

@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import TOLERANCE
 from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, render_macro
 

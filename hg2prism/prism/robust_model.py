@@ -19,7 +19,8 @@ from pathlib import Path
 
 from hg2prism.errors import InputError
 from hg2prism.model.automata import DFA
-from hg2prism.model.dynamics import ACTION_LABELS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTION_LABELS
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent.perceptual_games import PerceptualGame

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import ExplicitModel
 
 

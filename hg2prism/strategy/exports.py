@@ -22,7 +22,8 @@ import scipy.sparse as sp
 
 from hg2prism import numeric
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.model.dynamics import ACTION_LABELS, ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS
 from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.model.dynamics import ACTIONS
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import solve_plain
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
@@ -151,7 +151,7 @@ class Bounded:
 
     def schedules(self) -> list[list]:
         """Per canonical state, its moves over t = 0..H-1 as runs [first t, last t, move]."""
-        from hg2prism.model.dynamics import ACTIONS
+        from hg2prism.frontends.grid import ACTIONS
 
         changes = np.flatnonzero(np.diff(self.actions, axis=0).any(axis=1)) + 1
         starts = np.r_[0, changes]

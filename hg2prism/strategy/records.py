@@ -17,7 +17,8 @@ import numpy as np
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import Memory
 from hg2prism.strategy.columns import Field, Lines, Texts, Vocabulary, integers, literal, tokens
 from hg2prism.strategy.deceptive import StormChoices

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.model.dynamics import ACTIONS, TransitionSystem
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.records import Strategy, StrategyError
 

@@ -1,0 +1,85 @@
+"""The arena: the two-player transition system of docs/semantics.md §15 (the paper's
+Definition 1), the one form every world takes below its front end.
+
+An arena lists its states by name, their labels, P1's actions at each state with the
+distribution over successors (which may depend on P2's action), and P2's actions: either
+general (named) or trap sets over candidate states (the trap rule then applies). How many
+traps P2 sets, the delay and the standing action are the world's adversary settings; with
+them `model.dynamics.build_transition_system` unfolds the arena into the TS the pipeline plays on.
+
+Tables are numpy arrays padded to the largest number of actions and outcomes:
+
+  dest[s, i, j, k]  the k-th successor of P1's i-th action at s when P2 plays j
+  prob[s, i, j, k]  its probability (0 on padding, where dest is s itself)
+
+j runs over P2's actions when some transition depends on them, else has length 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Arena:
+    states: tuple[str, ...]                   # S, in order: the state numbering
+    initial: int                              # s0
+    propositions: tuple[str, ...]             # AP
+    labels: tuple[frozenset[str], ...]        # L(s) per state
+    actions: tuple[tuple[str, ...], ...]      # P1's actions at each state (none: terminal)
+    dest: np.ndarray                          # [S, A1max, 1 or |A2|, K] successor state
+    prob: np.ndarray                          # [S, A1max, 1 or |A2|, K] its probability
+    p2_actions: tuple[str, ...] = ()          # general P2 actions A2, in order (else traps)
+    trap_candidates: tuple[int, ...] = ()     # trap mode: the states P2 may set traps on
+    positions: tuple[tuple[float, float], ...] | None = None   # for drawing
+
+    @property
+    def n_states(self) -> int:
+        return len(self.states)
+
+    @property
+    def n_actions(self) -> int:
+        """The largest number of P1 actions at a state (the tables' padding)."""
+        return self.dest.shape[1]
+
+    @property
+    def traps_mode(self) -> bool:
+        return not self.p2_actions
+
+    @property
+    def p2_dependent(self) -> bool:
+        """Whether some transition depends on P2's action."""
+        return self.dest.shape[2] > 1
+
+    @property
+    def enabled(self) -> np.ndarray:
+        """[S, A1max] bool: is P1's i-th action available at s."""
+        counts = np.array([len(a) for a in self.actions], dtype=np.int64)
+        return np.arange(self.n_actions)[None, :] < counts[:, None]
+
+    @property
+    def terminal(self) -> np.ndarray:
+        """[S] bool: states without actions, where an episode ends."""
+        return np.array([not a for a in self.actions], dtype=bool)
+
+    def index(self, name: str) -> int:
+        return self.states.index(name)
+
+    def label_classes(self) -> tuple[tuple[frozenset[str], ...], np.ndarray]:
+        """The label classes and each state's class: class 0 is the empty label, then one
+        class per proposition (that proposition alone) in the order of `propositions`, then
+        any other label a state carries, by first occurrence over the states."""
+        classes: list[frozenset[str]] = [frozenset()] + [frozenset({p}) for p in self.propositions]
+        of = np.empty(self.n_states, dtype=np.int64)
+        for s, label in enumerate(self.labels):
+            if label not in classes:
+                classes.append(label)
+            of[s] = classes.index(label)
+        return tuple(classes), of
+
+
+def class_name(label: frozenset[str], order: tuple[str, ...]) -> str:
+    """A label class's name: its propositions in `order`, joined by '&' ("" when empty)."""
+    return "&".join(p for p in order if p in label)
