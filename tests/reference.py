@@ -55,6 +55,7 @@ SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
 VI_STOP = 1e-9      # value iteration only seeds the strategy iteration
 VI_MAX_SWEEPS = 1500
 TIE_EXTRACT = 1e-7  # near-optimal rows when extracting the first strategy
+NOISE_TOL = 1e-8    # rounding noise tolerated on rows the noise guard left out
 
 
 # --------------------------------------------------------------------------------------
@@ -80,10 +81,13 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     3. strategy iteration for the maximiser: the P1 strategy is evaluated exactly by P2's
        best response (graph analysis of the states where P2 avoids the goal forever, then
        policy iteration with sparse linear solves), and rows that are strictly better (by
-       SWITCH_TOL) are switched in, until none is;
+       SWITCH_TOL) are switched in, until none is; a switch that would let P2 avoid the
+       goal from a state where she could not (impossible in exact arithmetic: it is a tie
+       that rounding makes look better, and it closes a loop) is undone and its row left out;
     4. certificate: the result is the value of a P1 strategy against P2's best response
        (<= game value) and a fixed point of the game operator (>= the least fixed point,
-       i.e. the game value); the fixed-point residual is checked (< 1e-11).
+       i.e. the game value); the fixed-point residual is checked (< 1e-11; rows left out
+       by the guard may exceed the value by rounding noise, < NOISE_TOL).
     """
     n = len(state_pairs)
     npairs = len(pair_rows)
@@ -183,31 +187,61 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     # 2. optimal-looking strategy with progress, evaluated exactly; then strategy
     #    iteration (strict improvements only) until no row improves on the exact values
     sigma1 = extract(x, TIE_EXTRACT)
+    # Rows a switch into which turned out to stall (see below); they stay out of the
+    # improvement step. Never happens in exact arithmetic.
+    allowed = np.ones(nrows, dtype=bool)
     for _outer in range(1000):
-        x = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
-                               state_start)
+        x, attr = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
+                                     state_start)
         q, pv, _ = game_op(x)
+        if not allowed.all():
+            pv = np.maximum.reduceat(np.where(allowed, q, -np.inf), pair_start)
         better = np.nonzero(pv > q[sigma1] + SWITCH_TOL)[0]
         if len(better) == 0:
             break
+        old = sigma1.copy()
         for p in better:
-            sigma1[p] = max(pair_rows[p], key=lambda r: q[r])
+            sigma1[p] = max((r for r in pair_rows[p] if allowed[r]), key=lambda r: q[r])
+        # Noise guard. In exact arithmetic a strict improvement keeps every state of the
+        # attractor in it (a closed class without the goal cannot contain a strictly improved
+        # state: its stationary distribution pi has pi (P x - x) = 0). With rounded
+        # probabilities (rows summing to 1 only within an ulp, amplified by near-closed
+        # loops, e.g. a 1e-8 chance of leaving) a tie can look like an improvement of ~1e-9
+        # and the switch closes a loop that never reaches the goal. Such switches are undone
+        # and their rows left out from then on.
+        switched = set(better.tolist())
+        while switched:
+            lost = attr & ~_attractor(n, state_pairs, pair_state, sigma1, row_targets, g)[0]
+            if not lost.any():
+                break
+            undo = [p for p in switched if lost[pair_state[p]]] or sorted(switched)
+            for p in undo:
+                allowed[sigma1[p]] = False
+                sigma1[p] = old[p]
+                switched.discard(p)
     else:
         raise RuntimeError("strategy iteration did not converge")
     # certificate: x is the exact value of P1's strategy sigma1 against P2's best response
     # (a lower bound of the game value) and a fixed point of the game operator (an upper
-    # bound: the value is its least fixed point)
-    _, _, fx = game_op(x)
+    # bound: the value is its least fixed point); rows left out by the noise guard may
+    # exceed it by rounding noise only (NOISE_TOL)
+    q, _, fx = game_op(x)
+    if not allowed.all():
+        pva = np.maximum.reduceat(np.where(allowed, q, -np.inf), pair_start)
+        fxa = pva if npairs == n else np.minimum.reduceat(pva, state_start)
+        noise = float(np.max(np.abs(fx - x)))
+        if noise > NOISE_TOL:
+            raise RuntimeError(f"game solution residual {noise} on rows left out as noise")
+        fx = fxa
     res = float(np.max(np.abs(fx - x)))
     if res > 1e-11:
         raise RuntimeError(f"game solution residual {res}")
     return (x, sigma1) if return_strategy else x
 
 
-def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
-    """Minimum reachability probability for P2 when P1 plays sigma1 (pair -> row)."""
-    # 1. attractor of the goal: states from which P2 cannot avoid reaching the goal with
-    #    positive probability; outside it (set Z) P2 avoids the goal forever (value 0).
+def _attractor(n, state_pairs, pair_state, sigma1, row_targets, g):
+    """(inattr, hit) when P1 plays sigma1: inattr[s] when P2 cannot avoid reaching the goal
+    with positive probability from s; hit[p] when pair p leads there."""
     preds = [[] for _ in range(n)]
     for p, r in enumerate(sigma1):
         for t in row_targets[r]:
@@ -234,6 +268,15 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
         t = queue.popleft()
         for p in preds[t]:
             mark(p)
+    return np.array(inattr, dtype=bool), hit
+
+
+def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
+    """Minimum reachability probability for P2 when P1 plays sigma1 (pair -> row), and the
+    attractor of the goal (see _attractor)."""
+    # 1. attractor of the goal: states from which P2 cannot avoid reaching the goal with
+    #    positive probability; outside it (set Z) P2 avoids the goal forever (value 0).
+    inattr, hit = _attractor(n, state_pairs, pair_state, sigma1, row_targets, g)
     # 2. P2's policy: on Z an avoiding pair (value 0); on the rest policy iteration, each
     #    policy evaluated exactly (the system is non-singular there)
     tau = np.empty(n, dtype=np.int64)
@@ -245,7 +288,7 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
     live = np.array([s for s in range(n) if inattr[s]], dtype=np.int64)
     x = np.zeros(n)
     if len(live) == 0:
-        return x
+        return x, inattr
     eye = sp.identity(len(live), format="csc")
     for _ in range(10000):
         rows = sigma1[tau[live]]
@@ -257,7 +300,7 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
         best = np.minimum.reduceat(qp, state_start)
         worse = [s for s in live if best[s] < qp[tau[s]] - SWITCH_TOL]
         if not worse:
-            return x
+            return x, inattr
         for s in worse:
             tau[s] = min(state_pairs[s], key=lambda p: qp[p])
     raise RuntimeError("policy iteration (min) did not converge")
@@ -267,18 +310,35 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
 # automata
 # --------------------------------------------------------------------------------------
 
+def true_props(letter):
+    """The propositions that hold in a letter: None (none), one proposition name (a grid's
+    label class), or a set of proposition names (an arena's label: a full valuation)."""
+    if letter is None:
+        return frozenset()
+    if isinstance(letter, str):
+        return frozenset((letter,))
+    return frozenset(letter)
+
+
 def _one_of(letters, aps):
-    """Spot formula: the letter is one of `letters` (None = no proposition, else exactly that one)."""
+    """Spot formula: the letter is one of `letters` (each a valuation of `aps`, see true_props)."""
     terms = []
     for lab in letters:
+        true = true_props(lab)
         terms.append("(" + " & ".join(
-            (ap if ap == lab else f"!{ap}") for ap in aps) + ")" if aps else "1")
+            (ap if ap in true else f"!{ap}") for ap in aps) + ")" if aps else "1")
     return " | ".join(terms) if terms else "0"
 
 
 class DFA:
-    def __init__(self, formula: str, labels, world_letters=None):
+    """``labels``: the letters delta is defined on (see true_props). Grid letters (None or one
+    proposition) are numbered by the grid's label classes (none, obs, letters sorted); with
+    ``ap_order`` (arenas) the letters are the label classes in the order given and the
+    propositions are ordered by ``ap_order`` for the numbering of unreachable states."""
+
+    def __init__(self, formula: str, labels, world_letters=None, ap_order=None):
         self.formula = formula
+        self.ap_order = ap_order
         f = spot.formula(formula)
         if not f.is_syntactic_guarantee():
             raise ValueError(f"not syntactically co-safe: {formula}")
