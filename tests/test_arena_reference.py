@@ -538,10 +538,12 @@ def test_package_matches_the_reference_on_random_arenas(i: int, world_dir: Path)
         pytest.approx(result.results.deceptive_value, abs=TOL)
 
 
-@pytest.mark.parametrize("name", sorted(VARIANTS))
+@pytest.mark.parametrize("name", ["small", "small_l2_d2", "small_sample", "corridor",
+                                  "fam01_d1_l1_w1_x3"])
 def test_package_gives_a_grid_and_its_arena_form_the_same_numbers(name: str,
                                                                   tmp_path: Path) -> None:
-    """§15: every value and canonical size of a grid world equals that of its arena form."""
+    """§15: every value and canonical size of a grid world equals that of its arena form (a
+    few of the variants above, to keep the file's runtime down)."""
     _needs_package()
     import hg2prism
     grid = hg2prism.solve(hg2prism.world_from_toml(VARIANTS[name], name=name))
