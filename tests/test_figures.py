@@ -202,7 +202,7 @@ def test_bad_episode_rule_is_one_line(value: str, tmp_path: Path, capsys) -> Non
 
 # ---- arena worlds (docs/semantics.md §15 "Figures"): the arena drawn as a graph ----
 
-def hand_episode(ts, script, seeds=range(40)):
+def hand_episode(ts, script, seeds=range(40), pick=len):
     """The longest episode over `seeds` of P1 and P2 playing `script` (a list of (P1's action
     slot, P2's action, P2's hypothesis)), outcomes drawn from the TS; simulation.StepRecords
     built by hand, so that the figures are tested whatever the simulation does."""
@@ -224,7 +224,7 @@ def hand_episode(ts, script, seeds=range(40)):
             state = nxt
         return records
 
-    steps = max((walk(seed) for seed in seeds), key=len)
+    steps = max((walk(seed) for seed in seeds), key=pick)
     episode = episodes.ChosenEpisode(steps, 0, "cut by the horizon", episodes.EpisodeRule("seed", 0),
                                      None, ())
     acted = tuple(s.p2_memory.hypothesis for s in steps)
@@ -335,6 +335,28 @@ def test_arena_labels_do_not_overlap(lateral_drawn) -> None:
     for i, (a, box_a) in enumerate(boxes):
         for b, box_b in boxes[i + 1:]:
             assert not box_a.overlaps(box_b), (a, b)
+
+
+def test_arena_trapped_step_and_given_positions(tmp_path: Path) -> None:
+    """A step into P2's trap is drawn (red, "P1 trapped"); positions the arena gives are used
+    (two states at the same place do not break the drawing)."""
+    import dataclasses
+
+    from arenas import lateral
+
+    world = lateral(traps_mode=True)
+    positions = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (2.0, 1.0), (2.0, 0.0), (1.0, 0.0))
+    world = dataclasses.replace(world, arena=dataclasses.replace(world.arena, positions=positions))
+    ts = transition_system(world)
+    # phish while P2 traps mail: trapped with probability 0.6
+    episode, trace = hand_episode(ts, [(0, 1, 0)], pick=lambda s: s[-1].next_state == ts.trapped)
+    assert episode.steps[-1].next_state == ts.trapped
+    plots.world_figure(world, ts, episode, tmp_path / "world.png")
+    texts = re.findall(r">([^<>]*)</text>", svg_text(tmp_path / "world.svg"))
+    assert "P1 trapped" in texts and "n=1: phish" in texts
+    drawer = plots.world_drawer(world, ts)
+    assert drawer.position(3)[0] > drawer.position(2)[0] > drawer.position(0)[0]
+    assert replay.replay_gif(world, ts, episode, trace, tmp_path / "replay.gif") == 2
 
 
 def test_report_layer_holds_no_grid_concept() -> None:

@@ -131,14 +131,8 @@ def _exit(box: Box, centre: np.ndarray, towards: np.ndarray, gap: float = 0.04) 
     """Where the ray from `centre` towards `towards` leaves `box` (plus `gap`)."""
     d = towards - centre
     half = np.array([(box[2] - box[0]) / 2 + gap, (box[3] - box[1]) / 2 + gap])
-    scale = min(half[k] / abs(d[k]) for k in range(2) if abs(d[k]) > 1e-12)
-    return centre + d * min(scale, 1.0)
-
-
-def _overlap(a: Box, b: Box) -> float:
-    w = min(a[2], b[2]) - max(a[0], b[0])
-    h = min(a[3], b[3]) - max(a[1], b[1])
-    return w * h if w > 0 and h > 0 else 0.0
+    scales = [half[k] / abs(d[k]) for k in range(2) if abs(d[k]) > 1e-12]
+    return centre + d * min(scales + [1.0])
 
 
 @dataclass
@@ -166,10 +160,13 @@ class _Placer:
                                       alpha=0.85), **style)
         w, h = self.size(text, pad)
         (x0, x1), (y0, y1) = self.ax.get_xlim(), self.ax.get_ylim()
+        taken = np.array(self.taken, dtype=float).reshape(-1, 4)
         best, best_cost = None, np.inf
         for x, y in candidates:
             box = (x - w / 2, y - h / 2, x + w / 2, y + h / 2)
-            cost = sum(_overlap(box, other) for other in self.taken)
+            across = np.minimum(box[2], taken[:, 2]) - np.maximum(box[0], taken[:, 0])
+            up = np.minimum(box[3], taken[:, 3]) - np.maximum(box[1], taken[:, 1])
+            cost = float(np.sum(np.clip(across, 0, None) * np.clip(up, 0, None)))
             if box[0] < x0 or box[2] > x1 or box[1] < y0 or box[3] > y1:
                 cost += w * h
             if cost < best_cost:
@@ -288,8 +285,9 @@ class ArenaDrawer:
         what = "P1's action (P2's)" if self.general else "P1's action"
         handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker=">",
                                   label=f"episode step (n=step numbers: {what})"))
-        handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker="o", mfc="none", ms=9, ls="",
-                                  label="a step that stays (loop)"))
+        if any(s.stays for s in self.steps):
+            handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker="o", mfc="none", ms=9,
+                                      ls="", label="a step that stays (loop)"))
         if any(s.traps for s in self.steps):
             handles.append(plt.Line2D([], [], color=TRAP_COLOUR, marker="X", ms=9, ls="",
                                       label="trap set by P2 (k× = steps)"))
