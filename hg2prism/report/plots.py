@@ -379,7 +379,7 @@ def robust_figure(result: dict, path: Path) -> list[Path]:
                label=f"deceptive value {result['deceptive_value']:.4f}")
     ax.axhline(result["v_lead"], color="grey", lw=0.8, ls=":",
                label=f"V_lead (P2 knows the task) {result['v_lead']:.4f}")
-    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted trap set with probability ≤ δ)")
+    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted action with probability ≤ δ)")
     ax.set_ylabel("P1's completion probability")
     ax.set_xticks(deltas)
     ax.set_title(f"{result['world']}: robust deception", fontsize=9)
