@@ -240,15 +240,17 @@ LATERAL_SCRIPTS = {
 }
 
 
-@pytest.fixture(scope="module", params=[False, True], ids=["general", "traps"])
+@pytest.fixture(scope="module", params=[(False, 0), (True, 0), (False, 1)],
+                ids=["general", "traps", "general-delay1"])
 def lateral_drawn(request, tmp_path_factory: pytest.TempPathFactory):
-    """A lateral world (general P2 actions or traps), a hand-built episode, and its world
-    picture and replay."""
+    """A lateral world (general P2 actions or traps; a delay), a hand-built episode, and its
+    world picture and replay."""
     from arenas import lateral
 
-    world = lateral(traps_mode=request.param)
+    traps_mode, delay = request.param
+    world = lateral(delay=delay, traps_mode=traps_mode)
     ts = transition_system(world)
-    episode, trace = hand_episode(ts, LATERAL_SCRIPTS[request.param])
+    episode, trace = hand_episode(ts, LATERAL_SCRIPTS[traps_mode])
     out = tmp_path_factory.mktemp("arena")
     plots.world_figure(world, ts, episode, out / "world.png")
     frames = replay.replay_gif(world, ts, episode, trace, out / "replay.gif")
