@@ -78,6 +78,14 @@ def _validate_parser(sub: Subparsers) -> None:
     _add(sub, "validate", "Check a world file and print a summary; writes nothing.")
 
 
+def _convert_parser(sub: Subparsers) -> None:
+    p = _add(sub, "convert", "Write the world's arena form (docs/semantics.md §15) as a world "
+             "file: a grid world compiled to its states, P1's actions and their outcomes; an "
+             "arena world normalised. `check` and every other command accept it.")
+    p.add_argument("--out", metavar="FILE", help="the world file to write (atomically; "
+                   "default: print it on standard output)")
+
+
 def _emit_parser(sub: Subparsers) -> None:
     p = _add(sub, "emit", "Write the hypergame PRISM model: OUT/hypergame.prism and "
              "OUT/hypergame.props." + OUT_DEFAULT)
@@ -316,20 +324,56 @@ Check = Callable[[argparse.Namespace, object], None]
 @dataclass(frozen=True)
 class Command:
     """One command: its parser, what it refuses before the output folder is probed (`guard`)
-    and after (`options`), and what it does in the staging folder (`act`; None: validate)."""
+    and after (`options`), and what it does in the staging folder (`act`), or what it does
+    without an output folder (`alone`)."""
 
     parser: Callable[[Subparsers], object]
     guard: Check | None = None
     options: Check | None = None
     act: Callable[[argparse.Namespace, object, Path], Outcome] | None = None
+    # a command without an output folder (validate, convert): does everything, gives the status
+    alone: Callable[[argparse.Namespace, object], int] | None = None
 
 
 def _nothing(args: argparse.Namespace, world: object) -> None:
     """Nothing more to refuse."""
 
 
+def _validate(args: argparse.Namespace, world: object) -> int:
+    if world.arena is None:
+        print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
+              f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} "
+              "hypotheses)")
+        return 0
+    arena = world.arena
+    p2 = (f"{len(arena.trap_candidates)} trap candidates" if arena.traps_mode
+          else f"{len(arena.p2_actions)} P2 actions")
+    print(f"{args.world}: ok ({world.name}: arena of {arena.n_states} states, {p2}, "
+          f"{len(world.hypotheses)} hypotheses)")
+    return 0
+
+
+def _convert(args: argparse.Namespace, world: object) -> int:
+    from hg2prism.frontends import arena_of
+    from hg2prism.frontends.arena import to_toml
+    from hg2prism.outputs import write_text
+
+    text = to_toml(world)
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    out = Path(args.out)
+    if out.is_dir():
+        raise InputError("command line", "--out", f"{out} is a folder; expected a file name")
+    check_writable(out.parent)
+    write_text(out, text)
+    print(f"{out}: written, the arena form of {world.name} ({arena_of(world).n_states} states)")
+    return 0
+
+
 COMMANDS: dict[str, Command] = {     # in the order `hg2prism --help` lists them
-    "validate": Command(_validate_parser),
+    "validate": Command(_validate_parser, alone=_validate),
+    "convert": Command(_convert_parser, alone=_convert),
     "emit": Command(_emit_parser, _guard_size, _nothing, _emit),
     "check": Command(_check_parser, _guard_size, _bound_option, _check),
     "run": Command(_run_parser, _guard_size, _run_options, _run),
@@ -412,10 +456,8 @@ def _perform(args: argparse.Namespace) -> int:
 
     world = load_world(args.world)
     command = COMMANDS[args.command]
-    if command.act is None:
-        print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
-              f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} hypotheses)")
-        return 0
+    if command.alone is not None:
+        return command.alone(args, world)
     out = _out_dir(Path(args.world), args.out)
     if args.max_states is not None and args.max_states < 1:
         raise InputError("command line", "--max-states", "must be at least 1")

@@ -7,9 +7,11 @@ and how they are read, is asked of the observer registry (opponent/registry.py).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from hg2prism.errors import InputError
+from hg2prism.frontends import arena as arena_files
 from hg2prism.model.world import (FORBIDDEN_REGION_LETTERS, Cell, DetectionSettings, Grid,
                                   SimulationSettings, World)
 
@@ -19,6 +21,10 @@ MAP_LEGEND = ". # o t @ A-Z"
 # Keys allowed in each table: key -> required?
 _TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
              "adversary": True, "inference": True, "simulation": False, "detection": False}
+# An arena world (docs/semantics.md §15) has [arena] instead of [grid] and [robot]
+_ARENA_TOP_KEYS = {"name": False, "description": False, "arena": True, "task": True,
+                   "adversary": True, "inference": True, "simulation": False,
+                   "detection": False}
 _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "grid": {"map": True},
     "robot": {"slip": True},
@@ -51,6 +57,7 @@ _MISSING_HINT = {
     "adversary.hypotheses": "a non-empty array of co-safe LTL formulas",
     "inference.window": "an integer >= 1",
     "inference.rationality": "a number > 0",
+    **arena_files.MISSING_HINT,
 }
 
 
@@ -112,11 +119,26 @@ def _one_line(text: str) -> str:
     return " ".join(text.split())
 
 
+@dataclass(frozen=True)
+class Vocabulary:
+    """The atomic propositions formulas may use, and how an error message describes them."""
+
+    propositions: tuple[str, ...]
+    described: str
+
+
+def _grid_vocabulary(grid: Grid) -> Vocabulary:
+    return Vocabulary(("obs",) + grid.region_letters(),
+                      "obs and the region letters of the map ("
+                      + (", ".join(grid.region_letters()) or "none") + ")")
+
+
 class _Loader:
-    def __init__(self, path: Path, text: str | None = None) -> None:
+    def __init__(self, path: Path, text: str | None = None, data: dict | None = None) -> None:
         self.path = path
         self.file = str(path)
         self.text = text        # the file's text when it does not come from a file
+        self.data = data        # or the parsed file (a world built in Python)
 
     def fail(self, key: str, reason: str) -> InputError:
         return InputError(self.file, key, _one_line(reason))
@@ -127,6 +149,8 @@ class _Loader:
         import re
         import tomllib
 
+        if self.data is not None:
+            return self.data
         if self.text is not None:
             data = self.text.encode("utf-8", "surrogatepass")
         else:
@@ -154,7 +178,8 @@ class _Loader:
 
     # -- typed getters -----------------------------------------------------------------------
 
-    def check_keys(self, table: dict, allowed: dict[str, bool], prefix: str) -> None:
+    def check_keys(self, table: dict, allowed: dict[str, bool], prefix: str,
+                   tables: dict[str, dict[str, bool]] = _TABLE_KEYS) -> None:
         for name in table:
             if name not in allowed:
                 key = f"{prefix}.{_key_part(name)}" if prefix else _key_part(name)
@@ -165,9 +190,9 @@ class _Loader:
         for name, required in allowed.items():
             if required and name not in table:
                 key = f"{prefix}.{name}" if prefix else name
-                if not prefix and name in _TABLE_KEYS:
+                if not prefix and name in tables:
                     raise self.fail(key, f"missing required table [{name}] (with "
-                                         + ", ".join(k for k, r in _TABLE_KEYS[name].items() if r)
+                                         + ", ".join(k for k, r in tables[name].items() if r)
                                          + ")")
                 raise self.fail(key, "missing required key; expected "
                                      + _MISSING_HINT.get(key, "a value"))
@@ -282,8 +307,8 @@ class _Loader:
             start=starts[0],
         )
 
-    def formula(self, value: object, key: str, grid: Grid):
-        """Check a co-safe LTL formula over obs and the map's region letters; return spot.formula."""
+    def formula(self, value: object, key: str, vocabulary: Vocabulary):
+        """Check a co-safe LTL formula over the world's propositions; return spot.formula."""
         import spot
 
         text = self.string(value, key)
@@ -298,13 +323,10 @@ class _Loader:
                                if ln and not ln.startswith(">>>") and set(ln) != {"^"})
             raise self.fail(key, f"formula {text!r} does not parse in Spot syntax"
                                  + (f": {detail}" if detail else "")) from None
-        allowed = ("obs",) + grid.region_letters()
         for ap in sorted(a.ap_name() for a in spot.atomic_prop_collect(parsed)):
-            if ap not in allowed:
-                raise self.fail(key, f"formula {text!r} uses proposition {ap!r}; only obs and "
-                                     "the region letters of the map ("
-                                     + (", ".join(grid.region_letters()) or "none")
-                                     + ") may be used")
+            if ap not in vocabulary.propositions:
+                raise self.fail(key, f"formula {text!r} uses proposition {ap!r}; only "
+                                     f"{vocabulary.described} may be used")
         if not parsed.is_syntactic_guarantee():
             raise self.fail(key, f"formula {text!r} is not syntactically co-safe (Spot's "
                                  "is_syntactic_guarantee is false); expected a co-safe formula "
@@ -313,29 +335,66 @@ class _Loader:
 
     def load(self) -> World:
         root = self.read()
+        if not isinstance(root, dict):
+            raise self.fail("-", "expected the tables of a world file")
+        if "arena" in root:
+            if "grid" in root:
+                raise self.fail("arena", "a world is a grid world ([grid] and [robot]) or an "
+                                         "arena world ([arena]), not both; remove one")
+            return self.load_arena(root)
+        if "grid" not in root:
+            raise self.fail("grid", "missing required table: a world is a grid world ([grid] "
+                                    "with map, and [robot]) or an arena world ([arena], "
+                                    "docs/semantics.md §15)")
         self.check_keys(root, _TOP_KEYS, "")
-        name = self.string(root["name"], "name") if "name" in root else self.path.stem
-        if name.strip() == "":
-            raise self.fail("name", "name must not be empty")
-        description = (self.string(root["description"], "description")
-                       if "description" in root else "")
+        name, description = self.header(root)
         grid = self.grid(self.table(root, "grid"))
         slip = self.number(self.table(root, "robot")["slip"], "robot.slip")
         if not 0.0 <= slip < 0.5:
             raise self.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
+        vocabulary = _grid_vocabulary(grid)
         formula = self.table(root, "task")["formula"]
-        self.formula(formula, "task.formula", grid)
+        self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary")
-        adversary = self.adversary(adv, grid)
+        adversary = {**self.adversary(adv, grid), **self.guesses(adv, vocabulary)}
         observer = self.inference(root, adv, adversary)
         return World(path=self.path, name=name, description=description, grid=grid, slip=slip,
                      formula=formula, **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
                      detection=self.detection(self.table(root, "detection")))
 
+    def header(self, root: dict) -> tuple[str, str]:
+        """The world's name (default: the file's stem) and description."""
+        name = self.string(root["name"], "name") if "name" in root else self.path.stem
+        if name.strip() == "":
+            raise self.fail("name", "name must not be empty")
+        description = (self.string(root["description"], "description")
+                       if "description" in root else "")
+        return name, description
+
+    def load_arena(self, root: dict) -> World:
+        """An arena world (docs/semantics.md §15; frontends/arena.py reads [arena] and P2's
+        actions)."""
+        tables = {**_TABLE_KEYS, "arena": arena_files.ARENA_KEYS,
+                  "adversary": arena_files.ADVERSARY_KEYS}
+        self.check_keys(root, _ARENA_TOP_KEYS, "", tables)
+        name, description = self.header(root)
+        arena, p2 = arena_files.read(self, root)
+        vocabulary = Vocabulary(arena.propositions, "the arena's propositions ("
+                                + (", ".join(arena.propositions) or "none") + ")")
+        formula = self.table(root, "task")["formula"]
+        self.formula(formula, "task.formula", vocabulary)
+        adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
+        adversary = {**p2, **self.guesses(adv, vocabulary)}
+        observer = self.inference(root, adv, adversary)
+        return World(path=self.path, name=name, description=description, grid=None, slip=0.0,
+                     formula=formula, initial_traps=(), arena=arena,
+                     **{**adversary, **observer},
+                     simulation=self.simulation(self.table(root, "simulation")),
+                     detection=self.detection(self.table(root, "detection")))
+
     def adversary(self, adv: dict, grid: Grid) -> dict:
-        """[adversary]: the World fields traps, delay, initial_traps, hypotheses and
-        initial_hypothesis (which P2's observer may set instead: `inference`)."""
+        """[adversary] of a grid world: the World fields traps, delay and initial_traps."""
         traps = self.integer(adv["traps"], "adversary.traps", 1)
         n_cand = len(grid.trap_candidates)
         if traps > n_cand:
@@ -344,17 +403,21 @@ class _Loader:
                                                "the number of 't' cells")
         delay = self.integer(adv.get("delay", 0), "adversary.delay", 0)
         initial_traps = self.initial_traps(adv, grid, traps, delay)
-        hypotheses = self.hypotheses(adv["hypotheses"], grid)
+        return dict(traps=traps, delay=delay, initial_traps=initial_traps)
+
+    def guesses(self, adv: dict, vocabulary: Vocabulary) -> dict:
+        """[adversary]: the World fields hypotheses and initial_hypothesis (which P2's
+        observer may set instead: `inference`)."""
+        hypotheses = self.hypotheses(adv["hypotheses"], vocabulary)
         initial_hypothesis = self.integer(adv.get("initial_hypothesis", 0),
                                           "adversary.initial_hypothesis")
         if not 0 <= initial_hypothesis < len(hypotheses):
             raise self.fail("adversary.initial_hypothesis",
                             f"initial_hypothesis must be an index into hypotheses "
                             f"(0..{len(hypotheses) - 1}), got {initial_hypothesis}")
-        return dict(traps=traps, delay=delay, initial_traps=initial_traps,
-                    hypotheses=hypotheses, initial_hypothesis=initial_hypothesis)
+        return dict(hypotheses=hypotheses, initial_hypothesis=initial_hypothesis)
 
-    def hypotheses(self, value: object, grid: Grid) -> tuple[str, ...]:
+    def hypotheses(self, value: object, vocabulary: Vocabulary) -> tuple[str, ...]:
         """[adversary] hypotheses: distinct co-safe formulas, at least one."""
         items = self.array(value, "adversary.hypotheses", "an array of formulas")
         if not items:
@@ -363,7 +426,7 @@ class _Loader:
         seen: dict[str, int] = {}
         for i, h in enumerate(items):
             key = f"adversary.hypotheses[{i}]"
-            canon = str(self.formula(h, key, grid))
+            canon = str(self.formula(h, key, vocabulary))
             if canon in seen:
                 j = seen[canon]
                 raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
@@ -482,6 +545,12 @@ class _Loader:
 def load_world(path: str | Path) -> World:
     """Read and validate a world file; raise InputError(file, key, reason) on any problem."""
     return _Loader(Path(path)).load()
+
+
+def world_from_data(data: dict, name: str = "world") -> World:
+    """Validate a world given as the tables of a world file (what tomllib reads from one;
+    `name` as for world_from_toml)."""
+    return _Loader(Path(name), data=data).load()
 
 
 def world_from_toml(text: str, name: str = "world") -> World:
