@@ -415,3 +415,228 @@ def test_staged_outputs_replace_files_by_folders_and_back(tmp_path: Path) -> Non
         assert (out / "x").is_dir() == folder
         assert ((out / "x" / "inner.txt") if folder else (out / "x")).read_text() == f"run {run}"
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+# --------------------------------------------------------------------------------------------
+# Arena worlds (docs/semantics.md §15)
+# --------------------------------------------------------------------------------------------
+
+ARENA_BASE = '''name = "lateral"
+
+[arena]
+states = ["out", "web", "mail", "db", "hr"]
+initial = "out"
+propositions = ["crown", "payroll"]
+
+[arena.labels]
+db = ["crown"]
+hr = ["payroll"]
+
+[[arena.transition]]
+state = "out"
+action = "phish"
+to = { mail = 0.6, out = 0.4 }
+
+[[arena.transition]]
+state = "web"
+action = "scan"
+to = { db = 0.5, web = 0.5 }
+
+[[arena.transition]]
+state = "mail"
+action = "pivot_db"
+p2 = "watch_db"
+to = { mail = 1.0 }
+
+[[arena.transition]]
+state = "mail"
+action = "pivot_db"
+to = { db = 0.5, mail = 0.5 }
+
+[task]
+formula = "F crown"
+
+[adversary]
+actions = ["idle", "watch_db", "watch_hr"]
+delay = 0
+hypotheses = ["F crown", "F payroll"]
+
+[inference]
+window = 2
+threshold = 0.6
+rationality = 1.0
+'''
+
+P2_ENTRY = '''[[arena.transition]]
+state = "mail"
+action = "pivot_db"
+p2 = "watch_db"
+to = { mail = 1.0 }
+
+'''
+GENERAL = 'actions = ["idle", "watch_db", "watch_hr"]'
+TRAPS = 'traps = 1\ntrap_candidates = ["web", "mail"]'
+
+
+def arena_edit(*pairs: tuple[str, str], base: str = ARENA_BASE) -> str:
+    text = base
+    for old, new in pairs:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    return text
+
+
+TRAPS_BASE = arena_edit((P2_ENTRY, ""), (GENERAL, TRAPS))
+PHISH = "to = { mail = 0.6, out = 0.4 }"
+
+ARENA_CASES = [
+    # --- grid or arena
+    ("grid-and-arena", ARENA_BASE + '\n[grid]\nmap = """\n#@#\n"""\n', "arena", "not both"),
+    ("neither-grid-nor-arena", edit(("[grid]\n" + MAP_BLOCK, "")), "grid", "arena"),
+    ("robot-in-arena-world", ARENA_BASE + "\n[robot]\nslip = 0.1\n", "robot", "unknown"),
+    # --- states and propositions
+    ("states-empty", arena_edit(('states = ["out", "web", "mail", "db", "hr"]', "states = []")),
+     "arena.states", "empty"),
+    ("states-duplicate", arena_edit(('"db", "hr"]', '"db", "hr", "web"]')), "arena.states[5]",
+     "repeated"),
+    ("state-not-identifier", arena_edit(('"db", "hr"]', '"db", "hr", "h r"]')),
+     "arena.states[5]", "identifier"),
+    ("state-reserved", arena_edit(('"db", "hr"]', '"db", "hr", "trapped"]')),
+     "arena.states[5]", "reserved"),
+    ("initial-unknown", arena_edit(('initial = "out"', 'initial = "inside"')), "arena.initial",
+     "unknown state"),
+    ("proposition-not-identifier", arena_edit(('["crown", "payroll"]', '["crown", "pay-roll"]')),
+     "arena.propositions[1]", "identifier"),
+    ("proposition-spot-operator", arena_edit(('["crown", "payroll"]', '["crown", "F"]')),
+     "arena.propositions[1]", "Spot operator"),
+    ("proposition-true", arena_edit(('["crown", "payroll"]', '["crown", "true"]')),
+     "arena.propositions[1]", "Spot"),
+    ("proposition-read-as-operators", arena_edit(('["crown", "payroll"]', '["crown", "Fa"]')),
+     "arena.propositions[1]", "plain atomic proposition"),
+    ("proposition-quoted-by-spot", arena_edit(('["crown", "payroll"]', '["crown", "X1"]')),
+     "arena.propositions[1]", "plain atomic proposition"),
+    ("label-unknown-state", arena_edit(('db = ["crown"]', 'dbb = ["crown"]')), "arena.labels.dbb",
+     "unknown state"),
+    ("label-unknown-proposition", arena_edit(('db = ["crown"]', 'db = ["crwn"]')),
+     "arena.labels.db[0]", "unknown proposition"),
+    ("label-operator-without-propositions",
+     arena_edit(('propositions = ["crown", "payroll"]\n', ""), ('db = ["crown"]', 'db = ["G"]')),
+     "arena.labels.db[0]", "Spot operator"),
+    ("formula-unknown-arena-proposition", arena_edit(('formula = "F crown"', 'formula = "F gold"')),
+     "task.formula", "arena's propositions"),
+    ("hypothesis-unknown-arena-proposition",
+     arena_edit(('hypotheses = ["F crown", "F payroll"]', 'hypotheses = ["F crown", "F pay"]')),
+     "adversary.hypotheses[1]", "proposition"),
+    ("positions-missing-state", arena_edit(('hr = ["payroll"]\n', 'hr = ["payroll"]\n\n'
+                                            '[arena.positions]\nout = [0, 0]\n')),
+     "arena.positions", "every state"),
+    # --- transitions
+    ("no-transitions", TRAPS_BASE[:TRAPS_BASE.index("[[arena.transition]]")]
+     + TRAPS_BASE[TRAPS_BASE.index("[task]"):], "arena.transition", "missing"),
+    ("transition-unknown-key", arena_edit((PHISH, PHISH + "\nprob = 1")),
+     "arena.transition[0].prob", "unknown"),
+    ("transition-unknown-state", arena_edit(('state = "out"', 'state = "outt"')),
+     "arena.transition[0].state", "unknown state"),
+    ("action-not-identifier", arena_edit(('action = "phish"', 'action = "ph-ish"')),
+     "arena.transition[0].action", "identifier"),
+    ("probabilities-not-summing-to-1", arena_edit((PHISH, "to = { mail = 0.6, out = 0.3 }")),
+     "arena.transition[0].to", "sum"),
+    ("probability-negative", arena_edit((PHISH, "to = { mail = 1.2, out = -0.2 }")),
+     "arena.transition[0].to.out", "negative"),
+    ("probability-not-a-number", arena_edit((PHISH, 'to = { mail = "0.6", out = 0.4 }')),
+     "arena.transition[0].to.mail", "number"),
+    ("to-unknown-state", arena_edit((PHISH, "to = { mall = 0.6, out = 0.4 }")),
+     "arena.transition[0].to.mall", "unknown state"),
+    ("to-empty", arena_edit((PHISH, "to = {}")), "arena.transition[0].to", "empty"),
+    ("p2-unknown-action", arena_edit(('p2 = "watch_db"', 'p2 = "watch_dv"')),
+     "arena.transition[2].p2", "unknown P2 action"),
+    ("p2-empty", arena_edit(('p2 = "watch_db"', "p2 = []")), "arena.transition[2].p2", "empty"),
+    ("p2-with-traps", arena_edit((GENERAL, TRAPS)), "arena.transition[2].p2", "only allowed"),
+    ("uncovered-p2-action", arena_edit(("to = { db = 0.5, mail = 0.5 }", "p2 = \"idle\"\n"
+                                        "to = { db = 0.5, mail = 0.5 }")),
+     "arena.transition[2]", "covered"),
+    ("p2-action-named-twice", arena_edit(("to = { db = 0.5, mail = 0.5 }", "p2 = [\"idle\", "
+                                          "\"watch_db\"]\nto = { db = 0.5, mail = 0.5 }")),
+     "arena.transition[3].p2", "named again"),
+    ("two-entries-without-p2", arena_edit((P2_ENTRY, P2_ENTRY.replace('p2 = "watch_db"\n', ""))),
+     "arena.transition[3]", "second entry"),
+    # --- P2
+    ("p2-action-not-identifier", arena_edit((GENERAL, 'actions = ["idle", "watch db"]')),
+     "adversary.actions[1]", "identifier"),
+    ("p2-actions-repeated", arena_edit((GENERAL, 'actions = ["idle", "watch_db", "idle"]')),
+     "adversary.actions[2]", "repeated"),
+    ("actions-and-traps", arena_edit((GENERAL, GENERAL + "\ntraps = 1")), "adversary.traps",
+     "not both"),
+    ("neither-actions-nor-traps", arena_edit((GENERAL + "\n", "")), "adversary", "missing"),
+    ("initial-action-missing", arena_edit(("delay = 0", "delay = 1")),
+     "adversary.initial_action", "required"),
+    ("initial-action-not-in-a2", arena_edit(("delay = 0", 'delay = 1\ninitial_action = "nap"')),
+     "adversary.initial_action", "unknown P2 action"),
+    ("trap-candidates-with-actions", arena_edit((GENERAL, GENERAL + '\ntrap_candidates = ["web"]')),
+     "adversary.trap_candidates", "only with traps"),
+    ("initial-action-with-traps", arena_edit(("delay = 0", 'delay = 0\ninitial_action = "web"'),
+                                             base=TRAPS_BASE),
+     "adversary.initial_action", "only with general"),
+    ("trap-candidate-not-a-state", arena_edit(('["web", "mail"]', '["web", "mall"]'),
+                                              base=TRAPS_BASE),
+     "adversary.trap_candidates[1]", "unknown state"),
+    ("trap-candidates-repeated", arena_edit(('["web", "mail"]', '["web", "web"]'), base=TRAPS_BASE),
+     "adversary.trap_candidates[1]", "repeated"),
+    ("trap-candidates-missing", arena_edit(('\ntrap_candidates = ["web", "mail"]', ""),
+                                           base=TRAPS_BASE),
+     "adversary.trap_candidates", "missing"),
+    ("more-traps-than-candidates", arena_edit(("traps = 1", "traps = 3"), base=TRAPS_BASE),
+     "adversary.traps", "only 2"),
+    ("initial-traps-missing-arena", arena_edit(("delay = 0", "delay = 1"), base=TRAPS_BASE),
+     "adversary.initial_traps", "required"),
+    ("initial-traps-not-a-candidate", arena_edit(("delay = 0", 'delay = 1\ninitial_traps = ["db"]'),
+                                                 base=TRAPS_BASE),
+     "adversary.initial_traps[0]", "not a trap candidate"),
+    ("initial-traps-wrong-count-arena",
+     arena_edit(("delay = 0", 'delay = 1\ninitial_traps = ["web", "mail"]'), base=TRAPS_BASE),
+     "adversary.initial_traps", "expected 1"),
+]
+
+
+def test_every_arena_case_is_distinct() -> None:
+    assert len({c[0] for c in ARENA_CASES}) == len(ARENA_CASES)
+    assert len({c[1] for c in ARENA_CASES}) == len(ARENA_CASES)
+    for text in (ARENA_BASE, TRAPS_BASE):
+        assert load_world_text(text).arena is not None
+
+
+def load_world_text(text: str):
+    from hg2prism.worldfile import world_from_toml
+
+    return world_from_toml(text, name="base.toml")
+
+
+@pytest.mark.parametrize("text,key,word", [c[1:] for c in ARENA_CASES],
+                         ids=[c[0] for c in ARENA_CASES])
+def test_bad_arena_world(tmp_path: Path, capsys, text: str, key: str, word: str) -> None:
+    """In process (the grid cases above show that the CLI's subprocess prints no traceback):
+    load_world's error, validate's and run's one line, exit status 2, nothing written."""
+    from hg2prism.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert (err.value.file, err.value.key) == (str(bad), key), err.value
+    assert word in err.value.reason and "\n" not in err.value.reason, err.value
+    for args in (["validate", str(bad)], ["run", str(bad), "--out", str(tmp_path / "out")],
+                 ["convert", str(bad), "--out", str(tmp_path / "conv.toml")]):
+        assert main(args) == 2
+        captured = capsys.readouterr()
+        assert captured.out == ""
+        assert captured.err == f"hg2prism: error: {err.value}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+def test_arena_base_worlds_validate(tmp_path: Path) -> None:
+    for name, text in (("general", ARENA_BASE), ("traps", TRAPS_BASE)):
+        path = tmp_path / f"{name}.toml"
+        path.write_text(text)
+        proc = run_cli(["validate", str(path)], tmp_path)
+        assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+        assert proc.stdout.startswith(f"{path}: ok (lateral: arena of 5 states, ")

@@ -125,7 +125,8 @@ def proposition_problem(name: str) -> str | None:
         return "is a Spot operator"
     if parsed.kind() != spot.op_ap or parsed.ap_name() != name or str(parsed) != name:
         return (f"is not a plain atomic proposition for Spot (it reads it as {str(parsed)}: "
-                "true, false, an operator, or a name it must quote); choose another name")
+                "a constant, operators applied to a name, or a name it must quote); choose "
+                "another name")
     return None
 
 
