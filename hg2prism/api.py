@@ -1,6 +1,7 @@
 """The Python API: a few verbs over the pipeline, for notebooks and scripts.
 
     world = hg2prism.load_world("models/world1.toml")        # or world_from_toml(text)
+    world = hg2prism.world_from_graph(G, entries=[1], task="F asset9")   # a NetworkX attack graph
     solution = hg2prism.solve(world)                          # Storm, sound; writes nothing
     solution.deceptive_value, solution.strategy.move(...)     # numbers and P1's moves
     hg2prism.baselines(world).v_ne_bounds                     # the symmetric baselines
@@ -19,14 +20,142 @@ from pathlib import Path
 
 from hg2prism.model.world import World
 
+from hg2prism.errors import InputError
 from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
 
-__all__ = ["load_world", "world_from_toml", "solve", "baselines", "simulate", "Solution",
+__all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate", "Solution",
            "Strategy", "Baselines", "Simulation"]
 
 _MOVES = ("N", "E", "S", "W")
+
+
+def _node_name(node: object, file: str) -> str:
+    """An attack-graph node's state name: n<v> for an integer, an identifier as it is."""
+    import numbers
+    import re
+
+    if isinstance(node, numbers.Integral) and not isinstance(node, bool):
+        return f"n{int(node)}"
+    if isinstance(node, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", node):
+        return node
+    raise InputError(file, "graph", f"node {node!r} has no state name: nodes are integers "
+                     "(state n<v>) or identifiers (the state of that name)")
+
+
+def _asset(node: object, name: str) -> str:
+    return f"asset{name[1:]}" if name != node else f"asset_{name}"
+
+
+def _edge_probability(graph, u: object, v: object, key: str, file: str) -> float:
+    import math
+    import numbers
+
+    where = f"edge ({u!r}, {v!r})"
+    data = graph.edges[u, v]
+    if key not in data:
+        raise InputError(file, where, f"has no {key!r} attribute (its success probability)")
+    p = data[key]
+    if isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p):
+        raise InputError(file, where, f"{key} = {p!r} is not a probability")
+    if not 0 <= p <= 1:
+        raise InputError(file, where, f"{key} = {p!r} is outside [0, 1]")
+    if u == v:
+        raise InputError(file, where, "is a self-loop; an attack step leads to another node")
+    return float(p)
+
+
+def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict]:
+    """The nodes in state order (sorted when they sort, else the graph's order) and their
+    state names; every node given as an argument checked."""
+    if not graph.is_directed() or graph.is_multigraph():
+        raise InputError(file, "graph", "expected a directed graph without parallel edges "
+                         "(networkx.DiGraph)")
+    try:
+        nodes = sorted(graph.nodes)
+    except TypeError:
+        nodes = list(graph.nodes)
+    names = {node: _node_name(node, file) for node in nodes}
+    if "outside" in names.values() or len(set(names.values())) < len(names):
+        raise InputError(file, "graph", "two nodes share a state name, or a node is named "
+                         "outside (the attacker's initial state)")
+    for what, items in given.items():
+        for node in items:
+            if node not in names:
+                raise InputError(file, what, f"{node!r} is not a node of the graph")
+    return nodes, names
+
+
+def _graph_arena(graph, entries, labels, probability: str, file: str) -> dict:
+    """The [arena] table of an attack graph (world_from_graph)."""
+    nodes, names = _graph_nodes(graph, file, {"entries": entries, "labels": labels or {}})
+    if not entries:
+        raise InputError(file, "entries", "no entry node; expected the nodes the attacker "
+                         "can enter from outside")
+    order = {node: i for i, node in enumerate(nodes)}
+    transitions = [{"state": "outside", "action": f"to_{names[e]}", "to": {names[e]: 1.0}}
+                   for e in sorted(set(entries), key=order.__getitem__)]
+    for u in nodes:
+        for v in sorted(graph.successors(u), key=order.__getitem__):
+            p = _edge_probability(graph, u, v, probability, file)
+            to = {names[v]: p, names[u]: 1.0 - p} if 0 < p < 1 else {names[v if p else u]: 1.0}
+            transitions.append({"state": names[u], "action": f"to_{names[v]}", "to": to})
+    if labels is None:
+        labels = {v: _asset(v, names[v]) for v in nodes if graph.out_degree(v) == 0}
+    label_table = {names[v]: [ps] if isinstance(ps, str) else list(ps)
+                   for v, ps in labels.items()}
+    label_table = {name: label_table[name] for name in map(names.get, nodes)
+                   if label_table.get(name)}
+    return {"states": ["outside", *(names[v] for v in nodes)], "initial": "outside",
+            "labels": label_table, "transition": transitions}
+
+
+def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
+                     traps: int = 1, trap_candidates=None, delay: int = 0, initial_traps=None,
+                     initial_hypothesis: int | None = None, inference: dict | None = None,
+                     simulation: dict | None = None, detection: dict | None = None,
+                     probability: str = "p", name: str = "graph",
+                     description: str = "") -> World:
+    """The arena world (docs/semantics.md §15) of an attack graph: a networkx.DiGraph whose
+    edges carry the attack step's success probability (attribute `probability`).
+
+    States: `outside` (the initial state), then the nodes (sorted when they sort, else in the
+    graph's order) named n<v> for an integer node v, their own name for an identifier. At
+    `outside` P1 (the attacker) has one action per entry node, `to_<node>`, reaching it with
+    probability 1; at node u one action per outgoing edge (u, v), `to_<v>`, reaching v with the
+    edge's probability and staying at u otherwise. A node without outgoing edges (a target)
+    is terminal: the episode ends there. Labels: `labels` maps nodes to propositions (a name
+    or a list); by default each target v carries `asset<v>` (`asset_<name>` for a named node).
+    P2 (the defender) sets `traps` traps (honeypots) among `trap_candidates` (default: every
+    node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0.
+    `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
+    (default CUSUM, window 2, rationality 1, threshold 0.6); `simulation` and `detection` the
+    optional tables. Every problem is an InputError naming `name`, the key and the reason."""
+    from hg2prism.worldfile import world_from_data
+
+    arena = _graph_arena(graph, list(entries), labels, probability, name)
+    nodes, names = _graph_nodes(graph, name, {"trap_candidates": trap_candidates or (),
+                                              "initial_traps": initial_traps or ()})
+    if trap_candidates is None:
+        trap_candidates = [v for v in nodes if graph.out_degree(v) > 0]
+    propositions = list(dict.fromkeys(p for ps in arena["labels"].values() for p in ps))
+    adversary = {"traps": traps, "trap_candidates": [names[v] for v in trap_candidates],
+                 "delay": delay,
+                 "hypotheses": list(hypotheses) if hypotheses is not None
+                 else [f"F {p}" for p in propositions]}
+    if initial_traps is not None:
+        adversary["initial_traps"] = [names[v] for v in initial_traps]
+    if initial_hypothesis is not None:
+        adversary["initial_hypothesis"] = initial_hypothesis
+    data = {"name": name, "description": description, "arena": arena,
+            "task": {"formula": task}, "adversary": adversary,
+            "inference": dict(inference) if inference is not None else
+            {"kind": "cusum", "window": 2, "rationality": 1.0, "threshold": 0.6}}
+    for key, table in (("simulation", simulation), ("detection", detection)):
+        if table is not None:
+            data[key] = dict(table)
+    return world_from_data(data, name=name)
 
 
 def _reported(name: str, doc: str) -> property:

@@ -1,5 +1,7 @@
-"""Reading world files: `load_world(path)` and `world_from_toml(text)` (worldfile/loader.py)."""
+"""Reading world files: `load_world(path)`, `world_from_toml(text)` and `world_from_data(tables)`
+(worldfile/loader.py)."""
 
-from hg2prism.worldfile.loader import MAX_EPISODES, MAX_HORIZON, LIMIT_REASON, load_world, world_from_toml
+from hg2prism.worldfile.loader import (MAX_EPISODES, MAX_HORIZON, LIMIT_REASON, load_world,
+                                       world_from_data, world_from_toml)
 
-__all__ = ["load_world", "world_from_toml", "MAX_EPISODES", "MAX_HORIZON", "LIMIT_REASON"]
+__all__ = ["load_world", "world_from_toml", "world_from_data", "MAX_EPISODES", "MAX_HORIZON", "LIMIT_REASON"]
