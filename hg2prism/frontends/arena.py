@@ -19,11 +19,12 @@ Reading (`read`, called by worldfile/loader.py, which reads the other tables as 
 
   [adversary] (beside hypotheses and initial_hypothesis, as for grids), either
     actions = ["idle", ...]        general P2 actions A2 (identifiers, distinct), with
-    initial_action = "idle"        required when delay > 0
+    initial_action = "idle"        required when delay > 0 (ignored when 0, as initial_traps)
   or
     traps = l                      l-subsets of the candidates, the grid's trap rule, with
     trap_candidates = [states]     distinct states, at least l of them, and
-    initial_traps = [states]       l distinct candidates, required when delay > 0
+    initial_traps = [states]       l distinct candidates, required when delay > 0 (when 0
+                                   only its type is checked: as a grid's, it is ignored)
   delay = k                        optional, default 0
 
 Names (states, P1's and P2's actions) are identifiers ([A-Za-z_][A-Za-z0-9_]*). A proposition
@@ -38,8 +39,8 @@ outcomes of an entry in the order of its `to`, zero-probability ones dropped, pa
 the state itself and probability 0 (so are missing action slots); `p2_actions` = A2 (general)
 or () (traps); `trap_candidates` the candidates' state numbers in the order written;
 `positions` when given. The World's fields from here: `traps` (l, 0 for general actions),
-`delay`, `initial_standing` (the index into A2 of initial_action, or of the sorted initial trap
-set among the l-subsets in itertools.combinations order; 0 when neither is given) and
+`delay`, `initial_standing` (with delay > 0 the index into A2 of initial_action, or of the
+sorted initial trap set among the l-subsets in itertools.combinations order; 0 when delay is 0) and
 `arena`; the loader sets `grid=None`, `slip=0.0`, `initial_traps=()`.
 
 Writing (`to_toml`, `hg2prism convert`): a world's arena (a grid world compiled by
@@ -284,6 +285,9 @@ class _Reader:
         key = "adversary.initial_action"
         if "initial_action" in adv:
             name = self.ld.string(adv["initial_action"], key)
+            if delay == 0:          # as a grid's initial_traps: only matters when delay > 0
+                return dict(p2_actions=tuple(actions), trap_candidates=(), traps=0, delay=0,
+                            initial_standing=0)
             if name not in actions:
                 raise self.fail(key, f"unknown P2 action {name!r}; adversary.actions are "
                                      + _listing(actions))
@@ -307,7 +311,11 @@ class _Reader:
                                                "traps <= the number of trap_candidates")
         standing = 0
         key = "adversary.initial_traps"
-        if "initial_traps" in adv:
+        if "initial_traps" in adv and delay == 0:   # as for grids: only its type is checked
+            for i, item in enumerate(self.ld.array(adv["initial_traps"], key,
+                                                   "an array of state names")):
+                self.ld.string(item, f"{key}[{i}]")
+        elif "initial_traps" in adv:
             chosen = self.state_list(adv["initial_traps"], key, "initial trap", empty_ok=True)
             for i, s in enumerate(chosen):
                 if s not in candidates:
@@ -553,7 +561,7 @@ def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
     from hg2prism.opponent.registry import observer_kind
 
     lines = ["", "[adversary]"]
-    write_standing = world.delay > 0 or standing != 0
+    write_standing = world.delay > 0
     if arena.traps_mode:
         cands = [arena.states[c] for c in arena.trap_candidates]
         lines += [f"traps = {world.traps}", *_wrapped("trap_candidates",
