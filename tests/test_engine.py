@@ -88,7 +88,9 @@ def test_the_explicit_model_decodes_to_the_layout(world, tmp_path: Path) -> None
     moves = model.transitions
     assert model.n_states == checked.checked.size[0] and len(moves.source) == checked.checked.size[2]
     assert moves.target.max() < model.n_states and {"goal", "fail"} <= set(moves.labels)
-    assert np.array_equal(model.variable("cell"), checked.decoded.cell)
+    assert np.array_equal(model.variable("place"), checked.decoded.place)
+    # choice labels a<i> read back as action slots, the absorbing self-loops as -1
+    assert set(moves.action.tolist()) == {-1, 0, 1, 2, 3}
     with pytest.raises(KeyError, match="no_such_variable"):
         model.variable("no_such_variable")
     assert model.variable("no_such_variable", 7).tolist() == [7] * model.n_states

@@ -38,12 +38,26 @@ from stormpy import developer
 from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.opponent.perceptual_games import solve_game
-from hg2prism.prism.game_models import ACTION_LABELS, PROPERTY, write_game_models
+from hg2prism.prism.arena_tables import p2_label
+from hg2prism.prism.game_models import PROPERTY, write_game_models
 from hg2prism.worldfile import load_world
 
 TOL = 1e-6
-MOVES = ("N", "E", "S", "W")
-PERPENDICULAR = {"N": "EW", "E": "NS", "S": "EW", "W": "NS"}
+
+
+def _slots(ts, place: int) -> list[int]:
+    """P1's action slots at arena state `place` (none at TRAPPED and terminal states)."""
+    return [] if place == ts.n_places else list(range(len(ts.arena.actions[place])))
+
+
+def _slot(label: str) -> int:
+    assert re.fullmatch(r"a\d+", label), label
+    return int(label[1:])
+
+
+def _p2(label: str) -> int:
+    assert re.fullmatch(r"p2_\d+", label), label
+    return int(label.removeprefix("p2_"))
 
 
 # ------------------------------------------------------------------------------------------ setup
@@ -126,22 +140,25 @@ def _explicit(model: object) -> Explicit:
 # ------------------------------------------------------------------ expected state spaces
 
 def _stop(ts, dfa, cell: int, q_prev: int) -> bool:
-    """Goal or failure of the DFA one step behind: docs/semantics.md §6's absorbing states."""
-    if cell == ts.n_cells:
+    """Goal or failure of the DFA one step behind: docs/semantics.md §§6, 15's absorbing states
+    (trapped, q final or a sink, a terminal arena state)."""
+    if cell == ts.n_places:
         return True
-    q = dfa.delta[q_prev, ts.cell_label[cell]]
-    return q in dfa.accepting or q in dfa.sink
+    q = dfa.delta[q_prev, ts.place_label[cell]]
+    return q in dfa.accepting or q in dfa.sink or not ts.arena.actions[cell]
 
 
-def _landing(ts, cell: int, move: str, trap_set: int) -> dict[int, float]:
-    """Where the robot lands (n_cells = TRAPPED) with what probability (docs/semantics.md §2); outcomes of
-    probability 0 are dropped, outcomes landing in the same cell merged."""
-    outcomes = [(move, 1 - 2 * ts.slip)] + [(d, ts.slip) for d in PERPENDICULAR[move]]
+def _landing(ts, cell: int, slot: int, a2: int) -> dict[int, float]:
+    """Where P1 lands (n_places = TRAPPED) with what probability (docs/semantics.md §§2, 15,
+    read off the arena's tables); outcomes of probability 0 are dropped, outcomes landing in the
+    same state merged."""
+    arena = ts.arena
+    j = a2 if arena.dest.shape[2] > 1 else 0
     out: dict[int, float] = {}
-    for d, p in outcomes:
+    for target, p in zip(arena.dest[cell, slot, j].tolist(), arena.prob[cell, slot, j].tolist()):
         if p > 0:
-            target = int(ts.move[cell, MOVES.index(d)])
-            target = ts.n_cells if ts.set_cells[trap_set, target] else target
+            if ts.traps_mode and ts.set_places[a2, target]:
+                target = ts.n_places
             out[target] = out.get(target, 0.0) + p
     return out
 
@@ -171,10 +188,10 @@ def expected_csg_states(ts, dfa) -> set[tuple]:
         cell, traps, countdown, q = todo.popleft()
         if _stop(ts, dfa, cell, q):
             continue
-        q_next = int(dfa.delta[q, ts.cell_label[cell]])
+        q_next = int(dfa.delta[q, ts.place_label[cell]])
         for t in _allowed(ts, traps, countdown):
             traps2, countdown2 = _after(ts, traps, countdown, t)
-            for a in MOVES:
+            for a in _slots(ts, cell):
                 for cell2 in _landing(ts, cell, a, t):
                     state = (cell2, traps2, countdown2, q_next)
                     if state not in seen:
@@ -197,8 +214,8 @@ def expected_smg_states(ts, dfa) -> set[tuple]:
                 traps2, countdown2 = _after(ts, traps, countdown, t)
                 successors.append((1, cell, t if not ts.delay else traps2, countdown2, q))
         elif turn == 1:
-            q_next = int(dfa.delta[q, ts.cell_label[cell]])
-            for a in MOVES:
+            q_next = int(dfa.delta[q, ts.place_label[cell]])
+            for a in _slots(ts, cell):
                 for cell2 in _landing(ts, cell, a, traps):
                     successors.append((0, cell2, traps if ts.delay else 0, countdown, q_next))
         for state in successors:
@@ -219,10 +236,9 @@ def _csg_row(ts, dfa, state: tuple, label: str) -> dict[tuple, float]:
     if label == "halt__idle":
         return {state: 1.0}
     move, place = label.split("__")
-    a = next(a for a, name in ACTION_LABELS.items() if name == move)
-    t = int(place.removeprefix("place"))
+    a, t = _slot(move), _p2(place)
     traps2, countdown2 = _after(ts, traps, countdown, t)
-    q2 = int(dfa.delta[q, ts.cell_label[cell]])
+    q2 = int(dfa.delta[q, ts.place_label[cell]])
     return {(cell2, traps2, countdown2, q2): p for cell2, p in _landing(ts, cell, a, t).items()}
 
 
@@ -230,12 +246,12 @@ def _smg_row(ts, dfa, state: tuple, label: str) -> dict[tuple, float]:
     turn, cell, traps, countdown, q = state
     if label == "done":
         return {state: 1.0}
-    if label.startswith("place"):
-        t = int(label.removeprefix("place"))
+    if label.startswith("p2_"):
+        t = _p2(label)
         traps2, countdown2 = _after(ts, traps, countdown, t)
         return {(1, cell, t, countdown2, q): 1.0}
-    a = next(a for a, name in ACTION_LABELS.items() if name == label)
-    q2 = int(dfa.delta[q, ts.cell_label[cell]])
+    a = _slot(label)
+    q2 = int(dfa.delta[q, ts.place_label[cell]])
     return {(0, cell2, traps if ts.delay else 0, countdown, q2): p
             for cell2, p in _landing(ts, cell, a, traps).items()}
 
@@ -266,7 +282,7 @@ def _ts_index(ts, cell: np.ndarray, traps: np.ndarray, countdown: np.ndarray) ->
         index = (cell * ts.n_sets + traps) * ts.phases + countdown
     else:
         index = cell.copy()
-    return np.where(cell == ts.n_cells, ts.trapped, index)
+    return np.where(cell == ts.n_places, ts.trapped, index)
 
 
 def _value_iteration(explicit: Explicit, combine, tolerance: float = 1e-13,
@@ -317,22 +333,23 @@ def test_perceptual_smg_builds_with_expected_states(exported) -> None:
         explicit = _explicit(model)
         expected = expected_smg_states(ts, game.dfa)
         assert model.nr_states == len(expected), (i, model.nr_states, len(expected))
-        assert _states_of(explicit, ["turn", "cell", "traps", "countdown", "q"]) == expected
+        assert _states_of(explicit, ["turn", "place", "traps", "countdown", "q"]) == expected
         # P2 (player index 1) owns the turn-0 states, P1 the turn-1 states
         turn = explicit.var["turn"]
         assert ((explicit.players == 1) == (turn == 0)).all()
-        # P1's choices are the four moves; P2's the trap sets she may play, or done when absorbing
+        # P1's choices are its action slots; P2's the actions she may play, or done when absorbing
         for s in range(model.nr_states):
             labels = sorted(explicit.choice_label[c] for c in np.flatnonzero(explicit.choice_state == s))
             if turn[s] == 1:
-                assert labels == sorted(ACTION_LABELS.values())
+                place = explicit.var["place"][s]
+                assert labels == sorted(f"a{i}" for i in _slots(ts, place))
             elif explicit.labels["goal"][s] or explicit.labels["fail"][s]:
                 assert labels == ["done"]
             else:
                 allowed = _allowed(ts, explicit.var["traps"][s] if ts.delay else 0,
                                    explicit.var["countdown"][s] if ts.delay else 0)
-                assert labels == sorted(f"place{t}" for t in allowed)
-        _check_rows(explicit, ["turn", "cell", "traps", "countdown", "q"],
+                assert labels == sorted(p2_label(t) for t in allowed)
+        _check_rows(explicit, ["turn", "place", "traps", "countdown", "q"],
                     functools.partial(_smg_row, ts, game.dfa))
 
 
@@ -353,10 +370,10 @@ def test_perceptual_smg_values_are_the_games_values(exported) -> None:
 
         values = _value_iteration(explicit, combine)
         turn0 = explicit.var["turn"] == 0
-        cell, q_prev = explicit.var["cell"], explicit.var["q"]
+        cell, q_prev = explicit.var["place"], explicit.var["q"]
         ts_state = _ts_index(ts, cell, explicit.var.get("traps", 0 * cell),
                              explicit.var.get("countdown", 0 * cell))
-        label = np.append(ts.cell_label, 0)[cell]
+        label = np.append(ts.place_label, 0)[cell]
         expected = game.values[ts_state, game.dfa.delta[q_prev, label]]
         np.testing.assert_allclose(values[turn0], expected[turn0], atol=TOL)
         v0 = game.values[ts.start_state, game.dfa.delta[game.dfa.initial, label[explicit.initial]]]
@@ -475,8 +492,9 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
     ts, task = analysis.ts, analysis.task
     csg = parse_csg(paths["symmetric.prism"].read_text())
     assert csg.players == {"p1": ["robot"], "p2": ["adversary"]}
-    assert csg.actions["p1"] == [ACTION_LABELS[a] for a in MOVES] + ["halt"]
-    assert csg.actions["p2"] == [f"place{t}" for t in range(ts.n_sets)]
+    slots = sorted({i for place in range(ts.n_places) for i in _slots(ts, place)})
+    assert csg.actions["p1"] == [f"a{i}" for i in slots] + ["halt"]
+    assert csg.actions["p2"] == [p2_label(t) for t in range(ts.n_sets)]
     mdp = tmp_path / "symmetric_joint.prism"
     mdp.write_text(csg_to_mdp(csg))
     model = _build(mdp)
@@ -485,7 +503,7 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
     # States: TS x DFA(phi) with the DFA one step behind.
     expected = expected_csg_states(ts, task)
     assert model.nr_states == len(expected)
-    assert _states_of(explicit, ["cell", "traps", "countdown", "q"]) == expected
+    assert _states_of(explicit, ["place", "traps", "countdown", "q"]) == expected
 
     # Each state offers exactly P1's moves x P2's allowed sets, one choice each (PRISM-games
     # rejects a missing joint action or two active commands for one), and halt when absorbing.
@@ -498,10 +516,12 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
             continue
         allowed = _allowed(ts, explicit.var["traps"][s] if ts.delay else 0,
                            explicit.var["countdown"][s] if ts.delay else 0)
-        assert sorted(labels) == sorted(f"{ACTION_LABELS[a]}__place{t}" for a in MOVES for t in allowed)
+        place = explicit.var["place"][s]
+        assert sorted(labels) == sorted(f"a{a}__{p2_label(t)}" for a in _slots(ts, place)
+                                        for t in allowed)
 
     # Every joint action moves as docs/semantics.md §2 says.
-    _check_rows(explicit, ["cell", "traps", "countdown", "q"], functools.partial(_csg_row, ts, task))
+    _check_rows(explicit, ["place", "traps", "countdown", "q"], functools.partial(_csg_row, ts, task))
 
     # Leader values on Storm's matrix (P2 commits to a2, P1 answers) are V_lead of games.py.
     n = model.nr_states
@@ -519,9 +539,9 @@ def test_symmetric_csg_is_the_concurrent_game(exported, tmp_path: Path) -> None:
 
     values = _value_iteration(explicit, min_max)
     leader = solve_game(ts, task)
-    cell, q_prev = explicit.var["cell"], explicit.var["q"]
+    cell, q_prev = explicit.var["place"], explicit.var["q"]
     ts_state = _ts_index(ts, cell, explicit.var.get("traps", 0 * cell), explicit.var.get("countdown", 0 * cell))
-    label = np.append(ts.cell_label, 0)[cell]
+    label = np.append(ts.place_label, 0)[cell]
     np.testing.assert_allclose(values, leader.values[ts_state, task.delta[q_prev, label]], atol=TOL)
     assert abs(values[explicit.initial] - analysis.v_lead) <= TOL
 
@@ -538,10 +558,10 @@ def test_symmetric_csg_value_is_v_ne(exported, tmp_path: Path) -> None:
     mdp.write_text(csg_to_mdp(parse_csg(paths["symmetric.prism"].read_text())))
     explicit = _explicit(_build(mdp))
     n = explicit.matrix.shape[1]
-    moves = [ACTION_LABELS[a] for a in MOVES]
+    n_a = ts.n_actions
     width = max(np.diff(explicit.matrix.indptr).max(), 1)
-    nxt = np.repeat(np.arange(n), 4 * ts.n_sets * width).reshape(n, 4, ts.n_sets, width)
-    prob = np.zeros((n, 4, ts.n_sets, width))
+    nxt = np.repeat(np.arange(n), n_a * ts.n_sets * width).reshape(n, n_a, ts.n_sets, width)
+    prob = np.zeros((n, n_a, ts.n_sets, width))
     prob[..., 0] = 1.0
     allowed = np.zeros((n, ts.n_sets), dtype=bool)
     goal, fail = explicit.labels["goal"], explicit.labels["fail"]
@@ -551,7 +571,7 @@ def test_symmetric_csg_value_is_v_ne(exported, tmp_path: Path) -> None:
         if label == "halt__idle":
             continue
         move, place = label.split("__")
-        i, t = moves.index(move), int(place.removeprefix("place"))
+        i, t = _slot(move), _p2(place)
         row = explicit.matrix.getrow(c)
         k = len(row.indices)
         nxt[s, i, t, :k], prob[s, i, t, :] = row.indices, 0.0

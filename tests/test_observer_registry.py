@@ -59,16 +59,16 @@ class NeverRevises:
         return ((memory.hypothesis, 1.0),)
 
 
-def render_never(observer: NeverRevises, ts: TransitionSystem, labels: dict[str, str],
+def render_never(observer: NeverRevises, ts: TransitionSystem, labels: dict[int, str],
                  observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
     """`hyp` set once and kept: per move and hypothesis a command that keeps it (Storm drops
     a variable no update writes, and its states would then lose P2's hypothesis)."""
-    commands = "\n".join(f"  [{labels[a]}] hyp={h} -> (hyp'={h});" for a in ACTIONS
+    commands = "\n".join(f"  [{label}] hyp={h} -> (hyp'={h});" for label in labels.values()
                           for h in range(observer.n_hypotheses))
     module = (f"module p2_inference\n  hyp : [0..{upper(observer.n_hypotheses)}] init "
               f"{observer.initial_hypothesis};   // never revised\n{commands}\nendmodule")
     return ObserverPrism(formulas="// P2 never revises her hypothesis: no tables", module=module,
-                         slots=0, commands=len(ACTIONS) * observer.n_hypotheses,
+                         slots=0, commands=len(labels) * observer.n_hypotheses,
                          header="// inference    never revises her first guess")
 
 

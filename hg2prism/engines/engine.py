@@ -19,12 +19,26 @@ from typing import Callable, Protocol
 import numpy as np
 
 
+def action_label(slot: int) -> str:
+    """The action label of P1's action slot `slot` in every model hg2prism writes: a<slot>
+    (prism/arena_tables.py); an engine reads choice labels back with `slot_of_label`."""
+    return f"a{slot}"
+
+
+def slot_of_label(label: str) -> int:
+    """The action slot of a choice label a<i>; -1 for any other label (unlabelled choices,
+    the robust model's step_a<i>)."""
+    if label.startswith("a") and label[1:].isdigit():
+        return int(label[1:])
+    return -1
+
+
 @dataclass(frozen=True, eq=False)
 class Transitions:
     """Every choice of a built model: source state, action index (-1 unlabelled), successors."""
 
     source: np.ndarray
-    action: np.ndarray
+    action: np.ndarray         # P1's action slot (choice label a<i>), -1 for other labels
     row_start: np.ndarray      # successors of choice i: target[row_start[i]:row_start[i+1]]
     target: np.ndarray
     probability: np.ndarray    # of an interval model: the lower bounds

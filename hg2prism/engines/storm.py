@@ -23,8 +23,7 @@ from stormpy import developer
 from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
-from hg2prism.engines.engine import BuiltModel, CheckedModel, Transitions
-from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS
+from hg2prism.engines.engine import BuiltModel, CheckedModel, Transitions, slot_of_label
 from hg2prism.numeric import ExplicitModel
 from hg2prism.errors import StormError, probability
 
@@ -252,8 +251,7 @@ def _read_structure(model: object) -> Transitions:
                 member = f"annotations/aps/{key_name}/states/values.bin"
                 bits = np.unpackbits(array(member, np.uint8), bitorder="little")
                 labels[label] = bits[:model.nr_states].astype(bool)
-    by_label = {label: i for i, label in enumerate(ACTION_LABELS[a] for a in ACTIONS)}
-    action_index = np.array([by_label.get(n, -1) for n in names])
+    action_index = np.array([slot_of_label(n) for n in names] + [-1])
     structure = Transitions(
         source=np.repeat(np.arange(model.nr_states), np.diff(state_choices)),
         action=action_index[action_ids], row_start=row_start, target=target,

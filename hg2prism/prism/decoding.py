@@ -23,17 +23,22 @@ from hg2prism.prism.hypergame import Layout
 class DecodedStates:
     """A model checker's states as docs/semantics.md §6 hypergame states."""
 
-    cell: np.ndarray          # cell index (the TRAPPED formula's value once trapped)
-    traps: np.ndarray         # standing trap set (0 when delay is 0)
+    place: np.ndarray         # arena state index (the number of arena states once trapped)
+    traps: np.ndarray         # P2's standing action (0 when delay is 0)
     countdown: np.ndarray
-    q: np.ndarray             # DFA state after reading the current cell's label
+    q: np.ndarray             # DFA state after reading the current state's label
     hypothesis: np.ndarray
-    window: np.ndarray        # [n, slots, 2] (TS state, action), or [n, slots, 3] with the trap
-                              # set in force (Bayesian observer); -1 for empty slots
+    window: np.ndarray        # [n, slots, 2] (TS state, action slot), or [n, slots, 3] with P2's
+                              # action in force (Bayesian observer); -1 for empty slots
     goal: np.ndarray          # bool
     fail: np.ndarray          # bool
     canonical: np.ndarray     # canonical id; goal states share one id, failure states another
     n_canonical: int
+
+    @property
+    def cell(self) -> np.ndarray:
+        """LEGACY name of `place`, for consumers not yet moved to the arena."""
+        return self.place
 
 
 def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task: DFA,
@@ -45,8 +50,8 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
     def column(name: str) -> np.ndarray:
         return model.variable(name, layout.initial_value(name))
 
-    cell = column("cell")
-    label = np.append(ts.cell_label, 0)[cell]
+    place = column("place")
+    label = np.append(ts.place_label, 0)[place]
     q = task.delta[column("q"), label]
     width = 3 if layout.slot_sets else 2
     window = np.stack([np.stack([column(name) for name in names], axis=1)
@@ -64,11 +69,11 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
         if window_hypotheses is None:
             raise ValueError("decoding this model needs the observer's window_hypotheses")
         hypothesis = np.asarray(window_hypotheses(window), dtype=np.int64)
-    key = np.column_stack([cell, traps, countdown, q, hypothesis, window.reshape(model.n_states, -1)])
+    key = np.column_stack([place, traps, countdown, q, hypothesis, window.reshape(model.n_states, -1)])
     key[goal] = -2
     key[fail] = -3
     canonical = _dense_ids(_row_keys(key))
-    return DecodedStates(cell=cell, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
+    return DecodedStates(place=place, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
                          window=window, goal=goal, fail=fail, canonical=canonical,
                          n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
 

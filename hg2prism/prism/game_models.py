@@ -8,13 +8,16 @@
                         "goal"] is V_x at the initial state (P1 maximises, P2 minimises).
 
 The models are written the way hypergame.prism is (one module per component, tables as
-decision trees over the state variables), in the PRISM-games language only:
-  * action labels are lower-case words (north, east, south, west, place0, ...): PRISM reserves
-    the single letters E, S, W, ... as keywords;
+decision trees over the state variables, the names of prism/arena_tables.py), in the
+PRISM-games language only:
+  * action labels: a<i> for P1's action slot i, p2_<j> for P2's action j (PRISM reserves
+    single letters such as E, S, W as keywords); the header lists what each one is;
   * in the csg each player owns one module, the players' action sets are disjoint, and the
-    robot's moves are commands labelled with joint actions [a1,a2] (PRISM-games 3: a command
-    labelled with several actions fires when the players choose all of them);
+    robot's moves are commands labelled with joint actions [a<i>,p2_<j>] (PRISM-games 3: a
+    command labelled with several actions fires when the players choose all of them);
   * in the smg the players are given by their action lists; every command is labelled.
+The robot has one command per (action slot, P2 action), so the commands grow with the actions,
+never with the states.
 
 Storm (stormpy 2.0) parses and builds the smg models (it cannot check them through stormpy, and
 it has no parser for csg at all): tests/test_game_exports.py checks both in other ways.
@@ -25,14 +28,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from hg2prism import __version__
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS, PERPENDICULAR
-from hg2prism.prism.hypergame import cell_map
-from hg2prism.prism.rendering import lookup, prism_number, region_labels, render_template
+from hg2prism.prism.arena_tables import (ArenaTables, arena_tables, goal_fail, header_lines,
+                                         label_lines, p2_label, place_table)
+from hg2prism.prism.hypergame import slot_labels, world_formulas
+from hg2prism.prism.rendering import lookup, render_template
 from hg2prism.model.world import World
 
 if TYPE_CHECKING:
@@ -42,47 +44,58 @@ PROPERTY = '<<p1>> Pmax=? [F "goal"]'
 
 
 
-def _place(t: int) -> str:
-    """P2's action label for trap set t."""
-    return f"place{t}"
-
-
-def _robot_commands(ts: TransitionSystem) -> list[dict]:
-    """One command per P1 move and trap set in force: the outcome directions with their
-    probabilities, and the cells of the trap set (landing on one traps the robot)."""
+def _robot_commands(ts: TransitionSystem, tables: ArenaTables) -> list[dict]:
+    """One command per P1 action slot and P2 action in force: its guard and its outcomes
+    (probability, update of `place`)."""
     commands = []
-    for a in ACTIONS:
-        if ts.slip > 0:
-            outcomes = [("1-2*slip", a)] + [("slip", p) for p in PERPENDICULAR[a]]
-        else:
-            outcomes = [("1", a)]
-        for t in range(ts.n_sets):
-            commands.append({
-                "action": a, "label": ACTION_LABELS[a], "set": t, "place": _place(t),
-                "trap_cells": [ts.candidates[c] for c in ts.trap_sets[t]],
-                "outcomes": outcomes,
-            })
+    for slot in tables.slots:
+        for j in range(ts.n_sets):
+            trap = sorted(ts.trap_places(j))
+            outcomes = []
+            for o in slot.outcomes:
+                dest = f"to_{o.dest}" + (f"_{j}" if tables.dest_dependent(o.dest) else "")
+                prob = o.prob
+                if prob.startswith("p_") and tables.prob_dependent(int(prob[2:])):
+                    prob = f"{prob}_{j}"
+                hit = " | ".join(f"{dest}={t}" for t in trap)
+                outcomes.append((prob, f"(place'=({hit}) ? TRAPPED : {dest})" if trap
+                                 else f"(place'={dest})"))
+            commands.append({"label": slot.label, "guard": slot.guard, "set": j,
+                             "place": p2_label(j), "outcomes": outcomes})
     return commands
 
 
+def _column_formulas(ts: TransitionSystem, tables: ArenaTables) -> list[tuple[str, str]]:
+    """The tables that depend on P2's action, one per (table, P2 action)."""
+    lines = []
+    for m, dest in enumerate(tables.dest):
+        if tables.dest_dependent(m):
+            for j in range(ts.n_sets):
+                lines.append(("", f"formula to_{m}_{j} = {place_table(dest[:, j], None)};"))
+    for t, prob in enumerate(tables.probs):
+        if tables.prob_dependent(t):
+            for j in range(ts.n_sets):
+                lines.append(("", f"formula p_{t}_{j} = {place_table(prob[:, j], None)};"))
+    return lines
+
+
 def _context(world: World, ts: TransitionSystem, dfa: DFA) -> dict:
-    """What both templates share: the world's tables and the DFA (one step behind)."""
-    trapped = ts.n_cells
-    cell_key = [("cell", 0)]
-    start_cell, start_traps, _ = ts.decode(ts.start_state)
+    """What both templates share: the arena's tables and the DFA (one step behind)."""
+    trapped = ts.n_places if ts.traps_mode else None
+    tables = arena_tables(ts)
+    start_place, start_traps, _ = ts.decode(ts.start_state)
+    goal, fail = goal_fail(sorted(dfa.accepting), sorted(dfa.sink), trapped,
+                           tables.terminal is not None)
     return dict(
-        version=__version__, world=world, ts=ts, dfa=dfa,
-        actions=ACTIONS, action_labels=ACTION_LABELS,
-        places=[_place(t) for t in range(ts.n_sets)],
-        cell_map=cell_map(world, ts), trapped=trapped,
-        moves={a: lookup(np.append(ts.move[:, d], trapped), cell_key) for d, a in enumerate(ACTIONS)},
-        label_expr=lookup(np.append(ts.cell_label, 0), cell_key),
+        version=__version__, world=world, ts=ts, dfa=dfa, tables=tables,
+        labels=slot_labels(tables), places=[p2_label(t) for t in range(ts.n_sets)],
+        header=header_lines(ts, trapped), trapped=trapped,
+        world_formulas=world_formulas(tables, ts, trapped) + _column_formulas(ts, tables),
         q_now=lookup(dfa.delta, [("q", 0), ("label_class", 0)]),
-        accepting=sorted(dfa.accepting), sink=sorted(dfa.sink),
-        robot_commands=_robot_commands(ts),
-        start_cell=start_cell, start_traps=start_traps, slip=prism_number(world.slip),
-        region_labels=region_labels(ts),
-        set_members=[", ".join(f"({x},{y})" for x, y in ts.trap_cells(t)) for t in range(ts.n_sets)],
+        accepting=sorted(dfa.accepting), sink=sorted(dfa.sink), goal=goal, fail=fail,
+        robot_commands=_robot_commands(ts, tables),
+        start_place=start_place, start_traps=start_traps,
+        proposition_labels=label_lines(ts),
     )
 
 

@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import TOLERANCE
-from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, render_macro
+from hg2prism.prism.arena_tables import InForce, arena_tables, p2_choices
+from hg2prism.prism.rendering import cases, lookup, maximum, prism_number, render_macro, upper
 
 if TYPE_CHECKING:
     from hg2prism.opponent.bayes import BayesObserver
@@ -50,32 +50,38 @@ class ObserverPrism:
 
 def ts_table(ts: TransitionSystem, values: np.ndarray, observed: np.ndarray | None = None) -> str:
     """A table over the observed TS states (values[v] for v < ts.n_states - 1) as a decision
-    tree over cell (then traps and countdown when delay > 0): comparisons on the variables
+    tree over place (then traps and countdown when delay > 0): comparisons on the variables
     themselves, not on `ts_state`, which Storm would recompute at every comparison. Where
     `observed` is False the table may take any value (see rendering.lookup)."""
     if not ts.delay:
-        return lookup(values, [("cell", 0)], observed)
-    keys = [("cell", 0), ("traps", 0), ("countdown", 0)]
-    shape = (ts.n_cells, ts.n_sets, ts.phases)
+        return lookup(values, [("place", 0)], observed)
+    keys = [("place", 0), ("traps", 0), ("countdown", 0)]
+    shape = (ts.n_places, ts.n_sets, ts.phases)
     return lookup(np.asarray(values).reshape(shape), keys,
                   None if observed is None else np.asarray(observed).reshape(shape))
 
 
 def ts_state_expression(ts: TransitionSystem) -> str:
-    """The TS state as one PRISM expression over cell (and traps, countdown when delay > 0),
+    """The TS state as one PRISM expression over place (and traps, countdown when delay > 0),
     numbered as dynamics.TransitionSystem numbers its states."""
     if not ts.delay:
-        return "cell"
+        return "place"
     # with one trap set, traps is always 0 (but declared [0..1]: see rendering.upper)
-    return (f"(cell*{ts.n_sets}+traps)*{ts.phases}+countdown" if ts.n_sets > 1
-            else f"cell*{ts.phases}+countdown")
+    return (f"(place*{ts.n_sets}+traps)*{ts.phases}+countdown" if ts.n_sets > 1
+            else f"place*{ts.phases}+countdown")
+
+
+def live_guard(ts: TransitionSystem) -> str:
+    """A guard that keeps ts_state an observation wherever it holds: P1 not trapped (PRISM
+    checks updates in range in every state, reachable or not)."""
+    return "place!=TRAPPED" if ts.traps_mode else "true"
 
 
 # ---------------------------------------------------------------------------------------------
 # CUSUM (docs/semantics.md §5)
 # ---------------------------------------------------------------------------------------------
 
-def render_cusum(observer: InferenceModel, ts: TransitionSystem, labels: dict[str, str],
+def render_cusum(observer: InferenceModel, ts: TransitionSystem, labels: dict[int, str],
                  observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
     """The ratio tables, the CUSUM scores and the module p2_inference: hyp and the window's
     slots o1 (oldest) .. o{w-1}, each a TS state and a move (-1 when empty). The scores are
@@ -87,12 +93,13 @@ def render_cusum(observer: InferenceModel, ts: TransitionSystem, labels: dict[st
     if slots == 0 and n_x > 1:
         return _cusum_window_one(observer, ts, labels, observed, header)
     tables = _CusumTables(observer, ts, observed)
-    rules = [rule for h in range(n_x) for rule in tables.rules(h)]
+    rules = [rule for h in range(n_x) for rule in tables.rules(h, labels)]
     context = dict(
         ts_state=ts_state_expression(ts), ratio_formulas=tables.ratio_formulas,
         inference_rules=rules, class_tables=tables.class_tables, n_classes=tables.n_classes,
         switch_threshold=prism_number(observer.threshold - TOLERANCE),
-        tolerance=prism_number(TOLERANCE), actions=ACTIONS, labels=labels, slots=slots,
+        tolerance=prism_number(TOLERANCE), labels=labels, slots=slots, live=live_guard(ts),
+        n_actions=ts.n_actions,
         n_obs_states=ts.n_states - 1, n_hypotheses=n_x,
         initial_hypothesis=observer.initial_hypothesis)
     return ObserverPrism(
@@ -114,7 +121,7 @@ class _CusumTables:
         self.class_tables: list[tuple[str, str, str]] = []
         self.n_classes = 1
 
-    def rules(self, h: int) -> list[dict]:
+    def rules(self, h: int, labels: dict[int, str]) -> list[dict]:
         """Hypothesis h's formulas, and its rule per move (the scores and the next hypothesis:
         the first, in order, whose score ties the maximum)."""
         observer, ts = self.observer, self.ts
@@ -123,22 +130,25 @@ class _CusumTables:
         if others and slots:
             classes, class_ratios = ratio_classes(observer, h, self.observed)
             self.n_classes = max(self.n_classes, len(class_ratios))
-            for d, a in enumerate(ACTIONS):
-                self.class_tables.append((f"cls_h{h}_{a}", f"class of moving {a} now when hyp = {h}",
+            for d in labels:
+                a = f"a{d}"
+                self.class_tables.append((f"cls_h{h}_{a}", f"class of playing {a} now when hyp = {h}",
                                           ts_table(ts, classes[:, d], self.observed)))
         for x in others:
-            ratios = observer.ratios[h, x, :ts.n_states - 1]                 # [states, 4]
+            ratios = observer.ratios[h, x, :ts.n_states - 1]                 # [states, slots]
             for i in range(1, slots + 1):
                 padded = np.r_[0.0, class_ratios[:, x]]                     # class -1 = empty
                 self.ratio_formulas.append((
                     f"r_h{h}_x{x}_o{i}", f"r(x{x} | x{h}) of the move in slot o{i}",
                     lookup(padded, [(f"o{i}_cls", -1)])))
-            for d, a in enumerate(ACTIONS):
+            for d in labels:
+                a = f"a{d}"
                 self.ratio_formulas.append((
-                    f"r_h{h}_x{x}_{a}", f"r(x{x} | x{h}) of moving {a} now",
+                    f"r_h{h}_x{x}_{a}", f"r(x{x} | x{h}) of playing {a} now",
                     ts_table(ts, ratios[:, d], self.observed)))
         rules = []
-        for a in ACTIONS:
+        for d, label in labels.items():
+            a = f"a{d}"
             scores = {}
             for x in others:
                 z = "0.0"
@@ -149,7 +159,8 @@ class _CusumTables:
             best = cases([(f"{z} >= zmax_h{h}_{a} - {prism_number(TOLERANCE)}", str(x))
                           for z, x in zip(z_names[:-1], others[:-1])], str(others[-1])
                          ) if others else ""
-            rules.append({"h": h, "action": a, "others": others, "scores": scores,
+            rules.append({"h": h, "action": a, "slot": d, "label": label, "others": others,
+                          "scores": scores,
                           "zmax": maximum(z_names) if others else "", "next": best})
         return rules
 
@@ -158,7 +169,7 @@ def ratio_classes(observer: InferenceModel, hypothesis: int, observed: np.ndarra
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Observations that P2 cannot tell apart under `hypothesis`: those whose ratios
     r(x | hypothesis) agree for every x. Returns each observed (TS state, move)'s class
-    [states, 4] and each class's ratios [classes, X] (0 for x = hypothesis). A window slot
+    [states, slots] and each class's ratios [classes, X] (0 for x = hypothesis). A window slot
     of the PRISM model keeps its observation's class, so the slot's ratios are a table over
     the classes (a few hundred) instead of over every observation. Only the TS states
     marked `observed` (default all) are classified; the others get class 0."""
@@ -167,39 +178,40 @@ def ratio_classes(observer: InferenceModel, hypothesis: int, observed: np.ndarra
     vectors = observer.ratios[hypothesis, :, :n_obs, :][:, kept].transpose(1, 2, 0)
     vectors = vectors.reshape(-1, observer.n_hypotheses) + 0.0   # -0.0 and 0.0 are the same ratio
     class_ratios, found = np.unique(vectors, axis=0, return_inverse=True)
-    classes = np.zeros((n_obs, len(ACTIONS)), dtype=np.int64)
-    classes[kept] = found.reshape(-1, len(ACTIONS))
+    n_actions = observer.ratios.shape[-1]
+    classes = np.zeros((n_obs, n_actions), dtype=np.int64)
+    classes[kept] = found.reshape(-1, n_actions)
     return classes, class_ratios
 
 
-def _cusum_window_one(observer: InferenceModel, ts: TransitionSystem, labels: dict[str, str],
+def _cusum_window_one(observer: InferenceModel, ts: TransitionSystem, labels: dict[int, str],
                       observed: np.ndarray | None, header: str) -> ObserverPrism:
     """Window 1: P2's memory is her hypothesis alone, so the hypothesis after each move is
     a table over the TS state (InferenceModel.next_hypotheses); Storm evaluates one table per
     command instead of the CUSUM formulas, each of which repeats every ratio table it uses."""
     n_x = observer.n_hypotheses
     tables = []              # (name, comment, expression)
-    for d, a in enumerate(ACTIONS):
+    for d in labels:
         after = observer.next_hypotheses(d)
         for h in range(n_x):
-            tables.append((f"hyp_after_h{h}_{a}",
-                           f"P2's hypothesis after P1 moves {a} when hyp = {h}",
+            tables.append((f"hyp_after_h{h}_a{d}",
+                           f"P2's hypothesis after P1 plays a{d} when hyp = {h}",
                            ts_table(ts, after[h], observed)))
-    context = dict(next_tables=tables, actions=ACTIONS, labels=labels,
+    context = dict(next_tables=tables, labels=labels, live=live_guard(ts),
                    n_hypotheses=n_x, initial_hypothesis=observer.initial_hypothesis)
     return ObserverPrism(
         formulas=render_macro("inference_cusum.prism.j2", "formulas_window_one",
                               **context).rstrip("\n"),
         module=render_macro("inference_cusum.prism.j2", "module_window_one",
                             **context).rstrip("\n"),
-        slots=0, commands=len(ACTIONS) * n_x, header=header)
+        slots=0, commands=len(labels) * n_x, header=header)
 
 
 # ---------------------------------------------------------------------------------------------
 # Bayesian (docs/semantics.md §12)
 # ---------------------------------------------------------------------------------------------
 
-def render_bayes(observer: BayesObserver, ts: TransitionSystem, labels: dict[str, str],
+def render_bayes(observer: BayesObserver, ts: TransitionSystem, labels: dict[int, str],
                  observed: np.ndarray | None = None, played: str | None = None) -> ObserverPrism:
     """The window's slots o1 (oldest) .. o{w} and the decision, as formulas and the module
     p2_inference (4 commands whatever the window, the grid or the hypotheses).
@@ -222,16 +234,17 @@ def render_bayes(observer: BayesObserver, ts: TransitionSystem, labels: dict[str
     tables = _BayesTables(observer, ts, observed, played)
     context = dict(
         ts_state=ts_state_expression(ts), slot_ll=tables.slot_log_likelihoods(),
-        rules=[] if draws else tables.map_rules(), posterior=tables.posterior() if draws else [],
-        class_now={} if draws else tables.classes_now(),
-        class_drawn=tables.classes_drawn() if draws else {},
-        draws=draws, robot_outcomes=_drawing_robot(ts, observer.n_hypotheses) if draws else [],
-        set_cells=_set_cells(ts, observer.n_hypotheses) if draws else [],
-        set_in_force=played or "trap_set", n_trap_cells=_members(ts).shape[1], delay=ts.delay,
-        actions=ACTIONS, labels=labels, slots=observer.window, n_obs_states=ts.n_states - 1,
+        rules=[] if draws else tables.map_rules(labels),
+        posterior=tables.posterior() if draws else [],
+        class_now={} if draws else tables.classes_now(labels),
+        class_drawn=tables.classes_drawn(labels) if draws else {},
+        draws=draws, robot_commands=_drawing_robot(observer, ts, labels, observed) if draws else [],
+        set_in_force=played or "trap_set", delay=ts.delay, live=live_guard(ts),
+        labels=labels, slots=observer.window, n_obs_states=ts.n_states - 1,
+        n_actions=ts.n_actions, place_upper=upper(ts.n_places + int(ts.traps_mode)),
         n_sets=ts.n_sets, n_hypotheses=observer.n_hypotheses, n_classes=len(tables.classes),
         initial_hypothesis=observer.initial_hypothesis,
-        start_cell=ts.decode(ts.start_state)[0], start_traps=ts.decode(ts.start_state)[1])
+        start_place=ts.decode(ts.start_state)[0], start_traps=ts.decode(ts.start_state)[1])
     header = (f"// inference    Bayesian, window {observer.window}, decision "
               f"{observer.decision}, prior "
               + ", ".join(f"{math.exp(p):.6g}" for p in observer.log_prior))
@@ -241,7 +254,7 @@ def render_bayes(observer: BayesObserver, ts: TransitionSystem, labels: dict[str
 
     return ObserverPrism(
         formulas=part("formulas"), module=part("module"), slots=observer.window,
-        commands=len(ACTIONS), header=header, slot_sets=True, hypothesis_variable=not draws,
+        commands=len(labels), header=header, slot_sets=True, hypothesis_variable=not draws,
         robot=part("robot") if draws else "")
 
 
@@ -253,10 +266,10 @@ class _BayesTables:
                  observed: np.ndarray | None, played: str | None) -> None:
         self.observer = observer
         n_x, n_obs_states = observer.n_hypotheses, ts.n_states - 1   # TRAPPED is never observed
-        self.table = observer.log_likelihood[:, :n_obs_states]         # [X, states, 4, sets]
+        self.table = observer.log_likelihood[:, :n_obs_states]     # [X, states, slots, sets]
         vectors = np.moveaxis(self.table, 0, -1).reshape(-1, n_x)      # one row per observation
         self.classes, class_of = np.unique(vectors, axis=0, return_inverse=True)
-        self.class_of = class_of.reshape(n_obs_states, 4, ts.n_sets)
+        self.class_of = class_of.reshape(n_obs_states, self.table.shape[2], ts.n_sets)
         # The trap set in force is a function of (TS state, hypothesis): pi2_x(v), the standing
         # set while the countdown runs. So the move made now is looked up over (ts_state, hyp)
         # ("map") or over ts_state for each drawn x ("sample"), never over the trap set
@@ -273,16 +286,16 @@ class _BayesTables:
             self.now_keys = [("ts_state", 0), (played, 0)]
             self.now_sets = np.broadcast_to(np.arange(ts.n_sets), (n_obs_states, ts.n_sets))
 
-    def classes_now(self) -> dict[str, str]:
+    def classes_now(self, labels: dict[int, str]) -> dict[str, str]:
         """"map": the class of each move made now, over (ts_state, the set in force)."""
-        return {a: lookup(self.class_of[self.states[:, None], d, self.now_sets], self.now_keys,
-                          self.care[:, None]) for d, a in enumerate(ACTIONS)}
+        return {f"a{d}": lookup(self.class_of[self.states[:, None], d, self.now_sets],
+                                self.now_keys, self.care[:, None]) for d in labels}
 
-    def classes_drawn(self) -> dict[tuple[str, int], str]:
+    def classes_drawn(self, labels: dict[int, str]) -> dict[tuple[str, int], str]:
         """"sample": the class of each move made now under each drawn hypothesis."""
-        return {(a, x): lookup(self.class_of[self.states, d, self.in_force[x]],
-                               [("ts_state", 0)], self.care)
-                for d, a in enumerate(ACTIONS) for x in range(self.observer.n_hypotheses)}
+        return {(f"a{d}", x): lookup(self.class_of[self.states, d, self.in_force[x]],
+                                     [("ts_state", 0)], self.care)
+                for d in labels for x in range(self.observer.n_hypotheses)}
 
     def slot_log_likelihoods(self) -> list[tuple[str, str]]:
         """(name, expression): ln pi1_x of slot o<i>'s observation, 0 when empty. "map" reads
@@ -295,12 +308,13 @@ class _BayesTables:
                 slot_ll.append((f"ll_x{x}_o{i}", lookup(padded, [(f"o{i}_cls", -1)])))
         return slot_ll
 
-    def map_rules(self) -> list[dict]:
+    def map_rules(self, labels: dict[int, str]) -> list[dict]:
         """Per move: the new window (slots o2 .. o{w} and the move now), each hypothesis's
         log-posterior up to the normaliser, and the new MAP hypothesis."""
         observer, rules = self.observer, []
         n_x, tolerance = observer.n_hypotheses, prism_number(TOLERANCE)
-        for d, a in enumerate(ACTIONS):
+        for d, label in labels.items():
+            a = f"a{d}"
             scores = []
             for x in range(n_x):
                 now = lookup(self.table[x, self.states[:, None], d, self.now_sets], self.now_keys,
@@ -312,7 +326,8 @@ class _BayesTables:
             names = [f"lpn_x{x}_{a}" for x in range(n_x)]
             best = cases([(f"{name}>=lpnmax_{a}-{tolerance}", str(x))
                           for x, name in enumerate(names[:-1])], str(n_x - 1))
-            rules.append({"action": a, "scores": scores, "max": maximum(names), "next": best})
+            rules.append({"action": a, "slot": d, "label": label, "scores": scores,
+                          "max": maximum(names), "next": best})
         return rules
 
     def posterior(self) -> list[tuple[str, str]]:
@@ -331,26 +346,16 @@ class _BayesTables:
         return posterior
 
 
-def _drawing_robot(ts: TransitionSystem, n_x: int) -> list[dict]:
-    """"sample": the robot's outcomes per move, (drawn hypothesis, probability, direction)."""
-    perpendicular = {"N": "EW", "E": "NS", "S": "EW", "W": "NS"}
+def _drawing_robot(observer: BayesObserver, ts: TransitionSystem, labels: dict[int, str],
+                   observed: np.ndarray | None) -> list[dict]:
+    """"sample": the robot's command per action slot, its outcomes as (drawn hypothesis,
+    probability, update of `place`) under the action P2 plays with each hypothesis."""
+    tables = arena_tables(ts)
+    observed = np.ones(ts.n_states - 1, dtype=bool) if observed is None else observed
+    force = InForce(ts, tables, *p2_choices(ts, observer.trap_choice, observed), selector=False)
     robot = []
-    for a in ACTIONS:
-        directions = ([("(1-2*slip)", a)] + [("slip", p) for p in perpendicular[a]]
-                      if ts.slip > 0 else [("1", a)])
-        robot.append({"action": a, "outcomes": [
-            (x, p, d) for x in range(n_x) for p, d in directions]})
+    for slot in tables.slots:
+        robot.append({"label": labels[slot.index], "action": f"a{slot.index}", "guard": slot.guard,
+                      "outcomes": [(x, force.prob(o, x), force.update(o, x))
+                                   for x in range(observer.n_hypotheses) for o in slot.outcomes]})
     return robot
-
-
-def _members(ts: TransitionSystem) -> np.ndarray:
-    """[trap sets, cells per set]: each trap set's cells, sorted."""
-    return np.array([sorted(ts.candidates[c] for c in m) for m in ts.trap_sets],
-                    dtype=np.int64).reshape(ts.n_sets, -1)
-
-
-def _set_cells(ts: TransitionSystem, n_x: int) -> list[list[str]]:
-    """"sample": the j-th cell of the trap set drawn under each hypothesis (set_x<x>)."""
-    members = _members(ts)
-    return [[lookup(members[:, j], [(f"set_x{x}", 0)]) for j in range(members.shape[1])]
-            for x in range(n_x)]

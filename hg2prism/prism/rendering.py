@@ -1,5 +1,5 @@
 """Helpers every PRISM model of hg2prism is written with: tables as expressions, numbers as
-PRISM reads them, label names, and the Jinja environment of the templates (templates/*.j2;
+PRISM reads them, and the Jinja environment of the templates (templates/*.j2;
 the macros they share are in templates/common.prism.j2)."""
 
 from __future__ import annotations
@@ -10,19 +10,6 @@ from pathlib import Path
 
 import jinja2
 import numpy as np
-
-from hg2prism.model.dynamics import TransitionSystem
-
-
-def region_label(letter: str) -> str:
-    """The PRISM label of a region letter: "reg_A" for A. PRISM rejects a keyword as a label
-    name even inside quotes, and A, C, E, F, G, I, P, R, S, U, W and X are keywords."""
-    return f"reg_{letter}"
-
-
-def region_labels(ts: TransitionSystem) -> list[tuple[str, int]]:
-    """(PRISM label, label class) of each region letter (classes 0 and 1 are none and obs)."""
-    return [(region_label(name), k) for k, name in enumerate(ts.label_names) if k >= 2]
 
 
 def prism_number(value: float | int) -> str:

@@ -1,10 +1,11 @@
 """The robust hypergame of docs/semantics.md §13 as an interval MDP in the PRISM language.
 
-The hypergame MDP of docs/semantics.md §6 with P2's trap choice made uncertain: each step takes
-two transitions. P1's move leads to an intermediate state that records the move and the trap
-set played, with probability intervals [1-delta, 1] for the predicted set and [eps, delta] for
-every other set P2 may play (none where she has a single set); the robot then moves under the
-set played, and the task DFA, P2's standing traps and her inference advance as in the hypergame.
+The hypergame MDP of docs/semantics.md §6 with P2's choice made uncertain: each step takes
+two transitions. P1's action leads to an intermediate state that records the slot and P2's
+action played, with probability intervals [1-delta, 1] for the predicted action and [eps, delta]
+for every other action P2 may play (none where she has a single one); P1's action then takes
+effect under the action played, and the task DFA, P2's standing action and her inference
+advance as in the hypergame.
 P1 maximises, the resolution of the intervals minimises: PRISM's `Pmaxmin=? [F "goal"]`.
 
 The model of §13 has eps = 0. PRISM and Storm read it (Storm's interval builder, PRISM as an
@@ -20,20 +21,21 @@ from pathlib import Path
 from hg2prism.errors import InputError
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTION_LABELS
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent.perceptual_games import PerceptualGame
-from hg2prism.prism.hypergame import Layout, PrismModel, count_commands, template_context
+from hg2prism.prism.hypergame import (Layout, PrismModel, count_commands, slot_labels,
+                                      template_context)
 from hg2prism.prism.rendering import prism_number, render_template
 
 # PRISM's property: P1 maximises, the interval resolution (P2's deviation) minimises.
 PRISM_PROPERTY = 'Pmaxmin=? [F "goal"]'
 # Storm's: the same formula, checked with uncertainty resolution ROBUST (the adversary opposes P1).
 STORM_PROPERTY = 'Pmax=? [F "goal"]'
-# Labels of the second transition of a step (the robot moving under the trap set played); P1's
-# choices keep the hypergame's labels, so that decoding Storm's choices reads the same moves.
-STEP_LABELS = {a: f"step_{label}" for a, label in ACTION_LABELS.items()}
+# Labels of the second transition of a step (P1's action taking effect under P2's action
+# played) are step_a<i>; P1's choices keep the hypergame's labels a<i>, so that decoding Storm's
+# choices reads the same slots (and step_a<i> reads as no slot).
+STEP_PREFIX = "step_"
 # Smallest lower bound PRISM and Storm accept for a deviation (docs/semantics.md §13).
 CHECK_EPS = 1e-9
 # Names of the variables that tell an intermediate state (move >= 0) from one where P1 chooses.
@@ -70,8 +72,8 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
                          'robust deception (docs/semantics.md §13) is defined here for a '
                          'Bayesian observer that plays her MAP hypothesis ("map"), not one that '
                          'draws it ("sample")')
-    context = template_context(world, ts, task, games, inference, trap_key=PLAYED_VARIABLE,
-                               observer_labels=STEP_LABELS, p2_deviates=True)
+    context = template_context(world, ts, task, games, inference, played=PLAYED_VARIABLE,
+                               observer_prefix=STEP_PREFIX)
     if ts.n_sets == 1:
         deviation = "0"              # nothing to deviate to
     elif ts.delay:
@@ -79,7 +81,8 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
     else:
         deviation = "delta"
     text = render_template(
-        "robust.prism.j2", **context, step_labels=STEP_LABELS, deviation=deviation,
+        "robust.prism.j2", **context, step_labels=slot_labels(context["tables"], STEP_PREFIX),
+        deviation=deviation,
         delta_text=prism_number(float(delta)), eps_text=prism_number(float(eps)),
         property=PRISM_PROPERTY)
     prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
