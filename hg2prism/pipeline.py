@@ -19,7 +19,6 @@ from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
 from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.perceptual_games import PerceptualGame, perceptual_game, solve_game
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
@@ -76,8 +75,8 @@ def analyse(world: World) -> Analysis:
         finally:    # a failed game (or Ctrl-C) does not wait for the games still queued
             pool.shutdown(wait=True, cancel_futures=True)
         inference = build_observer(world, games)
-        start_cell = ts.decode(ts.start_state)[0]
-        v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.cell_label[start_cell]]],
+        start = ts.decode(ts.start_state)[0]
+        v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.place_label[start]]],
                              "V_lead")
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
@@ -130,7 +129,7 @@ def read_model(model: BuiltModel, prism: PrismModel, analysis: Analysis) -> Mode
     moves = model.transitions
     decoded = decode_states(model, prism.layout, analysis.ts, analysis.task,
                             getattr(analysis.inference, "window_hypotheses", None))
-    return ModelStructure(moves, decoded, canonical_mdp(decoded, moves),
+    return ModelStructure(moves, decoded, canonical_mdp(decoded, moves, analysis.ts.n_actions),
                           canonical_size(decoded, moves), model.initial)
 
 
@@ -222,7 +221,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     # for millions of states, still easy to grep and diff.
     with ThreadPoolExecutor(max_workers=3) as pool:
         jobs = [pool.submit(lambda: write_bytes(out / "strategy.json", strategy_json(
-            decoded, strategy, moves, analysis.ts, extras)))]
+            decoded, strategy, moves, analysis.ts, extras, structure.initial)))]
         dtmc = make_dtmc()
         jobs += [pool.submit(write_explicit, dtmc),
                  pool.submit(lambda: write_bytes(out / "induced.drn", drn(dtmc, comment)))]
@@ -384,7 +383,7 @@ def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValue
         played = dataclasses.replace(analysis, inference=StepCounter(
             analysis.inference, checked.bounded.bound - 1))
         deceptive_within = checked.results.objective.goal_probability
-    pairs = {"nash": (nash.p1.reshape(-1, len(ACTIONS)), nash.p2.reshape(ts.n_states * task.n_states, -1)),
+    pairs = {"nash": (nash.p1.reshape(-1, ts.n_actions), nash.p2.reshape(ts.n_states * task.n_states, -1)),
              "leader": _leader_strategies(analysis),
              "static": (worth.static.policy.mixed(), np.eye(ts.n_sets)[worth.static.p2])}
     summaries = {"deceptive": simulation.simulate_deceptive(

@@ -786,7 +786,7 @@ class World:
 
     def strategy_value(self, records):
         table = {}
-        for rec in records:
+        for rec in map(grid_record, records):
             v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
             B = tuple((self.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
                       for o in rec["window"])
@@ -820,6 +820,27 @@ class World:
             succs.append([(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()])
         x = dtmc_reach(succs)
         return min(1.0, max(0.0, float(x[0])))
+
+
+def _cell_of(name):
+    """A grid arena state's name x{x}_y{y} as the cell [x, y]."""
+    x, y = name[1:].split("_y")
+    return [int(x), int(y)]
+
+
+def grid_record(rec):
+    """A strategy.json record (or window entry) of a grid world, {state, standing, countdown,
+    ..., played}, in the grid form this reference reads: {cell, traps, countdown, ...,
+    played} with cells [x, y] (state names x{x}_y{y}, trap sets their members joined by '+')."""
+    out = dict(rec)
+    out["cell"] = _cell_of(out.pop("state"))
+    standing = out.pop("standing", None)
+    out["traps"] = None if standing is None else [_cell_of(c) for c in standing.split("+")]
+    if "played" in out:
+        out["played"] = [_cell_of(c) for c in out["played"].split("+")]
+    if "window" in out:
+        out["window"] = [grid_record(o) for o in out["window"]]
+    return out
 
 
 def dtmc_reach(succs):

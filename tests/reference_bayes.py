@@ -86,7 +86,7 @@ class BayesWorld(reference.World):
         """The value of exported records {cell, traps, countdown, q, hypothesis, window, action},
         window entries {cell, traps, countdown, action, played}."""
         table = {}
-        for rec in records:
+        for rec in map(reference.grid_record, records):
             v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
             W = tuple((self.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")),
                        o["action"], self.norm_traps(o["played"])) for o in rec["window"])
