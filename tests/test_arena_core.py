@@ -112,3 +112,45 @@ def test_sweep_parameters_on_an_arena_world() -> None:
     assert point.traps == 2 and point.initial_standing == 0      # the one 2-set of {web, mail}
     assert sweep.sweep_point(traps, {"traps": 1, "delay": 0}).initial_standing == 0
     assert math.isfinite(sizeguard.estimate_states(point))
+
+
+def test_strategy_records_name_states_and_actions_of_an_arena() -> None:
+    """strategy.json on an arena: states and P1's actions by name, values over the actions
+    available there, the initial state's record first; the file's text equals json.dumps of
+    the records, and Strategy reads them back."""
+    import json
+
+    from hg2prism.engines.engine import Transitions
+    from hg2prism.prism.decoding import DecodedStates
+    from hg2prism.strategy.deceptive import StormChoices
+    from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json, strategy_records
+
+    ts = analyse(lateral(delay=1)).ts
+    web, mail = ts.arena.index("web"), ts.arena.index("mail")
+    watch_db = ts.a2_names.index("watch_db")
+    # engine states: 0 at web (one action), 1 at mail (three), 2 the goal; 1 is initial
+    decoded = DecodedStates(
+        cell=np.array([web, mail, 0]), traps=np.array([watch_db, 0, 0]),
+        countdown=np.array([1, 0, 0]), q=np.array([0, 0, 1]), hypothesis=np.array([1, 0, 0]),
+        window=np.array([[[ts.state(mail, 0, 0), 2]], [[-1, -1]], [[-1, -1]]]),
+        goal=np.array([False, False, True]), fail=np.zeros(3, dtype=bool),
+        canonical=np.array([0, 1, 2]), n_canonical=3)
+    moves = Transitions(source=np.array([0, 1, 1, 1]), action=np.array([0, 0, 1, 2]),
+                        row_start=np.arange(5), target=np.array([2, 0, 2, 1]),
+                        probability=np.ones(4), labels={})
+    choices = StormChoices(representative=np.array([0, 1, 2]), choice=np.array([0, 3, -1]))
+    values = np.array([[0.5, np.nan, np.nan], [0.1, 0.2, 0.3], [np.nan] * 3])
+    extras = RecordExtras(values)
+    records = strategy_records(decoded, choices, moves, ts, extras, initial=1)
+    text = strategy_json(decoded, choices, moves, ts, extras, initial=1)
+    assert json.loads(text) == records
+    assert records[0] == {"initial": True, "state": "mail", "standing": "idle", "countdown": 0,
+                          "q": 0, "hypothesis": 0, "window": [], "action": "wait",
+                          "values": {"pivot_db": 0.1, "pivot_hr": 0.2, "wait": 0.3}}
+    assert records[1] == {"state": "web", "standing": "watch_db", "countdown": 1, "q": 0,
+                          "hypothesis": 1, "window": [{"state": "mail", "standing": "idle",
+                                                       "countdown": 0, "action": "wait"}],
+                          "action": "scan", "values": {"scan": 0.5}}
+    strategy = Strategy.from_records(records, ts)
+    assert strategy.move("web", 0, 1, [("mail", "wait", "idle", 0)], "watch_db", 1) == "scan"
+    assert strategy.move("mail", 0, 0, (), "idle", 0) == "wait"
