@@ -75,8 +75,8 @@ def analyse(world: World) -> Analysis:
         finally:    # a failed game (or Ctrl-C) does not wait for the games still queued
             pool.shutdown(wait=True, cancel_futures=True)
         inference = build_observer(world, games)
-        start = ts.decode(ts.start_state)[0]
-        v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, ts.place_label[start]]],
+        start_label = ts.state_label()[ts.start_state]
+        v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, start_label]],
                              "V_lead")
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")

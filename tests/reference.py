@@ -1,9 +1,12 @@
-"""Independent reference implementation of the hg2prism semantics (docs/semantics.md §§1-6).
+"""Independent reference implementation of the hg2prism semantics (docs/semantics.md §§1-6, and
+§15 for arena worlds).
 
 Written directly from the semantics (docs/semantics.md), deliberately without importing anything from
 ``hg2prism`` (and without stormpy), so that the test suite can use it to catch bugs in the
-package.  Everything is explicit: the world is read with ``tomllib``, the transition system,
-the perceptual games, the inference machine and the hypergame MDP are explored with
+package.  Everything is explicit: the world is read with ``tomllib`` and compiled to an
+explicit arena (``arena_of``: a grid world to one state per free cell with the actions N E S W
+and their slip outcomes, an arena world as written); the transition system, the perceptual
+games, the inference machine and the hypergame MDP are then explored on that arena with
 dictionaries and breadth-first search, and the games/MDP are solved *exactly* (to
 floating-point accuracy) by strategy iteration with exact policy evaluation (sparse linear
 solves).
@@ -14,6 +17,9 @@ Conventions (the contract with the package under test):
   written (border included);
 * a TS state is ``"trapped"``, ``(x, y)`` when delay == 0, or ``(x, y, T, c)`` when delay > 0
   with ``T`` the tuple of trap cells in candidate numbering (map reading order);
+* for an arena world a TS state is ``"trapped"``, the state's name when delay == 0, or
+  ``(name, standing, c)`` when delay > 0, ``standing`` the trap set as a tuple of candidate
+  names in the order of ``trap_candidates`` or P2's general action (its name);
 * DFA states are those of ``spot.translate(formula, "deterministic", "complete", "sbacc")``,
   renumbered breadth-first from the initial state over the label classes (semantics §3).
 
@@ -24,16 +30,34 @@ Choices where the semantics are silent (kept deliberately simple):
   the states from which no final state can be reached over those letters;
 * with a single hypothesis no change can happen, but B still records the last w-1
   observations (semantics §5 step 3 read literally), so such states are distinct in the count;
-* ``trap_strategy`` returns ``tuple(sorted(cells))`` (plain Python order of (x, y));
+* ``trap_strategy`` returns ``tuple(sorted(cells))`` (plain Python order of (x, y)); for an
+  arena, the trap set in candidate order or the action name;
 * the games G(x) are solved on the TS states reachable from the initial state; asking for
   P2's strategy or the inference at another TS state raises KeyError;
 * blank lines of the map string (e.g. after the opening triple quote) are ignored.
+
+Arena worlds (§15), choices where §15 is silent:
+
+* the DFA letters are the label sets the arena's states carry (all listed states, reachable
+  or not), plus the empty set in trap mode (``trapped`` carries no label); a grid's are its
+  label classes as before.  The label classes of an arena, which only number the DFA states
+  (§3), are these sets ordered by size, then by their propositions' indices in AP order; AP is
+  ``arena.propositions`` as listed, else the propositions of the labels sorted by name;
+* a terminal state v (no transition entry) has V_x(v, q) = 1 if q in F_x else 0; P2's
+  strategy there ties every action (like F and Sink), and P2's model of P1 is empty;
+* outcomes of probability 0 in ``to`` are dropped (they reach nothing); the trap rule applies
+  to terminal states too (a terminal successor in the set in force is ``trapped``);
+* the initial state is never trapped, even when it is a candidate in ``initial_traps``
+  (the rule applies to successors only);
+* records of an arena's strategy name the state as ``cell`` and its standing action as
+  ``traps`` (a list of candidate names, or the action name).
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import re
 import tomllib
 from collections import deque
 from dataclasses import dataclass, field
@@ -55,6 +79,7 @@ SWITCH_TOL = 1e-12   # strategy iteration: switch only on a strict improvement
 VI_STOP = 1e-9      # value iteration only seeds the strategy iteration
 VI_MAX_SWEEPS = 1500
 TIE_EXTRACT = 1e-7  # near-optimal rows when extracting the first strategy
+NOISE_TOL = 1e-8    # rounding noise tolerated on rows the noise guard left out
 
 
 # --------------------------------------------------------------------------------------
@@ -80,10 +105,13 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     3. strategy iteration for the maximiser: the P1 strategy is evaluated exactly by P2's
        best response (graph analysis of the states where P2 avoids the goal forever, then
        policy iteration with sparse linear solves), and rows that are strictly better (by
-       SWITCH_TOL) are switched in, until none is;
+       SWITCH_TOL) are switched in, until none is; a switch that would let P2 avoid the
+       goal from a state where she could not (impossible in exact arithmetic: it is a tie
+       that rounding makes look better, and it closes a loop) is undone and its row left out;
     4. certificate: the result is the value of a P1 strategy against P2's best response
        (<= game value) and a fixed point of the game operator (>= the least fixed point,
-       i.e. the game value); the fixed-point residual is checked (< 1e-11).
+       i.e. the game value); the fixed-point residual is checked (< 1e-11; rows left out
+       by the guard may exceed the value by rounding noise, < NOISE_TOL).
     """
     n = len(state_pairs)
     npairs = len(pair_rows)
@@ -183,31 +211,61 @@ def solve_reach_game(state_pairs, pair_rows, row_succ, return_strategy=False):
     # 2. optimal-looking strategy with progress, evaluated exactly; then strategy
     #    iteration (strict improvements only) until no row improves on the exact values
     sigma1 = extract(x, TIE_EXTRACT)
+    # Rows a switch into which turned out to stall (see below); they stay out of the
+    # improvement step. Never happens in exact arithmetic.
+    allowed = np.ones(nrows, dtype=bool)
     for _outer in range(1000):
-        x = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
-                               state_start)
+        x, attr = _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P,
+                                     state_start)
         q, pv, _ = game_op(x)
+        if not allowed.all():
+            pv = np.maximum.reduceat(np.where(allowed, q, -np.inf), pair_start)
         better = np.nonzero(pv > q[sigma1] + SWITCH_TOL)[0]
         if len(better) == 0:
             break
+        old = sigma1.copy()
         for p in better:
-            sigma1[p] = max(pair_rows[p], key=lambda r: q[r])
+            sigma1[p] = max((r for r in pair_rows[p] if allowed[r]), key=lambda r: q[r])
+        # Noise guard. In exact arithmetic a strict improvement keeps every state of the
+        # attractor in it (a closed class without the goal cannot contain a strictly improved
+        # state: its stationary distribution pi has pi (P x - x) = 0). With rounded
+        # probabilities (rows summing to 1 only within an ulp, amplified by near-closed
+        # loops, e.g. a 1e-8 chance of leaving) a tie can look like an improvement of ~1e-9
+        # and the switch closes a loop that never reaches the goal. Such switches are undone
+        # and their rows left out from then on.
+        switched = set(better.tolist())
+        while switched:
+            lost = attr & ~_attractor(n, state_pairs, pair_state, sigma1, row_targets, g)[0]
+            if not lost.any():
+                break
+            undo = [p for p in switched if lost[pair_state[p]]] or sorted(switched)
+            for p in undo:
+                allowed[sigma1[p]] = False
+                sigma1[p] = old[p]
+                switched.discard(p)
     else:
         raise RuntimeError("strategy iteration did not converge")
     # certificate: x is the exact value of P1's strategy sigma1 against P2's best response
     # (a lower bound of the game value) and a fixed point of the game operator (an upper
-    # bound: the value is its least fixed point)
-    _, _, fx = game_op(x)
+    # bound: the value is its least fixed point); rows left out by the noise guard may
+    # exceed it by rounding noise only (NOISE_TOL)
+    q, _, fx = game_op(x)
+    if not allowed.all():
+        pva = np.maximum.reduceat(np.where(allowed, q, -np.inf), pair_start)
+        fxa = pva if npairs == n else np.minimum.reduceat(pva, state_start)
+        noise = float(np.max(np.abs(fx - x)))
+        if noise > NOISE_TOL:
+            raise RuntimeError(f"game solution residual {noise} on rows left out as noise")
+        fx = fxa
     res = float(np.max(np.abs(fx - x)))
     if res > 1e-11:
         raise RuntimeError(f"game solution residual {res}")
     return (x, sigma1) if return_strategy else x
 
 
-def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
-    """Minimum reachability probability for P2 when P1 plays sigma1 (pair -> row)."""
-    # 1. attractor of the goal: states from which P2 cannot avoid reaching the goal with
-    #    positive probability; outside it (set Z) P2 avoids the goal forever (value 0).
+def _attractor(n, state_pairs, pair_state, sigma1, row_targets, g):
+    """(inattr, hit) when P1 plays sigma1: inattr[s] when P2 cannot avoid reaching the goal
+    with positive probability from s; hit[p] when pair p leads there."""
     preds = [[] for _ in range(n)]
     for p, r in enumerate(sigma1):
         for t in row_targets[r]:
@@ -234,6 +292,15 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
         t = queue.popleft()
         for p in preds[t]:
             mark(p)
+    return np.array(inattr, dtype=bool), hit
+
+
+def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, state_start):
+    """Minimum reachability probability for P2 when P1 plays sigma1 (pair -> row), and the
+    attractor of the goal (see _attractor)."""
+    # 1. attractor of the goal: states from which P2 cannot avoid reaching the goal with
+    #    positive probability; outside it (set Z) P2 avoids the goal forever (value 0).
+    inattr, hit = _attractor(n, state_pairs, pair_state, sigma1, row_targets, g)
     # 2. P2's policy: on Z an avoiding pair (value 0); on the rest policy iteration, each
     #    policy evaluated exactly (the system is non-singular there)
     tau = np.empty(n, dtype=np.int64)
@@ -245,7 +312,7 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
     live = np.array([s for s in range(n) if inattr[s]], dtype=np.int64)
     x = np.zeros(n)
     if len(live) == 0:
-        return x
+        return x, inattr
     eye = sp.identity(len(live), format="csc")
     for _ in range(10000):
         rows = sigma1[tau[live]]
@@ -257,7 +324,7 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
         best = np.minimum.reduceat(qp, state_start)
         worse = [s for s in live if best[s] < qp[tau[s]] - SWITCH_TOL]
         if not worse:
-            return x
+            return x, inattr
         for s in worse:
             tau[s] = min(state_pairs[s], key=lambda p: qp[p])
     raise RuntimeError("policy iteration (min) did not converge")
@@ -267,18 +334,35 @@ def _best_response_min(n, state_pairs, pair_state, sigma1, row_targets, g, P, st
 # automata
 # --------------------------------------------------------------------------------------
 
+def true_props(letter):
+    """The propositions that hold in a letter: None (none), one proposition name (a grid's
+    label class), or a set of proposition names (an arena's label: a full valuation)."""
+    if letter is None:
+        return frozenset()
+    if isinstance(letter, str):
+        return frozenset((letter,))
+    return frozenset(letter)
+
+
 def _one_of(letters, aps):
-    """Spot formula: the letter is one of `letters` (None = no proposition, else exactly that one)."""
+    """Spot formula: the letter is one of `letters` (each a valuation of `aps`, see true_props)."""
     terms = []
     for lab in letters:
+        true = true_props(lab)
         terms.append("(" + " & ".join(
-            (ap if ap == lab else f"!{ap}") for ap in aps) + ")" if aps else "1")
+            (ap if ap in true else f"!{ap}") for ap in aps) + ")" if aps else "1")
     return " | ".join(terms) if terms else "0"
 
 
 class DFA:
-    def __init__(self, formula: str, labels, world_letters=None):
+    """``labels``: the letters delta is defined on (see true_props). Grid letters (None or one
+    proposition) are numbered by the grid's label classes (none, obs, letters sorted); with
+    ``ap_order`` (arenas) the letters are the label classes in the order given and the
+    propositions are ordered by ``ap_order`` for the numbering of unreachable states."""
+
+    def __init__(self, formula: str, labels, world_letters=None, ap_order=None):
         self.formula = formula
+        self.ap_order = ap_order
         f = spot.formula(formula)
         if not f.is_syntactic_guarantee():
             raise ValueError(f"not syntactically co-safe: {formula}")
@@ -287,16 +371,17 @@ class DFA:
         self.n = aut.num_states()
         self.init = aut.get_init_state_number()
         aps = [str(a) for a in aut.ap()]
-        aps_all = sorted({lab for lab in labels if lab is not None} | set(aps))
-        # delta[q][label] for label in labels (None or a proposition name)
+        aps_all = sorted(set().union(*map(true_props, labels)) | set(aps))
+        # delta[q][label] for label in labels (None, a proposition name or a set of them)
         self.delta = {}
         for q in range(self.n):
             row = {}
             for lab in labels:
+                true = true_props(lab)
                 assign = buddy.bddtrue
                 for ap in aps:
                     var = aut.register_ap(ap)
-                    lit = buddy.bdd_ithvar(var) if ap == lab else buddy.bdd_nithvar(var)
+                    lit = buddy.bdd_ithvar(var) if ap in true else buddy.bdd_nithvar(var)
                     assign = buddy.bdd_and(assign, lit)
                 dsts = [e.dst for e in aut.out(q)
                         if buddy.bdd_and(e.cond, assign) != buddy.bddfalse]
@@ -331,11 +416,17 @@ class DFA:
         """Semantics §3: states numbered breadth-first from the initial state, successors in
         label-class order (none, obs, the region letters sorted); states no word of classes
         reaches follow, breadth-first over every valuation of the automaton's propositions
-        (in class order, then by name; binary order, the last varying fastest)."""
-        classes = [None] + [lab for lab in ("obs",) if lab in labels] + sorted(
-            lab for lab in labels if lab not in (None, "obs"))
+        (in class order, then by name; binary order, the last varying fastest).
+        Arenas (``ap_order`` given): the classes are ``labels`` in the order given, the
+        propositions in ``ap_order``, then any other by name."""
         aps = [str(a) for a in aut.ap()]
-        aps = [lab for lab in classes if lab in aps] + sorted(set(aps) - set(classes))
+        if self.ap_order is None:
+            classes = [None] + [lab for lab in ("obs",) if lab in labels] + sorted(
+                lab for lab in labels if lab not in (None, "obs"))
+            aps = [lab for lab in classes if lab in aps] + sorted(set(aps) - set(classes))
+        else:
+            classes = list(labels)
+            aps = [ap for ap in self.ap_order if ap in aps] + sorted(set(aps) - set(self.ap_order))
 
         def successor(q, true_aps):
             assign = buddy.bddtrue
@@ -348,7 +439,7 @@ class DFA:
         valuations = [{ap for ap, bit in zip(aps, bits) if bit}
                       for bits in itertools.product((False, True), repeat=len(aps))]
         order = [self.init]
-        for letters in ([{lab} if lab else set() for lab in classes], valuations):
+        for letters in ([true_props(lab) for lab in classes], valuations):
             for q in order:          # grows while walked: a queue
                 for true_aps in letters:
                     target = successor(q, true_aps)
@@ -361,6 +452,207 @@ class DFA:
 
     def step(self, q, lab):
         return self.delta[q][lab]
+
+
+# --------------------------------------------------------------------------------------
+# explicit arenas (semantics §15): a grid world compiles to one, an arena world is one
+# --------------------------------------------------------------------------------------
+
+IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+NOT_PROPOSITIONS = {"F", "G", "M", "R", "U", "V", "W", "X", "true", "false"}   # Spot reads these
+
+
+def arena_of(doc: dict) -> dict:
+    """The explicit arena of a parsed world file, grid (§§1-2) or arena (§15) alike:
+
+    * ``kind``: "grid" or "arena";
+    * ``states``: the names, in the state numbering (a grid's are its free cells ``(x, y)``
+      in map reading order); ``initial``: s0;
+    * ``propositions``: AP, in order; ``label``: name -> letter (a grid's: None or its one
+      proposition; an arena's: the frozenset of its propositions); ``classes``: the letters
+      the DFAs read, in label-class order; ``letters``: those the world produces (§3);
+    * ``actions``: name -> P1's actions in order (empty: a terminal state);
+    * ``moves``: (name, a1) -> {a2 or None: {successor name: probability}}, None for the
+      entry without ``p2`` (every P2 action not named), before the trap rule;
+    * ``p2``: "traps" or "general"; ``a2``: A2 in order (trap sets as tuples of candidates in
+      candidate order, or action names); ``candidates``: the trap candidates (or []);
+    * ``delay`` and ``initial_action`` (the standing action at the start, None when delay 0).
+    """
+    if ("grid" in doc) == ("arena" in doc):
+        raise ValueError("a world has exactly one of [grid] and [arena]")
+    return grid_arena(doc) if "grid" in doc else parse_arena(doc)
+
+
+def grid_arena(doc: dict) -> dict:
+    """§15 last item: one state per free cell, N E S W with §2's slip outcomes (merged in the
+    order intended, first perpendicular, second perpendicular; probability 0 dropped)."""
+    rows = [ln.rstrip("\r") for ln in doc["grid"]["map"].split("\n")]
+    rows = [ln for ln in rows if ln.strip() != ""]
+    H, W = len(rows), len(rows[0])
+    slip = float(doc["robot"]["slip"])
+
+    def char(x, y):
+        return rows[H - 1 - y][x]
+
+    def move(cell, d):
+        dx, dy = DELTA[d]
+        nx, ny = cell[0] + dx, cell[1] + dy
+        if 0 <= nx < W and 0 <= ny < H and char(nx, ny) != "#":
+            return (nx, ny)
+        return cell
+
+    states, cands, label, start = [], [], {}, None
+    props = {"obs"}
+    for i, row in enumerate(rows):
+        y = H - 1 - i
+        for x, ch in enumerate(row):
+            if ch == "#":
+                continue
+            states.append((x, y))
+            label[(x, y)] = "obs" if ch == "o" else ch if "A" <= ch <= "Z" else None
+            if ch == "t":
+                cands.append((x, y))
+            elif ch == "@":
+                start = (x, y)
+            elif "A" <= ch <= "Z":
+                props.add(ch)
+    moves = {}
+    for cell in states:
+        for a1 in ACTIONS:
+            dist = {}
+            for d, p in ((a1, 1.0 - 2.0 * slip), (PERP[a1][0], slip), (PERP[a1][1], slip)):
+                if p > 0:
+                    c2 = move(cell, d)
+                    dist[c2] = dist.get(c2, 0.0) + p
+            moves[(cell, a1)] = {None: dist}
+    adv = doc["adversary"]
+    ntraps = int(adv["traps"])
+    delay = int(adv.get("delay", 0))
+    cand_index = {c: i for i, c in enumerate(cands)}
+    a2 = [tuple(cands[i] for i in comb)
+          for comb in itertools.combinations(range(len(cands)), ntraps)]
+    init_action = None
+    if delay > 0:
+        init_action = tuple(sorted({(int(c[0]), int(c[1])) for c in adv.get("initial_traps", [])},
+                                   key=lambda c: cand_index[c]))
+    return dict(kind="grid", states=states, initial=start, propositions=sorted(props),
+                label=label, classes=[None] + sorted(props),
+                # none (the start cell, trapped), obs where the map has an obstacle, and each
+                # region letter on the map
+                letters=[None] + sorted(p for p in props
+                                        if p != "obs" or any("o" in row for row in rows)),
+                actions={c: list(ACTIONS) for c in states}, moves=moves, p2="traps", a2=a2,
+                candidates=cands, delay=delay, initial_action=init_action,
+                grid=dict(rows=rows, H=H, W=W, slip=slip, char=char, move=move,
+                          props=props))
+
+
+def parse_arena(doc: dict) -> dict:
+    """An arena world's [arena] and [adversary] tables as an explicit arena, checked against
+    §15 (ValueError naming the problem)."""
+    ar = doc["arena"]
+    states = list(ar["states"])
+    known = set(states)
+    for name in states:
+        if not isinstance(name, str) or not IDENT.match(name):
+            raise ValueError(f"state name {name!r} is not an identifier")
+    if len(known) != len(states) or TRAPPED in known:
+        raise ValueError("state names repeated (or 'trapped')")
+    initial = ar["initial"]
+    if initial not in known:
+        raise ValueError(f"unknown initial state {initial!r}")
+    labels_doc = dict(ar.get("labels", {}))
+    for name, props in labels_doc.items():
+        if name not in known:
+            raise ValueError(f"label of unknown state {name!r}")
+    occurring = []
+    for name in states:
+        for p in labels_doc.get(name, []):
+            if p not in occurring:
+                occurring.append(p)
+    # AP: as listed, else those that occur in the labels, by name
+    propositions = list(ar["propositions"]) if "propositions" in ar else sorted(occurring)
+    for p in propositions:
+        if not isinstance(p, str) or not IDENT.match(p) or p in NOT_PROPOSITIONS:
+            raise ValueError(f"{p!r} is not an atomic proposition Spot reads as such")
+    if len(set(propositions)) != len(propositions):
+        raise ValueError("propositions repeated")
+    if set(occurring) - set(propositions):
+        raise ValueError(f"labels use unknown propositions {set(occurring) - set(propositions)}")
+    label = {name: frozenset(labels_doc.get(name, [])) for name in states}
+
+    adv = doc["adversary"]
+    delay = int(adv.get("delay", 0))
+    if "actions" in adv:
+        if "traps" in adv or "trap_candidates" in adv or "initial_traps" in adv:
+            raise ValueError("adversary: general actions and traps together")
+        mode, cands = "general", []
+        a2 = list(adv["actions"])
+        if not a2 or len(set(a2)) != len(a2) or not all(
+                isinstance(a, str) and IDENT.match(a) for a in a2):
+            raise ValueError("adversary.actions: distinct identifiers, at least one")
+        init_action = None
+        if delay > 0:
+            init_action = adv["initial_action"]
+            if init_action not in a2:
+                raise ValueError(f"unknown initial_action {init_action!r}")
+    else:
+        mode = "traps"
+        ntraps = int(adv["traps"])
+        cands = list(adv["trap_candidates"])
+        if len(set(cands)) != len(cands) or set(cands) - known or not 1 <= ntraps <= len(cands):
+            raise ValueError("adversary.trap_candidates: distinct states, at least `traps`")
+        cand_index = {c: i for i, c in enumerate(cands)}
+        a2 = [tuple(cands[i] for i in comb)
+              for comb in itertools.combinations(range(len(cands)), ntraps)]
+        init_action = None
+        if delay > 0:
+            init = list(adv["initial_traps"])
+            if len(set(init)) != ntraps or set(init) - set(cands):
+                raise ValueError("adversary.initial_traps: `traps` distinct candidates")
+            init_action = tuple(sorted(set(init), key=lambda c: cand_index[c]))
+
+    actions = {name: [] for name in states}
+    moves = {}
+    for entry in ar.get("transition", []):
+        s, a1, to = entry["state"], entry["action"], dict(entry["to"])
+        if s not in known:
+            raise ValueError(f"transition from unknown state {s!r}")
+        if not isinstance(a1, str) or not IDENT.match(a1):
+            raise ValueError(f"action {a1!r} is not an identifier")
+        if set(to) - known:
+            raise ValueError(f"transition to unknown states {set(to) - known}")
+        if any(p < 0 for p in to.values()) or abs(math.fsum(to.values()) - 1.0) > 1e-9:
+            raise ValueError(f"probabilities of ({s}, {a1}) do not sum to 1: {to}")
+        if a1 not in actions[s]:
+            actions[s].append(a1)
+        row = moves.setdefault((s, a1), {})
+        if "p2" in entry:
+            if mode != "general":
+                raise ValueError("p2 is only allowed with general P2 actions")
+            named = [entry["p2"]] if isinstance(entry["p2"], str) else list(entry["p2"])
+            for b in named:
+                if b not in a2:
+                    raise ValueError(f"unknown P2 action {b!r}")
+                if b in row:
+                    raise ValueError(f"two entries for ({s}, {a1}, {b})")
+                row[b] = {t: float(p) for t, p in to.items()}
+        else:
+            if None in row:
+                raise ValueError(f"two entries without p2 for ({s}, {a1})")
+            row[None] = {t: float(p) for t, p in to.items()}
+    for (s, a1), row in moves.items():
+        if None not in row and set(a2) - set(row):
+            raise ValueError(f"({s}, {a1}) not covered for P2 actions {set(a2) - set(row)}")
+
+    # the letters: the label sets the states carry (and the empty one of `trapped`)
+    letters = set(label.values()) | ({frozenset()} if mode == "traps" else set())
+    order = {p: i for i, p in enumerate(propositions)}
+    classes = sorted(letters, key=lambda lab: (len(lab), sorted(order[p] for p in lab)))
+    return dict(kind="arena", states=states, initial=initial, propositions=propositions,
+                label=label, classes=classes, letters=list(classes), actions=actions,
+                moves=moves, p2=mode, a2=a2, candidates=cands, delay=delay,
+                initial_action=init_action)
 
 
 # --------------------------------------------------------------------------------------
@@ -389,26 +681,29 @@ class Reference:
         return w.eta((int(hypothesis), B), obs)
 
     def trap_strategy(self, hypothesis, ts_state):
-        """pi2_x(v) as tuple(sorted(cells)) (plain Python sort of (x, y) pairs)."""
+        """pi2_x(v): for a grid, tuple(sorted(cells)) (plain Python sort of (x, y) pairs); for
+        an arena, the trap set as a tuple of candidates in candidate order, or the action name."""
         w = self.world
-        return tuple(sorted(w.pi2(int(hypothesis), w.norm_ts(ts_state))))
+        a2 = w.pi2(int(hypothesis), w.norm_ts(ts_state))
+        return tuple(sorted(a2)) if w.kind == "grid" else a2
 
 
 class World:
+    """The world of a grid or arena file, everything computed on its explicit arena
+    (``self.arena``, see arena_of). TS states (§2, §15): ``"trapped"``; a grid's ``(x, y)`` or
+    ``(x, y, T, c)``; an arena's ``name`` or ``(name, standing, c)`` (standing: the trap set as
+    a tuple of candidates in candidate order, or P2's action name)."""
+
     def __init__(self, path):
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)
         self.doc = doc
-        rows = [ln.rstrip("\r") for ln in doc["grid"]["map"].split("\n")]
-        rows = [ln for ln in rows if ln.strip() != ""]
-        self.rows = rows
-        self.H = len(rows)
-        self.W = len(rows[0])
-        self.slip = float(doc["robot"]["slip"])
+        self.arena = arena = arena_of(doc)
+        self.kind = arena["kind"]
+        self.mode = arena["p2"]
         self.task = doc["task"]["formula"]
         adv = doc["adversary"]
-        self.ntraps = int(adv["traps"])
-        self.delay = int(adv.get("delay", 0))
+        self.delay = arena["delay"]
         self.hyps = list(adv["hypotheses"])
         self.h0 = int(adv.get("initial_hypothesis", 0))
         inf = doc["inference"]
@@ -416,33 +711,34 @@ class World:
         self.threshold = float(inf["threshold"]) if "threshold" in inf else None   # none for "bayes"
         self.beta = float(inf["rationality"])
 
-        self.cands = []
-        self.start = None
-        self.props = {"obs"}
-        for i, row in enumerate(rows):
-            y = self.H - 1 - i
-            for x, ch in enumerate(row):
-                if ch == "t":
-                    self.cands.append((x, y))
-                elif ch == "@":
-                    self.start = (x, y)
-                elif "A" <= ch <= "Z":
-                    self.props.add(ch)
+        self.sets = arena["a2"]                 # A2 in order (trap sets or action names)
+        self.cands = arena["candidates"]
         self.cand_index = {c: i for i, c in enumerate(self.cands)}
-        self.sets = [tuple(self.cands[i] for i in comb)
-                     for comb in itertools.combinations(range(len(self.cands)), self.ntraps)]
-        if self.delay > 0:
-            T0 = self.norm_traps(adv.get("initial_traps", []))
-            self.v0 = (self.start[0], self.start[1], T0, 0)
+        self._trapset = {a2: frozenset(a2) for a2 in self.sets} if self.mode == "traps" else None
+        self._label = arena["label"]
+        self._actions = arena["actions"]
+        self._moves = arena["moves"]
+        self.empty_letter = None if self.kind == "grid" else frozenset()
+        if self.kind == "grid":
+            g = arena["grid"]
+            self.rows, self.H, self.W, self.slip = g["rows"], g["H"], g["W"], g["slip"]
+            self.char, self.move, self.props = g["char"], g["move"], g["props"]
+            self.ntraps = int(adv["traps"])
+            self.start = arena["initial"]
+            self.place = (lambda v: v) if self.delay == 0 else (lambda v: v[:2])
         else:
-            self.v0 = self.start
-        labels = [None] + sorted(self.props)
-        # the letters the world's states produce: none (free cells, trapped), obs where the map
-        # has an obstacle, and each region letter on the map
-        self.world_letters = [None] + sorted(
-            p for p in self.props
-            if p != "obs" or any("o" in row for row in self.rows))
+            self.props = set(arena["propositions"])
+            self.place = (lambda v: v) if self.delay == 0 else (lambda v: v[0])
+            for formula in [self.task, *self.hyps]:
+                unknown = {str(a) for a in spot.atomic_prop_collect(spot.formula(formula))} \
+                    - self.props
+                if unknown:
+                    raise ValueError(f"{formula!r} uses unknown propositions {sorted(unknown)}")
+        self.v0 = self.make(arena["initial"], arena["initial_action"], 0)
+        self.world_letters = arena["letters"]
         self.dfa_cache = {}
+        self._ap_order = None if self.kind == "grid" else arena["propositions"]
+        labels = arena["classes"]
         self.task_dfa = self.dfa(self.task, labels)
         self.hyp_dfas = [self.dfa(h, labels) for h in self.hyps]
         self._out_cache = {}
@@ -455,47 +751,68 @@ class World:
     # ----- helpers -----
     def dfa(self, formula, labels):
         if formula not in self.dfa_cache:
-            self.dfa_cache[formula] = DFA(formula, labels, self.world_letters)
+            self.dfa_cache[formula] = DFA(formula, labels, self.world_letters, self._ap_order)
         return self.dfa_cache[formula]
 
-    def char(self, x, y):
-        return self.rows[self.H - 1 - y][x]
+    def make(self, name, standing, countdown):
+        """The TS state of the arena state `name` with the standing action and countdown."""
+        if self.delay == 0:
+            return name
+        if self.kind == "grid":
+            return (name[0], name[1], standing, countdown)
+        return (name, standing, countdown)
+
+    def standing(self, v):
+        return v[-2]
+
+    def countdown(self, v):
+        return v[-1]
 
     def label(self, v):
         if v == TRAPPED:
-            return None
-        ch = self.char(v[0], v[1])
-        if ch == "o":
-            return "obs"
-        if "A" <= ch <= "Z":
-            return ch
-        return None
+            return self.empty_letter
+        return self._label[self.place(v)]
+
+    def actions(self, v):
+        """P1's actions at TS state v, in order (none at `trapped` and at terminal states)."""
+        if v == TRAPPED:
+            return []
+        return self._actions[self.place(v)]
+
+    def terminal(self, v):
+        """A state without P1 actions (not `trapped`): reaching it ends the episode (§15)."""
+        return v != TRAPPED and not self._actions[self.place(v)]
 
     def norm_traps(self, T):
-        cells = {(int(c[0]), int(c[1])) for c in T}
-        return tuple(sorted(cells, key=lambda c: self.cand_index[c]))
+        """The standing P2 action of a record or a caller: a trap set (any iterable of
+        candidates: cells [x, y] for a grid, names for an arena) as a tuple in candidate
+        order, or a general action's name."""
+        if self.mode == "general":
+            return str(T)
+        if self.kind == "grid":
+            items = {(int(c[0]), int(c[1])) for c in T}
+        else:
+            items = {str(c) for c in T}
+        return tuple(sorted(items, key=lambda c: self.cand_index[c]))
 
     def norm_ts(self, v):
-        if isinstance(v, str):
-            assert v == TRAPPED
+        if isinstance(v, str) and v == TRAPPED:
             return TRAPPED
+        if self.kind == "arena":
+            if isinstance(v, str):
+                return v
+            v = tuple(v)
+            return (str(v[0]), self.norm_traps(v[1]), int(v[2]))
         v = tuple(v)
         if len(v) == 2:
             return (int(v[0]), int(v[1]))
         return (int(v[0]), int(v[1]), self.norm_traps(v[2]), int(v[3]))
 
-    # ----- TS (semantics §2) -----
-    def move(self, cell, d):
-        dx, dy = DELTA[d]
-        nx, ny = cell[0] + dx, cell[1] + dy
-        if 0 <= nx < self.W and 0 <= ny < self.H and self.char(nx, ny) != "#":
-            return (nx, ny)
-        return cell
-
+    # ----- TS (semantics §2, §15) -----
     def A2(self, v):
         if self.delay == 0:
             return self.sets
-        T, c = v[2], v[3]
+        T, c = v[-2], v[-1]
         return [T] if c > 0 else self.sets
 
     def outcomes(self, v, a1, a2):
@@ -504,20 +821,20 @@ class World:
         res = self._out_cache.get(key)
         if res is not None:
             return res
-        cell = (v[0], v[1])
+        row = self._moves[(self.place(v), a1)]
+        dist = row.get(a2) if a2 in row else row[None]
+        traps = self._trapset[a2] if self._trapset is not None else ()
         res = {}
-        p_main = 1.0 - 2.0 * self.slip
-        for d, p in ((a1, p_main), (PERP[a1][0], self.slip), (PERP[a1][1], self.slip)):
+        for s2, p in dist.items():
             if p <= 0:
                 continue
-            c2 = self.move(cell, d)
-            if c2 in a2:
+            if s2 in traps:
                 s = TRAPPED
             elif self.delay == 0:
-                s = c2
+                s = s2
             else:
-                T, c = v[2], v[3]
-                s = (c2[0], c2[1], a2, self.delay if a2 != T else max(c - 1, 0))
+                T, c = v[-2], v[-1]
+                s = self.make(s2, a2, self.delay if a2 != T else max(c - 1, 0))
             res[s] = res.get(s, 0.0) + p
         self._out_cache[key] = res
         return res
@@ -529,7 +846,7 @@ class World:
         while queue:
             v = queue.popleft()
             for a2 in self.A2(v):
-                for a1 in ACTIONS:
+                for a1 in self.actions(v):
                     for s in self.outcomes(v, a1, a2):
                         if s != TRAPPED and s not in seen:
                             seen.add(s)
@@ -538,14 +855,28 @@ class World:
         return order
 
     # ----- perceptual games (semantics §4) -----
+    def _target(self, dfa, q, v2):
+        """"goal", "fail" or (v2, q2) after moving to v2 from DFA state q (§4, §15)."""
+        if v2 == TRAPPED:
+            return "fail"
+        q2 = dfa.step(q, self.label(v2))
+        if q2 in dfa.acc:
+            return "goal"
+        if q2 in dfa.sink or self.terminal(v2):
+            return "fail"
+        return (v2, q2)
+
     def game_values(self, formula):
-        """V_x as a dict {(v, q): value} over TS-reachable v (non-trapped) and all q."""
+        """V_x as a dict {(v, q): value} over TS-reachable non-terminal v (not trapped) and
+        the q outside F and Sink."""
         if formula in self._games:
             return self._games[formula]
         dfa = self.dfa_cache[formula]
         idx = {}
         nodes = []
         for v in self._ts_states:
+            if self.terminal(v):
+                continue
             for q in range(dfa.n):
                 if q in dfa.acc or q in dfa.sink:
                     continue
@@ -556,19 +887,11 @@ class World:
             ps = []
             for a2 in self.A2(v):
                 rows = []
-                for a1 in ACTIONS:
+                for a1 in self.actions(v):
                     succ = []
                     for v2, pr in self.outcomes(v, a1, a2).items():
-                        if v2 == TRAPPED:
-                            succ.append(("fail", pr))
-                            continue
-                        q2 = dfa.step(q, self.label(v2))
-                        if q2 in dfa.acc:
-                            succ.append(("goal", pr))
-                        elif q2 in dfa.sink:
-                            succ.append(("fail", pr))
-                        else:
-                            succ.append((idx[(v2, q2)], pr))
+                        t = self._target(dfa, q, v2)
+                        succ.append((t if t in ("goal", "fail") else idx[t], pr))
                     rows.append(len(row_succ))
                     row_succ.append(succ)
                 ps.append(len(pair_rows))
@@ -585,7 +908,7 @@ class World:
             return 0.0
         if q in dfa.acc:
             return 1.0
-        if q in dfa.sink:
+        if q in dfa.sink or self.terminal(v):
             return 0.0
         try:
             return vals[(v, q)]
@@ -604,7 +927,8 @@ class World:
         return tot
 
     def pi2(self, x, v):
-        """P2's strategy pi2_x(v) (semantics §4): a trap set (tuple in candidate order)."""
+        """P2's strategy pi2_x(v) (semantics §4): a trap set (tuple in candidate order) or a
+        general action. Where q_x0(v) is in F or Sink, or v is terminal, every action ties."""
         key = (x, v)
         if key in self._pi2_cache:
             return self._pi2_cache[key]
@@ -612,31 +936,35 @@ class World:
         dfa, _ = self.game_values(formula)
         q0 = dfa.step(dfa.init, self.label(v))
         acts = self.A2(v)
-        if q0 in dfa.acc or q0 in dfa.sink:
+        if q0 in dfa.acc or q0 in dfa.sink or self.terminal(v):
             tied = list(acts)
         else:
-            m = [max(self.Q(formula, v, q0, a1, a2) for a1 in ACTIONS) for a2 in acts]
+            m = [max(self.Q(formula, v, q0, a1, a2) for a1 in self.actions(v)) for a2 in acts]
             mn = min(m)
             tied = [a2 for a2, mv in zip(acts, m) if mv <= mn + TIE_P2]
-        if self.delay > 0 and v[2] in tied:
-            res = v[2]
+        if self.delay > 0 and self.standing(v) in tied:
+            res = self.standing(v)
         else:
-            res = tied[0]   # self.sets / A2 are already in itertools.combinations order
+            res = tied[0]   # A2 is in its order: as listed, or itertools.combinations order
         self._pi2_cache[key] = res
         return res
 
     def logpi1(self, x, v, a2):
-        """P2's softmax model of P1 under hypothesis x: {a1: ln pi1_x(a1 | v, a2)}."""
+        """P2's softmax model of P1 under hypothesis x: {a1: ln pi1_x(a1 | v, a2)} over the
+        actions available at v."""
         key = (x, v, a2)
         if key in self._logpi_cache:
             return self._logpi_cache[key]
         formula = self.hyps[x]
         dfa, _ = self.game_values(formula)
         q0 = dfa.step(dfa.init, self.label(v))
-        z = [self.beta * self.Q(formula, v, q0, a1, a2) for a1 in ACTIONS]
-        mx = max(z)
-        lse = mx + math.log(sum(math.exp(zi - mx) for zi in z))
-        res = {a1: zi - lse for a1, zi in zip(ACTIONS, z)}
+        acts = self.actions(v)
+        z = [self.beta * self.Q(formula, v, q0, a1, a2) for a1 in acts]
+        res = {}
+        if z:
+            mx = max(z)
+            lse = mx + math.log(sum(math.exp(zi - mx) for zi in z))
+            res = {a1: zi - lse for a1, zi in zip(acts, z)}
         self._logpi_cache[key] = res
         return res
 
@@ -678,16 +1006,9 @@ class World:
         M2 = self.eta(M, (v, a1))
         res = {}
         for v2, pr in self.outcomes(v, a1, a2).items():
-            if v2 == TRAPPED:
-                t = "fail"
-            else:
-                q2 = dfa.step(q, self.label(v2))
-                if q2 in dfa.acc:
-                    t = "goal"
-                elif q2 in dfa.sink:
-                    t = "fail"
-                else:
-                    t = (v2, q2, M2)
+            t = self._target(dfa, q, v2)
+            if t not in ("goal", "fail"):
+                t = (v2, t[1], M2)
             res[t] = res.get(t, 0.0) + pr
         return res
 
@@ -697,7 +1018,7 @@ class World:
             return "fail"
         if q in self.task_dfa.acc:
             return "goal"
-        if q in self.task_dfa.sink:
+        if q in self.task_dfa.sink or self.terminal(v):
             return "fail"
         return s
 
@@ -719,7 +1040,7 @@ class World:
         queue = deque([s0])
         while queue:
             s = queue.popleft()
-            for a1 in ACTIONS:
+            for a1 in self.actions(s[0]):
                 succ = self.hyper_successors(s, a1)
                 trans[(s, a1)] = succ
                 for t in succ:
@@ -746,7 +1067,7 @@ class World:
             state_pairs, pair_rows, row_succ = [], [], []
             for i, s in enumerate(order):
                 rows = []
-                for a1 in ACTIONS:
+                for a1 in self.actions(s[0]):
                     succ = [(t if t in ("goal", "fail") else idx[t], pr)
                             for t, pr in trans[(s, a1)].items()]
                     rows.append(len(row_succ))
@@ -756,7 +1077,8 @@ class World:
             x, sigma1 = solve_reach_game(state_pairs, pair_rows, row_succ,
                                          return_strategy=True)
             value = float(x[0])
-            self._policy = {s: ACTIONS[sigma1[i] - pair_rows[i][0]] for i, s in enumerate(order)}
+            self._policy = {s: self.actions(s[0])[sigma1[i] - pair_rows[i][0]]
+                            for i, s in enumerate(order)}
         self._hyper = (s0, order, idx, trans, reached)
         value = min(1.0, max(0.0, value))               # clip floating-point noise
         v_lead = min(1.0, max(0.0, float(v_lead)))
@@ -765,6 +1087,13 @@ class World:
 
     # ----- strategy evaluation -----
     def _ts_record(self, v):
+        """An arena state is recorded by name as its "cell", its standing action as "traps"
+        (a list of candidate names, or P2's action name)."""
+        if self.kind == "arena":
+            if self.delay == 0:
+                return {"cell": v, "traps": None, "countdown": None}
+            T = list(v[1]) if self.mode == "traps" else v[1]
+            return {"cell": v[0], "traps": T, "countdown": v[2]}
         if self.delay == 0:
             return {"cell": [v[0], v[1]], "traps": None, "countdown": None}
         return {"cell": [v[0], v[1]], "traps": [list(c) for c in v[2]], "countdown": v[3]}
@@ -780,6 +1109,9 @@ class World:
         return recs
 
     def record_ts_state(self, cell, traps, countdown):
+        if self.kind == "arena":
+            return self.make(str(cell), None if self.delay == 0 else self.norm_traps(traps),
+                             None if self.delay == 0 else int(countdown))
         if self.delay == 0:
             return (int(cell[0]), int(cell[1]))
         return (int(cell[0]), int(cell[1]), self.norm_traps(traps), int(countdown))
@@ -792,7 +1124,7 @@ class World:
                       for o in rec["window"])
             key = (v, int(rec["q"]), (int(rec["hypothesis"]), B))
             a = rec["action"]
-            if a not in ACTIONS:
+            if a not in self.actions(v):
                 raise ValueError(f"bad action {a!r} in record {rec}")
             if key in table and table[key] != a:
                 raise ValueError(f"conflicting records for state {key}")
@@ -823,21 +1155,32 @@ class World:
 
 
 def _cell_of(name):
-    """A grid arena state's name x{x}_y{y} as the cell [x, y]."""
-    x, y = name[1:].split("_y")
-    return [int(x), int(y)]
+    """A grid arena state's name x{x}_y{y} as the cell [x, y] (another name as it is)."""
+    import re
+
+    match = re.fullmatch(r"x(\d+)_y(\d+)", name)
+    return [int(match[1]), int(match[2])] if match else name
+
+
+def _set_of(name):
+    """A trap set's name (its members joined by '+') as a list of cells."""
+    cells = [_cell_of(c) for c in name.split("+")]
+    return cells if all(isinstance(c, list) for c in cells) else name
 
 
 def grid_record(rec):
-    """A strategy.json record (or window entry) of a grid world, {state, standing, countdown,
-    ..., played}, in the grid form this reference reads: {cell, traps, countdown, ...,
-    played} with cells [x, y] (state names x{x}_y{y}, trap sets their members joined by '+')."""
+    """A strategy.json record (or window entry) of the package, {state, standing, countdown,
+    ..., played}, in the form this reference reads: {cell, traps, countdown, ..., played}, a
+    grid's cells as [x, y] (state names x{x}_y{y}, trap sets their members joined by '+').
+    A record already in that form (this reference's own) is returned as it is."""
+    if "state" not in rec:
+        return rec
     out = dict(rec)
     out["cell"] = _cell_of(out.pop("state"))
     standing = out.pop("standing", None)
-    out["traps"] = None if standing is None else [_cell_of(c) for c in standing.split("+")]
+    out["traps"] = None if standing is None else _set_of(standing)
     if "played" in out:
-        out["played"] = [_cell_of(c) for c in out["played"].split("+")]
+        out["played"] = _set_of(out["played"])
     if "window" in out:
         out["window"] = [grid_record(o) for o in out["window"]]
     return out

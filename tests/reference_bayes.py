@@ -3,10 +3,14 @@ the specification alone: it imports nothing from hg2prism and builds on tests/re
 world, the DFAs, P2's games, her trap strategy pi2_x and her softmax model ln pi1_x, the
 reachability game solver and the DTMC solver).
 
+It works on grid and arena worlds alike (semantics §15: reference.World compiles either to an
+explicit arena; observations are (v, a1, a2) with v a TS state of reference.World's naming).
+
 P2's memory W is the tuple of the last at most w observations (v, a1, a2), oldest first, with a2
-the trap set in force (a tuple of cells). The posterior is
-ln p(x | W) = ln prior(x) + sum ln pi1_x(a1 | v, a2) - ln Z. "map": P2 plays the traps of the
-first hypothesis within 1e-9 of the largest log-posterior; "sample": she draws x with p(x | W).
+the P2 action in force (a trap set as a tuple of cells or candidate states, or an action
+name). The posterior is ln p(x | W) = ln prior(x) + sum ln pi1_x(a1 | v, a2) - ln Z. "map": P2
+plays the action of the first hypothesis within 1e-9 of the largest log-posterior; "sample":
+she draws x with p(x | W).
 The hypergame MDP has states (v, q, W); from (v, q, W) under a1 the successor
 (v', delta(q, L(v')), W + (v, a1, pi2_x(v)) [last w]) gets p(x | W) * P(v' | v, a1, pi2_x(v)).
 
@@ -21,7 +25,6 @@ import tomllib
 from collections import deque
 
 import reference
-from reference import TRAPPED
 
 TIE = 1e-9      # hypotheses within this of the largest log-posterior tie (first one wins)
 
@@ -70,11 +73,9 @@ class BayesWorld(reference.World):
             a2 = self.pi2(x, v)
             W2 = () if self.static else (tuple(W) + ((v, a1, a2),))[-self.window:]
             for v2, pr in self.outcomes(v, a1, a2).items():
-                if v2 == TRAPPED:
-                    t = "fail"
-                else:
-                    q2 = dfa.step(q, self.label(v2))
-                    t = "goal" if q2 in dfa.acc else "fail" if q2 in dfa.sink else (v2, q2, W2)
+                t = self._target(dfa, q, v2)     # "goal", "fail" (trapped, terminal) or (v2, q2)
+                if t not in ("goal", "fail"):
+                    t = (v2, t[1], W2)
                 res[t] = res.get(t, 0.0) + px * pr
         return res
 
@@ -82,9 +83,31 @@ class BayesWorld(reference.World):
         dfa = self.task_dfa
         return self.classify((self.v0, dfa.step(dfa.init, self.label(self.v0)), ()))
 
+    def _played_record(self, a2):
+        """A P2 action as records write it: a list of cells or candidates, or an action name."""
+        if self.mode == "general":
+            return a2
+        return [list(c) for c in a2] if self.kind == "grid" else list(a2)
+
+    def optimal_records(self):
+        """The reference's optimal strategy as records (see strategy_value); `hypothesis` is
+        the posterior's first most probable hypothesis."""
+        recs = []
+        for (v, q, W), a in self._policy.items():
+            scores = self.log_posterior(W)
+            rec = self._ts_record(v)
+            rec.update(q=q, hypothesis=next(x for x, l in enumerate(scores)
+                                            if l >= max(scores) - TIE),
+                       window=[dict(self._ts_record(vi), action=ai,
+                                    played=self._played_record(a2)) for vi, ai, a2 in W],
+                       action=a)
+            recs.append(rec)
+        return recs
+
     def strategy_value(self, records):
         """The value of exported records {cell, traps, countdown, q, hypothesis, window, action},
-        window entries {cell, traps, countdown, action, played}."""
+        window entries {cell, traps, countdown, action, played} (for an arena, as
+        reference.World records them: cell = state name, traps/played = the P2 action)."""
         table = {}
         for rec in map(reference.grid_record, records):
             v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))

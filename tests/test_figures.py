@@ -17,7 +17,9 @@ from PIL import Image
 from conftest import MODELS
 from hg2prism import cli
 from hg2prism.analyses import episodes, simulation
-from hg2prism.frontends.grid import ACTIONS
+from hg2prism.frontends import transition_system
+from hg2prism.frontends.grid import ACTIONS, geometry
+from hg2prism.frontends.grid_drawing import grid_moves
 from hg2prism.worldfile import load_world
 from hg2prism.report import plots, replay
 from hg2prism.strategy.records import Strategy
@@ -130,7 +132,9 @@ def test_moves_follow_the_grid(seed_set) -> None:
     step = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
     slips = 0
     for _, _, _, steps in rows[:10]:
-        for record, move in zip(steps, episodes.episode_moves(analysis.ts, steps)):
+        drawn = episodes.episode_steps(analysis.ts, steps)
+        moves = grid_moves(geometry(world), analysis.ts.arena.states, drawn)
+        for record, move in zip(steps, moves):
             assert move.chosen == ACTIONS[record.a1]
             dx, dy = step[move.chosen]
             rx, ry = step[move.realised]
@@ -194,3 +198,175 @@ def test_bad_episode_rule_is_one_line(value: str, tmp_path: Path, capsys) -> Non
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("hg2prism: error: command line: --episode:")
     assert "Traceback" not in err[0] and not out.exists()
+
+
+# ---- arena worlds (docs/semantics.md §15 "Figures"): the arena drawn as a graph ----
+
+def hand_episode(ts, script, seeds=range(40), pick=len):
+    """The longest episode over `seeds` of P1 and P2 playing `script` (a list of (P1's action
+    slot, P2's action, P2's hypothesis)), outcomes drawn from the TS; simulation.StepRecords
+    built by hand, so that the figures are tested whatever the simulation does."""
+    import numpy as np
+
+    from hg2prism.opponent.observer import Memory
+
+    def walk(seed):
+        rng = np.random.default_rng(seed)
+        state, records = ts.start_state, []
+        for n, (a1, a2, hypothesis) in enumerate(script, start=1):
+            if ts.terminal[state]:
+                break
+            p = ts.prob[state, a1, a2]
+            nxt = int(ts.succ[state, a1, a2, rng.choice(len(p), p=p / p.sum())])
+            memory = Memory(hypothesis)
+            records.append(simulation.StepRecord(0, n, state, 0, memory, a1, a2, a2, ts.n_sets,
+                                                 memory, nxt, 0))
+            state = nxt
+        return records
+
+    steps = max((walk(seed) for seed in seeds), key=pick)
+    episode = episodes.ChosenEpisode(steps, 0, "cut by the horizon", episodes.EpisodeRule("seed", 0),
+                                     None, ())
+    acted = tuple(s.p2_memory.hypothesis for s in steps)
+    trace = episodes.BeliefTrace(acted, acted[1:] + acted[-1:], None, None, None)
+    return episode, trace
+
+
+# lateral: out 0, web 1, mail 2, db 3, hr 4, burnt 5; P1 at out: phish, exploit; at mail:
+# pivot_db, pivot_hr, wait. General P2: idle, watch_db, watch_hr; traps: web, mail.
+LATERAL_SCRIPTS = {
+    False: [(0, 2, 1), (0, 2, 1), (0, 1, 1), (2, 0, 1), (1, 2, 0), (1, 2, 0), (1, 0, 0)],
+    True: [(0, 0, 1), (0, 0, 1), (2, 0, 1), (2, 0, 0), (0, 0, 0), (0, 0, 0)],
+}
+
+
+@pytest.fixture(scope="module", params=[(False, 0), (True, 0), (False, 1)],
+                ids=["general", "traps", "general-delay1"])
+def lateral_drawn(request, tmp_path_factory: pytest.TempPathFactory):
+    """A lateral world (general P2 actions or traps; a delay), a hand-built episode, and its
+    world picture and replay."""
+    from arenas import lateral
+
+    traps_mode, delay = request.param
+    world = lateral(delay=delay, traps_mode=traps_mode)
+    ts = transition_system(world)
+    episode, trace = hand_episode(ts, LATERAL_SCRIPTS[traps_mode])
+    out = tmp_path_factory.mktemp("arena")
+    plots.world_figure(world, ts, episode, out / "world.png")
+    frames = replay.replay_gif(world, ts, episode, trace, out / "replay.gif")
+    return world, ts, episode, out, frames
+
+
+def test_arena_steps_are_the_arena_s(lateral_drawn) -> None:
+    """Each drawn step: the action is one of the state's, the outcome taken has positive
+    probability and leads to the landing state (or into P2's trap)."""
+    world, ts, episode, _, _ = lateral_drawn
+    arena = world.arena
+    drawn = episodes.episode_steps(ts, episode.steps)
+    assert len(drawn) == len(episode.steps) >= 4
+    for record, step in zip(episode.steps, drawn):
+        assert step.action_name == arena.actions[step.start][step.action]
+        j = step.p2_action if arena.p2_dependent else 0
+        assert arena.prob[step.start, step.action, j, step.outcome] > 0
+        assert arena.dest[step.start, step.action, j, step.outcome] == step.landing
+        assert step.p2_action_name == ts.a2_names[record.a2]
+        assert step.trapped == (record.next_state == ts.trapped)
+        assert step.traps == (tuple(arena.trap_candidates[c] for c in ts.trap_sets[record.a2])
+                              if ts.traps_mode else ())
+    assert any(step.stays for step in drawn) and any(not step.stays for step in drawn)
+
+
+def _numbers(label: str) -> list[int]:
+    """The step numbers of an "n=..." label (steps_text's forms)."""
+    text = label[2:].split(":")[0]
+    if "…" in text:
+        first, rest = text.split("…")
+        return [int(first), int(rest.split(" ")[0])]
+    return [int(n) for n in text.split(",")]
+
+
+def test_arena_world_picture_draws_states_and_episode(lateral_drawn) -> None:
+    world, ts, episode, out, _ = lateral_drawn
+    text = assert_figure(out, "world", plots.world_figure_inches(world, ts))
+    texts = re.findall(r">([^<>]*)</text>", text)
+    arena = world.arena
+    for name in arena.states:
+        assert name in texts
+    for props in ("{crown}", "{payroll}"):
+        assert props in texts
+    for names in arena.actions:
+        for name in names:
+            assert any(name in t for t in texts), name
+    # every step of the episode is labelled with its number and P1's action
+    labels = [t for t in texts if re.match(r"n=\d", t) and "P2 now" not in t]
+    drawn = episodes.episode_steps(ts, episode.steps)
+    numbered = {n for label in labels for n in _numbers(label)}
+    assert numbered == {step.n for step in drawn}
+    for step in drawn:
+        assert any(step.n in _numbers(label) and step.action_name in label for label in labels)
+        if not ts.traps_mode:
+            assert any(step.n in _numbers(label) and step.p2_action_name in label
+                       for label in labels)
+    if ts.traps_mode:
+        assert any(t.startswith("trap ") and t.endswith("×") for t in texts)
+        assert "trap candidate (honeypot)" in texts
+    assert f"start state ({arena.states[arena.initial]})" in texts
+
+
+def test_arena_replay_has_a_frame_per_state(lateral_drawn) -> None:
+    _, _, episode, out, frames = lateral_drawn
+    with Image.open(out / "replay.gif") as gif:
+        assert gif.n_frames == frames == episode.n_steps + 1
+
+
+def test_arena_labels_do_not_overlap(lateral_drawn) -> None:
+    """No two texts of the map (states, actions, steps, traps, changes of mind) overlap."""
+    from hg2prism.report.plots import plt
+
+    world, ts, episode, _, _ = lateral_drawn
+    drawer = plots.world_drawer(world, ts)
+    fig = plt.figure(figsize=drawer.world_inches(), layout="constrained")
+    ax = fig.add_subplot()
+    drawer.draw_world(ax, episodes.episode_steps(ts, episode.steps))
+    drawer.finish(ax)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    boxes = [(t.get_text(), t.get_bbox_patch().get_window_extent(renderer)) for t in ax.texts]
+    plt.close(fig)
+    assert len(boxes) > world.arena.n_states
+    for i, (a, box_a) in enumerate(boxes):
+        for b, box_b in boxes[i + 1:]:
+            assert not box_a.overlaps(box_b), (a, b)
+
+
+def test_arena_trapped_step_and_given_positions(tmp_path: Path) -> None:
+    """A step into P2's trap is drawn (red, "P1 trapped"); positions the arena gives are used
+    (two states at the same place do not break the drawing)."""
+    import dataclasses
+
+    from arenas import lateral
+
+    world = lateral(traps_mode=True)
+    positions = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (2.0, 1.0), (2.0, 0.0), (1.0, 0.0))
+    world = dataclasses.replace(world, arena=dataclasses.replace(world.arena, positions=positions))
+    ts = transition_system(world)
+    # phish while P2 traps mail: trapped with probability 0.6
+    episode, trace = hand_episode(ts, [(0, 1, 0)], pick=lambda s: s[-1].next_state == ts.trapped)
+    assert episode.steps[-1].next_state == ts.trapped
+    plots.world_figure(world, ts, episode, tmp_path / "world.png")
+    texts = re.findall(r">([^<>]*)</text>", svg_text(tmp_path / "world.svg"))
+    assert "P1 trapped" in texts and "n=1: phish" in texts
+    drawer = plots.world_drawer(world, ts)
+    assert drawer.position(3)[0] > drawer.position(2)[0] > drawer.position(0)[0]
+    assert replay.replay_gif(world, ts, episode, trace, tmp_path / "replay.gif") == 2
+
+
+def test_report_layer_holds_no_grid_concept() -> None:
+    """Below the front end the figures know arenas only (issue 23)."""
+    root = Path(__file__).resolve().parent.parent / "hg2prism"
+    files = [*(root / "report").glob("*.py"), root / "analyses" / "episodes.py"]
+    for path in files:
+        source = path.read_text()
+        for word in ("ACTIONS", "outcome_directions", "geometry", ".cells", "cell_index",
+                     "trap_cells", "set_cells", "PERPENDICULAR", "slip"):
+            assert word not in source, (path.name, word)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from hg2prism.results import Analysis
 
 __all__ = ["EPISODE_SEEDS", "EpisodeRule", "ChosenEpisode", "parse_episode_rule", "choose_episode",
-           "outcome_text", "Move", "episode_moves", "BeliefTrace", "belief_trace"]
+           "outcome_text", "Step", "episode_steps", "BeliefTrace", "belief_trace"]
 
 EPISODE_SEEDS = 50
 RULES = ("median", "shortest")
@@ -141,57 +141,69 @@ def choose_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int
 
 
 @dataclass(frozen=True)
-class Move:
-    """One step of an episode as drawn: where the robot was, the move it chose, the direction
-    it actually went (a slip when they differ) and where it landed. A bump (into a wall) lands
-    where it started; a trapped robot lands on the trap. When two outcomes lead to the same
-    cell (both bump), the chosen direction is reported before a slip."""
+class Step:
+    """One step of an episode as drawn, in the arena's terms (docs/semantics.md §15): the arena
+    state P1 was in, the action he chose (its slot and name), the outcome of that action that
+    happened (an index into the arena's outcome axis) and the arena state it led to, P2's action
+    (for trap sets, the states it covers) and hypothesis, and whether P1 was trapped. A trapped
+    step lands on the trapped state; a step that stays lands where it started. When several
+    outcomes lead to the same state, the first one with positive probability is reported."""
 
     n: int
-    start: tuple[int, int]
-    chosen: str                 # "N", "E", "S" or "W"
-    realised: str               # the direction taken
-    landing: tuple[int, int]
-    hypothesis: int             # P2's hypothesis when she set the traps of this step
-    traps: tuple[tuple[int, int], ...]   # the cells P2 trapped at this step
+    start: int                  # arena state before the step
+    action: int                 # P1's action slot at `start`
+    action_name: str
+    outcome: int                # the outcome taken (index k of the arena's tables)
+    landing: int                # arena state reached
+    p2_action: int              # P2's action (index into ts.a2_names)
+    p2_action_name: str
+    traps: tuple[int, ...]      # arena states P2's trap set covers (none with general actions)
+    trapped: bool
+    hypothesis: int             # P2's hypothesis when she chose her action
+    terminal: bool = False      # `landing` is a terminal state (no action): the episode ends
 
     @property
-    def slip(self) -> bool:
-        return self.chosen != self.realised
-
-    @property
-    def bump(self) -> bool:
+    def stays(self) -> bool:
         return self.landing == self.start
 
-    trapped: bool = False
+
+def _outcome(ts, step) -> int:
+    """The outcome of (state, a1, a2) that led to the step's successor: the first with positive
+    probability (else the first at all; 0 when none does)."""
+    import numpy as np
+
+    reached = ts.succ[step.ts_state, step.a1, step.a2] == step.next_state
+    positive = reached & (ts.prob[step.ts_state, step.a1, step.a2] > 0)
+    hits = np.flatnonzero(positive if positive.any() else reached)
+    return int(hits[0]) if hits.size else 0
 
 
-def episode_moves(ts, steps) -> list[Move]:
-    """The steps (simulation.StepRecord) of an episode on `ts` as Moves."""
-    from hg2prism.frontends.grid import ACTIONS, outcome_directions
-
-    moves = []
-    for step in steps:
-        cell = ts.decode(step.ts_state)[0]
-        directions = outcome_directions(step.a1)
-        targets = [int(ts.move[cell, d]) for d in directions]
-        trapped = step.next_state == ts.trapped
+def episode_steps(ts, steps) -> list[Step]:
+    """The steps (simulation.StepRecord) of an episode on `ts` (a TransitionSystem) as Steps."""
+    arena = ts.arena
+    drawn = []
+    for record in steps:
+        place = ts.decode(record.ts_state)[0]
+        outcome = _outcome(ts, record)
+        trapped = record.next_state == ts.trapped
         if trapped:
-            hits = [k for k, t in enumerate(targets) if ts.set_cells[step.a2, t]]
-            k = hits[0] if hits else 0
+            j = record.a2 if arena.p2_dependent else 0
+            landing = int(arena.dest[place, record.a1, j, outcome])
         else:
-            landed = ts.decode(step.next_state)[0]
-            k = targets.index(landed)
-        moves.append(Move(n=step.n, start=ts.cells[cell], chosen=ACTIONS[step.a1],
-                          realised=ACTIONS[directions[k]], landing=ts.cells[targets[k]],
-                          hypothesis=step.p2_memory.hypothesis,
-                          traps=ts.trap_cells(step.a2), trapped=trapped))
-    return moves
+            landing = int(ts.decode(record.next_state)[0])
+        drawn.append(Step(
+            n=record.n, start=int(place), action=int(record.a1),
+            action_name=ts.action_names(record.ts_state)[record.a1], outcome=outcome,
+            landing=landing, p2_action=int(record.a2), p2_action_name=ts.a2_names[record.a2],
+            traps=tuple(int(p) for p in ts.trap_places(record.a2)), trapped=trapped,
+            hypothesis=record.p2_memory.hypothesis,
+            terminal=bool(arena.terminal[landing]) and not trapped))
+    return drawn
 
 
 @dataclass(frozen=True, eq=False)
 class BeliefTrace:
-    """P2's side of an episode, step by step: the hypothesis she set her traps for, the one she
+    """P2's side of an episode, step by step: the hypothesis she acted on, the one she
     holds after reading P1's move, and (when her observer reports them, observer.ReportsBelief)
     the per-hypothesis numbers her update rests on."""
 

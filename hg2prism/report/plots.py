@@ -20,12 +20,13 @@ import numpy as np  # noqa: E402
 from hg2prism.model.dynamics import TransitionSystem  # noqa: E402
 from hg2prism.model.world import World  # noqa: E402
 from hg2prism.outputs import write_bytes  # noqa: E402
+from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
-__all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_figure_inches", "world_figure",
-           "belief_figure", "completion_figure", "sweep_figure",
+__all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
+           "world_figure", "belief_figure", "completion_figure", "sweep_figure",
            "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
-           "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS", "CELL_STYLE",
-           "draw_grid", "draw_move", "LOG_PARAMETERS"]
+           "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
+           "LOG_PARAMETERS"]
 
 FIGURE_DPI = 150
 FIGURE_FORMATS = ("png", "svg")
@@ -35,19 +36,6 @@ DETECTION_REPLANNING_INCHES = (14.0, 4.2)
 ROBUST_INCHES = (6.4, 4.8)
 COMPLETION_INCHES = (6.4, 4.4)
 BELIEF_INCHES = (8.0, 3.8)
-WORLD_CELL_INCHES = 0.85     # one grid cell
-WORLD_LEGEND_INCHES = 4.2    # the legend column right of the grid
-WORLD_MIN_HEIGHT = 5.0       # room for the legend on small grids
-
-HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
-# cell kind -> (face colour, legend text)
-CELL_STYLE = {
-    "wall": ("0.35", "wall (moves into it bounce)"),
-    "free": ("white", "free cell"),
-    "obstacle": ("black", "obstacle (label obs)"),
-    "region": ("#f4a6a6", "region (its letter is its label)"),
-    "candidate": ("#c8ecc8", "trap candidate (t)"),
-}
 
 # Deterministic SVG output (no random ids, no date) with searchable text.
 plt.rcParams["svg.hashsalt"] = "hg2prism"
@@ -73,165 +61,40 @@ def _save(fig: plt.Figure, path: Path) -> list[Path]:
     return written
 
 
-def _hypothesis_colour(x: int) -> str:
-    return HYPOTHESIS_COLOURS[x % len(HYPOTHESIS_COLOURS)]
+def world_drawer(world: World, ts: TransitionSystem):
+    """What draws `world` (docs/semantics.md §15 "Figures"): the grid front end's drawer for a
+    grid world (frontends/grid_drawing.py), else the arena as a graph (report/arena_graph.py)."""
+    if world.grid is not None:
+        from hg2prism.frontends.grid_drawing import GridDrawer
+
+        return GridDrawer(world, ts)
+    from hg2prism.report.arena_graph import ArenaDrawer
+
+    return ArenaDrawer(world, ts)
 
 
-def _steps_text(numbers: Sequence[int]) -> str:
-    """Step numbers, shortened when many: "3,5,7" or "2…40 (20×)" (first, last, count)."""
-    if len(numbers) <= 3:
-        return ",".join(str(n) for n in numbers)
-    return f"{numbers[0]}…{numbers[-1]} ({len(numbers)}×)"
-
-
-_DIRECTION = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
-_TRAPPED_COLOUR = "red"
-_TRAP_COLOUR = "darkgreen"
-
-
-def world_figure_inches(world: World) -> tuple[float, float]:
-    """The world figure's size in inches: the grid at WORLD_CELL_INCHES a cell, and the legend."""
-    grid = world.grid
-    return (WORLD_CELL_INCHES * grid.width + WORLD_LEGEND_INCHES,
-            max(WORLD_CELL_INCHES * grid.height + 1.0, WORLD_MIN_HEIGHT))
-
-
-def draw_grid(ax: plt.Axes, world: World) -> list:
-    """The map, every cell coloured by its kind; returns legend handles for the kinds present."""
-    grid = world.grid
-    regions = {cell: letter for letter, cells in grid.regions for cell in cells}
-    present = {"wall", "free"}
-    for x in range(grid.width):
-        for y in range(grid.height):
-            cell = (x, y)
-            kind, text, text_colour = "free", "", "black"
-            if cell in grid.walls:
-                kind = "wall"
-            elif cell in grid.obstacles:
-                kind, text, text_colour = "obstacle", "obs", "white"
-            elif cell in regions:
-                kind, text = "region", regions[cell]
-            elif cell in grid.trap_candidates:
-                kind = "candidate"
-            present.add(kind)
-            ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, facecolor=CELL_STYLE[kind][0],
-                                       edgecolor="0.8", lw=0.8, zorder=0))
-            if text:
-                ax.text(x, y, text, ha="center", va="center", color=text_colour, zorder=1,
-                        fontsize=13 if kind == "region" else 8, weight="bold")
-            if cell in grid.trap_candidates:
-                ax.text(x + 0.42, y - 0.42, "t", ha="right", va="bottom", fontsize=7,
-                        color=_TRAP_COLOUR, zorder=1)
-    sx, sy = grid.start
-    ax.plot(sx, sy, marker="o", ms=20, mfc="none", mec="black", mew=1.2, ls="", zorder=1)
-    ax.set_xlim(-0.5, grid.width - 0.5)
-    ax.set_ylim(-0.5, grid.height - 0.5)
-    ax.set_aspect("equal")
-    ax.set_xticks(range(grid.width))
-    ax.set_yticks(range(grid.height))
-    ax.tick_params(labelsize=7)
-    handles = [plt.Rectangle((0, 0), 1, 1, facecolor=CELL_STYLE[k][0], edgecolor="0.6",
-                             label=CELL_STYLE[k][1]) for k in CELL_STYLE if k in present]
-    handles.append(plt.Line2D([], [], marker="o", ms=10, mfc="none", mec="black", ls="",
-                              label="start cell"))
-    return handles
-
-
-def _move_handles(world: World, hypotheses: Sequence[int]) -> list:
-    handles = [plt.Line2D([], [], color=_hypothesis_colour(i), lw=2.2,
-                          label=f"P2 believes x{i}: {world.hypotheses[i]}")
-               for i in range(len(world.hypotheses)) if i in hypotheses]
-    handles += [
-        plt.Line2D([], [], color="0.2", lw=1.8, marker=">", label="move as chosen (step numbers n=…)"),
-        plt.Line2D([], [], color="0.2", lw=1.8, ls="--", marker=">", label="slip: the realised move"),
-        plt.Line2D([], [], color="0.5", lw=1.2, ls=":", marker=">", label="slip: the chosen move"),
-        plt.Line2D([], [], color="0.2", lw=1.8, marker="|", ms=9, label="bump into a wall (stays)"),
-        plt.Line2D([], [], color=_TRAP_COLOUR, marker="X", ms=9, ls="", label="trap set by P2 (k× = steps)"),
-    ]
-    return handles
-
-
-def _arrow(ax: plt.Axes, start: tuple[float, float], end: tuple[float, float], colour: str,
-           style: str = "-", width: float = 1.8, head: str = "-|>") -> None:
-    ax.annotate("", xy=end, xytext=start, zorder=3,
-                arrowprops=dict(arrowstyle=head, color=colour, lw=width, ls=style,
-                                shrinkA=0, shrinkB=0, mutation_scale=11))
-
-
-def draw_move(ax: plt.Axes, move, colour: str, label: str = "", offset: float = 0.14) -> None:
-    """One step (episodes.Move): the realised move as an arrow (dashed for a slip, ending in a
-    bar for a bump), the chosen one as a grey dotted stub when they differ, a red X when the
-    robot is trapped; `label` beside it. Arrows run `offset` to the right of their direction,
-    so that moves back and forth do not overlap."""
-    dx, dy = _DIRECTION[move.realised]
-    ox, oy = dy * offset, -dx * offset
-    x0, y0 = move.start[0] + ox, move.start[1] + oy
-    style = "--" if move.slip else "-"
-    if move.bump:
-        end = (x0 + 0.46 * dx, y0 + 0.46 * dy)
-        _arrow(ax, (x0 + 0.1 * dx, y0 + 0.1 * dy), end, colour, style, head="-[")
-        text_at = (x0 + 0.25 * dx + 1.3 * ox, y0 + 0.25 * dy + 1.3 * oy)
-    else:
-        x1, y1 = move.landing[0] + ox, move.landing[1] + oy
-        _arrow(ax, (x0 + 0.22 * dx, y0 + 0.22 * dy), (x1 - 0.22 * dx, y1 - 0.22 * dy),
-               _TRAPPED_COLOUR if move.trapped else colour, style)
-        text_at = ((x0 + x1) / 2 + 1.4 * ox, (y0 + y1) / 2 + 1.4 * oy)
-    if move.slip:
-        cx, cy = _DIRECTION[move.chosen]
-        _arrow(ax, move.start, (move.start[0] + 0.38 * cx, move.start[1] + 0.38 * cy), "0.45",
-               ":", width=1.2, head="->")
-    if move.trapped:
-        ax.plot(*move.landing, marker="X", ms=16, color=_TRAPPED_COLOUR, zorder=4)
-    if label:
-        # along the arrow: labels of vertical moves side by side would collide
-        ax.text(*text_at, label, fontsize=6.5, color=colour, ha="center", va="center", zorder=5,
-                rotation=90 if dx == 0 else 0,
-                bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75))
+def world_figure_inches(world: World, ts: TransitionSystem) -> tuple[float, float]:
+    """The world figure's size in inches: the drawer's map and the legend."""
+    return world_drawer(world, ts).world_inches()
 
 
 def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> list[Path]:
-    """The grid and one deceptive episode (episodes.ChosenEpisode): every distinct step drawn
-    once, coloured by P2's hypothesis, labelled with its step numbers; slips, bumps and a trap
-    marked; the traps P2 set (k× = the number of steps she set each); where P2 changed her
-    mind. Returns the files written (PNG and SVG)."""
-    from hg2prism.analyses.episodes import episode_moves
+    """The world and one deceptive episode (episodes.ChosenEpisode), drawn by the world's
+    drawer (`world_drawer`): every distinct step drawn once, coloured by P2's hypothesis,
+    labelled with its step numbers; the traps P2 set; where P2 changed her mind. Returns the
+    files written (PNG and SVG)."""
+    from hg2prism.analyses.episodes import episode_steps
 
-    fig = plt.figure(figsize=world_figure_inches(world), layout="constrained")
+    drawer = world_drawer(world, ts)
+    fig = plt.figure(figsize=drawer.world_inches(), layout="constrained")
     ax = fig.add_subplot()
-    cell_handles = draw_grid(ax, world)
-    moves = episode_moves(ts, episode.steps)
-    groups: dict[tuple, list[int]] = {}
-    first_of: dict[tuple, object] = {}
-    for move in moves:
-        key = (move.start, move.landing, move.chosen, move.realised, move.trapped, move.hypothesis)
-        groups.setdefault(key, []).append(move.n)
-        first_of.setdefault(key, move)
-    for key, numbers in groups.items():
-        move = first_of[key]
-        draw_move(ax, move, _hypothesis_colour(move.hypothesis), "n=" + _steps_text(numbers))
-    trap_counts: dict[tuple[int, int], int] = {}
-    for move in moves:
-        for cell in move.traps:
-            trap_counts[cell] = trap_counts.get(cell, 0) + 1
-    for (x, y), count in trap_counts.items():
-        ax.plot(x - 0.3, y + 0.3, marker="X", color=_TRAP_COLOUR, ms=9, ls="", zorder=2)
-        ax.text(x - 0.3, y + 0.08, f"{count}×", fontsize=6.5, color=_TRAP_COLOUR, ha="center",
-                va="top", zorder=2)
-    for i, move in enumerate(moves):
-        if i > 0 and moves[i - 1].hypothesis != move.hypothesis:
-            ax.text(move.start[0], move.start[1] + 0.38, f"n={move.n}: P2 now x{move.hypothesis}",
-                    fontsize=6.5, color=_hypothesis_colour(move.hypothesis), weight="bold",
-                    ha="center", zorder=5)
-    used = sorted({m.hypothesis for m in moves}) or [world.initial_hypothesis]
-    handles = _move_handles(world, used)
-    if any(m.trapped for m in moves):
-        handles.append(plt.Line2D([], [], color=_TRAPPED_COLOUR, marker="X", ms=9, ls="",
-                                  label="robot trapped"))
-    ax.legend(handles=handles + cell_handles, loc="upper left", bbox_to_anchor=(1.02, 1),
+    handles = drawer.draw_world(ax, episode_steps(ts, episode.steps))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
                  f"task {world.formula}", fontsize=8.5, loc="left")
+    drawer.finish(ax)
     return _save(fig, path)
 
 
@@ -244,11 +107,11 @@ def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
     n = len(trace.acted)
     steps = np.arange(1, n + 1)
     for i, x in enumerate(trace.acted):
-        ax.axvspan(i + 0.5, i + 1.5, color=_hypothesis_colour(x), alpha=0.10, lw=0)
+        ax.axvspan(i + 0.5, i + 1.5, color=hypothesis_colour(x), alpha=0.10, lw=0)
     if trace.values is not None and n:
         values = np.array(trace.values)
         for x in range(values.shape[1]):
-            ax.plot(steps, values[:, x], "o-", ms=2.5, lw=1.1, color=_hypothesis_colour(x),
+            ax.plot(steps, values[:, x], "o-", ms=2.5, lw=1.1, color=hypothesis_colour(x),
                     label=f"x{x}: {world.hypotheses[x]}")
         if trace.threshold is not None:
             ax.axhline(trace.threshold, color="black", ls="--", lw=1,
@@ -516,7 +379,7 @@ def robust_figure(result: dict, path: Path) -> list[Path]:
                label=f"deceptive value {result['deceptive_value']:.4f}")
     ax.axhline(result["v_lead"], color="grey", lw=0.8, ls=":",
                label=f"V_lead (P2 knows the task) {result['v_lead']:.4f}")
-    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted trap set with probability ≤ δ)")
+    ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted action with probability ≤ δ)")
     ax.set_ylabel("P1's completion probability")
     ax.set_xticks(deltas)
     ax.set_title(f"{result['world']}: robust deception", fontsize=9)

@@ -1,6 +1,7 @@
-"""A replay of the drawn episode as an animated GIF (`replay.gif`): per frame the robot, the
-traps P2 set, the step's move (chosen and realised), P2's hypothesis and the numbers her
-observer reports (CUSUM scores, or whatever observer.ReportsBelief gives).
+"""A replay of the drawn episode as an animated GIF (`replay.gif`): per frame where P1 is, the
+traps P2 set, the step (P1's action and where it led), P2's hypothesis and the numbers her
+observer reports (CUSUM scores, or whatever observer.ReportsBelief gives). The world is drawn by
+its drawer (report.plots.world_drawer): a grid by the grid front end, any other arena as a graph.
 
 Frames are rendered with matplotlib's Agg canvas and assembled with Pillow (which matplotlib
 depends on), in memory, so that the file is written atomically like every output. An episode
@@ -44,10 +45,14 @@ def replay_frames(n_steps: int) -> list[int]:
     return frames
 
 
-def replay_inches(world: World) -> tuple[float, float]:
-    """The replay's frame size in inches: the grid at 0.55 in a cell beside a 4.5 in panel."""
-    grid = world.grid
-    return (0.55 * grid.width + 4.5, max(0.55 * grid.height + 1.2, 4.0))
+def replay_inches(world: World, ts: TransitionSystem) -> tuple[float, float]:
+    """The replay's frame size in inches: the drawer's map beside the belief panel."""
+    return plots.world_drawer(world, ts).replay_inches()
+
+
+def _acted_text(ts: TransitionSystem) -> str:
+    """What P2 did on her hypothesis, in a caption."""
+    return "set traps for" if ts.traps_mode else "acted on"
 
 
 @dataclass
@@ -56,7 +61,8 @@ class _Replay:
     they are drawn over (blitting)."""
 
     fig: object
-    grid_ax: object
+    drawer: object
+    map_ax: object
     trail: object
     robot: object
     traps: object
@@ -100,25 +106,26 @@ def _belief_panel(ax, world: World, trace) -> tuple[list, np.ndarray | None, obj
     return list(bars), values, believes
 
 
-def _layout(world: World, episode, trace, n_steps: int) -> _Replay:
+def _layout(world: World, ts: TransitionSystem, drawer, episode, trace, steps) -> _Replay:
     """The figure with everything that does not move drawn, laid out once with captions as
     long as any frame's, so that nothing moves from frame to frame."""
-    n_x = len(world.hypotheses)
-    fig = _plt.figure(figsize=replay_inches(world), dpi=REPLAY_DPI, layout="constrained")
-    grid_ax, belief_ax = fig.subplots(1, 2, width_ratios=(0.55 * world.grid.width, 3.2))
-    plots.draw_grid(grid_ax, world)
-    trail, = grid_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
-    robot, = grid_ax.plot([], [], "o", ms=15, mec="black", mew=1.2, zorder=6)
-    traps, = grid_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
-    caption = grid_ax.set_title("", fontsize=9, loc="left")
+    n_x, n_steps = len(world.hypotheses), len(steps)
+    fig = _plt.figure(figsize=drawer.replay_inches(), dpi=REPLAY_DPI, layout="constrained")
+    map_ax, belief_ax = fig.subplots(1, 2, width_ratios=(drawer.replay_map_width, 3.2))
+    drawer.draw_map(map_ax)
+    trail, = map_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
+    robot, = map_ax.plot([], [], "o", mec="black", mew=1.2, zorder=6, **drawer.robot_style)
+    traps, = map_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
+    caption = map_ax.set_title("", fontsize=9, loc="left")
     bars, values, believes = _belief_panel(belief_ax, world, trace)
     fig.suptitle(f"{world.name}: replay of the drawn episode (seed {episode.seed}, "
                  f"{n_steps} steps, {episode.outcome})", fontsize=9)
-    caption.set_text(f"step {n_steps}/{n_steps}: chose W, went W (bumped into a wall, trapped)")
-    believes.set_text(f"P2 set traps for x{n_x - 1}; now believes x{n_x - 1}")
+    caption.set_text(f"step {n_steps}/{n_steps}: {drawer.widest_caption(steps)}")
+    believes.set_text(f"P2 {_acted_text(ts)} x{n_x - 1}; now believes x{n_x - 1}")
     fig.canvas.draw()
     fig.set_layout_engine("none")
-    replay = _Replay(fig, grid_ax, trail, robot, traps, caption, believes, bars, values)
+    drawer.finish(map_ax)
+    replay = _Replay(fig, drawer, map_ax, trail, robot, traps, caption, believes, bars, values)
     # Blitting: the map, axes and labels are drawn once; each frame restores them and draws
     # only what moves (a full redraw per frame is about ten times slower).
     for artist in replay.moving:
@@ -128,34 +135,32 @@ def _layout(world: World, episode, trace, n_steps: int) -> _Replay:
     return replay
 
 
-def _frame(replay: _Replay, world: World, positions: list, moves: list, trace, state: int,
-           n_steps: int) -> tuple[Image.Image, list]:
+def _frame(replay: _Replay, world: World, ts: TransitionSystem, positions: list, steps: list,
+           trace, state: int) -> tuple[Image.Image, list]:
     """Draw episode state `state` over the background; returns the image and the artists
     added for it (removed before the next frame)."""
-    grid_ax, n_x = replay.grid_ax, len(world.hypotheses)
+    map_ax, n_x, n_steps = replay.map_ax, len(world.hypotheses), len(steps)
     xs, ys = zip(*positions[:state + 1])
     replay.trail.set_data(xs, ys)
-    move = moves[state - 1] if state else None
+    step = steps[state - 1] if state else None
     hypothesis_after = trace.after[state - 1] if state else world.initial_hypothesis
     replay.robot.set_data([positions[state][0]], [positions[state][1]])
     replay.robot.set_markerfacecolor(
-        "red" if move is not None and move.trapped
+        "red" if step is not None and step.trapped
         else plots.HYPOTHESIS_COLOURS[hypothesis_after % len(plots.HYPOTHESIS_COLOURS)])
-    before = set(grid_ax.get_children())
-    if move is not None:
-        trap_cells = list(move.traps)
-        replay.traps.set_data([c[0] for c in trap_cells], [c[1] for c in trap_cells])
-        plots.draw_move(grid_ax, move, "black", offset=0.0)
-        what = ("bumped into a wall" if move.bump else "slipped" if move.slip else "moved")
-        replay.caption.set_text(f"step {state}/{n_steps}: chose {move.chosen}, went "
-                                f"{move.realised} ({what}{', trapped' if move.trapped else ''})")
-        replay.believes.set_text(f"P2 set traps for x{trace.acted[state - 1]}; "
+    before = set(map_ax.get_children())
+    if step is not None:
+        trap_at = [replay.drawer.position(p) for p in step.traps]
+        replay.traps.set_data([c[0] for c in trap_at], [c[1] for c in trap_at])
+        replay.drawer.draw_step(map_ax, step)
+        replay.caption.set_text(f"step {state}/{n_steps}: {replay.drawer.caption(step)}")
+        replay.believes.set_text(f"P2 {_acted_text(ts)} x{trace.acted[state - 1]}; "
                                  f"now believes x{hypothesis_after}")
     else:
         replay.traps.set_data([], [])
         replay.caption.set_text(f"start (0/{n_steps})")
         replay.believes.set_text(f"P2 starts believing x{hypothesis_after}")
-    added = [a for a in grid_ax.get_children() if a not in before]
+    added = [a for a in map_ax.get_children() if a not in before]
     for artist in added:
         artist.set_animated(True)
     heights = (replay.values[state] if replay.values is not None
@@ -173,7 +178,7 @@ def _frame(replay: _Replay, world: World, positions: list, moves: list, trace, s
 
 def _gif(images: list[Image.Image]) -> bytes:
     """The frames as one GIF with one palette for all frames, from a strip of frames spread
-    over the episode (the colours of traps, slips and hypotheses need not appear in the
+    over the episode (the colours of traps, steps and hypotheses need not appear in the
     first frame)."""
     sample = images[::max(1, len(images) // 8)] + [images[-1]]
     strip = Image.new("RGB", (sample[0].width * len(sample), sample[0].height))
@@ -190,18 +195,19 @@ def _gif(images: list[Image.Image]) -> bytes:
 def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -> int:
     """Write the replay of `episode` (episodes.ChosenEpisode) with P2's `trace`
     (episodes.BeliefTrace) to `path`; returns the number of frames."""
-    from hg2prism.analyses.episodes import episode_moves
+    from hg2prism.analyses.episodes import episode_steps
 
-    moves = episode_moves(ts, episode.steps)
-    n_steps = len(moves)
-    positions = [world.grid.start] + [m.landing for m in moves]
-    replay = _layout(world, episode, trace, n_steps)
+    drawer = plots.world_drawer(world, ts)
+    steps = episode_steps(ts, episode.steps)
+    start = ts.decode(ts.start_state)[0]
+    positions = [drawer.position(start)] + [drawer.position(s.landing) for s in steps]
+    replay = _layout(world, ts, drawer, episode, trace, steps)
     images: list[Image.Image] = []
     added: list = []
-    for state in replay_frames(n_steps):
+    for state in replay_frames(len(steps)):
         for artist in added:
             artist.remove()
-        image, added = _frame(replay, world, positions, moves, trace, state, n_steps)
+        image, added = _frame(replay, world, ts, positions, steps, trace, state)
         images.append(image)
     _plt.close(replay.fig)
     write_bytes(path, _gif(images))

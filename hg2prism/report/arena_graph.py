@@ -1,0 +1,406 @@
+"""The arena drawn as a graph (docs/semantics.md §15 "Figures"), for every world that is not a
+grid: one box per state (its name and, in braces, its propositions), one grey arrow per pair
+u -> v that some action of P1 at u reaches with positive probability (labelled with those
+actions), trap candidates (honeypots) and labelled states filled, the start with a thick
+border, terminal states with a dashed one; the drawn episode as a path over the graph, one
+arrow per distinct step coloured by P2's hypothesis, with its step numbers; steps that stay
+are loops over their state.
+
+Positions: the arena's `positions` when given (scaled so that the closest two states are
+SPACING_INCHES apart), else a layered layout: the states by their distance from the initial
+state (unreachable ones last), each layer a column ordered by the mean row of its
+predecessors, then by number. Both are deterministic. One data unit is one inch of the map.
+
+Arrows and labels are placed after the figure is laid out, when the boxes' sizes are known:
+every label (actions, step numbers, traps, changes of mind) goes to the first of a list of
+candidate spots where its box overlaps no state box and no label placed before it.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.patches import FancyArrowPatch
+
+from hg2prism.model.arena import Arena
+from hg2prism.model.world import World
+from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, hypothesis_colour,
+                                   hypothesis_handles, steps_text)
+
+__all__ = ["NODE_STYLE", "graph_edges", "layout", "ArenaDrawer"]
+
+LAYER_INCHES = 2.0        # between the columns of the layered layout
+ROW_INCHES = 1.1          # between the states of a column
+SPACING_INCHES = 1.4      # the closest two given positions
+MAP_MAX_INCHES = (12.0, 9.0)
+MARGIN_INCHES = 0.8       # around the states
+LEGEND_INCHES = 4.2
+MIN_HEIGHT = 5.0
+BASE_RAD = 0.15           # curvature of an arrow u -> v (v -> u bends the other way)
+NODE_FONT = 7.5
+LABEL_FONT = 6.5
+# state kind -> (face colour, legend text)
+NODE_STYLE = {
+    "state": ("white", "state (name, {its propositions})"),
+    "labelled": ("#f4a6a6", "labelled state"),
+    "candidate": ("#c8ecc8", "trap candidate (honeypot)"),
+}
+Box = tuple[float, float, float, float]      # x0, y0, x1, y1 in data units
+
+
+def graph_edges(arena: Arena) -> dict[tuple[int, int], list[str]]:
+    """u -> v (u != v) for every pair some action at u reaches with positive probability
+    under some P2 action: the names of those actions, in the order of the arena's actions."""
+    edges: dict[tuple[int, int], list[str]] = {}
+    for u, names in enumerate(arena.actions):
+        for i, name in enumerate(names):
+            reached = arena.dest[u, i][arena.prob[u, i] > 0]
+            for v in dict.fromkeys(int(v) for v in reached.ravel()):
+                if v != u and name not in edges.setdefault((u, v), []):
+                    edges[(u, v)].append(name)
+    return edges
+
+
+def _layers(arena: Arena, edges) -> list[list[int]]:
+    """States by BFS distance from the initial state (unreachable ones in a last layer), each
+    layer ordered by the mean row of its predecessors in earlier layers, then by number."""
+    succ: dict[int, list[int]] = {}
+    for u, v in edges:
+        succ.setdefault(u, []).append(v)
+    depth = {arena.initial: 0}
+    queue = deque([arena.initial])
+    while queue:
+        u = queue.popleft()
+        for v in succ.get(u, []):
+            if v not in depth:
+                depth[v] = depth[u] + 1
+                queue.append(v)
+    last = max(depth.values()) + 1
+    layers: list[list[int]] = [[] for _ in range(last + 1)]
+    for s in range(arena.n_states):
+        layers[depth.get(s, last)].append(s)
+    row: dict[int, float] = {}
+    for layer in layers:
+        def key(s: int) -> tuple[float, int]:
+            above = [row[u] for u, v in edges if v == s and u in row]
+            return (float(np.mean(above)) if above else float("inf"), s)
+        layer.sort(key=key)
+        row.update({s: i - (len(layer) - 1) / 2 for i, s in enumerate(layer)})
+    return [layer for layer in layers if layer]
+
+
+def layout(arena: Arena, edges=None) -> np.ndarray:
+    """[S, 2] positions in inches of the map, from (0, 0) (module docstring)."""
+    if arena.positions is not None:
+        points = np.array(arena.positions, dtype=float)
+        gaps = np.linalg.norm(points[:, None] - points[None, :], axis=-1)
+        gaps = gaps[gaps > 1e-12]
+        points = points * (SPACING_INCHES / gaps.min() if gaps.size else 1.0)
+    else:
+        points = np.zeros((arena.n_states, 2))
+        for x, layer in enumerate(_layers(arena, graph_edges(arena) if edges is None else edges)):
+            for i, s in enumerate(layer):
+                points[s] = (x * LAYER_INCHES, -(i - (len(layer) - 1) / 2) * ROW_INCHES)
+    points = points - points.min(axis=0)
+    span = points.max(axis=0)
+    shrink = min([1.0] + [m / s for m, s in zip(MAP_MAX_INCHES, span) if s > m])
+    return points * shrink
+
+
+def _bezier(p0: np.ndarray, p2: np.ndarray, rad: float, t: float) -> np.ndarray:
+    """matplotlib's arc3 curve from p0 to p2 (its control point at the chord's middle moved by
+    rad times the chord turned clockwise), at parameter t."""
+    d = p2 - p0
+    c = (p0 + p2) / 2 + rad * np.array([d[1], -d[0]])
+    return (1 - t) ** 2 * p0 + 2 * (1 - t) * t * c + t ** 2 * p2
+
+
+def _spots(p0: np.ndarray, p2: np.ndarray, rad: float, offsets) -> list[np.ndarray]:
+    """Label spots along the arc from p0 to p2: its points at t = 0.5, 0.4, 0.6, 0.3, 0.7,
+    moved by each offset (inches) along the chord's normal (positive: the side it bends to)."""
+    d = p2 - p0
+    normal = np.array([d[1], -d[0]]) * (1 if rad >= 0 else -1) / max(np.linalg.norm(d), 1e-12)
+    return [_bezier(p0, p2, rad, t) + o * normal for o in offsets
+            for t in (0.5, 0.4, 0.6, 0.3, 0.7)]
+
+
+def _exit(box: Box, centre: np.ndarray, towards: np.ndarray, gap: float = 0.04) -> np.ndarray:
+    """Where the ray from `centre` towards `towards` leaves `box` (plus `gap`)."""
+    d = towards - centre
+    half = np.array([(box[2] - box[0]) / 2 + gap, (box[3] - box[1]) / 2 + gap])
+    scales = [half[k] / abs(d[k]) for k in range(2) if abs(d[k]) > 1e-12]
+    return centre + d * min(scales + [1.0])
+
+
+@dataclass
+class _Placer:
+    """Places texts on the first free candidate spot (module docstring)."""
+
+    ax: plt.Axes
+    taken: list = field(default_factory=list)
+
+    def size(self, text, pad: float) -> tuple[float, float]:
+        """The data size of `text` with a box padded by `pad` times its font size."""
+        renderer = self.ax.figure.canvas.get_renderer()
+        extent = text.get_window_extent(renderer)
+        inverse = self.ax.transData.inverted()
+        (x0, y0), (x1, y1) = inverse.transform([[0, 0], [extent.width, extent.height]])
+        pad_pixels = pad * text.get_fontsize() * self.ax.figure.dpi / 72
+        (px0, _), (px1, _) = inverse.transform([[0, 0], [pad_pixels, 0]])
+        return (x1 - x0) + 2 * (px1 - px0), (y1 - y0) + 2 * (px1 - px0)
+
+    def place(self, candidates, label: str, pad: float = 0.15, **style) -> Box:
+        """Draw `label` at the first candidate centre where it is free and inside the axes
+        (else where it overlaps least); returns its box."""
+        text = self.ax.text(0, 0, label, ha="center", va="center", zorder=6,
+                            bbox=dict(boxstyle=f"round,pad={pad}", fc="white", ec="none",
+                                      alpha=0.85), **style)
+        w, h = self.size(text, pad)
+        (x0, x1), (y0, y1) = self.ax.get_xlim(), self.ax.get_ylim()
+        taken = np.array(self.taken, dtype=float).reshape(-1, 4)
+        best, best_cost = None, np.inf
+        for x, y in candidates:
+            box = (x - w / 2, y - h / 2, x + w / 2, y + h / 2)
+            across = np.minimum(box[2], taken[:, 2]) - np.maximum(box[0], taken[:, 0])
+            up = np.minimum(box[3], taken[:, 3]) - np.maximum(box[1], taken[:, 1])
+            cost = float(np.sum(np.clip(across, 0, None) * np.clip(up, 0, None)))
+            if box[0] < x0 or box[2] > x1 or box[1] < y0 or box[3] > y1:
+                cost += w * h
+            if cost < best_cost:
+                best, best_cost = box, cost
+            if cost == 0:
+                break
+        text.set_position(((best[0] + best[2]) / 2, (best[1] + best[3]) / 2))
+        self.taken.append(best)
+        return best
+
+
+def _around(box: Box, step: float = 0.16) -> list[tuple[float, float]]:
+    """Spots around a state's box: below, above, right, left, then further out."""
+    cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+    spots = []
+    for k in (1, 2, 3):
+        reach = k * step
+        spots += [(cx, box[1] - reach), (cx, box[3] + reach), (box[2] + 2 * reach, cy),
+                  (box[0] - 2 * reach, cy), (box[2] + reach, box[1] - reach),
+                  (box[0] - reach, box[3] + reach)]
+    return spots
+
+
+def _group_key(step, general: bool) -> tuple:
+    return (step.start, step.landing, step.action_name, step.trapped, step.hypothesis,
+            step.p2_action_name if general else None)
+
+
+class ArenaDrawer:
+    """An arena world's pictures (the same interface as the grid front end's GridDrawer):
+    `draw_world` draws the states and returns the legend; `finish`, once the figure is laid
+    out, draws the arrows, the episode and the labels."""
+
+    robot_style = {"ms": 13, "alpha": 0.6}
+
+    def __init__(self, world: World, ts) -> None:
+        self.world, self.ts, self.arena = world, ts, ts.arena
+        self.edges = graph_edges(self.arena)
+        self.points = layout(self.arena, self.edges)
+        self.span = self.points.max(axis=0)
+        self.general = not ts.traps_mode
+        self.steps: list = []
+        self.boxes: list[Box] = []
+        self.nodes: list = []
+
+    # ---- sizes ----
+    def _map_inches(self) -> tuple[float, float]:
+        return (max(self.span[0] + 2 * MARGIN_INCHES, 3.0),
+                max(self.span[1] + 2 * MARGIN_INCHES, MIN_HEIGHT - 1.0))
+
+    def world_inches(self) -> tuple[float, float]:
+        width, height = self._map_inches()
+        return (width + LEGEND_INCHES, max(height + 1.0, MIN_HEIGHT))
+
+    def replay_inches(self) -> tuple[float, float]:
+        width, height = self._map_inches()
+        return (width + 4.5, max(height + 1.2, 4.0))
+
+    @property
+    def replay_map_width(self) -> float:
+        return self._map_inches()[0]
+
+    def position(self, state: int) -> tuple[float, float]:
+        return float(self.points[state][0]), float(self.points[state][1])
+
+    # ---- the states ----
+    def _kind(self, s: int) -> str:
+        if self.arena.labels[s]:
+            return "labelled"
+        return "candidate" if s in self.arena.trap_candidates else "state"
+
+    def node_text(self, s: int) -> str:
+        label = self.arena.labels[s]
+        props = [p for p in self.arena.propositions if p in label]
+        return self.arena.states[s] + ("\n{" + ", ".join(props) + "}" if props else "")
+
+    def draw_map(self, ax: plt.Axes) -> list:
+        """The states (arrows follow in `finish`); returns the legend handles of the map."""
+        width, height = self._map_inches()
+        pad_x, pad_y = (width - self.span[0]) / 2, (height - self.span[1]) / 2
+        ax.set_xlim(-pad_x, self.span[0] + pad_x)
+        ax.set_ylim(-pad_y, self.span[1] + pad_y)
+        ax.set_aspect("equal")
+        ax.set_anchor("NW")
+        ax.set_axis_off()
+        candidates = set(self.arena.trap_candidates)
+        self.nodes = []
+        for s in range(self.arena.n_states):
+            edge = TRAP_COLOUR if s in candidates else "black"
+            self.nodes.append(ax.text(
+                *self.position(s), self.node_text(s), ha="center", va="center",
+                fontsize=NODE_FONT, zorder=5, multialignment="center",
+                bbox=dict(boxstyle="round,pad=0.35", fc=NODE_STYLE[self._kind(s)][0], ec=edge,
+                          lw=2.6 if s == self.arena.initial else 1.0,
+                          ls="--" if self.arena.terminal[s] else "-")))
+        present = {self._kind(s) for s in range(self.arena.n_states)}
+        handles = [plt.Rectangle((0, 0), 1, 1, facecolor=NODE_STYLE[k][0], edgecolor="0.3",
+                                 label=NODE_STYLE[k][1]) for k in NODE_STYLE if k in present]
+        handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="white", edgecolor="black", lw=2.6,
+                                     label=f"start state ({self.arena.states[self.arena.initial]})"))
+        if self.arena.terminal.any():
+            handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="white", edgecolor="black",
+                                         ls="--", label="terminal state (the episode ends)"))
+        handles.append(plt.Line2D([], [], color="0.6", lw=1.0, marker=">",
+                                  label="P1's actions u → v (self-loops not drawn)"))
+        return handles
+
+    # ---- the world figure ----
+    def draw_world(self, ax: plt.Axes, steps) -> list:
+        """The states; the episode and the arrows follow in `finish` (after the layout).
+        Returns the legend handles (episode first, then the map)."""
+        self.steps = list(steps)
+        map_handles = self.draw_map(ax)
+        used = sorted({s.hypothesis for s in self.steps}) or [self.world.initial_hypothesis]
+        handles = hypothesis_handles(self.world.hypotheses, used)
+        what = "P1's action (P2's)" if self.general else "P1's action"
+        handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker=">",
+                                  label=f"episode step (n=step numbers: {what})"))
+        if any(s.stays for s in self.steps):
+            handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker="o", mfc="none", ms=9,
+                                      ls="", label="a step that stays (loop)"))
+        if any(s.traps for s in self.steps):
+            handles.append(plt.Line2D([], [], color=TRAP_COLOUR, marker="X", ms=9, ls="",
+                                      label="trap set by P2 (k× = steps)"))
+        if any(s.trapped for s in self.steps):
+            handles.append(plt.Line2D([], [], color=TRAPPED_COLOUR, marker="X", ms=9, ls="",
+                                      label="P1 trapped"))
+        return handles + map_handles
+
+    def finish(self, ax: plt.Axes) -> None:
+        """Once laid out: the arrows of P1's actions, the episode and every label."""
+        figure = ax.figure
+        figure.canvas.draw()
+        figure.set_layout_engine("none")
+        renderer = figure.canvas.get_renderer()
+        inverse = ax.transData.inverted()
+        self.boxes = []
+        for node in self.nodes:
+            (x0, y0), (x1, y1) = inverse.transform(
+                node.get_bbox_patch().get_window_extent(renderer).get_points())
+            self.boxes.append((x0, y0, x1, y1))
+        placer = _Placer(ax, list(self.boxes))
+        self._draw_episode(ax, placer)
+        for (u, v), names in self.edges.items():
+            p0, p2 = self._ends(u, v, BASE_RAD)
+            self._curve(ax, p0, p2, BASE_RAD, "0.6", 1.0, zorder=1)
+            placer.place(_spots(p0, p2, BASE_RAD, (0, -0.1, 0.1, -0.2, 0.2, -0.3, 0.3)), ", ".join(names), fontsize=LABEL_FONT - 0.5, color="0.35",
+                         style="italic")
+
+    # ---- arrows ----
+    def _ends(self, u: int, v: int, rad: float) -> tuple[np.ndarray, np.ndarray]:
+        """An arrow's ends on the borders of the boxes of u and v."""
+        a, b = np.array(self.position(u)), np.array(self.position(v))
+        control = _bezier(a, b, rad, 0.5)
+        return _exit(self.boxes[u], a, control), _exit(self.boxes[v], b, control)
+
+    def _loop_ends(self, s: int, k: int) -> tuple[np.ndarray, np.ndarray, float]:
+        """A loop over the top of the box of s (the k-th there): its ends and curvature."""
+        x0, _, x1, y1 = self.boxes[s]
+        cx, half = (x0 + x1) / 2, max((x1 - x0) / 4, 0.12) + 0.05 * k
+        return np.array([cx - half, y1]), np.array([cx + half, y1]), -1.3 - 0.35 * k
+
+    @staticmethod
+    def _curve(ax, p0, p2, rad: float, colour: str, width: float, zorder: int = 4,
+               style: str = "-") -> None:
+        ax.add_patch(FancyArrowPatch(tuple(p0), tuple(p2), arrowstyle="-|>", color=colour,
+                                     lw=width, ls=style, connectionstyle=f"arc3,rad={rad}",
+                                     shrinkA=0, shrinkB=0, mutation_scale=10, zorder=zorder))
+
+    def _step_arrow(self, ax, step, k: int, colour: str, width: float = 2.2):
+        """Draw `step` as the k-th arrow of its pair (a loop when it stays); returns the spots
+        for its label."""
+        if step.stays:
+            p0, p2, rad = self._loop_ends(step.start, k)
+            self._curve(ax, p0, p2, rad, colour, width)
+            top = _bezier(p0, p2, rad, 0.5)
+            return [top + offset for offset in ((0, 0.1), (0.45, 0.0), (-0.45, 0.0), (0, 0.22),
+                                                (0.5, 0.15), (-0.5, 0.15), (0, 0.34))]
+        rad = BASE_RAD + 0.14 * k
+        p0, p2 = self._ends(step.start, step.landing, rad)
+        self._curve(ax, p0, p2, rad, colour, width)
+        if step.trapped:
+            x0, _, x1, y1 = self.boxes[step.landing]
+            ax.plot(x1, y1, marker="X", ms=14, color=TRAPPED_COLOUR, zorder=7)
+        return _spots(p0, p2, rad, (0.12, -0.12, 0.24, -0.24, 0.36, -0.36, 0))
+
+    def _step_label(self, step, numbers) -> str:
+        text = f"n={steps_text(numbers)}: {step.action_name}"
+        return text + (f" (P2 {step.p2_action_name})" if self.general else "")
+
+    def _draw_episode(self, ax: plt.Axes, placer: _Placer) -> None:
+        """Every distinct step once (by start, landing, action, trapped, hypothesis and, with
+        general P2 actions, P2's action), coloured by P2's hypothesis, with its step numbers;
+        the traps P2 set; where she changed her mind."""
+        groups: dict[tuple, list] = {}
+        for step in self.steps:
+            groups.setdefault(_group_key(step, self.general), []).append(step)
+        on_pair: dict[tuple[int, int], int] = {}
+        for members in groups.values():
+            step = members[0]
+            pair = (step.start, step.landing)
+            k = on_pair[pair] = on_pair.get(pair, -1) + 1
+            colour = TRAPPED_COLOUR if step.trapped else hypothesis_colour(step.hypothesis)
+            spots = self._step_arrow(ax, step, k, colour)
+            placer.place(spots, self._step_label(step, [m.n for m in members]),
+                         fontsize=LABEL_FONT, color=colour)
+        traps: dict[int, int] = {}
+        for step in self.steps:
+            for s in step.traps:
+                traps[s] = traps.get(s, 0) + 1
+        for s, count in traps.items():
+            x0, _, _, y1 = self.boxes[s]
+            ax.plot(x0, y1, marker="X", ms=10, color=TRAP_COLOUR, zorder=7)
+            placer.place(_around(self.boxes[s]), f"trap {count}×", fontsize=LABEL_FONT,
+                         color=TRAP_COLOUR, weight="bold")
+        for before, step in zip(self.steps, self.steps[1:]):
+            if before.hypothesis != step.hypothesis:
+                placer.place(_around(self.boxes[step.start]),
+                             f"n={step.n}: P2 now x{step.hypothesis}", fontsize=LABEL_FONT,
+                             color=hypothesis_colour(step.hypothesis), weight="bold")
+
+    # ---- the replay ----
+    def draw_step(self, ax: plt.Axes, step) -> None:
+        """One frame's step: a black arrow over the graph (the state boxes are measured)."""
+        self._step_arrow(ax, step, 0, TRAPPED_COLOUR if step.trapped else "black", 2.6)
+
+    def caption(self, step) -> str:
+        names = self.arena.states
+        where = (f"stayed at {names[step.start]}" if step.stays
+                 else f"{names[step.start]} → {names[step.landing]}")
+        text = f"{step.action_name}: {where}"
+        if self.general:
+            text += f"; P2 {step.p2_action_name}"
+        return text + (", trapped" if step.trapped else "")
+
+    def widest_caption(self, steps) -> str:
+        return max((self.caption(s) for s in steps), key=len, default="")
