@@ -12,7 +12,9 @@ solution = hg2prism.solve(world)                  # Storm, sound to 1e-10; write
 print(f"deceptive value {solution.deceptive_value:.6f} over {solution.states} states "
       f"(leader baseline {solution.v_lead:.6f})")
 
-# The robot starts at (2, 3); the task DFA has read that cell's label (state 1 of Spot's
-# numbering); P2 starts with hypothesis 0 and an empty window.
-print("first move:", solution.strategy.move(cell=(2, 3), q=solution.strategy.records[0]["q"],
-                                            hypothesis=0))
+# The first record is the initial state's ("initial": true): the robot's start (a grid's
+# states are named x{x}_y{y}), the task DFA's state after reading its label, P2's first
+# hypothesis and an empty window.
+start = solution.strategy.records[0]
+print("first move:", solution.strategy.move(state=start["state"], q=start["q"],
+                                            hypothesis=start["hypothesis"]))

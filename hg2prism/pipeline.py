@@ -129,7 +129,7 @@ def read_model(model: BuiltModel, prism: PrismModel, analysis: Analysis) -> Mode
     moves = model.transitions
     decoded = decode_states(model, prism.layout, analysis.ts, analysis.task,
                             getattr(analysis.inference, "window_hypotheses", None))
-    return ModelStructure(moves, decoded, canonical_mdp(decoded, moves),
+    return ModelStructure(moves, decoded, canonical_mdp(decoded, moves, analysis.ts.n_actions),
                           canonical_size(decoded, moves), model.initial)
 
 
@@ -221,7 +221,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     # for millions of states, still easy to grep and diff.
     with ThreadPoolExecutor(max_workers=3) as pool:
         jobs = [pool.submit(lambda: write_bytes(out / "strategy.json", strategy_json(
-            decoded, strategy, moves, analysis.ts, extras)))]
+            decoded, strategy, moves, analysis.ts, extras, structure.initial)))]
         dtmc = make_dtmc()
         jobs += [pool.submit(write_explicit, dtmc),
                  pool.submit(lambda: write_bytes(out / "induced.drn", drn(dtmc, comment)))]

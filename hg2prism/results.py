@@ -48,7 +48,8 @@ class Parameters:
     ``fixed_parameters``."""
 
     formula: str                    # P1's task, co-safe LTL in Spot syntax (§3)
-    slip: float                     # probability of slipping to each side of a move (§2)
+    slip: float | None              # grid worlds: slipping to each side of a move (§2); None
+                                    # for an arena world (its arena gives the outcomes, §15)
     traps: int                      # traps P2 places at once (§2)
     delay: int                      # steps P2 waits after moving traps (§2)
     hypotheses: tuple[str, ...]     # P2's candidate tasks (§4)
@@ -62,7 +63,8 @@ class Parameters:
 
     @classmethod
     def of(cls, world: World) -> Parameters:
-        return cls(formula=world.formula, slip=world.slip, traps=world.traps, delay=world.delay,
+        slip = world.slip if world.arena is None else None
+        return cls(formula=world.formula, slip=slip, traps=world.traps, delay=world.delay,
                    hypotheses=tuple(world.hypotheses),
                    initial_hypothesis=world.initial_hypothesis, window=world.window,
                    threshold=world.threshold, rationality=world.rationality,
@@ -321,8 +323,9 @@ class CheckResult:
         file does not need them, and they cost seconds on million-state models."""
         from hg2prism.strategy.records import strategy_records
 
-        return strategy_records(self.decoded, self.strategy, self.engine.explicit(
-            self.checked.model).transitions, self.analysis.ts, self.extras)
+        built = self.engine.explicit(self.checked.model)
+        return strategy_records(self.decoded, self.strategy, built.transitions, self.analysis.ts,
+                                self.extras, built.initial)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1118,7 +1118,7 @@ class World:
 
     def strategy_value(self, records):
         table = {}
-        for rec in records:
+        for rec in map(grid_record, records):
             v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
             B = tuple((self.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
                       for o in rec["window"])
@@ -1152,6 +1152,38 @@ class World:
             succs.append([(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()])
         x = dtmc_reach(succs)
         return min(1.0, max(0.0, float(x[0])))
+
+
+def _cell_of(name):
+    """A grid arena state's name x{x}_y{y} as the cell [x, y] (another name as it is)."""
+    import re
+
+    match = re.fullmatch(r"x(\d+)_y(\d+)", name)
+    return [int(match[1]), int(match[2])] if match else name
+
+
+def _set_of(name):
+    """A trap set's name (its members joined by '+') as a list of cells."""
+    cells = [_cell_of(c) for c in name.split("+")]
+    return cells if all(isinstance(c, list) for c in cells) else name
+
+
+def grid_record(rec):
+    """A strategy.json record (or window entry) of the package, {state, standing, countdown,
+    ..., played}, in the form this reference reads: {cell, traps, countdown, ..., played}, a
+    grid's cells as [x, y] (state names x{x}_y{y}, trap sets their members joined by '+').
+    A record already in that form (this reference's own) is returned as it is."""
+    if "state" not in rec:
+        return rec
+    out = dict(rec)
+    out["cell"] = _cell_of(out.pop("state"))
+    standing = out.pop("standing", None)
+    out["traps"] = None if standing is None else _set_of(standing)
+    if "played" in out:
+        out["played"] = _set_of(out["played"])
+    if "window" in out:
+        out["window"] = [grid_record(o) for o in out["window"]]
+    return out
 
 
 def dtmc_reach(succs):

@@ -109,7 +109,7 @@ class BayesWorld(reference.World):
         window entries {cell, traps, countdown, action, played} (for an arena, as
         reference.World records them: cell = state name, traps/played = the P2 action)."""
         table = {}
-        for rec in records:
+        for rec in map(reference.grid_record, records):
             v = self.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
             W = tuple((self.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")),
                        o["action"], self.norm_traps(o["played"])) for o in rec["window"])

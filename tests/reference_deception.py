@@ -23,7 +23,8 @@ from collections import deque
 import numpy as np
 import scipy.sparse as sp
 
-from reference import ACTIONS, TIE_P2, TRAPPED, World, dtmc_reach, solve_reach_game
+from reference import (ACTIONS, TIE_P2, TRAPPED, World, dtmc_reach, grid_record,
+                       solve_reach_game)
 from reference_bayes import BayesWorld
 
 ANSWER_TIE = 1e-9
@@ -255,7 +256,7 @@ def chain_value(w: World, s0, table) -> float:
 def record_table(w: World, records) -> dict:
     """{hypergame state: move} from strategy.json records."""
     table = {}
-    for rec in records:
+    for rec in map(grid_record, records):
         v = w.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
         window = tuple((w.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")),
                         o["action"]) for o in rec["window"])

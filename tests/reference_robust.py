@@ -22,7 +22,7 @@ from collections import deque
 import numpy as np
 import scipy.sparse as sp
 
-from reference import ACTIONS, TRAPPED, World
+from reference import ACTIONS, TRAPPED, World, grid_record
 
 STOP = 1e-12
 MAX_SWEEPS = 500_000
@@ -140,7 +140,7 @@ class RobustHypergame:
         adversary with budget delta: P1's moves fixed, the adversary minimising."""
         w = self.world
         table = {}
-        for rec in records:
+        for rec in map(grid_record, records):
             v = w.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
             B = tuple((w.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")),
                        o["action"]) for o in rec["window"])

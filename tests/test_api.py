@@ -39,11 +39,11 @@ def test_solve_a_world_from_text_writes_and_prints_nothing(tmp_path: Path, monke
     assert json.loads(json.dumps(solution.to_json()))["deceptive_value"] == solution.deceptive_value
     # The strategy answers in every recorded state with the recorded move.
     record = solution.strategy.records[5]
-    window = tuple((tuple(o["cell"]), o["action"]) for o in record["window"])
-    assert solution.strategy.move(tuple(record["cell"]), record["q"], record["hypothesis"],
+    window = tuple((o["state"], o["action"]) for o in record["window"])
+    assert solution.strategy.move(record["state"], record["q"], record["hypothesis"],
                                   window) == record["action"]
     with pytest.raises(KeyError):
-        solution.strategy.move((0, 0), 0, 0)
+        solution.strategy.move("x0_y0", 0, 0)
 
 
 def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
@@ -92,12 +92,12 @@ def test_solve_for_another_objective(tmp_path: Path) -> None:
     changing = [r for r in bounded.strategy.records if len(r["schedule"]) > 1]
     assert changing, "world1's bounded strategy changes its move with the step somewhere"
     for record in changing[:20]:
-        window = tuple((tuple(o["cell"]), o["action"]) for o in record["window"])
+        window = tuple((o["state"], o["action"]) for o in record["window"])
         for first, last, move in record["schedule"]:
             for step in (first, last):
-                assert bounded.strategy.move(tuple(record["cell"]), record["q"],
+                assert bounded.strategy.move(record["state"], record["q"],
                                              record["hypothesis"], window, step=step) == move
-        assert bounded.strategy.move(tuple(record["cell"]), record["q"], record["hypothesis"],
+        assert bounded.strategy.move(record["state"], record["q"], record["hypothesis"],
                                      window, step=99) == record["schedule"][-1][2]
     played = hg2prism.simulate(bounded, episodes=3000, seed=5)
     assert played.horizon == 30

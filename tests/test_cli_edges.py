@@ -144,8 +144,8 @@ def test_sweep_delay_without_initial_traps_and_with_a_storm_method(tmp_path: Pat
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "sweep.json").read_text())
     assert summary["storm_method"] == "sound-ovi" and summary["sound"] is True
-    first_candidate = [1, 4]        # world1's candidates, top row first: (1,4) (3,4) (2,2) (3,2)
-    assert [row["initial_traps"] for row in summary["rows"]] == [[], [first_candidate]]
+    first_candidate = "x1_y4"       # world1's candidates, top row first: (1,4) (3,4) (2,2) (3,2)
+    assert [row["standing"] for row in summary["rows"]] == [None, first_candidate]
     for row in summary["rows"]:
         low, high = row["v_ne_bounds"]
         assert 0 <= low <= row["v_ne"] <= high <= 1

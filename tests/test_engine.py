@@ -148,6 +148,7 @@ def test_a_variable_storm_leaves_out_keeps_its_initial_value(tmp_path: Path) -> 
     assert model.read_variable("hyp") is None           # Storm dropped it: it never changes
     assert checked.prism.layout.initial_value("hyp") == 1
     assert set(checked.decoded.hypothesis.tolist()) == {1}
-    starts = [r for r in checked.records if r["window"] == [] and r["cell"] == [2, 3]]
+    starts = [r for r in checked.records if r["window"] == [] and r["state"] == "x2_y3"]
     assert starts and all(r["hypothesis"] == 1 for r in starts)
+    assert checked.records[0].get("initial") is True and checked.records[0] in starts
     assert main(["run", str(path), "--out", str(tmp_path / "run"), "--episodes", "20"]) == 0

@@ -209,7 +209,7 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
     assert "delay = 0\n" in text and "initial_traps = [[2, 5]]" in text
     for row in rows:
         k = row["delay"]
-        assert row["initial_traps"] == ([[2, 5]] if k else [])
+        assert row["standing"] == ("x2_y5" if k else None)
         single_path = write_world(tmp_path, f"world2_k{k}", text.replace("delay = 0\n", f"delay = {k}\n"))
         single = pipeline.check(load_world(single_path), tmp_path / f"single_{k}")
         assert row["deceptive_value"] == pytest.approx(single.results.deceptive_value, abs=1e-9)
@@ -344,7 +344,7 @@ def test_detection_experiment_writes_a_consistent_report(world2, tmp_path: Path)
     seeded = result["seeded_episode"]
     assert seeded["seed"] >= world.simulation.seed
     assert seeded["steps"] == len(seeded["per_step"]) > k + detect.STEPS_AFTER_DEVIATION
-    assert all(s["predicted_traps"] == s["played_traps"] for s in seeded["per_step"][:k])
+    assert all(s["predicted"] == s["played"] for s in seeded["per_step"][:k])
     first = next((s["n"] for s in seeded["per_step"] if s["rejected"]), None)
     assert seeded["detected_at"] == first
     assert first is None or first > k

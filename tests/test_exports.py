@@ -149,16 +149,18 @@ def test_strategy_values_explain_the_moves(folder: str) -> None:
     by_valuation = {dtmc.valuations[s]: float(reach[i]) for s, i in index.items()}
     slots = result.analysis.world.window - 1
     records = json.loads((result.out / "strategy.json").read_text())
-    assert dtmc.variables == ["x", "y", "q", "hyp"] + [
-        f"o{i}_{v}" for i in range(1, slots + 1) for v in ("x", "y", "act")]
+    assert dtmc.variables == ["s", "q", "hyp"] + [
+        f"o{i}_{v}" for i in range(1, slots + 1) for v in ("s", "act")]
     moves = ["N", "E", "S", "W"]
+    number = {name: i for i, name in enumerate(result.analysis.ts.arena.states)}
+    assert records[0]["initial"] is True
     for record in records:
         values = record["values"]
         assert list(values) == moves
         assert values[record["action"]] >= max(values.values()) - 1e-8
-        window = [(-1, -1, -1)] * (slots - len(record["window"])) + [
-            (*o["cell"], moves.index(o["action"])) for o in record["window"]]
-        key = (*record["cell"], record["q"], record["hypothesis"], *sum(window, ()))
+        window = [(-1, -1)] * (slots - len(record["window"])) + [
+            (number[o["state"]], moves.index(o["action"])) for o in record["window"]]
+        key = (number[record["state"]], record["q"], record["hypothesis"], *sum(window, ()))
         assert max(values.values()) == pytest.approx(by_valuation.get(key, 0.0), abs=TOL)
 
 

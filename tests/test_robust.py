@@ -29,7 +29,7 @@ from hg2prism.cli import main
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
 from hg2prism.prism.robust_model import CHECK_EPS, build_robust_model, write_robust_model
-from hg2prism.strategy.records import Strategy
+from hg2prism.strategy.records import Strategy, describe_state
 
 DELTAS = (0.01, 0.1, 0.3)
 TOL = 1e-6
@@ -118,9 +118,8 @@ def test_robust_records_give_each_moves_worst_case(case) -> None:
     rows, _ = solved(name, folder)
     analysis = checked(name, folder).analysis
     ts, task = analysis.ts, analysis.task
-    start = ts.describe_state(ts.start_state)
-    start_cell = ts.decode(ts.start_state)[0]
-    start.update(q=int(task.delta[task.initial, ts.cell_label[start_cell]]),
+    start = describe_state(ts, ts.start_state)
+    start.update(q=int(task.delta[task.initial, ts.state_label()[ts.start_state]]),
                  hypothesis=analysis.inference.initial_hypothesis, window=[])
     for row in rows:
         records = json.loads(row.records_json)
@@ -128,7 +127,7 @@ def test_robust_records_give_each_moves_worst_case(case) -> None:
             values = [v for v in record["values"].values() if v is not None]
             assert record["values"][record["action"]] >= max(values) - 1e-8
         initial = [r for r in records if {k: r[k] for k in start} == start]
-        assert len(initial) == 1
+        assert len(initial) == 1 and initial[0] is records[0] and records[0]["initial"] is True
         assert initial[0]["values"][initial[0]["action"]] == pytest.approx(row.robust_value,
                                                                             abs=1e-9)
 

@@ -134,7 +134,7 @@ def reference_chain(path: Path, records: list[dict]):
     index, successor lists [(target, p)] with target an index, "goal" or "fail")."""
     world = reference.World(path)
     table = {}
-    for rec in records:
+    for rec in map(reference.grid_record, records):
         v = world.record_ts_state(rec["cell"], rec.get("traps"), rec.get("countdown"))
         window = tuple((world.record_ts_state(o["cell"], o.get("traps"), o.get("countdown")), o["action"])
                        for o in rec["window"])
@@ -276,7 +276,7 @@ def test_progress_bar_redraws_on_a_terminal(world1, capsys, monkeypatch) -> None
 
 def test_missing_record_is_a_clear_error(world1) -> None:
     records = [r for r in world1.records if r["window"]]      # drop the initial state's record
-    with pytest.raises(StrategyError, match="no record.*cell \\[2, 4\\]"):
+    with pytest.raises(StrategyError, match="no record.*x2_y4"):
         run(world1, 5, strategy=strategy_of_records(world1, records))
 
 
@@ -286,8 +286,8 @@ def strategy_of_records(result, records) -> Strategy:
 
 def test_bad_records_are_rejected(world1) -> None:
     good = world1.records[0]
-    with pytest.raises(StrategyError, match="not a free cell"):
-        strategy_of_records(world1, [dict(good, cell=[0, 0])])
+    with pytest.raises(StrategyError, match="not a state of the world"):
+        strategy_of_records(world1, [dict(good, state="x0_y0")])
     with pytest.raises(StrategyError, match="action"):
         strategy_of_records(world1, [dict(good, action="up")])
     other = next(a for a in ACTIONS if a != good["action"])

@@ -167,7 +167,7 @@ def test_every_point_is_solved_or_reported_and_solved_points_equal_the_reference
         assert abs(row["v_lead"] - expected.v_lead) <= TOL, point
         assert (row["states"], row["transitions"]) == (expected.states, expected.transitions)
         standing = candidates_in_reading_order(text)[:point["traps"]] if point["delay"] else []
-        assert row["initial_traps"] == standing
+        assert row["standing"] == ("+".join(f"x{x}_y{y}" for x, y in standing) or None)
     assert next(rows, None) is None and next(failed, None) is None
     assert refused == 2 and summary["failed"] == [dict(f) for f in dask.failed]
 

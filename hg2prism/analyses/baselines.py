@@ -115,9 +115,9 @@ class NashBaseline:
     solution: NashSolution
     values: np.ndarray        # [n_ts, n_q] V_NE
     guaranteed: np.ndarray    # [n_ts, n_q] what P1's extracted strategy guarantees
-    p1: np.ndarray            # [n_ts, n_q, 4]
-    p2: np.ndarray            # [n_ts, n_q, n_sets]
-    initial: tuple[int, int]  # (start_state, delta(iota, L(start cell)))
+    p1: np.ndarray            # [n_ts, n_q, A1max] (0 on slots not enabled at the state)
+    p2: np.ndarray            # [n_ts, n_q, n_a2]
+    initial: tuple[int, int]  # (start_state, delta(iota, L(start state)))
     v_ne: float
     v_ne_p1_guaranteed: float
     # The sound bracket around V_NE at the start (docs/semantics.md §7): what P1's extracted strategy
@@ -378,6 +378,18 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray,
     return found.values
 
 
+def _enabled_only(ts: TransitionSystem, p1: np.ndarray, n_q: int) -> np.ndarray:
+    """P1's mixed strategy [G, A1max] with the weight of padded action slots (not enabled: they
+    repeat the state's first action, so the game cannot tell them apart) moved to slot 0."""
+    disabled = np.repeat(~ts.enabled, n_q, axis=0)
+    if not disabled.any():
+        return p1
+    p1 = p1.copy()
+    p1[:, 0] += np.where(disabled, p1, 0.0).sum(axis=1)
+    p1[disabled] = 0.0
+    return p1
+
+
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     """The Nash baseline of docs/semantics.md §7 for the task DFA, read at every (s, q) and at the start."""
     game = concurrent_game(ts, dfa)
@@ -385,8 +397,7 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     guaranteed = guaranteed_value(game, solution.p1)
     best_response = best_response_value(game, solution.p2)
     n_q = dfa.n_states
-    start_cell = ts.decode(ts.start_state)[0]
-    q0 = int(dfa.delta[dfa.initial, ts.cell_label[start_cell]])
+    q0 = int(dfa.delta[dfa.initial, ts.state_label()[ts.start_state]])
     g0 = product_state(ts.start_state, q0, n_q)
     v_guaranteed = probability(guaranteed[g0], "P1's guaranteed Nash value")
     upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
@@ -399,7 +410,7 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
         game=game, solution=solution,
         values=solution.values.reshape(ts.n_states, n_q),
         guaranteed=guaranteed.reshape(ts.n_states, n_q),
-        p1=solution.p1.reshape(ts.n_states, n_q, -1),
+        p1=_enabled_only(ts, solution.p1, n_q).reshape(ts.n_states, n_q, -1),
         p2=solution.p2.reshape(ts.n_states, n_q, -1),
         initial=(ts.start_state, q0), v_ne=v_ne, v_ne_p1_guaranteed=v_guaranteed,
         v_ne_bounds=(v_guaranteed, upper), shortfall=v_ne - v_guaranteed,

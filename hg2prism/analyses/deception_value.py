@@ -68,11 +68,12 @@ class StaticValue:
     p2: np.ndarray            # [G] the trap set pi2_x0(v) of each game state
     value: float              # V_static at the initial state
     n_q: int                  # the task DFA's states
+    n_actions: int = 0        # P1's action slots per state (the TS's A1max)
 
     @property
     def policy(self) -> ProductPolicy:
         """P1's strategy `p1` as a Policy on hypergame states (it ignores P2's memory)."""
-        return ProductPolicy(self.p1, self.n_q)
+        return ProductPolicy(self.p1, self.n_q, self.n_actions)
 
 
 def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
@@ -87,7 +88,8 @@ def static_value(ts: TransitionSystem, task: DFA, games: list[PerceptualGame],
     moves = fastest_moves(ts, task, values, p2, DISCOUNT)
     arena = product(ts, task)
     return StaticValue(first_guess=first_guess, values=values, p1=moves.answers, p2=p2,
-                       value=probability(values[arena.start], "V_static"), n_q=n_q)
+                       value=probability(values[arena.start], "V_static"), n_q=n_q,
+                       n_actions=ts.n_actions)
 
 
 def _certify_mdp(game: ConcurrentGame, p2: np.ndarray, values: np.ndarray) -> None:
@@ -97,7 +99,7 @@ def _certify_mdp(game: ConcurrentGame, p2: np.ndarray, values: np.ndarray) -> No
     most 1e-11), hence above the least fixed point, which is the maximum, and 0 wherever no
     sequence of moves reaches the goal."""
     rows = np.arange(game.size)
-    nxt, prob = game.next[rows, :, p2], game.prob[rows, :, p2]        # [G, 4, K]
+    nxt, prob = game.next[rows, :, p2], game.prob[rows, :, p2]        # [G, A1, K]
     best = (prob * values[nxt]).sum(-1).max(axis=1)
     free = game.free
     residual = np.abs(best - values)[free].max(initial=0.0)
@@ -118,14 +120,14 @@ def naive_answers(ts: TransitionSystem, task: DFA, leader: GameSolution) -> np.n
     (docs/semantics.md §11): among the moves with `Q_phi(g, a1, a2) >= max_b Q_phi(g, b, a2) -
     1e-9`, the largest discounted score `sum_k P(k) * (1 if goal else 0.9 * W(next_k))`, W the
     leader pair's scores (docs/semantics.md §7); scores within a relative 1e-12 of the best
-    tie, and ties go to the first move in N, E, S, W order. Rows of absorbing states are 0."""
+    tie, and ties go to the first action slot. Rows of absorbing states are 0."""
     game = TurnBasedGame(ts, task)
     lead = leader.values.reshape(-1)
-    q = game.q_values(lead)                                            # [G, 4, A2]
+    q = game.q_values(lead)                                            # [G, A1, A2]
     maximising = q >= q.max(axis=1, keepdims=True) - ANSWER_TIE
     w = fastest_moves(ts, task, lead, leader.p2_strategy, DISCOUNT).scores
     reached = np.where(game.goal[game.next], 1.0, DISCOUNT * w[game.next])
-    score = (game.prob * reached).sum(-1)                              # [G, 4, A2]
+    score = (game.prob * reached).sum(-1)                              # [G, A1, A2]
     score = np.where(maximising, score, -np.inf)
     top = score.max(axis=1, keepdims=True)
     tied = score >= top - SCORE_TIE * np.abs(top)

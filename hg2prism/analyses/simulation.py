@@ -2,7 +2,7 @@
 
 Deceptive runs: P1 follows its exported deceptive strategy (the records of strategy.json),
 tracking the hypergame state ``(v, q, M)`` exactly: ``q`` is its task DFA's state after reading
-the current cell's label and ``M`` its model of P2's memory, which evolves by docs/semantics.md §5 with
+the current state's label and ``M`` its model of P2's memory, which evolves by docs/semantics.md §5 with
 ``a2 = pi2_xh(v)`` (docs/semantics.md §9). P2 runs the inference of docs/semantics.md §5 on the actual history and plays
 ``pi2_xh(v)`` for the hypothesis ``xh`` of her real memory, unless an experiment gives her
 another policy (``p2_policy``) or another inference model (``p2_inference``). The successor is
@@ -16,7 +16,7 @@ after ``horizon`` transitions (truncated: not completed, reported). The completi
 estimates ``P(F<=horizon goal)``; it is reported with a Wilson score interval.
 
 The exported records cover only the states reachable when P2 behaves as modelled. When an
-experiment makes P2 deviate, P1 can reach other states (e.g. a trap candidate cell on which the
+experiment makes P2 deviate, P1 can reach other states (e.g. a trap candidate on which the
 model would have trapped it): `Strategy.action` then raises StrategyError unless the strategy was
 given a fallback (`leader_fallback`); the summary counts such steps (`off_record_steps`).
 
@@ -40,7 +40,6 @@ from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import bounded_reach
 from hg2prism.progress import Bar
 from hg2prism.strategy.policy import Policy, ProductPolicy
@@ -207,7 +206,7 @@ class _Uniforms:
 def leader_fallback(analysis: Analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
     predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of docs/semantics.md §7,
-    ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` (first best in N, E, S, W order).
+    ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` over the actions at v (first best in slot order).
 
     It is a heuristic for off-model experiments only; simulations report how many steps used it
     (SimulationSummary.off_record_steps)."""
@@ -215,7 +214,7 @@ def leader_fallback(analysis: Analysis) -> Fallback:
 
     ts, task = analysis.ts, analysis.task
     values = analysis.leader.values
-    q_values = TurnBasedGame(ts, task).q_values(values.reshape(-1))          # [G, 4, A2]
+    q_values = TurnBasedGame(ts, task).q_values(values.reshape(-1))          # [G, A1, A2]
     n_q = task.n_states
     model = Hypergame(ts, task, analysis.games, analysis.inference)
 
@@ -235,7 +234,7 @@ class LeaderStrategy(ProductPolicy):
         from hg2prism.opponent.perceptual_games import fastest_answers
 
         super().__init__(fastest_answers(analysis.ts, analysis.task, analysis.leader),
-                         analysis.task.n_states)
+                         analysis.task.n_states, analysis.ts.n_actions)
 
 
 @dataclass(frozen=True)
@@ -262,7 +261,8 @@ class StepRecord:
     P1's model predicts (``pi2_xh(v)`` with ``xh = memory.hypothesis``), ``n_a2 = |A2(v)|``.
     ``p2_memory`` is P2's real memory before the step (equal to ``memory`` unless P2 runs another
     inference model). ``next_state``/``next_q`` is where the step led (``next_state`` may be
-    ``ts.trapped``). Trap sets are indices into ``ts.trap_sets`` (cells: ``ts.trap_cells(a2)``).
+    ``ts.trapped``). P2's actions are indices into ``ts.a2_names`` (in trap mode the states a
+    trap set covers: ``ts.trap_places(a2)``).
     """
 
     episode: int
@@ -561,9 +561,9 @@ def _sample(cumulative: np.ndarray, u: np.ndarray) -> np.ndarray:
 def exact_completion(ts: TransitionSystem, dfa: DFA, p1: np.ndarray, p2: np.ndarray,
                      horizon: int) -> float:
     """P(goal within `horizon` steps) when both players play the stationary mixed strategies
-    p1 [G, 4] and p2 [G, n_sets] over g = s * n_q + q: the number a simulation estimates."""
+    p1 [G, A1max] and p2 [G, n_a2] over g = s * n_q + q: the number a simulation estimates."""
     arena = product(ts, dfa)
-    weight = arena.prob * p1[:, :, None, None] * p2[:, None, :, None]       # [G, 4, A2, 3]
+    weight = arena.prob * p1[:, :, None, None] * p2[:, None, :, None]       # [G, A1, A2, K]
     stop = ~arena.free
     rows = np.repeat(np.arange(arena.size), weight[0].size)
     matrix = sp.csr_matrix((weight.reshape(-1), (rows, arena.next.reshape(-1))),
@@ -577,7 +577,7 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
                   progress: bool = True, label: str = "simulate nash") -> SimulationSummary:
     """Both players sample stationary mixed strategies over g = s * n_q + q (docs/semantics.md §7/§8).
 
-    `nash_p1` is [G, 4] (P1's action distribution), `nash_p2` is [G, n_sets] (only trap sets
+    `nash_p1` is [G, ts.n_actions] (P1's distribution over action slots), `nash_p2` is [G, n_sets] (only trap sets
     allowed at s may have positive probability); rows of absorbing game states are ignored.
     Episodes run side by side (vectorised over episodes).
     """
@@ -587,8 +587,8 @@ def simulate_nash(ts: TransitionSystem, dfa: DFA, nash_p1: np.ndarray, nash_p2: 
     size = ts.n_states * n_q
     nash_p1 = np.asarray(nash_p1, dtype=float)
     nash_p2 = np.asarray(nash_p2, dtype=float)
-    if nash_p1.shape != (size, len(ACTIONS)):
-        raise ValueError(f"nash_p1 must have shape {(size, len(ACTIONS))}, got {nash_p1.shape}")
+    if nash_p1.shape != (size, ts.n_actions):
+        raise ValueError(f"nash_p1 must have shape {(size, ts.n_actions)}, got {nash_p1.shape}")
     if nash_p2.shape != (size, ts.n_sets):
         raise ValueError(f"nash_p2 must have shape {(size, ts.n_sets)}, got {nash_p2.shape}")
 

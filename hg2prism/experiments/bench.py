@@ -202,7 +202,7 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
     total = time.perf_counter() - start
     res = result.results
     row = {
-        "cells": result.analysis.ts.n_cells,
+        "cells": result.analysis.ts.n_places,
         "estimate": estimate,
         "states": res.states, "transitions": res.transitions,
         "storm_states": res.storm_states, "storm_transitions": res.storm_transitions,

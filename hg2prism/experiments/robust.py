@@ -199,13 +199,13 @@ def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout
             from hg2prism.errors import SolverError
             raise SolverError(f"delta {delta}: the robust strategy guarantees {guaranteed} < {value}")
     robust_nominal = adversary_response(_nominal_game(game, moves.action), strategy)[game.initial]
-    worst_cases = np.full((n_canonical, 4), np.nan)
+    worst_cases = np.full((n_canonical, ts.n_actions), np.nan)
     worst_cases[canonical[representative]] = move_values(game, solution, representative,
-                                                         moves.action)
+                                                         moves.action, ts.n_actions)
     records_json = strategy_json(
         replace(decoded, canonical=canonical, n_canonical=n_canonical),
         StormChoices(representative=representative, choice=strategy), moves, ts,
-        RecordExtras(worst_cases))
+        RecordExtras(worst_cases), model.initial)
 
     # The deceptive strategy under the budget: its records, the leader answer elsewhere.
     nominal = _policy_choices(game, moves, decoded, canonical, representative, decides,

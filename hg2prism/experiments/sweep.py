@@ -26,6 +26,12 @@ here they are checked as if delay were positive, and an empty list counts as non
 the first ``traps`` trap candidates in map reading order. When ``traps`` is swept to k, the
 standing traps are the first k of those (in candidate order), followed, when k exceeds them, by
 the first other candidates in map reading order. A delay of 0 has no initial traps.
+
+On an arena world (docs/semantics.md §15) every parameter but ``slip`` applies (``slip`` reads
+the map: one InputError line); ``traps`` only when P2 sets traps. Its standing action at the
+start is the world's own (an index into A2); when ``traps`` is swept to k, the standing set
+keeps the first k candidates of the world's set, then the first other candidates in the arena's
+order. A point's row names it under ``standing`` (None when delay is 0).
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from hg2prism.errors import InputError
+from hg2prism.frontends import arena_of
 from hg2prism.model.world import Cell, World
 from hg2prism.opponent.bayes import normalise_prior
 from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
@@ -78,6 +85,16 @@ class SweepParameter:
     parse: Callable[[object], Value]
     apply: Callable[[World, Value], World]
     moves_traps: bool = False
+    grid_only: bool = False     # reads the map (slip): refused on arena worlds
+
+    def refuse_unless_applies(self, world: World) -> None:
+        """InputError (one line) when this parameter does not apply to `world`."""
+        if self.grid_only and world.arena is not None:
+            raise InputError(_CLI, f"--param {self.name}", f"applies to grid worlds only; "
+                             f"{world.name} is an arena world")
+        if self.name == "traps" and world.arena is not None and not world.arena.traps_mode:
+            raise InputError(_CLI, f"--param {self.name}", f"applies to worlds whose P2 sets "
+                             f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
 def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None
@@ -168,7 +185,7 @@ def _with_prior(world: World, prior: tuple[float, ...]) -> World:
 
 
 def _with_traps(world: World, traps: int) -> World:
-    candidates = len(world.grid.trap_candidates)
+    candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
         raise InputError(_CLI, "--values", f"traps value {traps} must be at most the world's "
                                            f"{candidates} trap candidates")
@@ -187,7 +204,7 @@ SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
     SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
                    _field("rationality")),
     SweepParameter("slip", "a number in [0, 0.5)", _number(float, 0.0, False, below=0.5),
-                   _field("slip")),
+                   _field("slip"), grid_only=True),
     SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
                    _number(int, 1, False), _with_traps, moves_traps=True),
     SweepParameter("prior", "comma-separated positive numbers, one per hypothesis", _prior,
@@ -313,17 +330,48 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
     point = world
     for name in SWEEP_PARAMETERS:
         if name in assignment:
+            SWEEP_PARAMETERS[name].refuse_unless_applies(world)
             point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
     if any(SWEEP_PARAMETERS[name].moves_traps for name in assignment):
-        traps = standing_traps(world, point.traps) if point.delay > 0 else ()
-        point = replace(point, initial_traps=traps)
+        if world.arena is not None:
+            standing = arena_standing(world, point.traps) if point.delay > 0 else 0
+            point = replace(point, initial_standing=standing)
+        else:
+            traps = standing_traps(world, point.traps) if point.delay > 0 else ()
+            point = replace(point, initial_traps=traps)
     return point
+
+
+def arena_standing(world: World, traps: int) -> int:
+    """An arena world's standing action (an index into A2) at the start of a point with a
+    positive delay and `traps` traps: the world's own standing action (general P2 actions); in
+    trap mode the first `traps` candidates of the world's standing trap set, followed, when
+    `traps` exceeds them, by the first other candidates in the arena's order (the grid's rule)."""
+    arena = world.arena
+    if not arena.traps_mode:
+        return world.initial_standing
+    n = len(arena.trap_candidates)
+    sets = list(itertools.combinations(range(n), world.traps)) if world.traps else [()]
+    chosen = list(sets[world.initial_standing] if world.initial_standing < len(sets) else ())
+    chosen = chosen[:traps]
+    chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]
+    return list(itertools.combinations(range(n), traps)).index(tuple(sorted(chosen)))
 
 
 def sweep_world(world: World, parameter: str, value: object) -> World:
     """The world with one parameter replaced (validated as in :func:`parse_sweep_values`)."""
     (value,) = parse_sweep_values(parameter, [value])
     return sweep_point(world, {parameter: value})
+
+
+def _standing_name(world: World) -> str | None:
+    """The name of P2's action standing at the start of a point (None when delay is 0)."""
+    if not world.delay:
+        return None
+    from hg2prism.frontends import transition_system
+
+    ts = transition_system(world)
+    return ts.a2_names[ts.decode(ts.start_state)[1]]
 
 
 def _value_text(value: Value) -> str:
@@ -453,7 +501,7 @@ def solve_point(task: PointTask) -> PointOutcome:
         "transitions": results.transitions,
         "storm_states": results.storm_states,
         "storm_transitions": results.storm_transitions,
-        "initial_traps": [list(c) for c in world.initial_traps],
+        "standing": _standing_name(world),
         "seconds": round(seconds, 3),
     }
     note = (f"P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}" if nash.warn
@@ -601,6 +649,8 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
 
     parsed = parse_sweep_grid(grid)
     names = [name for name, _ in parsed]
+    for name in names:
+        SWEEP_PARAMETERS[name].refuse_unless_applies(world)
     points = [dict(zip(names, combination))
               for combination in itertools.product(*(values for _, values in parsed))]
     refusals = []
@@ -612,6 +662,17 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
     if len(refusals) == len(points):
         raise refusals[0]
     return parsed, points
+
+
+def _standing_rule(world: World, traps_swept: bool) -> str:
+    """How a point's standing action (traps) at the start is chosen (the module docstring)."""
+    if world.arena is not None:
+        rule = "delay > 0: the world's standing action ([adversary] initial_action or initial_traps)"
+    else:
+        rule = ("delay > 0: the world's initial_traps, else the file's [adversary] "
+                "initial_traps, else the first `traps` candidates")
+    return rule + ("; traps = k keeps the first k of them, then the first other candidates"
+                   if traps_swept else "")
 
 
 @dataclass(frozen=True)
@@ -703,10 +764,7 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
         "fixed_parameters": fixed,
         "storm_method": storm_method,
         "sound": results_sound(storm_method),
-        "initial_traps_rule": ("delay > 0: the world's initial_traps, else the file's "
-                               "[adversary] initial_traps, else the first `traps` candidates"
-                               + ("; traps = k keeps the first k of them, then the first other "
-                                  "candidates" if "traps" in names else "")
+        "initial_traps_rule": (_standing_rule(world, "traps" in names)
                                if any(SWEEP_PARAMETERS[n].moves_traps for n in names) else None),
         "rows": list(run.rows),
         "failed": list(run.failed),

@@ -2,32 +2,35 @@
 
 Before anything is built, `estimate_states(world)` bounds the number of canonical hypergame
 states (docs/semantics.md §6: the reachable states (v, q, M), goal states merged into one, failure states
-into another) from the world alone — the grid, the task's DFA and the parameters — without
-solving any game, and `check_size` refuses a world whose bound exceeds a limit.
+into another) from the world alone — its arena (a grid world's compiled by its front end), the
+task's DFA and the parameters — without solving any game, and `check_size` refuses a world
+whose bound exceeds a limit.
 
 The bound (rigorous; every factor over-approximates one component of a canonical state):
 
     estimate = X * P * sum_{L=0}^{w-1} sum_c Q(c) * N_L(c)  +  2
 
-  c        a free (non-wall) cell: the robot's cell in a non-absorbing state;
-  Q(c)     the DFA states q a non-absorbing canonical state can hold at cell c: q is
+  c        an arena state (a grid's free cell): the arena state of a non-absorbing state;
+  Q(c)     the DFA states q a non-absorbing canonical state can hold at c: q is
            delta(q', label(c)) with q' the DFA's initial state or a non-absorbing state, and
            q itself is neither accepting nor a sink (those states are the merged goal / fail);
+           0 at a terminal arena state (the episode ends there);
   X        the number of hypotheses (P2's current one);
-  P        (delay k > 0) the trap part of a TS state, |trap sets| * (k+1) pairs (standing set,
-           countdown); 1 when delay is 0 (the TS state is the cell);
+  P        (delay k > 0) P2's part of a TS state, |A2| * (k+1) pairs (standing action,
+           countdown); 1 when delay is 0 (the TS state is the arena state);
   L        the length of P2's window: she remembers the last min(steps since her last change,
            w-1) observations (TS state, P1's action);
-  N_L(c)   the number of cell/action sequences (c_1,a_1),...,(c_L,a_L) that are walks ending
+  N_L(c)   the number of state/action sequences (c_1,a_1),...,(c_L,a_L) that are walks ending
            next to c: c_{i+1} is an outcome of a_i from c_i, and c an outcome of a_L from c_L
-           (outcomes: the intended move and, when slip > 0, the two perpendicular slips; walls
-           bounce). N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
+           (outcomes: the successors of positive probability for some P2 action; on a grid the
+           intended move and, when slip > 0, the two perpendicular slips, walls bouncing).
+           N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
   2        the merged goal and failure states.
 
 That is the CUSUM observer's memory (§5); each kind of observer says how its memory enters the
 bound (`ObserverKind.memory`, opponent/registry.py): the Bayesian one (§12) remembers no
 hypothesis beside its window (X is 1), w observations (L = 0 .. w), each with the trap set in
-force (|trap sets| walks per observation step).
+force (|A2| walks per observation step).
 
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap
@@ -53,8 +56,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.errors import InputError
-from hg2prism.frontends.grid import ACTIONS, STEP, outcome_directions
+from hg2prism.frontends import arena_of
+from hg2prism.model.arena import Arena, class_name
 from hg2prism.model.world import World
+from hg2prism.opponent.observer import p2_action_count
 from hg2prism.opponent.registry import observer_kind
 
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
@@ -69,42 +74,17 @@ BYTES_PER_STATE = 4 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
 BEYOND = 10 ** 18     # the estimate stops counting here ("more than 10^18 states")
 
-# dynamics.py's directions (N, E, S, W) as index tuples, and the two perpendicular slips of each.
-_STEP = tuple(STEP[a] for a in ACTIONS)
-_PERPENDICULAR = tuple(outcome_directions(d)[1:] for d in range(len(ACTIONS)))
-
-
-def _cells(world: World) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Free cells' coordinates (x, y), the cell each move reaches ([n, 4], walls bounce) and
-    the index of each grid position ([height, width], -1 on walls)."""
-    grid = world.grid
-    free = np.ones((grid.height, grid.width), dtype=bool)          # [y, x]
-    for x, y in grid.walls:
-        if 0 <= x < grid.width and 0 <= y < grid.height:
-            free[y, x] = False
-    ys, xs = np.nonzero(free)
-    index = np.full((grid.height, grid.width), -1, dtype=np.int64)
-    index[ys, xs] = np.arange(len(xs))
-    move = np.empty((len(xs), len(ACTIONS)), dtype=np.int64)
-    for d, (dx, dy) in enumerate(_STEP):
-        nx, ny = xs + dx, ys + dy
-        inside = (nx >= 0) & (nx < grid.width) & (ny >= 0) & (ny < grid.height)
-        target = np.full(len(xs), -1, dtype=np.int64)
-        target[inside] = index[ny[inside], nx[inside]]
-        move[:, d] = np.where(target >= 0, target, np.arange(len(xs)))
-    return np.column_stack([xs, ys]), move, index
-
-
-def _labels(world: World, index: np.ndarray, n: int) -> tuple[np.ndarray, tuple[str, ...]]:
-    """Label class of every free cell (as in dynamics.py), and the label class names."""
-    grid = world.grid
-    label = np.zeros(n, dtype=np.int64)
-    marked = [(cell, 1) for cell in grid.obstacles]
-    marked += [(cell, 2 + k) for k, (_, cells) in enumerate(grid.regions) for cell in cells]
-    for (x, y), k in marked:
-        if index[y, x] >= 0:
-            label[index[y, x]] = k
-    return label, ("", "obs") + grid.region_letters()
+def _adjacency(arena: Arena) -> sp.csr_matrix:
+    """A[s', s] = the number of P1's actions a at s such that s' is a successor of a from s
+    with positive probability for some P2 action (distinct successors; none from a terminal
+    state, where the episode ends)."""
+    n, n_a1 = arena.n_states, arena.n_actions
+    reached = (arena.prob > 0) & arena.enabled[:, :, None, None]          # [S, A1, A2, K]
+    src = np.broadcast_to(np.arange(n)[:, None, None, None], reached.shape)[reached]
+    act = np.broadcast_to(np.arange(n_a1)[None, :, None, None], reached.shape)[reached]
+    # distinct (s, a, s') triples
+    triples = np.unique(np.stack([src, act, arena.dest[reached]]), axis=1)
+    return sp.csr_matrix((np.ones(triples.shape[1]), (triples[2], triples[0])), shape=(n, n))
 
 
 def _dfa_states_per_label(world: World, label_names: tuple[str, ...]) -> np.ndarray:
@@ -123,32 +103,21 @@ def _dfa_states_per_label(world: World, label_names: tuple[str, ...]) -> np.ndar
 
 
 def trap_parts(world: World) -> int:
-    """P: the (standing trap set, countdown) pairs of a TS state; 1 when delay is 0."""
+    """P: the (standing action of P2, countdown) pairs of a TS state; 1 when delay is 0."""
     if world.delay == 0:
         return 1
-    return math.comb(len(world.grid.trap_candidates), world.traps) * (world.delay + 1)
+    return p2_action_count(world) * (world.delay + 1)
 
 
 def estimate_states(world: World) -> int:
     """An upper bound of the hypergame's canonical size (see the module docstring)."""
-    coords, move, index = _cells(world)
-    n = len(coords)
-    label, label_names = _labels(world, index, n)
-    q_count = _dfa_states_per_label(world, label_names)[label]           # Q(c)
-    outcomes = [(d,) + (_PERPENDICULAR[d] if world.slip > 0 else ()) for d in range(len(ACTIONS))]
-    # A[c', c] = number of actions a such that c' is an outcome of a from c (distinct outcomes).
-    rows, cols = [], []
-    for dirs in outcomes:
-        targets = np.column_stack([move[:, e] for e in dirs])             # [n, outcomes]
-        targets = np.sort(targets, axis=1)
-        distinct = np.ones(targets.shape, dtype=bool)
-        distinct[:, 1:] = targets[:, 1:] != targets[:, :-1]
-        src = np.repeat(np.arange(n)[:, None], targets.shape[1], axis=1)
-        rows.append(targets[distinct])
-        cols.append(src[distinct])
-
-    adjacency = sp.csr_matrix((np.ones(sum(len(r) for r in rows)),
-                               (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
+    arena = arena_of(world)
+    n = arena.n_states
+    classes, label = arena.label_classes()
+    label_names = tuple(class_name(c, arena.propositions) for c in classes)
+    q_count = _dfa_states_per_label(world, label_names)[label]           # Q(s)
+    q_count[arena.terminal] = 0            # the episode ends there: goal or failure
+    adjacency = _adjacency(arena)
     walks = np.ones(n)                                                    # N_0
     total = 0.0
     memory = observer_kind(world.inference).memory(world)    # CUSUM: X hypotheses, w-1 walks
@@ -173,10 +142,10 @@ def check_size(world: World, limit: int | None = None) -> int:
     if estimate > limit:
         size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
         hint = (f"To build it anyway, pass --max-states {estimate}" if estimate < BEYOND
-                else "Reduce inference.window or the grid")
+                else "Reduce inference.window or the world")
         raise InputError(
             str(world.path), "size",
-            f"the hypergame may have {size} states (estimated from the grid, the "
+            f"the hypergame may have {size} states (estimated from the arena, the "
             f"task's DFA, {len(world.hypotheses)} hypotheses and window {world.window}), more than "
             f"the limit of {limit:,} that fits in memory; nothing was written. {hint}")
     return estimate

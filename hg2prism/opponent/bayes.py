@@ -22,7 +22,8 @@ import numpy as np
 
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
-                                        ObserverKind, Setting, window_mismatches)
+                                        ObserverKind, Setting, p2_action_count,
+                                        window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
 
 __all__ = ["BayesObserver", "build_bayes", "KIND", "DECISIONS", "uniform_prior",
@@ -39,7 +40,8 @@ def _exp(value: float) -> float:
 class BayesObserver:
     """The Bayesian observer (kind "bayes")."""
 
-    log_likelihood: np.ndarray   # [X, n_ts, 4, n_sets] ln pi1_x(a1 | v, a2)
+    log_likelihood: np.ndarray   # [X, n_ts, A1max, n_a2] ln pi1_x(a1 | v, a2) (0 at slots not
+                                 # enabled at v: never observed)
     log_prior: np.ndarray        # [X] ln prior(x)
     window: int                  # w: observations remembered
     decision: str                # "map" or "sample"
@@ -138,9 +140,10 @@ class BayesObserver:
 
 def build_bayes(games: list[PerceptualGame], window: int, prior: tuple[float, ...],
                 decision: str) -> BayesObserver:
-    """ln pi1_x(a1 | v, a2) for every hypothesis, TS state, move and trap set (§4's softmax),
-    and ln prior."""
+    """ln pi1_x(a1 | v, a2) for every hypothesis, TS state, P1 action and P2 action (§4's
+    softmax; 0 at action slots not enabled at v, which P1 never plays), and ln prior."""
     log_likelihood = np.stack([np.transpose(g.log_policy, (0, 2, 1)) for g in games])
+    log_likelihood[np.isneginf(log_likelihood)] = 0.0
     return BayesObserver(log_likelihood=np.ascontiguousarray(log_likelihood),
                          log_prior=np.log(np.asarray(prior, dtype=float)), window=window,
                          decision=decision,
@@ -202,10 +205,9 @@ def _build(world: World, games: list[PerceptualGame]) -> BayesObserver:
 
 
 def _memory(world: World) -> MemoryBound:
-    """The memory is the window alone (no hypothesis): w observations, each with a trap set."""
+    """The memory is the window alone (no hypothesis): w observations, each with P2's action."""
     return MemoryBound(hypotheses=1, observations=world.window,
-                       sets_per_observation=math.comb(len(world.grid.trap_candidates),
-                                                      world.traps))
+                       sets_per_observation=p2_action_count(world))
 
 
 def _mismatches(world: World, max_score: float, vary: Callable[..., World]

@@ -25,7 +25,7 @@ __all__ = ["Memory", "InferenceModel", "build_inference", "KIND"]
 class InferenceModel:
     """Sliding-window CUSUM (the observer of kind "cusum")."""
 
-    ratios: np.ndarray        # [X, X, n_ts, 4] r(x | xh; v, a1), indexed [xh, x, v, a1]
+    ratios: np.ndarray        # [X, X, n_ts, A1max] r(x | xh; v, a1), indexed [xh, x, v, a1]
     window: int               # w: transitions in the sliding window
     threshold: float          # c
     initial_hypothesis: int
@@ -103,17 +103,20 @@ class InferenceModel:
 
 def build_inference(games: list[PerceptualGame], window: int, threshold: float,
                     initial_hypothesis: int) -> InferenceModel:
-    """r(x | xh; v, a1) = ln pi1_x(a1 | v, a2) - ln pi1_xh(a1 | v, a2) with a2 = pi2_xh(v)."""
+    """r(x | xh; v, a1) = ln pi1_x(a1 | v, a2) - ln pi1_xh(a1 | v, a2) with a2 = pi2_xh(v);
+    0 at action slots not enabled at v (P1 never plays them, so P2 never observes them)."""
     n_x = len(games)
-    n_ts = games[0].trap_choice.shape[0]
+    n_ts, _, n_a1 = games[0].log_policy.shape
     states = np.arange(n_ts)
-    ratios = np.zeros((n_x, n_x, n_ts, 4))
+    ratios = np.zeros((n_x, n_x, n_ts, n_a1))
     for xh, current in enumerate(games):
         a2 = current.trap_choice
-        base = current.log_policy[states, a2]                         # [n_ts, 4]
+        base = current.log_policy[states, a2]                         # [n_ts, A1max]
+        enabled = np.isfinite(base)
         for x, other in enumerate(games):
             if x != xh:
-                ratio = other.log_policy[states, a2] - base
+                ratio = np.where(enabled, other.log_policy[states, a2] - np.where(enabled, base, 0.0),
+                                 0.0)
                 # Where both hypotheses predict the same move the difference is rounding noise.
                 ratio[np.abs(ratio) < 1e-12] = 0.0
                 ratios[xh, x] = ratio

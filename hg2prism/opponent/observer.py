@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from hg2prism.model.world import World
     from hg2prism.opponent.perceptual_games import PerceptualGame
 
-# (TS state, P1's action index into dynamics.ACTIONS, the trap set in force during the step).
+# (TS state, P1's action slot at that state, P2's action in force during the step).
 # The CUSUM observer reads only the first two (its memory has no trap sets, §5); the Bayesian
 # one records all three (§12). A two-element observation is accepted where a2 is not needed.
 Observation = tuple[int, ...]
@@ -38,6 +38,18 @@ class Memory:
 
     hypothesis: int
     window: tuple[Observation, ...] = ()
+
+
+def p2_action_count(world: "World") -> int:
+    """|A2|: P2's general actions, or the number of trap sets (docs/semantics.md §15)."""
+    import math
+
+    from hg2prism.frontends import arena_of
+
+    arena = arena_of(world)
+    if not arena.traps_mode:
+        return len(arena.p2_actions)
+    return math.comb(len(arena.trap_candidates), world.traps)
 
 
 # Within this of each other two numbers a rule compares are equal: CUSUM's scores against the

@@ -47,7 +47,7 @@ class GameSolution:
     """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
 
     values: np.ndarray        # [n_ts, n_q]
-    p2_strategy: np.ndarray   # [n_ts * n_q] P2's trap set at each game state (docs/semantics.md §4's rule)
+    p2_strategy: np.ndarray   # [n_ts * n_q] P2's action at each game state (docs/semantics.md §4's rule)
     p1_strategy: np.ndarray   # [n_ts * n_q, n_sets] P1's optimal answer to each trap set
     sweeps: int
 
@@ -60,8 +60,9 @@ class PerceptualGame:
     dfa: DFA
     values: np.ndarray        # [n_ts, n_q] V_x
     fresh_q: np.ndarray       # [n_ts] q_x0(v) = delta(iota, L(v))
-    trap_choice: np.ndarray   # [n_ts] pi2_x(v): index of the trap set
-    log_policy: np.ndarray    # [n_ts, n_sets, 4] ln pi1_x(a1 | v, a2), softmax at q_x0(v)
+    trap_choice: np.ndarray   # [n_ts] pi2_x(v): index of P2's action (a trap set in trap mode)
+    log_policy: np.ndarray    # [n_ts, n_a2, A1max] ln pi1_x(a1 | v, a2), softmax at q_x0(v) over
+                              # the actions enabled at v (-inf at the slots that are not)
 
 
 class TurnBasedGame:
@@ -83,8 +84,7 @@ class TurnBasedGame:
 
     def q_values(self, v: np.ndarray) -> np.ndarray:
         """Q[g, a1, a2]; for absorbing g every entry is V(g)."""
-        p, n = self.prob, self.next   # three slices: bit-identical to .sum(-1), ~3x faster
-        q = p[..., 0] * v[n[..., 0]] + p[..., 1] * v[n[..., 1]] + p[..., 2] * v[n[..., 2]]
+        q = outcome_sum(self.prob, v, self.next)
         q[~self.free] = v[~self.free, None, None]
         return q
 
@@ -105,6 +105,15 @@ class TurnBasedGame:
         (numeric.alternating_attractor)."""
         return alternating_attractor(self._predecessors(), self.next.shape[:3], self.goal,
                                      self.free, self.allowed, actions)
+
+
+def outcome_sum(prob: np.ndarray, v: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """sum_k prob[..., k] * v[nxt[..., k]], added left to right one outcome slot at a time:
+    bit-identical to .sum(-1) over the slots, ~3x faster."""
+    total = prob[..., 0] * v[nxt[..., 0]]
+    for k in range(1, nxt.shape[-1]):
+        total = total + prob[..., k] * v[nxt[..., k]]
+    return total
 
 
 def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
@@ -202,7 +211,7 @@ def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zer
     p1 = p1.copy()
     p2, x = _trap_response(game, p1, p2, zero)
     for _ in range(MAX_ROUNDS):
-        q = game.q_values(x)                                          # [G, 4, A2]
+        q = game.q_values(x)                                          # [G, A1, A2]
         current = np.take_along_axis(q, p1[:, None, :], axis=1)[:, 0, :]
         better = (solve[:, None] & game.allowed) & (q.max(axis=1) > current + IMPROVEMENT)
         if not better.any():
@@ -235,11 +244,11 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     rows = np.arange(game.size)
     solve = game.free & ~pinned
     # Only P1's answers matter here: the successors and probabilities of (g, p1[g, a2], a2).
-    nxt = np.take_along_axis(game.next, p1[:, None, :, None], axis=1)[:, 0]     # [G, A2, 3]
+    nxt = np.take_along_axis(game.next, p1[:, None, :, None], axis=1)[:, 0]     # [G, A2, K]
     prob = np.take_along_axis(game.prob, p1[:, None, :, None], axis=1)[:, 0]
     for _ in range(MAX_ROUNDS):
         x = _evaluate_pair(game, p1, p2, pinned)
-        answered = prob[..., 0] * x[nxt[..., 0]] + prob[..., 1] * x[nxt[..., 1]] + prob[..., 2] * x[nxt[..., 2]]
+        answered = outcome_sum(prob, x, nxt)
         worst = np.where(game.allowed, answered, np.inf)
         better = solve & (worst.min(axis=1) < worst[rows, p2] - IMPROVEMENT)
         if not better.any():
@@ -250,7 +259,7 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
 
 def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
     """P1's answer to every trap set and P2's trap set (exactly greedy: strategy iteration
-    needs it), greedy for values v whose one-step values are q = game.q_values(v) [G, 4, A2]."""
+    needs it), greedy for values v whose one-step values are q = game.q_values(v) [G, A1, A2]."""
     best_a1 = q.max(axis=1)                                           # [G, A2]
     p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
     # P1: among (near-)optimal answers, one that makes progress toward the goal, so that P1
@@ -287,7 +296,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
     """Exact reach probabilities when P2 plays p2[g] and P1 moves a1[g] (0 on `zero`)."""
     n = game.size
     rows = np.arange(n)
-    nxt = game.next[rows, a1, p2]                                     # [G, 3]
+    nxt = game.next[rows, a1, p2]                                     # [G, K]
     prob = game.prob[rows, a1, p2]
     solve = game.free & ~zero
     # States that can reach the goal in this chain (the rest have value 0): a breadth-first
@@ -302,7 +311,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
         pos[idx] = np.arange(idx.size)
         sub_next, sub_prob = nxt[idx], prob[idx]
         inner = solve[sub_next] & (sub_prob > 0)
-        r = np.repeat(np.arange(idx.size), 3).reshape(-1, 3)[inner]
+        r = np.broadcast_to(np.arange(idx.size)[:, None], sub_next.shape)[inner]
         c = pos[sub_next[inner]]
         matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
             (sub_prob[inner], (r, c)), shape=(idx.size, idx.size))
@@ -347,11 +356,12 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
     A move is optimal when its one-step value is within 1e-9 of values[g]. The scores are
     W(g) = max over optimal a1 of sum_k P(k) * (1 if the outcome is a goal else discount *
     W(next_k)), iterated from 0 until the change is below 1e-12 (0 on absorbing states); P1
-    plays the optimal move with the largest score, exact ties to the first in N, E, S, W."""
+    plays the optimal move with the largest score, exact ties to the first action slot (a
+    padded slot repeats the state's first action, so it never wins a tie)."""
     game = TurnBasedGame(ts, dfa)
     v = np.asarray(values, dtype=float)
     rows = np.arange(game.size)
-    nxt = game.next[rows, :, p2]                                      # [G, 4, 3]
+    nxt = game.next[rows, :, p2]                                      # [G, A1, K]
     prob = game.prob[rows, :, p2]
     optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - 1e-9
     w = np.zeros(game.size)
@@ -365,18 +375,20 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:
-    """Solve G(x) and derive P2's trap strategy and her softmax model of P1 (docs/semantics.md §4)."""
+    """Solve G(x) and derive P2's strategy and her softmax model of P1 (docs/semantics.md
+    §§4, 15): the softmax and the max over a1 range over the actions enabled at v."""
     solution = solve_game(ts, dfa)
     game = TurnBasedGame(ts, dfa)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
     g = product_state(np.arange(ts.n_states), fresh_q, dfa.n_states)
-    q = game.q_values(flat)[g]                                        # [S, 4, A2]
+    q = game.q_values(flat)[g]                                        # [S, A1, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
     choice = trap_rule(worst, _standing_sets(ts))
-    scaled = rationality * q.transpose(0, 2, 1)                       # [S, A2, 4]
-    top = scaled.max(axis=2, keepdims=True)
+    # A padded slot repeats action 0, so the max above is right unmasked; the softmax is not.
+    scaled = np.where(ts.enabled[:, None, :], rationality * q.transpose(0, 2, 1), -np.inf)
+    top = scaled.max(axis=2, keepdims=True)                           # [S, A2, A1max]
     log_policy = scaled - (top + np.log(np.exp(scaled - top).sum(axis=2, keepdims=True)))
     return PerceptualGame(formula=dfa.formula, dfa=dfa, values=solution.values,
                           fresh_q=fresh_q, trap_choice=choice, log_policy=log_policy)

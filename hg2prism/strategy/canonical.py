@@ -13,7 +13,6 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import ExplicitModel
 
 
@@ -29,11 +28,12 @@ class CanonicalMDP:
     goal: np.ndarray             # [n] bool
     fail: np.ndarray             # [n] bool
     choice_state: np.ndarray     # [choices] canonical source (non-absorbing states only)
-    choice_action: np.ndarray    # [choices] move index (dynamics.ACTIONS)
+    choice_action: np.ndarray    # [choices] P1's action slot at the state
     choice_storm: np.ndarray     # [choices] Storm's global choice index
     entry_choice: np.ndarray     # [entries] index into the choice arrays
     entry_target: np.ndarray     # [entries] canonical successor
     entry_prob: np.ndarray       # [entries]
+    n_actions: int = 0           # action slots per state (the TS's A1max)
 
     @property
     def absorbing(self) -> np.ndarray:
@@ -58,15 +58,17 @@ class CanonicalMDP:
                            minlength=len(self.choice_state))
 
     def by_state(self, per_choice: np.ndarray, fill: float = np.nan) -> np.ndarray:
-        """[n, moves] a per-choice quantity laid out by (state, move); `fill` where there is
-        none."""
-        table = np.full((self.n, len(ACTIONS)), fill, dtype=float)
+        """[n, action slots] a per-choice quantity laid out by (state, action slot); `fill`
+        where there is none."""
+        table = np.full((self.n, self.n_actions), fill, dtype=float)
         table[self.choice_state, self.choice_action] = per_choice
         return table
 
 
-def canonical_mdp(decoded: DecodedStates, moves: Transitions) -> CanonicalMDP:
-    """The canonical MDP of Storm's model (see the module docstring)."""
+def canonical_mdp(decoded: DecodedStates, moves: Transitions,
+                  n_actions: int | None = None) -> CanonicalMDP:
+    """The canonical MDP of Storm's model (see the module docstring); `n_actions`: P1's action
+    slots per state (the TS's A1max; by default one more than the largest action index)."""
     canonical = decoded.canonical
     n_states = len(canonical)
     n = decoded.n_canonical
@@ -91,7 +93,8 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions) -> CanonicalMDP:
         n=n, representative=representative, goal=goal, fail=fail,
         choice_state=canonical[moves.source[chosen]], choice_action=moves.action[chosen],
         choice_storm=chosen, entry_choice=entry_choice,
-        entry_target=canonical[moves.target[entries]], entry_prob=moves.probability[entries])
+        entry_target=canonical[moves.target[entries]], entry_prob=moves.probability[entries],
+        n_actions=max(int(moves.action.max(initial=-1)) + 1, n_actions or 0))
 
 
 def canonical_values(decoded: DecodedStates, storm_values: np.ndarray) -> np.ndarray:

@@ -23,7 +23,6 @@ import scipy.sparse as sp
 from hg2prism import numeric
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTION_LABELS, ACTIONS
 from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
@@ -44,7 +43,22 @@ class InducedDTMC:
     chain: ExplicitModel          # one choice per state, its successors sorted, merged
     initial: int
     labels: dict[str, np.ndarray]  # label name -> [n] bool ("goal", "fail", ...; not "init")
-    action: np.ndarray            # [n] P1's move index, -1 in absorbing states
+    action: np.ndarray            # [n] P1's action slot, -1 in absorbing states
+    place: np.ndarray | None = None   # [n] the arena state of each state (-1 in absorbing ones)
+    arena_actions: tuple[tuple[str, ...], ...] = ()   # P1's action names per arena state
+
+    def action_names(self) -> tuple[list[str], np.ndarray]:
+        """P1's action in each state by name: the names and each state's code into them
+        ("absorbing" in absorbing states; "a<slot>" without the arena's names)."""
+        width = int(self.action.max(initial=0)) + 1
+        if self.arena_actions and self.place is not None:
+            width = max(width, max(len(a) for a in self.arena_actions))
+            names = [a[k] if k < len(a) else "" for a in self.arena_actions for k in range(width)]
+            code = np.where(self.action >= 0, self.place * width + self.action, len(names))
+        else:
+            names = [f"a{k}" for k in range(width)]
+            code = np.where(self.action >= 0, self.action, width)
+        return names + ["absorbing"], code
 
     @property
     def n(self) -> int:
@@ -76,30 +90,30 @@ class InducedDTMC:
 
 def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
                 states: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
-    """State variables of canonical states: the robot's cell (x, y), the standing traps and
-    countdown (delay > 0), the DFA state q, P2's hypothesis and her window slots o1 (oldest)..,
-    each slot's TS state as (x, y[, traps, countdown]) and P1's move there (0..3 = N, E, S, W)."""
+    """State variables of canonical states: the arena state s (its number in the arena's
+    order), P2's standing action and the countdown (delay > 0), the DFA state q, P2's
+    hypothesis and her window slots o1 (oldest).., each slot's TS state as s[, standing,
+    countdown] and P1's action there (its slot: the arena's order of the state's actions)."""
     storm = mdp.representative[states]
-    cells = np.asarray(ts.cells, dtype=np.int64)
     delayed = ts.delay > 0
 
     def ts_columns(ts_state: np.ndarray, prefix: str) -> tuple[list[str], list[np.ndarray]]:
         present = ts_state >= 0
         safe = np.where(present, ts_state, 0)
         if delayed:
-            cell, rest = np.divmod(safe, ts.n_sets * ts.phases)
-            traps, countdown = np.divmod(rest, ts.phases)
+            place, rest = np.divmod(safe, ts.n_sets * ts.phases)
+            standing, countdown = np.divmod(rest, ts.phases)
         else:
-            cell, traps, countdown = safe, safe * 0, safe * 0
-        names = [f"{prefix}x", f"{prefix}y"] + ([f"{prefix}traps", f"{prefix}countdown"]
-                                                  if delayed else [])
-        cols = [cells[cell, 0], cells[cell, 1]] + ([traps, countdown] if delayed else [])
+            place = safe
+        names = [f"{prefix}s"] + ([f"{prefix}standing", f"{prefix}countdown"]
+                                  if delayed else [])
+        cols = [place] + ([standing, countdown] if delayed else [])
         return names, [np.where(present, c, ABSENT) for c in cols]
 
-    cell = decoded.cell[storm]
-    here = np.where(cell < ts.n_cells, ts.state(np.minimum(cell, ts.n_cells - 1),
-                                                decoded.traps[storm], decoded.countdown[storm]),
-                    -1)
+    place = decoded.cell[storm]
+    here = np.where(place < ts.n_places,
+                    ts.state(np.minimum(place, ts.n_places - 1), decoded.traps[storm],
+                             decoded.countdown[storm]), -1)
     names, columns = ts_columns(here, "")
     names += ["q", "hyp"]
     columns += [decoded.q[storm], decoded.hypothesis[storm]]
@@ -109,6 +123,11 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
         names += slot_names + [f"o{i + 1}_act"]
         columns += slot_columns + [np.where(slot[:, 0] >= 0, slot[:, 1], ABSENT)]
     return tuple(names), np.column_stack(columns).astype(np.int64)
+
+
+def _places(mdp: CanonicalMDP, decoded: DecodedStates, states: np.ndarray) -> np.ndarray:
+    """The arena state of canonical states (none is absorbing)."""
+    return decoded.cell[mdp.representative[states]].astype(np.int64)
 
 
 def _chain(source: np.ndarray, target: np.ndarray, probability: np.ndarray, n: int
@@ -148,7 +167,9 @@ def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedState
     return InducedDTMC(variables=names, valuations=values,
                        chain=_chain(source, target, probability, n_live + 2),
                        initial=int(index[initial]),
-                       labels=labels, action=np.r_[action[live], -1, -1])
+                       labels=labels, action=np.r_[action[live], -1, -1],
+                       place=np.r_[_places(mdp, decoded, live), -1, -1],
+                       arena_actions=ts.arena.actions)
 
 
 def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
@@ -159,7 +180,7 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
     `action_at(t)` is the [n] move of every canonical state after t steps (t < H). Raises
     ValueError past `max_states` states."""
     matrix = mdp.matrix()
-    choice_of = np.full((mdp.n, 4), -1, dtype=np.int64)
+    choice_of = np.full((mdp.n, mdp.n_actions), -1, dtype=np.int64)
     choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
     layers: list[np.ndarray] = []          # canonical states alive after t steps
     blocks: list[sp.csr_matrix] = []       # [layer t, n] transitions out of layer t
@@ -214,7 +235,9 @@ def unfolded_dtmc(mdp: CanonicalMDP, action_at: Callable[[int], np.ndarray],
     start = 0 if n_live else (goal_id if mdp.goal[initial] else fail_id)
     return InducedDTMC(variables=names, valuations=values,
                        chain=_chain(source, target, probability, n), initial=start,
-                       labels=labels, action=np.r_[moves, -1, -1, -1])
+                       labels=labels, action=np.r_[moves, -1, -1, -1],
+                       place=np.r_[_places(mdp, decoded, states), -1, -1, -1],
+                       arena_actions=ts.arena.actions)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -256,7 +279,8 @@ def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
 
 def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
     """Storm's DRN format (stormpy.build_model_from_drn): per state its labels, its valuation
-    as a comment and one choice labelled with P1's move (`absorbing` in absorbing states)."""
+    as a comment and one choice labelled with P1's action by name (`absorbing` in absorbing
+    states)."""
     lines = [f"// {line}" for line in comment.splitlines()] + [
         "@type: DTMC", "@value_type: double", "@parameters", "", "@reward_models", "",
         "@nr_states", str(dtmc.n), "@nr_choices", str(dtmc.n), "@model"]
@@ -267,13 +291,13 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
             named[i] += f" {name}"
     label_sets = sorted(set(named))
     label_code = {text: k for k, text in enumerate(label_sets)}
-    moves = [ACTION_LABELS[a] for a in ACTIONS] + ["absorbing"]
+    moves, move_code = dtmc.action_names()
     state = dtmc.numbers
     heads = Lines([literal("state "), state,
                    Field(Vocabulary.of(label_sets),
                          np.fromiter(map(label_code.__getitem__, named), np.int64, dtmc.n))]
                   + _valuation_fields(dtmc, "\n//[", ", ", "]\n\taction ", named=True)
-                  + [Field(Vocabulary.of(moves), np.where(dtmc.action >= 0, dtmc.action, 4)),
+                  + [Field(Vocabulary.of(moves), move_code),
                      literal("\n")], dtmc.n)
     branches = Lines([literal("\t\t"), Field(state.vocabulary, dtmc.target), literal(" : "),
                       dtmc.probabilities, literal("\n")], len(dtmc.target))

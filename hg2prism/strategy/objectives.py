@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.numeric import solve_plain
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
@@ -33,8 +32,9 @@ def optimal_choices(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
 
 def _pick(table: np.ndarray, preferred: np.ndarray, relative_tie: float, lowest: bool
           ) -> np.ndarray:
-    """[n] per row of `table` ([n, 4], NaN where a move is not allowed) the preferred move if
-    it is within `relative_tie` of the row's best, else the first such move (N, E, S, W)."""
+    """[n] per row of `table` ([n, action slots], NaN where a move is not allowed) the
+    preferred move if it is within `relative_tie` of the row's best, else the first such move
+    in slot order."""
     score = -table if lowest else table
     score = np.where(np.isnan(score), -np.inf, score)
     best = score.max(axis=1, keepdims=True)
@@ -59,7 +59,7 @@ class Lexicographic:
 def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
                           default_action: np.ndarray) -> Lexicographic:
     """Among the Pmax-optimal moves, those that minimise the expected number of steps until
-    the goal or a failure; ties go to the first move in N, E, S, W order.
+    the goal or a failure; ties go to the first action slot.
 
     A state is *finite* when some strategy using only optimal moves ends the episode with
     probability 1 from it (the greatest set of states from which the absorbing states can be
@@ -107,7 +107,7 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     where = np.full(mdp.n, -1, dtype=np.int64)
     where[states] = np.arange(len(states))
     matrix = mdp.matrix()
-    choice_of = np.full((mdp.n, len(ACTIONS)), -1, dtype=np.int64)
+    choice_of = np.full((mdp.n, mdp.n_actions), -1, dtype=np.int64)
     choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
     policy = first_move.copy()
     expected = np.zeros(mdp.n)
@@ -144,15 +144,14 @@ class Bounded:
     bound: int
     actions: np.ndarray         # [H, n] int8: P1's move after t steps (t = 0..H-1)
     value: float                # Pmax=? [F<=H "goal"] at the initial state
-    move_values: np.ndarray     # [n, 4] each move's P(goal within H steps) at t = 0
+    move_values: np.ndarray     # [n, action slots] each move's P(goal within H steps) at t = 0
 
     def action_at(self, t: int) -> np.ndarray:
         return self.actions[t].astype(np.int64)
 
     def schedules(self) -> list[list]:
-        """Per canonical state, its moves over t = 0..H-1 as runs [first t, last t, move]."""
-        from hg2prism.frontends.grid import ACTIONS
-
+        """Per canonical state, its moves over t = 0..H-1 as runs [first t, last t, action
+        slot] (strategy.json names the actions: records.RecordExtras)."""
         changes = np.flatnonzero(np.diff(self.actions, axis=0).any(axis=1)) + 1
         starts = np.r_[0, changes]
         ends = np.r_[changes - 1, self.bound - 1]
@@ -163,10 +162,10 @@ class Bounded:
             for first, last, a in zip(starts.tolist(), ends.tolist(), row):
                 if a < 0:
                     continue
-                if runs and runs[-1][2] == ACTIONS[a]:
+                if runs and runs[-1][2] == a:
                     runs[-1][1] = last
                 else:
-                    runs.append([first, last, ACTIONS[a]])
+                    runs.append([first, last, a])
             schedules.append(runs)
         return schedules
 
@@ -176,7 +175,7 @@ def bounded_actions(mdp: CanonicalMDP, default_action: np.ndarray, initial: int,
     """Pmax=? [F<=bound "goal"] by backward induction, V_0 = [goal] and
     V_k(s) = max_a sum_s' P(s' | s, a) V_{k-1}(s'), and the strategy that, with k steps left,
     takes a maximising move: the default's move if it is within a relative 1e-12 of the best,
-    else the first best in N, E, S, W order."""
+    else the first best in slot order."""
     matrix = mdp.matrix()
     goal = mdp.goal.astype(float)
     live = ~mdp.absorbing

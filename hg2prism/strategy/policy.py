@@ -25,7 +25,6 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.model.product import product_state
 
 __all__ = ["Policy", "ProductPolicy"]
@@ -36,23 +35,26 @@ class Policy(Protocol):
     """P1's deterministic strategy on hypergame states (v, q, M)."""
 
     def action(self, ts_state: int, q: int, memory: Hashable) -> int:
-        """P1's move, an index into dynamics.ACTIONS, in the hypergame state
+        """P1's move, its action slot at `ts_state` (ts.action_names), in the hypergame state
         (`ts_state`, `q`, `memory`). May raise records.StrategyError for a state the
         strategy does not cover."""
 
 
 class ProductPolicy:
     """A policy on the product TS x DFA: one move per product state g = s * n_q + q (the
-    convention of model.product), whatever P2's memory. `answers` holds the moves [G]."""
+    convention of model.product), whatever P2's memory. `answers` holds the moves [G];
+    `n_actions` the action slots per state (the TS's A1max) its mixed form ranges over."""
 
-    def __init__(self, answers: Sequence[int] | np.ndarray, n_q: int) -> None:
+    def __init__(self, answers: Sequence[int] | np.ndarray, n_q: int, n_actions: int = 0) -> None:
         self.answers = [int(a) for a in np.asarray(answers).reshape(-1).tolist()]
         self.n_q = int(n_q)
+        self.n_actions = max(int(n_actions), max(self.answers, default=-1) + 1)
 
     def action(self, ts_state: int, q: int, memory: Hashable) -> int:
         return self.answers[product_state(ts_state, q, self.n_q)]
 
     def mixed(self) -> np.ndarray:
-        """[G, len(ACTIONS)] the policy as a (degenerate) mixed strategy, one row per product state: what
-        simulation.simulate_nash and exact_completion play."""
-        return np.eye(len(ACTIONS))[self.answers]
+        """[G, n_actions] the policy as a (degenerate) mixed strategy over P1's action slots
+        (ts.n_actions), one row per product state: what simulation.simulate_nash and
+        exact_completion play."""
+        return np.eye(self.n_actions)[self.answers]

@@ -9,6 +9,7 @@ of records).
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
@@ -18,7 +19,6 @@ import numpy as np
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import Memory
 from hg2prism.strategy.columns import Field, Lines, Texts, Vocabulary, integers, literal, tokens
 from hg2prism.strategy.deceptive import StormChoices
@@ -28,9 +28,37 @@ class StrategyError(LookupError):
     """The strategy has no (or an unreadable) record for a hypergame state."""
 
 
+def describe_state(ts: TransitionSystem, state: int) -> dict:
+    """A TS state as a record's first keys: ``state``, the arena state's name; ``standing``,
+    the name of P2's standing action (a trap set's states joined by '+'), and ``countdown``
+    (both null when delay is 0)."""
+    place, standing, countdown = ts.decode(state)
+    name = ts.arena.states[place]
+    if ts.delay == 0:
+        return {"state": name, "standing": None, "countdown": None}
+    return {"state": name, "standing": ts.a2_names[standing], "countdown": countdown}
+
+
+def _start_first(decoded: DecodedStates, choices: StormChoices, initial: int | None
+                 ) -> tuple[np.ndarray, int]:
+    """The engine states whose records are written (the representatives of the non-absorbing
+    canonical states), the initial state's first, and how many of them are marked initial
+    (1, or 0 when the initial state is absorbing or unknown)."""
+    states = choices.representative
+    states = states[~(decoded.goal | decoded.fail)[states]]
+    if initial is None:
+        return states, 0
+    first = np.flatnonzero(decoded.canonical[states] == decoded.canonical[initial])
+    if not first.size:
+        return states, 0
+    return np.r_[states[first[0]], np.delete(states, first[0])], 1
+
+
 def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                     ts: TransitionSystem, extras: RecordExtras | None = None) -> list[dict]:
-    """P1's deceptive strategy: one record per reachable non-absorbing canonical state.
+                     ts: TransitionSystem, extras: RecordExtras | None = None,
+                     initial: int | None = None) -> list[dict]:
+    """P1's deceptive strategy: one record per reachable non-absorbing canonical state, that of
+    the engine's `initial` state first, marked ``"initial": true``.
 
     `extras` (RecordExtras) adds keys after ``action``."""
     records = []
@@ -38,26 +66,27 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
 
     def describe(state: int) -> dict:
         if state not in described:
-            described[state] = ts.describe_state(state)
+            described[state] = describe_state(ts, state)
         return dict(described[state])
 
+    states, marked = _start_first(decoded, choices, initial)
     cells, traps, countdowns = decoded.cell.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
     qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
     windows = decoded.window.tolist()
     chosen = moves.action[choices.choice].tolist()
-    absorbing = (decoded.goal | decoded.fail).tolist()
     canonical = decoded.canonical.tolist()
-    for s in choices.representative.tolist():
-        if absorbing[s]:
-            continue
-        record = describe(ts.state(cells[s], traps[s], countdowns[s]))
+    for i, s in enumerate(states.tolist()):
+        v = ts.state(cells[s], traps[s], countdowns[s])
+        record = {"initial": True} if i < marked else {}
+        record.update(describe(v))
         record["q"] = qs[s]
         record["hypothesis"] = hypotheses[s]
         record["window"] = [window_entry(ts, entry, describe(entry[0]))
                             for entry in windows[s] if entry[0] >= 0]
-        record["action"] = ACTIONS[chosen[s]]
+        names = ts.action_names(v)
+        record["action"] = names[chosen[s]]
         if extras is not None:
-            record.update(extras.fields(canonical[s]))
+            record.update(extras.fields(canonical[s], names))
         records.append(record)
     return records
 
@@ -68,10 +97,11 @@ def _json_number(x: float) -> float | None:
 
 class RecordExtras:
     """The keys strategy.json's records gain after ``action`` (docs/semantics.md §6): ``values``,
-    the value of every move ``{"N": ..., "E": ..., "S": ..., "W": ...}`` (from `move_values`
-    [canonical states, 4], clamped into [0, 1], §10); for the step-bounded objective also
-    ``schedule`` (per canonical state, runs ``[first step, last step, move]``) and
-    ``bounded_values`` (each move's probability of the goal within the bound)."""
+    the value of every action available in the record's state, by name (from `move_values`
+    [canonical states, action slots], clamped into [0, 1], §10); for the step-bounded objective
+    also ``schedule`` (per canonical state, runs ``[first step, last step, action slot]``,
+    written with the action's name) and ``bounded_values`` (each action's probability of the
+    goal within the bound)."""
 
     def __init__(self, move_values: np.ndarray, schedules: Sequence[list] | None = None,
                  bounded_values: np.ndarray | None = None) -> None:
@@ -79,28 +109,51 @@ class RecordExtras:
         self.schedules = schedules
         self.bounded = None if bounded_values is None else np.clip(bounded_values, 0.0, 1.0)
 
-    def fields(self, state: int) -> dict:
-        """The added keys of canonical state `state`'s record."""
+    def fields(self, state: int, names: Sequence[str]) -> dict:
+        """The added keys of canonical state `state`'s record; `names`: the actions available
+        there (slot k is names[k])."""
         row = self.values[state].tolist()
-        fields = {"values": {m: _json_number(x) for m, x in zip(ACTIONS, row)}}
+        fields = {"values": {m: _json_number(x) for m, x in zip(names, row)}}
         if self.schedules is not None:
-            fields["schedule"] = self.schedules[state]
+            fields["schedule"] = [[first, last, names[a]]
+                                  for first, last, a in self.schedules[state]]
             fields["bounded_values"] = {m: _json_number(x)
-                                        for m, x in zip(ACTIONS, self.bounded[state].tolist())}
+                                        for m, x in zip(names, self.bounded[state].tolist())}
         return fields
 
-    def json_tail(self, states: np.ndarray) -> list[Field | Texts]:
-        """The added keys of each state's record as compact JSON fields, ending the record:
-        the text json.dumps gives, without dumping a dict per record (millions of records)."""
+    def json_tail(self, states: np.ndarray, ts: TransitionSystem, ts_states: np.ndarray
+                  ) -> list[Field | Texts]:
+        """The added keys of each record (canonical state states[i] in TS state ts_states[i])
+        as compact JSON fields, ending the record: the text json.dumps gives, without dumping a
+        dict per record (millions of records)."""
         if self.schedules is not None:
             compact = {"separators": (",", ":")}
-            return [Texts([json.dumps(self.fields(c), **compact)[1:] for c in states.tolist()])]
+            return [Texts([json.dumps(self.fields(c, ts.action_names(v)), **compact)[1:]
+                           for c, v in zip(states.tolist(), ts_states.tolist())])]
         values = self.values[states]
+        names = _slot_names(ts)
+        place = _places(ts, ts_states)
         fields = []
-        for k, move in enumerate(ACTIONS):
-            fields += [literal(("\"values\":{" if k == 0 else ",") + f'"{move}":'),
-                       tokens(values[:, k], _json_float)]
+        for k in range(min(values.shape[1], ts.n_actions)):
+            key = Vocabulary.of([("\"values\":{" if k == 0 else ",") + json.dumps(n) + ":"
+                                 for n in names[:, k].tolist()])
+            present = ts.enabled[ts_states, k]
+            fields += [Field(key, np.where(present, place, -1)),
+                       tokens(values[:, k], _json_float).where(present)]
         return fields + [literal("}}")]
+
+
+def _places(ts: TransitionSystem, ts_states: np.ndarray) -> np.ndarray:
+    """The arena state of each TS state (none is `trapped`)."""
+    return ts.places_of()[ts_states]
+
+
+def _slot_names(ts: TransitionSystem) -> np.ndarray:
+    """[arena states, A1max] P1's action names by slot ("" where a slot is not enabled)."""
+    names = np.full((ts.n_places, ts.n_actions), "", dtype=object)
+    for place, actions in enumerate(ts.arena.actions):
+        names[place, :len(actions)] = actions
+    return names
 
 
 def _json_float(x: float) -> str:
@@ -108,40 +161,44 @@ def _json_float(x: float) -> str:
 
 
 def window_entry(ts: TransitionSystem, entry: list[int], described: dict) -> dict:
-    """A window entry of a record: the observation's TS state, P1's move and, for the Bayesian
-    observer (entries of three), `played`, the cells of the trap set in force."""
-    record = dict(described, action=ACTIONS[entry[1]])
+    """A window entry of a record: the observation's TS state, P1's action by name and, for
+    the Bayesian observer (entries of three), ``played``, the name of P2's action in force."""
+    record = dict(described, action=ts.action_names(entry[0])[entry[1]])
     if len(entry) > 2:
-        record["played"] = [list(c) for c in ts.trap_cells(entry[2])]
+        record["played"] = ts.a2_names[entry[2]]
     return record
 
 
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
-                  ts: TransitionSystem, extras: RecordExtras | None = None) -> bytes:
+                  ts: TransitionSystem, extras: RecordExtras | None = None,
+                  initial: int | None = None) -> bytes:
     """strategy.json: the records of `strategy_records`, one compact JSON object per line.
 
     Built column-wise from JSON fragments per TS state (and per observed move), because a few
     hundred TS states describe millions of records: the same text as json.dumps of each record,
     without creating the records."""
-    states = choices.representative
-    states = states[~(decoded.goal | decoded.fail)[states]]
+    states, marked = _start_first(decoded, choices, initial)
     compact = {"separators": (",", ":")}
     ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
-    fields = [tokens(ts_state, lambda v: json.dumps(ts.describe_state(v), **compact)[:-1]
+    first = Field(Vocabulary.of(['{"initial":true,', "{"]),
+                  np.where(np.arange(len(states)) < marked, 0, 1))
+    fields = [first,
+              tokens(ts_state, lambda v: json.dumps(describe_state(ts, v), **compact)[1:-1]
                      + ',"q":'),
               integers(decoded.q[states]), literal(',"hypothesis":'),
               integers(decoded.hypothesis[states]), literal(',"window":[')]
     window = decoded.window[states]                           # [n, slots, 2 or 3]
     with_sets = window.shape[-1] > 2
     n_sets = ts.n_sets if with_sets else 1
-    code = window[..., 0] * 4 + window[..., 1]
+    n_a1 = ts.n_actions
+    code = window[..., 0] * n_a1 + window[..., 1]
     if with_sets:
         code = code * n_sets + window[..., 2]
     present = window[..., 0] >= 0
     used = np.unique(code[present])
-    entries = [json.dumps(window_entry(ts, [c // n_sets // 4, c // n_sets % 4]
+    entries = [json.dumps(window_entry(ts, [c // n_sets // n_a1, c // n_sets % n_a1]
                                        + ([c % n_sets] if with_sets else []),
-                                       ts.describe_state(c // n_sets // 4)), **compact)
+                                       describe_state(ts, c // n_sets // n_a1)), **compact)
                for c in used.tolist()]
     # A slot's entry, after a comma when an earlier slot has one.
     entry = Vocabulary.of(entries + ["," + e for e in entries])
@@ -150,12 +207,15 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
         rank = np.searchsorted(used, code[:, k])
         fields.append(Field(entry, np.where(present[:, k], rank + len(used) * earlier, -1)))
         earlier |= present[:, k]
-    chosen = moves.action[choices.choice[states]]
+    chosen = _places(ts, ts_state) * n_a1 + moves.action[choices.choice[states]]
+    names = _slot_names(ts).reshape(-1).tolist()
     if extras is None:
-        fields.append(Field(Vocabulary.of([f'],"action":"{a}"}}' for a in ACTIONS]), chosen))
+        fields.append(Field(Vocabulary.of([f'],"action":{json.dumps(a)}}}' for a in names]),
+                            chosen))
     else:
-        fields.append(Field(Vocabulary.of([f'],"action":"{a}",' for a in ACTIONS]), chosen))
-        fields += extras.json_tail(decoded.canonical[states])
+        fields.append(Field(Vocabulary.of([f'],"action":{json.dumps(a)},' for a in names]),
+                            chosen))
+        fields += extras.json_tail(decoded.canonical[states], ts, ts_state)
     fields.append(literal(",\n").where(np.arange(len(states)) < len(states) - 1))
     return Lines(fields, len(states)).render(b"[\n", b"\n]\n")
 
@@ -173,53 +233,64 @@ def _record_key(ts: TransitionSystem, record: Mapping, where: str) -> tuple[int,
     return v, q, Memory(hypothesis, window)
 
 
+@functools.lru_cache(maxsize=8)
+def _numbering(ts: TransitionSystem) -> tuple[dict[str, int], dict[str, int]]:
+    """Arena state names and P2's action names -> their numbers."""
+    return ({n: i for i, n in enumerate(ts.arena.states)},
+            {n: i for i, n in enumerate(ts.a2_names)})
+
+
 def _record_ts_state(ts: TransitionSystem, record: Mapping, where: str) -> int:
-    """The TS state of a record's (or window entry's) cell, traps and countdown."""
-    try:
-        cell = tuple(int(c) for c in record["cell"])
-    except (KeyError, TypeError, ValueError) as err:
-        raise StrategyError(f"{where}: bad or missing 'cell' ({err})") from None
-    if cell not in ts.cell_index:
-        raise StrategyError(f"{where}: cell {list(cell)} is not a free cell of the world")
-    index = ts.cell_index[cell]
+    """The TS state of a record's (or window entry's) state, standing action and countdown."""
+    states, _ = _numbering(ts)
+    name = record.get("state") if isinstance(record, Mapping) else None
+    if not isinstance(name, str):
+        raise StrategyError(f"{where}: bad or missing 'state' ({name!r})")
+    if name not in states:
+        raise StrategyError(f"{where}: {name!r} is not a state of the world")
+    index = states[name]
     if ts.delay == 0:
         return ts.state(index)
-    traps = record.get("traps")
+    standing = record.get("standing")
     countdown = record.get("countdown")
-    if traps is None or countdown is None:
-        raise StrategyError(f"{where}: 'traps' and 'countdown' are required when delay > 0")
-    trap_set = _trap_set_index(ts, traps, where)
-    countdown = int(countdown)
+    if standing is None or countdown is None:
+        raise StrategyError(f"{where}: 'standing' and 'countdown' are required when delay > 0")
+    a2 = _p2_action_index(ts, standing, where)
+    try:
+        countdown = int(countdown)
+    except (TypeError, ValueError):
+        raise StrategyError(f"{where}: bad countdown {countdown!r}") from None
     if not 0 <= countdown <= ts.delay:
         raise StrategyError(f"{where}: countdown {countdown} outside 0..{ts.delay}")
-    return ts.state(index, trap_set, countdown)
+    return ts.state(index, a2, countdown)
 
 
-def _trap_set_index(ts: TransitionSystem, cells: object, where: str) -> int:
-    candidate_of = {c: k for k, c in enumerate(ts.candidates)}
-    try:
-        members = tuple(sorted(candidate_of[ts.cell_index[tuple(int(c) for c in t)]]
-                               for t in cells))
-        return ts.trap_sets.index(members)
-    except (KeyError, ValueError, TypeError):
-        raise StrategyError(f"{where}: traps {cells} are not a P2 action of the world") from None
+def _p2_action_index(ts: TransitionSystem, name: object, where: str) -> int:
+    _, actions = _numbering(ts)
+    if not isinstance(name, str) or name not in actions:
+        raise StrategyError(f"{where}: {name!r} is not a P2 action of the world") from None
+    return actions[name]
 
 
 def _window_observation(ts: TransitionSystem, entry: Mapping, where: str) -> tuple[int, ...]:
-    """A window entry as an observation: (TS state, action), and the trap set in force when
+    """A window entry as an observation: (TS state, action), and P2's action in force when
     the entry has `played` (Bayesian observer)."""
     if not isinstance(entry, Mapping):
         raise StrategyError(f"{where}: expected an object, got {entry!r}")
-    observation = (_record_ts_state(ts, entry, where), _action_index(entry.get("action"), where))
+    v = _record_ts_state(ts, entry, where)
+    observation = (v, _action_index(ts, v, entry.get("action"), where))
     if "played" in entry:
-        observation += (_trap_set_index(ts, entry["played"], where),)
+        observation += (_p2_action_index(ts, entry["played"], where),)
     return observation
 
 
-def _action_index(name: object, where: str) -> int:
-    if name not in ACTIONS:
-        raise StrategyError(f"{where}: action {name!r} is not one of {', '.join(ACTIONS)}")
-    return ACTIONS.index(name)
+def _action_index(ts: TransitionSystem, v: int, name: object, where: str) -> int:
+    """The slot of P1's action `name` at TS state v."""
+    names = ts.action_names(v)
+    if name not in names:
+        raise StrategyError(f"{where}: action {name!r} is not one of {', '.join(names)} "
+                            f"(the actions at {ts.arena.states[ts.decode(v)[0]]})")
+    return names.index(name)
 
 
 Fallback = Callable[[int, int, Memory], int]
@@ -246,16 +317,18 @@ class Strategy:
     @classmethod
     def from_records(cls, records: Iterable[Mapping], ts: TransitionSystem,
                      fallback: Fallback | None = None) -> "Strategy":
-        """Read the exported records ``{cell, traps, countdown, q, hypothesis, window, action}``."""
+        """Read the exported records ``{state, standing, countdown, q, hypothesis, window,
+        action}`` (other keys, such as ``initial`` and ``values``, are not read here)."""
         table: dict[tuple[int, int, Memory], int] = {}
         records = tuple(records)
         for i, record in enumerate(records):
             where = f"strategy record {i}"
             key = _record_key(ts, record, where)
-            action = _action_index(record.get("action"), where)
+            action = _action_index(ts, key[0], record.get("action"), where)
             if table.setdefault(key, action) != action:
-                raise StrategyError(f"{where}: conflicting actions {ACTIONS[table[key]]} and "
-                                    f"{ACTIONS[action]} for the same state")
+                names = ts.action_names(key[0])
+                raise StrategyError(f"{where}: conflicting actions {names[table[key]]} and "
+                                    f"{names[action]} for the same state")
         return cls(table, ts, fallback, records=tuple(records))
 
     @classmethod
@@ -272,7 +345,7 @@ class Strategy:
         return key in self.table
 
     def action(self, ts_state: int, q: int, memory: Memory) -> int:
-        """P1's action index (into dynamics.ACTIONS); for a state without a record the
+        """P1's action slot at `ts_state`; for a state without a record the
         fallback's action, or StrategyError when there is no fallback."""
         try:
             return self.table[(ts_state, q, memory)]
@@ -283,37 +356,39 @@ class Strategy:
                 f"the strategy has no record for the hypergame state "
                 f"{self.describe(ts_state, q, memory)}") from None
 
-    def move(self, cell: tuple[int, int], q: int, hypothesis: int,
-             window: Iterable[tuple] = (), traps: Iterable[tuple[int, int]] | None = None,
-             countdown: int | None = None, step: int = 0) -> str:
-        """P1's move ("N", "E", "S" or "W") when the robot is at `cell` (x, y), the task DFA is
-        in `q` (after reading the cell's label), P2 holds `hypothesis` and remembers `window`:
-        (cell, move) pairs, oldest first. With delay > 0, `traps` (cells) and `countdown` give
-        the standing traps, and each window entry is (cell, move, traps, countdown). For the
-        Bayesian observer each entry is (cell, move, traps, countdown, played), `played` the
-        cells of the trap set in force (traps and countdown None when delay is 0), and
-        `hypothesis` the window's MAP hypothesis. `step` is the number of steps taken so far:
-        the move of a step-bounded strategy (records with a ``schedule``) depends on it, from
-        the bound on it stays the last step's; the other strategies ignore it.
+    def move(self, state: str, q: int, hypothesis: int, window: Iterable[tuple] = (),
+             standing: str | None = None, countdown: int | None = None, step: int = 0) -> str:
+        """P1's action (its name) when the arena state is `state` (a name), the task DFA is in
+        `q` (after reading the state's label), P2 holds `hypothesis` and remembers `window`:
+        (state, action) pairs, oldest first. With delay > 0, `standing` (the name of P2's
+        standing action) and `countdown` give P2's standing action, and each window entry is
+        (state, action, standing, countdown). For the Bayesian observer each entry is (state,
+        action, standing, countdown, played), `played` the name of P2's action in force
+        (standing and countdown None when delay is 0), and `hypothesis` the window's MAP
+        hypothesis. `step` is the number of steps taken so far: the action of a step-bounded
+        strategy (records with a ``schedule``) depends on it, from the bound on it stays the
+        last step's; the other strategies ignore it.
         Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
         if self.ts is None:
             raise ValueError("move() needs the strategy's transition system")
         where = "move()"
+        ts = self.ts
 
-        def state(cell, traps, countdown) -> int:
-            return _record_ts_state(self.ts, {"cell": cell, "traps": traps,
-                                              "countdown": countdown}, where)
+        def at(name, standing, countdown) -> int:
+            return _record_ts_state(ts, {"state": name, "standing": standing,
+                                         "countdown": countdown}, where)
 
         try:
-            v = state(cell, traps, countdown)
-            observed = tuple(
-                (state(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None))),
-                 _action_index(entry[1], where))
-                + ((_trap_set_index(self.ts, entry[4], where),) if len(entry) > 4 else ())
-                for entry in window)
+            v = at(state, standing, countdown)
+            observed = []
+            for entry in window:
+                u = at(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None)))
+                observed.append((u, _action_index(ts, u, entry[1], where))
+                                + ((_p2_action_index(ts, entry[4], where),)
+                                   if len(entry) > 4 else ()))
         except StrategyError as err:
             raise KeyError(str(err)) from None
-        key = (v, int(q), Memory(int(hypothesis), observed))
+        key = (v, int(q), Memory(int(hypothesis), tuple(observed)))
         if key not in self.table:
             raise KeyError(f"no record for {self.describe(*key)}")
         if step < 0:
@@ -324,7 +399,7 @@ class Strategy:
             for first, end, move in schedule:
                 if int(first) <= min(step, last) <= int(end):
                     return str(move)
-        return ACTIONS[self.table[key]]
+        return ts.action_names(v)[self.table[key]]
 
     def _schedule(self, key: tuple[int, int, Memory]) -> list | None:
         """The ``schedule`` of the record of `key` (step-bounded strategies), else None."""
@@ -345,14 +420,16 @@ class Strategy:
         if self.ts is None:
             return f"(ts_state={ts_state}, q={q}, {memory})"
 
+        ts = self.ts
+
         def where(state: int) -> str:
-            d = self.ts.describe_state(state)
-            text = f"cell {d['cell']}"
-            if d["traps"] is not None:
-                text += f" traps {d['traps']} countdown {d['countdown']}"
+            d = describe_state(ts, state)
+            text = d["state"]
+            if d["standing"] is not None:
+                text += f" standing {d['standing']} countdown {d['countdown']}"
             return text
 
-        window = ", ".join(f"{where(o[0])} {ACTIONS[o[1]]}"
-                           + (f" played {list(self.ts.trap_cells(o[2]))}" if len(o) > 2 else "")
+        window = ", ".join(f"{where(o[0])} {ts.action_names(o[0])[o[1]]}"
+                           + (f" played {ts.a2_names[o[2]]}" if len(o) > 2 else "")
                            for o in memory.window)
         return f"{where(ts_state)}, q={q}, hypothesis={memory.hypothesis}, window=[{window}]"

@@ -382,11 +382,13 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
 
 
 def move_values(game: IntervalGame, solution: RobustSolution, states: np.ndarray,
-                action: np.ndarray) -> np.ndarray:
-    """[len(states), 4]: the worst case under the budget of each move (action[choice], an index
-    into N, E, S, W) of each of `states`, R's one-step values (NaN for a move a state lacks):
-    why the robust strategy moves as it does, as strategy.json's ``values``."""
-    values = np.full((len(states), 4), np.nan)
+                action: np.ndarray, n_actions: int = 0) -> np.ndarray:
+    """[len(states), action slots]: the worst case under the budget of each move (action[choice],
+    P1's action slot) of each of `states`, R's one-step values (NaN for a move a state lacks):
+    why the robust strategy moves as it does, as strategy.json's ``values``. `n_actions`: the
+    slots per state (the TS's A1max; at least one more than the largest action)."""
+    n_actions = max(int(n_actions), int(action.max(initial=-1)) + 1)
+    values = np.full((len(states), n_actions), np.nan)
     row = np.full(game.n_states, -1, dtype=np.int64)
     row[states] = np.arange(len(states))
     choices = np.flatnonzero((row[game.choice_state] >= 0) & (action >= 0))   # not `[] stop`

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.records import Strategy, StrategyError
 
@@ -72,9 +71,13 @@ class SteppedStrategy:
         self.bound = bound
         self.row = {key: i for i, key in enumerate(base.table)}
         self.actions = np.full((len(records), bound), -1, dtype=np.int8)
-        for i, record in enumerate(records):
+        for i, (record, key) in enumerate(zip(records, base.table)):
+            names = ts.action_names(key[0])
             for first, last, move in record.get("schedule", ()):
-                self.actions[i, int(first):int(last) + 1] = ACTIONS.index(move)
+                if move not in names:
+                    raise StrategyError(f"strategy record {i}: action {move!r} in its schedule "
+                                        f"is not one of {', '.join(names)}")
+                self.actions[i, int(first):int(last) + 1] = names.index(move)
         if (self.actions < 0).any():
             raise StrategyError("a strategy record's schedule does not cover every step")
 
