@@ -27,11 +27,5 @@ def initial_standing(world: World) -> int:
 
 def transition_system(world: World) -> TransitionSystem:
     """The world's TS (docs/semantics.md §§2, 15)."""
-    ts = build_transition_system(arena_of(world), world.traps, world.delay,
-                                 initial_standing(world))
-    if world.arena is None:         # LEGACY: the grid's geometry, until no consumer reads it
-        import dataclasses
-        from hg2prism.frontends import grid
-
-        ts = dataclasses.replace(ts, geometry=grid.geometry(world))
-    return ts
+    return build_transition_system(arena_of(world), world.traps, world.delay,
+                                   initial_standing(world))

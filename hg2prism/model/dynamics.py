@@ -34,43 +34,6 @@ class TransitionSystem:
     allowed: np.ndarray               # [n_states, n_a2] bool: A2(v)
     enabled: np.ndarray               # [n_states, A1max] bool: P1's action slot i exists at v
     terminal: np.ndarray              # [n_states] bool: the episode ends here (trapped included)
-    geometry: object = None           # LEGACY (being removed): the grid front end's geometry
-
-    # ---- LEGACY grid accessors, for consumers not yet moved to the arena ----
-    @property
-    def cells(self):
-        return self.geometry.cells
-
-    @property
-    def cell_index(self):
-        return self.geometry.cell_index
-
-    @property
-    def move(self):
-        return self.geometry.move
-
-    @property
-    def slip(self):
-        return self.geometry.slip
-
-    @property
-    def candidates(self):
-        return self.arena.trap_candidates
-
-    @property
-    def cell_label(self):
-        return self.place_label
-
-    @property
-    def n_cells(self):
-        return self.n_places
-
-    @property
-    def set_cells(self):
-        return self.set_places
-
-    def trap_cells(self, trap_set: int):
-        return tuple(self.cells[p] for p in self.trap_places(trap_set))
 
     @property
     def n_places(self) -> int:
@@ -167,14 +130,6 @@ class TransitionSystem:
     def describe_state(self, state: int) -> dict:
         """A TS state as JSON-ready fields: its arena state, P2's standing action and the
         countdown (both null when delay is 0); all null for `trapped`."""
-        if self.geometry is not None:       # LEGACY grid form
-            if state == self.trapped:
-                return {"cell": None, "traps": None, "countdown": None}
-            cell, traps, countdown = self.decode(state)
-            if self.delay == 0:
-                return {"cell": list(self.cells[cell]), "traps": None, "countdown": None}
-            return {"cell": list(self.cells[cell]),
-                    "traps": [list(c) for c in self.trap_cells(traps)], "countdown": countdown}
         if state == self.trapped:
             return {"state": "trapped", "standing": None, "countdown": None}
         place, standing, countdown = self.decode(state)
