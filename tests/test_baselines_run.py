@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+import reference_nash
 import worldgen
 from conftest import MODELS
 from hg2prism import pipeline
@@ -60,6 +61,10 @@ def test_run_simulations_agree_with_exact_bounded_probabilities(name: str, tmp_p
     assert 0.0 <= r.simulation.deceptive.p2_switched <= 1.0
     assert r.simulation.deceptive.p2_switches_mean >= r.simulation.deceptive.p2_switched
     saved = json.loads((out / "results.json").read_text())
+    if name == "world1":
+        # V_NE by the independent reference (tests/reference_nash.py): a sound bracket
+        ref = reference_nash.v_ne(MODELS / "world1.toml")
+        assert ref.upper - ref.lower <= 1e-6 and ref.contains(saved["v_ne"], 1e-6), ref
     for key in ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states", "transitions",
                 "storm_states", "storm_transitions", "storm_choices", "timings", "simulation",
                 "v_static", "v_naive", "value_of_deception"):
