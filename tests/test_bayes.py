@@ -127,7 +127,7 @@ def test_storm_transitions_are_those_of_the_python_observer(case) -> None:
         a1 = int(moves.action[choice])
         memory = _memory(decoded, s)
         assert observer.hypothesis(memory) == observer.map_hypothesis(memory.window)
-        v = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        v = ts.state(int(decoded.place[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         expected: dict[tuple, float] = {}
         for x, px in observer.hypothesis_distribution(memory):
             a2 = int(observer.trap_choice[x][v])
@@ -142,8 +142,8 @@ def test_storm_transitions_are_those_of_the_python_observer(case) -> None:
             t = int(moves.target[e])
             if moves.probability[e] <= 0:
                 continue
-            cell = int(decoded.cell[t])
-            w = ts.trapped if cell == ts.n_cells else ts.state(cell, int(decoded.traps[t]),
+            cell = int(decoded.place[t])
+            w = ts.trapped if cell == ts.n_places else ts.state(cell, int(decoded.traps[t]),
                                                                 int(decoded.countdown[t]))
             key = (w, _memory(decoded, t))
             built[key] = built.get(key, 0.0) + float(moves.probability[e])
@@ -340,9 +340,9 @@ def test_v_naive_is_the_naive_strategy_on_storms_model_and_at_most_the_deceptive
     representative = result.strategy.representative
     action = np.zeros(len(representative), dtype=np.int64)
     for c, s in enumerate(representative.tolist()):
-        if decoded.goal[s] or decoded.fail[s] or decoded.cell[s] >= ts.n_cells:
+        if decoded.goal[s] or decoded.fail[s] or decoded.place[s] >= ts.n_places:
             continue
-        v = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        v = ts.state(int(decoded.place[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         action[c] = worth.naive.action(v, int(decoded.q[s]), _memory(decoded, s))
     fixed = storm_choices(decoded, moves, representative, action)
     assert result.engine.induced_probability(result.checked, fixed.choice) == pytest.approx(worth.v_naive,

@@ -14,6 +14,7 @@ import pytest
 import reference
 import worldgen
 from conftest import MODELS
+import gridview
 from hg2prism import pipeline
 from hg2prism.engines import storm
 from hg2prism.prism.decoding import DecodedStates
@@ -86,7 +87,7 @@ def test_canonical_size_matches_reference(case) -> None:
 
 def test_trap_strategy_matches_reference(case) -> None:
     result, ref = case
-    ts = result.analysis.ts
+    ts = gridview.view(result.analysis)
     compared = 0
     for h, game in enumerate(result.analysis.games):
         for state in range(ts.n_states - 1):
@@ -129,7 +130,7 @@ def test_storm_inference_transitions_are_those_of_section_5(case) -> None:
         if decoded.goal[s] or decoded.fail[s]:
             continue
         memory = _memory(decoded, s)
-        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        state = ts.state(int(decoded.place[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         expected = inference.update(memory, (state, int(moves.action[choice])))
         for t in moves.target[moves.row_start[choice]:moves.row_start[choice + 1]]:
             assert _memory(decoded, int(t)) == expected
@@ -143,9 +144,9 @@ def test_tables_are_exact_wherever_storm_goes(case) -> None:
     result, _ = case
     decoded, ts = result.decoded, result.analysis.ts
     reachable = ts.reachable(np.array([g.trap_choice for g in result.analysis.games]))
-    live = ~(decoded.goal | decoded.fail) & (decoded.cell < ts.n_cells)
-    states = (decoded.cell * ts.n_sets + decoded.traps) * ts.phases + decoded.countdown \
-        if ts.delay else decoded.cell
+    live = ~(decoded.goal | decoded.fail) & (decoded.place < ts.n_places)
+    states = (decoded.place * ts.n_sets + decoded.traps) * ts.phases + decoded.countdown \
+        if ts.delay else decoded.place
     assert reachable[states[live]].all()
     slots = decoded.window[..., 0]
     assert reachable[slots[slots >= 0]].all()
@@ -154,13 +155,14 @@ def test_tables_are_exact_wherever_storm_goes(case) -> None:
 def test_python_inference_matches_reference(case) -> None:
     """inference.update against the reference's eta on every memory Storm reached."""
     result, ref = case
-    decoded, inference, ts = result.decoded, result.analysis.inference, result.analysis.ts
+    decoded, inference = result.decoded, result.analysis.inference
+    ts = gridview.view(result.analysis)
     seen = set()
-    for s in range(len(decoded.cell)):
+    for s in range(len(decoded.place)):
         if decoded.goal[s] or decoded.fail[s]:
             continue
         memory = _memory(decoded, s)
-        state = ts.state(int(decoded.cell[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        state = ts.state(int(decoded.place[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
         for a in range(4):
             if (memory, state, a) in seen:
                 continue

@@ -23,6 +23,7 @@ import pytest
 import reference_deception
 import worldgen
 from conftest import MODELS
+import gridview
 from hg2prism import pipeline, progress
 from hg2prism.analyses import deception_value, simulation
 from hg2prism.worldfile import load_world
@@ -89,12 +90,13 @@ def test_naive_chain_is_the_naive_strategy(name: str, solved) -> None:
     says), P2 memory and move, and the same successors with the same probabilities."""
     path, checked, worth = solved(name)
     ref = reference_deception.Deception(path)
-    w, ts = ref.w, checked.analysis.ts
+    w = ref.w
+    grid = gridview.view(checked.analysis)
     chain = worth.naive_chain
     s0, table = ref.naive_table()
 
     def ref_state(v: int):
-        described = ts.describe_state(v)
+        described = grid.describe_state(v)
         if described["cell"] is None:
             return "trapped"
         return w.record_ts_state(described["cell"], described["traps"], described["countdown"])

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from conftest import MODELS
+from gridview import GridView
 from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
 from hg2prism.frontends import transition_system as build_transition_system
@@ -118,8 +119,9 @@ def outcomes(ts, state: int, a1: int, a2: int) -> dict[int, float]:
 
 def expected(world, ts, cell, traps: int, countdown: int, a1: str, a2: int) -> dict[int, float]:
     """docs/semantics.md §2 written out directly on cells, for one state (cell, T, c) and joint action."""
-    free = set(ts.cells)
-    trap_cells = set(ts.trap_cells(a2))
+    view = GridView(world, ts)
+    free = set(view.cells)
+    trap_cells = set(view.trap_cells(a2))
     dist: dict[int, float] = {}
     for direction, p in ((a1, 1 - 2 * world.slip), (SIDES[a1][0], world.slip),
                          (SIDES[a1][1], world.slip)):
@@ -131,21 +133,22 @@ def expected(world, ts, cell, traps: int, countdown: int, a1: str, a2: int) -> d
             succ = ts.trapped
         else:
             c = world.delay if a2 != traps else max(countdown - 1, 0)
-            succ = ts.state(ts.cell_index[target], a2, c)
+            succ = ts.state(view.cell_index[target], a2, c)
         dist[succ] = dist.get(succ, 0.0) + p
     return dist
 
 
 def test_delay_tables_follow_spec_section_2_everywhere(delayed) -> None:
     world, ts = delayed
-    assert ts.delay == 2 and ts.trap_cells(0) == ((2, 2),) and ts.trap_cells(1) == ((3, 1),)
-    assert ts.decode(ts.start_state) == (ts.cell_index[(1, 2)], 1, 0)   # initial traps, c = 0
+    view = GridView(world, ts)
+    assert ts.delay == 2 and view.trap_cells(0) == ((2, 2),) and view.trap_cells(1) == ((3, 1),)
+    assert ts.decode(ts.start_state) == (view.cell_index[(1, 2)], 1, 0)   # initial traps, c = 0
     for state in range(ts.n_states - 1):
         cell, traps, countdown = ts.decode(state)
         for a1, name in enumerate(ACTIONS):
             for a2 in range(ts.n_sets):
                 got = outcomes(ts, state, a1, a2)
-                want = expected(world, ts, ts.cells[cell], traps, countdown, name, a2)
+                want = expected(world, ts, view.cells[cell], traps, countdown, name, a2)
                 assert got.keys() == want.keys(), (state, name, a2)
                 for s, p in want.items():
                     assert got[s] == pytest.approx(p, abs=1e-12)
@@ -163,8 +166,8 @@ def test_p2_cannot_move_traps_while_the_countdown_is_positive(delayed) -> None:
 
 
 def test_moving_traps_starts_the_countdown_and_keeping_them_does_not_restart_it(delayed) -> None:
-    _, ts = delayed
-    cell = ts.cell_index[(1, 1)]           # bottom-left corner, no trap candidate around
+    world, ts = delayed
+    cell = GridView(world, ts).cell_index[(1, 1)]           # bottom-left corner, no trap candidate around
     east = ACTIONS.index("E")
 
     def countdowns(traps: int, countdown: int, a2: int) -> set[tuple[int, int]]:
@@ -179,13 +182,14 @@ def test_moving_traps_starts_the_countdown_and_keeping_them_does_not_restart_it(
 
 
 def test_a_robot_on_a_cell_where_a_trap_stays_is_trapped(delayed) -> None:
-    _, ts = delayed
-    on_c0 = ts.cell_index[(2, 2)]
+    world, ts = delayed
+    view = GridView(world, ts)
+    on_c0 = view.cell_index[(2, 2)]
     north = ACTIONS.index("N")                 # into the wall: the robot stays unless it slips
     # The trap stands on the robot's cell and must stay (countdown 1): trapped unless it leaves.
     dist = outcomes(ts, ts.state(on_c0, 0, 1), north, 0)
     assert dist[ts.trapped] == pytest.approx(0.8)
-    assert {ts.cells[ts.decode(s)[0]] for s in dist if s != ts.trapped} == {(1, 2), (3, 2)}
+    assert {view.cells[ts.decode(s)[0]] for s in dist if s != ts.trapped} == {(1, 2), (3, 2)}
     # A trap P2 now sets on the robot's cell traps it the same way.
     dist = outcomes(ts, ts.state(on_c0, 1, 0), north, 0)
     assert dist[ts.trapped] == pytest.approx(0.8)
@@ -193,7 +197,7 @@ def test_a_robot_on_a_cell_where_a_trap_stays_is_trapped(delayed) -> None:
     dist = outcomes(ts, ts.state(on_c0, 0, 0), north, 1)
     assert ts.trapped not in dist
     # Walking onto the standing trap: the intended move (0.8) is trapped.
-    dist = outcomes(ts, ts.state(ts.cell_index[(1, 2)], 0, 1), ACTIONS.index("E"), 0)
+    dist = outcomes(ts, ts.state(view.cell_index[(1, 2)], 0, 1), ACTIONS.index("E"), 0)
     assert dist[ts.trapped] == pytest.approx(0.8)
 
 

@@ -113,7 +113,7 @@ def test_maze_baselines_match_reference(seed: int, tmp_path: Path) -> None:
     nash = baselines.solve_nash(game, NASH_TOLERANCE)
     start = analysis.ts.start_state * analysis.task.n_states + int(
         analysis.task.delta[analysis.task.initial,
-                            analysis.ts.cell_label[analysis.ts.decode(analysis.ts.start_state)[0]]])
+                            analysis.ts.place_label[analysis.ts.decode(analysis.ts.start_state)[0]]])
     guaranteed = baselines.guaranteed_value(game, nash.p1)[start]
     best = baselines.best_response_value(game, nash.p2)[start]
     ref = reference_deception.deception(path)

@@ -169,7 +169,7 @@ def test_world1_nash_below_leader(world1) -> None:
     assert (baseline.values <= leader + 1e-6).all()
     s0, q0 = baseline.initial
     assert s0 == ts.start_state
-    assert q0 == dfa.delta[dfa.initial, ts.cell_label[ts.decode(ts.start_state)[0]]]
+    assert q0 == dfa.delta[dfa.initial, ts.place_label[ts.decode(ts.start_state)[0]]]
     # value iteration stops just below V_NE; the reported V_NE is the better of it and the
     # bracket's lower end, inside the bracket
     low, high = baseline.v_ne_bounds

@@ -29,6 +29,7 @@ import reference_bayes
 import worldgen
 from conftest import MODELS
 from test_bayes import bayes_text
+import gridview
 from hg2prism import pipeline, progress
 from hg2prism.analyses import deception_value
 from hg2prism.analyses.simulation import LeaderStrategy, leader_fallback
@@ -149,20 +150,21 @@ class _Walk:
     """The package's hypergame and the reference's, walked together: states are translated
     into the reference's terms, DFA states matched one to one as they are met."""
 
-    def __init__(self, game: Hypergame, ref: reference.World, bayes: bool) -> None:
+    def __init__(self, game: Hypergame, ref: reference.World, bayes: bool, world) -> None:
         self.game, self.ref, self.bayes = game, ref, bayes
+        self.grid = gridview.GridView(world, game.ts)
         self.q_ours: dict[int, int] = {}
         self.q_theirs: dict[int, int] = {}
 
     def ts_state(self, v: int):
-        described = self.game.ts.describe_state(v)
+        described = self.grid.describe_state(v)
         if described["cell"] is None:
             return reference.TRAPPED
         return self.ref.record_ts_state(described["cell"], described["traps"],
                                         described["countdown"])
 
     def memory(self, memory):
-        ts = self.game.ts
+        ts = self.grid
         if self.bayes:
             return tuple((self.ts_state(o[0]), ACTIONS[o[1]],
                           self.ref.norm_traps(ts.trap_cells(o[2]))) for o in memory.window)
@@ -230,7 +232,7 @@ def _walk(name: str, folder: Path) -> tuple[int, int]:
     bayes = analysis.inference.kind == "bayes"
     ref = reference_bayes.BayesWorld(path) if bayes else reference.World(path)
     game = Hypergame(analysis.ts, analysis.task, analysis.games, analysis.inference)
-    walk = _Walk(game, ref, bayes)
+    walk = _Walk(game, ref, bayes, analysis.world)
     return walk.run(LIMIT), len(walk.q_ours)
 
 

@@ -118,7 +118,7 @@ def test_perceptual_games(solved) -> None:
     checked, _, out = solved
     analysis = checked.analysis
     ts = analysis.ts
-    start_label = ts.cell_label[ts.decode(ts.start_state)[0]]
+    start_label = ts.place_label[ts.decode(ts.start_state)[0]]
     for index, game in enumerate(analysis.games):
         expected = game.values[ts.start_state, game.dfa.delta[game.dfa.initial, start_label]]
         assert abs(prism_value(out / f"perceptual_{index}.prism") - expected) <= TOL, index

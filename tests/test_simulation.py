@@ -16,6 +16,7 @@ import scipy.sparse as sp
 
 import reference
 from conftest import MODELS
+import gridview
 from hg2prism import pipeline
 from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.inference import build_inference
@@ -186,7 +187,7 @@ def test_world1_rate_matches_the_bounded_probability_of_the_induced_dtmc(world1)
     assert 0.0 < exact <= unbounded + 1e-12
     assert bounded_goal_probability(succs, 4 * HORIZON) >= exact
 
-    ts = world1.analysis.ts
+    ts = gridview.view(world1.analysis)
     visited = set()
 
     def observe(step) -> None:
@@ -304,7 +305,7 @@ def test_p2_deviation_changes_the_completion_rate(tiny) -> None:
     assert tiny.results.deceptive_value == pytest.approx(0.0, abs=1e-9)
     modelled = run(tiny, 1000, seed=1)
     assert modelled.completed == 0
-    ts = tiny.analysis.ts
+    ts = gridview.view(tiny.analysis)
     # P2 always puts the trap on the lower candidate: P1 walks past on the upper row.
     lower = next(k for k in range(ts.n_sets) if ts.trap_cells(k) == ((2, 1),))
     # Under the model a robot on a trap candidate is trapped, so the records never cover those
@@ -363,7 +364,7 @@ def test_p2_can_run_another_inference_model(world1) -> None:
 def exact_stationary(ts, dfa, p1: np.ndarray, p2: np.ndarray, horizon: int) -> float:
     """P(F<=horizon goal) when both play the stationary mixed strategies, by explicit loops."""
     n_q = dfa.n_states
-    label = {s: int(ts.cell_label[ts.decode(s)[0]]) for s in range(ts.n_states - 1)}
+    label = {s: int(ts.place_label[ts.decode(s)[0]]) for s in range(ts.n_states - 1)}
 
     def outcome(s: int, q: int) -> str | None:
         if s == ts.trapped:

@@ -121,7 +121,7 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
     from hg2prism.opponent.inference import Memory
 
     wanted = np.full(int(canonical.max()) + 1, -1, dtype=np.int64)
-    ts_state = ts.state(decoded.cell, decoded.traps, decoded.countdown)
+    ts_state = ts.state(decoded.place, decoded.traps, decoded.countdown)
     for s in representative[~game.stop[representative]].tolist():
         window = tuple(tuple(entry) for entry in decoded.window[s].tolist() if entry[0] >= 0)
         memory = Memory(int(decoded.hypothesis[s]), window)

@@ -35,11 +35,6 @@ class DecodedStates:
     canonical: np.ndarray     # canonical id; goal states share one id, failure states another
     n_canonical: int
 
-    @property
-    def cell(self) -> np.ndarray:
-        """LEGACY name of `place`, for consumers not yet moved to the arena."""
-        return self.place
-
 
 def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task: DFA,
                   window_hypotheses: Callable[[np.ndarray], np.ndarray] | None = None

@@ -110,7 +110,7 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
         cols = [place] + ([standing, countdown] if delayed else [])
         return names, [np.where(present, c, ABSENT) for c in cols]
 
-    place = decoded.cell[storm]
+    place = decoded.place[storm]
     here = np.where(place < ts.n_places,
                     ts.state(np.minimum(place, ts.n_places - 1), decoded.traps[storm],
                              decoded.countdown[storm]), -1)
@@ -127,7 +127,7 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
 
 def _places(mdp: CanonicalMDP, decoded: DecodedStates, states: np.ndarray) -> np.ndarray:
     """The arena state of canonical states (none is absorbing)."""
-    return decoded.cell[mdp.representative[states]].astype(np.int64)
+    return decoded.place[mdp.representative[states]].astype(np.int64)
 
 
 def _chain(source: np.ndarray, target: np.ndarray, probability: np.ndarray, n: int

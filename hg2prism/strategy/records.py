@@ -70,7 +70,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         return dict(described[state])
 
     states, marked = _start_first(decoded, choices, initial)
-    cells, traps, countdowns = decoded.cell.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
+    cells, traps, countdowns = decoded.place.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
     qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
     windows = decoded.window.tolist()
     chosen = moves.action[choices.choice].tolist()
@@ -179,7 +179,7 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
     without creating the records."""
     states, marked = _start_first(decoded, choices, initial)
     compact = {"separators": (",", ":")}
-    ts_state = ts.state(decoded.cell[states], decoded.traps[states], decoded.countdown[states])
+    ts_state = ts.state(decoded.place[states], decoded.traps[states], decoded.countdown[states])
     first = Field(Vocabulary.of(['{"initial":true,', "{"]),
                   np.where(np.arange(len(states)) < marked, 0, 1))
     fields = [first,
