@@ -130,7 +130,7 @@ def test_strategy_records_name_states_and_actions_of_an_arena() -> None:
     watch_db = ts.a2_names.index("watch_db")
     # engine states: 0 at web (one action), 1 at mail (three), 2 the goal; 1 is initial
     decoded = DecodedStates(
-        cell=np.array([web, mail, 0]), traps=np.array([watch_db, 0, 0]),
+        place=np.array([web, mail, 0]), traps=np.array([watch_db, 0, 0]),
         countdown=np.array([1, 0, 0]), q=np.array([0, 0, 1]), hypothesis=np.array([1, 0, 0]),
         window=np.array([[[ts.state(mail, 0, 0), 2]], [[-1, -1]], [[-1, -1]]]),
         goal=np.array([False, False, True]), fail=np.zeros(3, dtype=bool),

@@ -15,6 +15,7 @@ import pytest
 
 from hg2prism.frontends import transition_system
 from hg2prism.frontends.arena import to_toml
+from hg2prism.frontends.grid import geometry
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.worldfile import load_world, world_from_toml
 
@@ -257,7 +258,7 @@ def test_convert_gives_the_same_transition_system(name: str, text: str) -> None:
                   "inference", "settings"):
         assert getattr(arena, field) == getattr(grid, field), field
     assert arena.arena.positions == tuple((float(x), float(y))
-                                          for x, y in transition_system(grid).cells)
+                                          for x, y in geometry(grid).cells)
     # an arena world converts to itself (but for the header naming the file it came from)
     assert body(to_toml(arena)) == body(converted)
 
