@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 sweep-demo test mazes bench clean
+.PHONY: world1 world2 world3 mir100 sweep-demo test mazes bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,12 @@ sweep-demo: $(STAMP)
 world3: $(STAMP)
 	$(BIN)/hg2prism run models/world3.toml
 	$(BIN)/hg2prism run models/world3_bayes.toml
+
+# MIR100, a robot's attack graph (an arena world): the run, then delay x honeypots
+mir100: $(STAMP)
+	$(BIN)/hg2prism run models/mir100.toml
+	$(BIN)/hg2prism sweep models/mir100.toml --param delay --values 0 1 2 --param traps --values 1 2 \
+		--out models/mir100_sweep
 
 # All 200 random mazes of tests/test_mazes.py through `run` (make test runs every fifth; this
 # takes about 3 minutes on two cores).
