@@ -28,8 +28,6 @@ from hg2prism.strategy.records import Strategy
 __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate", "Solution",
            "Strategy", "Baselines", "Simulation"]
 
-_MOVES = ("N", "E", "S", "W")
-
 
 def _node_name(node: object, file: str) -> str:
     """An attack-graph node's state name: n<v> for an integer, an identifier as it is."""

@@ -343,7 +343,7 @@ def test_world_from_graph_builds_the_mir100_arena() -> None:
     file = load_world(MODELS / "mir100.toml")
     built = hg2prism.world_from_graph(
         graph, entries=[1, 2, 3, 4], task="F asset16",
-        hypotheses=["F asset12", "F asset13", "F asset14", "F asset16"], initial_hypothesis=2,
+        hypotheses=["F asset12", "F asset13", "F asset14", "F asset16"], initial_hypothesis=1,
         traps=1, trap_candidates=[*range(1, 12), 15],
         inference={"kind": "cusum", "window": 2, "rationality": 1.0, "threshold": 0.6},
         name="mir100")
