@@ -151,3 +151,21 @@ def test_the_readme_arena_example_loads_and_means_what_it_says(tmp_path: Path) -
         assert reach == pytest.approx(0.0 if name == "watch_db" else 0.5), name
     checked = pipeline.check(world, tmp_path / "out")
     assert 0.0 < checked.results.deceptive_value <= 1.0
+
+
+def test_the_world_from_graph_example_of_docs_api_prints_what_it_says() -> None:
+    """docs/api.md's world_from_graph example: run it, and each `print` gives its comment."""
+    import contextlib
+    import io
+
+    text = (README.parent / "docs" / "api.md").read_text()
+    block = text.split("hg2prism.world_from_graph(G", 1)[0].rsplit("```python", 1)[1]
+    block += "hg2prism.world_from_graph(G" + \
+        text.split("hg2prism.world_from_graph(G", 1)[1].split("```", 1)[0]
+    claims = [line.split("#", 1)[1].split(":")[0].strip() for line in block.splitlines()
+              if line.startswith("print(")]
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed), contextlib.redirect_stderr(io.StringIO()):
+        exec(compile(block, "docs/api.md", "exec"), {})
+    lines = printed.getvalue().splitlines()
+    assert lines == claims
