@@ -124,3 +124,27 @@ def test_example_runs(script: str, tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() and "Traceback" not in done.stderr
     assert list(tmp_path.iterdir()) == []          # the examples write nothing
+    lines = done.stdout.splitlines()
+    for claim in EXAMPLE_CLAIMS.get(script, ()):
+        assert claim in lines, (claim, done.stdout)
+
+
+# What the examples' comments say they print (checked against the strategy in
+# test_quick_start_claims_match_the_strategy).
+EXAMPLE_CLAIMS = {"quick_start.py": ("start state: x2_y4", "first move: W")}
+
+
+def test_quick_start_claims_match_the_strategy() -> None:
+    """world1 starts at (2, 4), named x2_y4; its record is marked initial, and P1's best move
+    there, by the record's values, is W (about W 0.9498, N 0.8549, S 0.8461, E 0.1889)."""
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    solution = hg2prism.solve(world)
+    records = solution.strategy.records
+    initial = [record for record in records if record.get("initial")]
+    assert len(initial) == 1 and initial[0] is records[0]
+    start = initial[0]
+    assert start["state"] == "x2_y4" and start["action"] == "W"
+    values = start["values"]
+    assert max(values, key=values.get) == "W" and abs(values["W"] - 0.9498) < 1e-4
+    assert solution.strategy.move(state=start["state"], q=start["q"],
+                                  hypothesis=start["hypothesis"]) == "W"
