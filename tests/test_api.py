@@ -68,6 +68,23 @@ def test_baselines_and_simulation(tmp_path: Path) -> None:
     assert hg2prism.simulate(solution, episodes=400, horizon=400, seed=3) == played
 
 
+def test_simulate_takes_its_defaults_from_the_world() -> None:
+    """simulate() without episodes, horizon or seed uses the world's [simulation] settings, as
+    `hg2prism run` does; given ones win."""
+    text = (MODELS / "world1.toml").read_text() + (
+        "\n[simulation]\nepisodes = 60\nhorizon = 5\nseed = 7\n")
+    world = hg2prism.world_from_toml(text, name="short")
+    assert (world.simulation.episodes, world.simulation.horizon, world.simulation.seed) == (60, 5, 7)
+    solution = hg2prism.solve(world)
+    played = hg2prism.simulate(solution)
+    assert (played.episodes, played.horizon, played.seed) == (60, 5, 7)
+    assert played == hg2prism.simulate(solution, episodes=60, horizon=5, seed=7)
+    # world1's goal is more than 5 steps away: every episode is cut by the horizon
+    assert played.completed == 0 and played.truncated + played.failed == 60
+    given = hg2prism.simulate(solution, episodes=30, horizon=300, seed=1)
+    assert (given.episodes, given.horizon, given.seed) == (30, 300, 1) and given.completed > 0
+
+
 def test_solve_for_another_objective(tmp_path: Path) -> None:
     """solve(objective=...) computes what `check --objective` does: the lexicographic strategy
     keeps Pmax and needs no more steps; the bounded one has Storm's Pmax=? [F<=H "goal"] as its
