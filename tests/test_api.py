@@ -133,6 +133,25 @@ def test_a_bad_world_text_names_the_key() -> None:
     assert caught.value.file == "mine" and caught.value.key == "robot.slip"
 
 
+def test_docs_api_counts_the_functions_it_lists() -> None:
+    """docs/api.md's opening sentence counts the verbs and the ways to make a world it names, and
+    together they are the functions `import hg2prism` exports."""
+    import re
+
+    numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7}
+    text = (ROOT / "docs" / "api.md").read_text().split("\n\n")[1].replace("\n", " ")
+    groups = re.findall(r"(\w+) (?:verbs over the pipeline|ways to make a world) \(([^)]*)\)", text)
+    assert len(groups) == 2, text
+    named = []
+    for count, listed in groups:
+        names = re.findall(r"`(\w+)`", listed)
+        assert numbers[count] == len(names), (count, names)
+        named += names
+    functions = {name for name in hg2prism.__all__
+                 if callable(getattr(hg2prism, name)) and not name[0].isupper()}
+    assert sorted(named) == sorted(functions)
+
+
 @pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "examples").glob("*.py")))
 def test_example_runs(script: str, tmp_path: Path) -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
