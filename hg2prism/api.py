@@ -266,11 +266,12 @@ class Simulation:
     ci95: tuple[float, float]       # Wilson score interval of the rate
 
 
-def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int | None = None,
-             seed: int = 0) -> Simulation:
-    """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps
-    (by default 200, or the bound of a step-bounded solution, whose rate then estimates its
-    bounded value)."""
+def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | None = None,
+             seed: int | None = None) -> Simulation:
+    """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps.
+    What is not given comes from the world's `[simulation]` settings, as on the command line
+    (by default 10,000 episodes, horizon 200, seed 0); the horizon of a step-bounded solution
+    is by default its bound, whose rate then estimates its bounded value."""
     import dataclasses
 
     from hg2prism.analyses.simulation import simulate_deceptive
@@ -279,8 +280,11 @@ def simulate(solution: Solution, *, episodes: int = 10_000, horizon: int | None 
     checked = solution.check
     analysis, strategy = checked.analysis, solution.strategy
     bounded = checked.bounded
+    settings = solution.world.simulation
+    episodes = settings.episodes if episodes is None else episodes
+    seed = settings.seed if seed is None else seed
     if horizon is None:
-        horizon = bounded.bound if bounded is not None else 200
+        horizon = bounded.bound if bounded is not None else settings.horizon
     if bounded is not None:
         # the move depends on the steps taken: P1 counts them beside P2's memory
         strategy = SteppedStrategy(strategy.records, analysis.ts, bounded.bound)

@@ -113,7 +113,7 @@ def _check_parser(sub: Subparsers) -> None:
     _solving_parser(sub, "check", "Emit, then check with Storm: writes OUT/strategy.json and "
                     "OUT/results.json too, the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) "
                     "and the DTMC P1's strategy induces (induced.tra/.sta/.lab for PRISM, "
-                    "induced.drn for Storm).")
+                    "induced.drn for Storm, goal.props the property that re-checks it).")
 
 
 def _run_parser(sub: Subparsers) -> None:

@@ -24,8 +24,8 @@ from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
 from hg2prism.strategy.canonical import CanonicalMDP, canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import StormChoices, deceptive_actions, storm_choices
-from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, prism_explicit,
-                                       stationary_dtmc, unfolded_dtmc)
+from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, goal_props,
+                                       prism_explicit, stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
 from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json
@@ -215,6 +215,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     def write_explicit(dtmc: InducedDTMC) -> None:
         for suffix, text in prism_explicit(dtmc).items():
             write_bytes(out / f"induced.{suffix}", text)
+        write_bytes(out / "goal.props", goal_props())
 
     # The exports are independent: they are formatted and written side by side (numpy and
     # scipy release the GIL in their loops). One record per line in strategy.json: compact

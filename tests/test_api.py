@@ -50,7 +50,7 @@ def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
     solution = hg2prism.solve(MODELS / "world1.toml", out=tmp_path / "out")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         ["hypergame.prism", "hypergame.props", "results.json", "strategy.json", "task.hoa",
-         "task.dot", "induced.tra", "induced.sta", "induced.lab", "induced.drn"]
+         "task.dot", "induced.tra", "induced.sta", "induced.lab", "induced.drn", "goal.props"]
         + [f"hypothesis_{i}.{kind}" for i in range(3) for kind in ("hoa", "dot")])
     saved = json.loads((tmp_path / "out" / "results.json").read_text())
     assert saved["deceptive_value"] == solution.deceptive_value
@@ -66,6 +66,23 @@ def test_baselines_and_simulation(tmp_path: Path) -> None:
     assert played.episodes == 400 and played.completed + played.failed + played.truncated == 400
     assert played.ci95[0] <= played.rate <= played.ci95[1]
     assert hg2prism.simulate(solution, episodes=400, horizon=400, seed=3) == played
+
+
+def test_simulate_takes_its_defaults_from_the_world() -> None:
+    """simulate() without episodes, horizon or seed uses the world's [simulation] settings, as
+    `hg2prism run` does; given ones win."""
+    text = (MODELS / "world1.toml").read_text() + (
+        "\n[simulation]\nepisodes = 60\nhorizon = 5\nseed = 7\n")
+    world = hg2prism.world_from_toml(text, name="short")
+    assert (world.simulation.episodes, world.simulation.horizon, world.simulation.seed) == (60, 5, 7)
+    solution = hg2prism.solve(world)
+    played = hg2prism.simulate(solution)
+    assert (played.episodes, played.horizon, played.seed) == (60, 5, 7)
+    assert played == hg2prism.simulate(solution, episodes=60, horizon=5, seed=7)
+    # world1's goal is more than 5 steps away: every episode is cut by the horizon
+    assert played.completed == 0 and played.truncated + played.failed == 60
+    given = hg2prism.simulate(solution, episodes=30, horizon=300, seed=1)
+    assert (given.episodes, given.horizon, given.seed) == (30, 300, 1) and given.completed > 0
 
 
 def test_solve_for_another_objective(tmp_path: Path) -> None:
@@ -116,6 +133,25 @@ def test_a_bad_world_text_names_the_key() -> None:
     assert caught.value.file == "mine" and caught.value.key == "robot.slip"
 
 
+def test_docs_api_counts_the_functions_it_lists() -> None:
+    """docs/api.md's opening sentence counts the verbs and the ways to make a world it names, and
+    together they are the functions `import hg2prism` exports."""
+    import re
+
+    numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7}
+    text = (ROOT / "docs" / "api.md").read_text().split("\n\n")[1].replace("\n", " ")
+    groups = re.findall(r"(\w+) (?:verbs over the pipeline|ways to make a world) \(([^)]*)\)", text)
+    assert len(groups) == 2, text
+    named = []
+    for count, listed in groups:
+        names = re.findall(r"`(\w+)`", listed)
+        assert numbers[count] == len(names), (count, names)
+        named += names
+    functions = {name for name in hg2prism.__all__
+                 if callable(getattr(hg2prism, name)) and not name[0].isupper()}
+    assert sorted(named) == sorted(functions)
+
+
 @pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "examples").glob("*.py")))
 def test_example_runs(script: str, tmp_path: Path) -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
@@ -124,3 +160,27 @@ def test_example_runs(script: str, tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() and "Traceback" not in done.stderr
     assert list(tmp_path.iterdir()) == []          # the examples write nothing
+    lines = done.stdout.splitlines()
+    for claim in EXAMPLE_CLAIMS.get(script, ()):
+        assert claim in lines, (claim, done.stdout)
+
+
+# What the examples' comments say they print (checked against the strategy in
+# test_quick_start_claims_match_the_strategy).
+EXAMPLE_CLAIMS = {"quick_start.py": ("start state: x2_y4", "first move: W")}
+
+
+def test_quick_start_claims_match_the_strategy() -> None:
+    """world1 starts at (2, 4), named x2_y4; its record is marked initial, and P1's best move
+    there, by the record's values, is W (about W 0.9498, N 0.8549, S 0.8461, E 0.1889)."""
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    solution = hg2prism.solve(world)
+    records = solution.strategy.records
+    initial = [record for record in records if record.get("initial")]
+    assert len(initial) == 1 and initial[0] is records[0]
+    start = initial[0]
+    assert start["state"] == "x2_y4" and start["action"] == "W"
+    values = start["values"]
+    assert max(values, key=values.get) == "W" and abs(values["W"] - 0.9498) < 1e-4
+    assert solution.strategy.move(state=start["state"], q=start["q"],
+                                  hypothesis=start["hypothesis"]) == "W"

@@ -90,7 +90,8 @@ def test_version(tmp_path: Path) -> None:
 def test_emit_after_run_leaves_no_stale_outputs(tmp_path: Path) -> None:
     out = tmp_path / "out"
     assert run_cli(["run", WORLD1, "--out", str(out), "--episodes", "50"], tmp_path).returncode == 0
-    assert {"strategy.json", "results.json", "world.png", "table.md", "symmetric.prism"} <= {
+    assert {"strategy.json", "results.json", "world.png", "table.md", "symmetric.prism",
+            "goal.props"} <= {
         p.name for p in out.iterdir()}
     (out / "notes.txt").write_text("mine")      # not hg2prism's: kept
     proc = run_cli(["emit", WORLD1, "--out", str(out)], tmp_path)

@@ -136,7 +136,7 @@ def test_induced_dtmc_gives_the_deceptive_value(name: str, folder: str) -> None:
     # Storm reads the DRN and gives the same value
     model = stormpy.build_model_from_drn(str(result.out / "induced.drn"))
     assert model.nr_states == dtmc.n
-    assert sound_value(model, 'P=? [F "goal"]') == pytest.approx(value, abs=TOL)
+    assert sound_value(model, (result.out / "goal.props").read_text()) == pytest.approx(value, abs=TOL)
 
 
 def test_strategy_values_explain_the_moves(folder: str) -> None:
@@ -179,11 +179,12 @@ PRISM = _prism()
                                                   ("gen_d1", "bounded", 7)])
 def test_prism_reads_the_induced_dtmc(name: str, objective: str, bound: int | None,
                                       folder: str) -> None:
-    """The command of the README (plus -epsilon: PRISM's default stopping rule is relative)."""
+    """The command of the README (plus -epsilon: PRISM's default stopping rule is relative), with
+    the goal.props that check writes beside the induced DTMC."""
     result = checked(name, objective, folder, bound)
     out = result.out
     props = out / "goal.props"
-    props.write_text('P=? [F "goal"]\n')
+    assert props.read_text().splitlines()[-1] == 'P=? [F "goal"]'
     command = [PRISM, "-importtrans", str(out / "induced.tra"), "-importstates",
                str(out / "induced.sta"), "-importlabels", str(out / "induced.lab"), "-dtmc",
                str(props), "-epsilon", "1e-12", "-maxiters", "10000000"]

@@ -277,6 +277,20 @@ def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
             "lab": ("\n".join(lab) + "\n").encode()}
 
 
+GOAL_PROPERTY = 'P=? [F "goal"]'
+
+
+def goal_props() -> bytes:
+    """goal.props, written beside the induced DTMC: the property that re-checks the strategy's
+    value with PRISM or Storm alone (for the step-bounded objective the unfolded DTMC gives the
+    bounded value with the same property)."""
+    return ("// P(F \"goal\") in the DTMC P1's strategy induces (induced.tra/.sta/.lab, induced.drn):\n"
+            "//   prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab "
+            "-dtmc goal.props -epsilon 1e-12\n"
+            "//   storm --explicit-drn induced.drn --prop goal.props\n"
+            f"{GOAL_PROPERTY}\n").encode()
+
+
 def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
     """Storm's DRN format (stormpy.build_model_from_drn): per state its labels, its valuation
     as a comment and one choice labelled with P1's action by name (`absorbing` in absorbing
