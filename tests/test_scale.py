@@ -149,3 +149,20 @@ def test_bench_world_with_delay_starts_on_the_first_candidates(tmp_path: Path) -
     world = load_world(path)
     assert world.delay == 2 and world.name == bench.world_name(12, 1, 3, 2, 2)
     assert world.initial_traps == tuple(world.grid.trap_candidates[:2])
+
+
+def test_bench_arena_rows(tmp_path: Path) -> None:
+    """A grid world's arena form is measured right after its grid row, with the same canonical
+    size and value; a random arena world loads and is measured; the summary gives the ratio."""
+    size = (12, 1, 2, 1)
+    rows = bench.run_bench(tmp_path, [size], show_progress=False, arena_forms=[size],
+                           random_arenas=[60])
+    assert not any(r.get("error") for r in rows), [r.get("traceback") for r in rows]
+    grid, form, random_arena = rows
+    assert [r["form"] for r in rows] == ["grid", "arena form", "random arena"]
+    assert form["name"] == grid["name"] + "_arena"
+    assert (form["states"], form["deceptive_value"]) == (grid["states"], grid["deceptive_value"])
+    assert random_arena["states"] > 0 and random_arena["estimate"] >= random_arena["states"]
+    assert [name for name, *_ in bench.arena_costs(rows)] == [form["name"]]
+    assert "time per canonical state against the grid form" in bench.summary(rows)
+    assert bench.random_arena_world(60) == bench.random_arena_world(60)      # seeded

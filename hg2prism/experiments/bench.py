@@ -12,6 +12,11 @@ task P2 would catch P1 for sure, and her inference switches between the hypothes
 (free cells) x (hypotheses P2 adopts) x (windows of P1's last moves), up to about 1e6 states.
 A few 12 x 12 worlds add delay (traps starting on the first candidates): 0.9 against v_lead 0.64
 with one trap and delay 1 or 2, 0.576 against 0 with two traps and delay 1.
+
+Two arena rows (docs/semantics.md §15) follow: the largest window-3 grid world of about 1e6
+canonical states in its arena form (the file `hg2prism convert` writes), measured right after its
+grid row, the summary giving the ratio of time per canonical state (arena form / grid); and a
+seeded random attack-graph-like arena (`random_arena_world`) of about 1e6 canonical states.
 """
 
 from __future__ import annotations
@@ -83,10 +88,18 @@ DEFAULT_SIZES: tuple[tuple[int, ...], ...] = (
     (12, 3, 3, 1, 2),
 )
 
+# Grid sizes whose arena form is measured right after the grid row, and the random arenas
+# (number of non-target states) measured after the grids.
+DEFAULT_ARENA_FORMS: tuple[tuple[int, ...], ...] = ((31, 3, 3, 1),)
+DEFAULT_RANDOM_ARENAS: tuple[int, ...] = (16000,)    # about 1e6 canonical states
+QUICK_ARENA_FORMS: tuple[tuple[int, ...], ...] = ((12, 3, 3, 1),)
+QUICK_RANDOM_ARENAS: tuple[int, ...] = (1000,)
+
 SLOPE_RANGE = (1e4, math.inf)     # from 1e4 states to the largest world, delay 0 (below)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
 
-COLUMNS = ("name", "side", "window", "hypotheses", "traps", "delay", "storm_method", "cells", "estimate",
+COLUMNS = ("name", "form", "side", "window", "hypotheses", "traps", "delay", "storm_method",
+           "cells", "estimate",
            "states",
            "transitions", "storm_states", "storm_transitions", "storm_choices",
            "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
@@ -182,6 +195,99 @@ rationality = 5.0
 
 def world_name(side: int, window: int, hypotheses: int, traps: int, delay: int = 0) -> str:
     return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}" + (f"_d{delay}" if delay else "")
+
+
+RANDOM_TARGETS = ("asset_a", "asset_b", "asset_c")
+RANDOM_WIDTH = 40      # states per layer of the random arena
+RANDOM_CANDIDATES = 12   # trap candidates, evenly spread (P2's actions: one per candidate)
+
+
+def random_arena_name(states: int, seed: int = 0) -> str:
+    return f"arena_random_n{states}" + (f"_seed{seed}" if seed else "")
+
+
+def _random_transitions(states: int, rng: random.Random) -> list[str]:
+    """[[arena.transition]] entries: at state i (layer i // RANDOM_WIDTH) 1-4 exploits, each
+    succeeding with probability 0.3-0.95 towards a state of the previous, same or next layer
+    (beyond layer 2 one in 20 towards a target), failing back to i."""
+    entries = []
+    for i in range(states):
+        layer = i // RANDOM_WIDTH
+        for a in range(rng.randint(1, 4)):
+            if layer > 2 and rng.random() < 0.05:
+                succ = "t_" + rng.choice(RANDOM_TARGETS)
+            else:
+                top = min(states, (layer + 2) * RANDOM_WIDTH)
+                succ = f"s{rng.randrange(max(0, i - RANDOM_WIDTH), top)}"
+            p = round(rng.uniform(0.3, 0.95), 3)
+            to = (f"{{ s{i} = 1.0 }}" if succ == f"s{i}"
+                  else f"{{ {succ} = {p!r}, s{i} = {round(1 - p, 3)!r} }}")
+            entries.append(f'[[arena.transition]]\nstate = "s{i}"\naction = "x{a}"\nto = {to}\n')
+    return entries
+
+
+def random_arena_world(states: int, seed: int = 0, window: int = 3, traps: int = 1) -> str:
+    """TOML text of a seeded random attack-graph-like arena world: states s0 .. s{n-1} in
+    layers of RANDOM_WIDTH (s0 the initial state), three absorbing targets t_asset_a/b/c
+    labelled with their proposition, P1's exploits as `_random_transitions`, one trap (P2's
+    honeypot) among RANDOM_CANDIDATES states spread evenly, P1's task F asset_a, P2's
+    hypotheses F asset_a/b/c, CUSUM observer with the given window. About 65 canonical states
+    per arena state with window 3 (16,000 states: about 1e6). Few trap candidates on purpose:
+    the perceptual games are solved per trap set, so their time grows with states x candidates."""
+    rng = random.Random(seed)
+    names = [f"s{i}" for i in range(states)] + [f"t_{t}" for t in RANDOM_TARGETS]
+    quoted = ", ".join(f'"{n}"' for n in names)
+    labels = "\n".join(f't_{t} = ["{t}"]' for t in RANDOM_TARGETS)
+    candidates = ", ".join(f'"s{1 + k * (states // RANDOM_CANDIDATES)}"'
+                           for k in range(RANDOM_CANDIDATES))
+    hyps = ", ".join(f'"F {t}"' for t in RANDOM_TARGETS)
+    props = ", ".join(f'"{t}"' for t in RANDOM_TARGETS)
+    transitions = "\n".join(_random_transitions(states, rng))
+    return f'''name = "{random_arena_name(states, seed)}"
+description = "benchmark arena: random layered attack graph, {states} states, seed {seed}"
+
+[arena]
+states = [{quoted}]
+initial = "s0"
+propositions = [{props}]
+
+[arena.labels]
+{labels}
+
+{transitions}
+[task]
+formula = "F {RANDOM_TARGETS[0]}"
+
+[adversary]
+traps = {traps}
+trap_candidates = [{candidates}]
+hypotheses = [{hyps}]
+
+[inference]
+kind = "cusum"
+window = {window}
+threshold = 1.5
+rationality = 5.0
+'''
+
+
+def _write_arena_form(grid_path: str, arena_path: str) -> None:
+    from hg2prism.frontends.arena import to_toml
+    from hg2prism.outputs import write_text
+    from hg2prism.worldfile import load_world
+
+    write_text(Path(arena_path), to_toml(load_world(Path(grid_path))))
+
+
+def write_arena_form(grid_path: Path, arena_path: Path) -> None:
+    """`hg2prism convert grid_path --out arena_path`, in a forked child (keeps this process
+    free of the pipeline's imports, so that every world's peak memory is its own)."""
+    process = multiprocessing.get_context("fork").Process(
+        target=_write_arena_form, args=(str(grid_path), str(arena_path)))
+    process.start()
+    process.join()
+    if process.exitcode != 0:
+        raise RuntimeError(f"converting {grid_path} failed (exit code {process.exitcode})")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -306,9 +412,31 @@ def write_csv(rows: list[dict], path: Path) -> None:
     write_text(path, buffer.getvalue())
 
 
+def grids(rows: list[dict]) -> list[dict]:
+    """The grid worlds (rows without a form are grid rows)."""
+    return [r for r in rows if r.get("form", "grid") == "grid"]
+
+
 def undelayed(rows: list[dict]) -> list[dict]:
-    """The worlds without delay: the growth curve (the delayed ones are compared with them)."""
-    return [r for r in rows if not r.get("delay")]
+    """The grid worlds without delay: the growth curve (the delayed ones and the arenas are
+    compared with them)."""
+    return [r for r in grids(rows) if not r.get("delay")]
+
+
+def arena_costs(rows: list[dict]) -> list[tuple[str, float, float, float]]:
+    """Per arena-form row, (name, total time per canonical state against its grid row, the
+    same for Storm's parse + build, the same for the Python stages)."""
+    base = {r["name"]: r for r in grids(rows)}
+    costs = []
+    for row in rows:
+        grid = base.get(row["name"].removesuffix("_arena"))
+        if row.get("form") == "arena form" and grid is not None:
+            def ratio(key) -> float:
+                return (key(row) / row["states"]) / (key(grid) / grid["states"])
+            costs.append((row["name"], ratio(lambda r: r["time_total"]),
+                          ratio(lambda r: r["time_parse"] + r["time_build"]),
+                          ratio(lambda r: r["time_python"])))
+    return costs
 
 
 def delay_costs(rows: list[dict]) -> list[tuple[str, float]]:
@@ -316,7 +444,7 @@ def delay_costs(rows: list[dict]) -> list[tuple[str, float]]:
     (grid, window, hypotheses, traps) without delay."""
     base = {(r["side"], r["window"], r["hypotheses"], r["traps"]): r for r in undelayed(rows)}
     costs = []
-    for row in rows:
+    for row in grids(rows):
         same = base.get((row["side"], row["window"], row["hypotheses"], row["traps"]))
         if row.get("delay") and same is not None:
             def per_state(r: dict) -> float:
@@ -344,8 +472,18 @@ def summary(rows: list[dict]) -> str:
     if costs:
         lines.append("Storm's parse + build per Storm state against the same world without "
                      "delay: " + ", ".join(f"{name} {ratio:.2f}x" for name, ratio in costs))
+    for name, total, storm, python in arena_costs(good):
+        lines.append(f"{name}: time per canonical state against the grid form: total "
+                     f"{total:.2f}x (Storm's parse + build {storm:.2f}x, Python stages "
+                     f"{python:.2f}x)")
+    for row in good:
+        if row.get("form") == "random arena":
+            lines.append(f"{row['name']}: {row['states']:,} states in {row['time_total']:.1f} s"
+                         " "
+                         f"({row['time_total'] / row['states'] * 1e6:.1f} us per state), peak "
+                         f"memory {row['peak_mb']:.0f} MB")
     if good:
-        top = max(good, key=lambda r: r["states"])
+        top = max(grids(good) or good, key=lambda r: r["states"])
         lines.append(f"largest world {top['name']}: {top['states']:,} states end to end in "
                      f"{top['time_total']:.1f} s (build {top['time_build']:.1f} s, Python stages "
                      f"{top['time_python']:.1f} s), peak memory {top['peak_mb']:.0f} MB "
@@ -367,37 +505,55 @@ def summary(rows: list[dict]) -> str:
 
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
-              keep_outputs: bool = False, storm_method: str = "sound") -> list[dict]:
+              keep_outputs: bool = False, storm_method: str = "sound",
+              arena_forms=(), random_arenas=()) -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv and out_dir/scaling.{png,svg} and prints the summary.
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
     and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
-    `storm_method` is check's --storm-method: "sound" (docs/semantics.md §10), "sound-ovi" or "fast"."""
+    `storm_method` is check's --storm-method: "sound" (docs/semantics.md §10), "sound-ovi" or "fast".
+    Each size of `sizes` also in `arena_forms` is measured a second time right after, in its
+    arena form (`hg2prism convert`); then each `random_arenas` (numbers of states) as
+    `random_arena_world`. Only grid rows enter the slope and the figure."""
     from hg2prism.outputs import write_text
 
     out_dir = Path(out_dir)
     rows: list[dict] = []
     if show_progress:
-        print(f"hg2prism bench: {len(sizes)} worlds, each in its own process "
+        count = len(sizes) + len(arena_forms) + len(random_arenas)
+        print(f"hg2prism bench: {count} worlds, each in its own process "
               f"with Storm method {storm_method!r} (times in seconds; 'write' is check's JSON "
               f"output outside the timed stages)",
               flush=True)
-    for side, window, hypotheses, traps, *rest in sizes:
-        delay = rest[0] if rest else 0
-        name = world_name(side, window, hypotheses, traps, delay)
-        world_path = out_dir / "worlds" / f"{name}.toml"
-        write_text(world_path, bench_world(side, window, hypotheses, traps, delay=delay))
-        run_dir = out_dir / "runs" / name
-        row = {"name": name, "side": side, "window": window, "hypotheses": hypotheses,
-               "traps": traps, "delay": delay, "storm_method": storm_method}
-        row.update(measure_world(world_path, run_dir, storm_method))
+    def run(world_path: Path, row: dict) -> None:
+        run_dir = out_dir / "runs" / row["name"]
+        row.update(storm_method=storm_method, **measure_world(world_path, run_dir, storm_method))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
         rows.append(row)
         if show_progress:
             print(_line(row), flush=True)
+
+    for side, window, hypotheses, traps, *rest in sizes:
+        delay = rest[0] if rest else 0
+        name = world_name(side, window, hypotheses, traps, delay)
+        world_path = out_dir / "worlds" / f"{name}.toml"
+        write_text(world_path, bench_world(side, window, hypotheses, traps, delay=delay))
+        row = {"name": name, "form": "grid", "side": side, "window": window,
+               "hypotheses": hypotheses, "traps": traps, "delay": delay}
+        run(world_path, row)
+        if (side, window, hypotheses, traps, *rest) in arena_forms:
+            arena_path = out_dir / "worlds" / f"{name}_arena.toml"
+            write_arena_form(world_path, arena_path)
+            run(arena_path, dict(row, name=f"{name}_arena", form="arena form"))
+    for states in random_arenas:
+        name = random_arena_name(states)
+        world_path = out_dir / "worlds" / f"{name}.toml"
+        write_text(world_path, random_arena_world(states))
+        run(world_path, {"name": name, "form": "random arena", "window": 3, "hypotheses": 3,
+                         "traps": 1, "delay": 0})
     write_csv(rows, out_dir / "results.csv")
     good = [r for r in rows if not r.get("error")]
     if good:
@@ -407,7 +563,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         title = (f"hg2prism bench (Storm method {storm_method}): log-log slope of the total "
                  f"{'n/a' if slope is None else f'{slope:.2f}'} from {SLOPE_RANGE[0]:.0e} "
                  f"states (no delay)")
-        scaling_figure(good, STAGES + ("write",), out_dir / "scaling.png", title)
+        scaling_figure(grids(good) or good, STAGES + ("write",), out_dir / "scaling.png", title)
     if show_progress:
         print(summary(rows), flush=True)
         print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'} (and .svg)", flush=True)
@@ -422,7 +578,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
-                        help="only the worlds below 2e5 states without delay (about a minute)")
+                        help="only the worlds below 2e5 states without delay and two small "
+                             "arenas (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
     parser.add_argument("--storm-method", choices=default().methods, default="sound",
@@ -434,8 +591,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         sizes = tuple(s for s in DEFAULT_SIZES
                       if (s[1] < 3 or s[0] <= 12) and not (len(s) > 4 and s[4]))
+    arena_forms, random_arenas = ((QUICK_ARENA_FORMS, QUICK_RANDOM_ARENAS) if args.quick
+                                  else (DEFAULT_ARENA_FORMS, DEFAULT_RANDOM_ARENAS))
     run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs,
-              storm_method=args.storm_method)
+              storm_method=args.storm_method, arena_forms=arena_forms,
+              random_arenas=random_arenas)
     return 0
 
 
