@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import tempfile
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -75,6 +76,20 @@ def check_writable(out: Path, what: str = "--out") -> None:
                          f"cannot write in {existing}: {err.strerror or err}") from None
 
 
+def _join_pool_workers(timeout: float = 10.0) -> None:
+    """Wait (at most `timeout` seconds) for this process's thread-pool workers. A signal that
+    stops a command while its main thread joins a pool's workers (the exports are written in
+    parallel) interrupts that join: a worker still writing would then recreate the staging
+    folder after it was removed."""
+    import threading
+
+    deadline = time.monotonic() + timeout
+    for thread in threading.enumerate():
+        if thread is not threading.current_thread() and \
+                thread.name.startswith("ThreadPoolExecutor"):
+            thread.join(max(0.0, deadline - time.monotonic()))
+
+
 @contextmanager
 def staged(out: Path, owns: str | None = None) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
@@ -87,7 +102,11 @@ def staged(out: Path, owns: str | None = None) -> Iterator[Path]:
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
     os.chmod(stage, 0o777 & ~_UMASK)
     try:
-        yield stage
+        try:
+            yield stage
+        except BaseException:
+            _join_pool_workers()    # a worker may still be writing into the stage
+            raise
         out.mkdir(exist_ok=True)
         new_items = list(stage.iterdir())
         for item in new_items:
