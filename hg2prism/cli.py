@@ -340,15 +340,9 @@ def _nothing(args: argparse.Namespace, world: object) -> None:
 
 
 def _validate(args: argparse.Namespace, world: object) -> int:
-    if world.arena is None:
-        print(f"{args.world}: ok ({world.name}: {world.grid.width}x{world.grid.height} grid, "
-              f"{len(world.grid.trap_candidates)} trap candidates, {len(world.hypotheses)} "
-              "hypotheses)")
-        return 0
-    arena = world.arena
-    p2 = (f"{len(arena.trap_candidates)} trap candidates" if arena.traps_mode
-          else f"{len(arena.p2_actions)} P2 actions")
-    print(f"{args.world}: ok ({world.name}: arena of {arena.n_states} states, {p2}, "
+    from hg2prism import frontends
+
+    print(f"{args.world}: ok ({world.name}: {frontends.describe(world)}, "
           f"{len(world.hypotheses)} hypotheses)")
     return 0
 

@@ -48,8 +48,9 @@ class Parameters:
     ``fixed_parameters``."""
 
     formula: str                    # P1's task, co-safe LTL in Spot syntax (§3)
-    slip: float | None              # grid worlds: slipping to each side of a move (§2); None
-                                    # for an arena world (its arena gives the outcomes, §15)
+    # the front end's own parameters (frontends.parameters: a grid world's robot, §2; none for
+    # an arena world, whose arena gives the outcomes, §15), echoed after the formula
+    front_end: tuple[tuple[str, object], ...]
     traps: int                      # traps P2 places at once (§2)
     delay: int                      # steps P2 waits after moving traps (§2)
     hypotheses: tuple[str, ...]     # P2's candidate tasks (§4)
@@ -63,8 +64,9 @@ class Parameters:
 
     @classmethod
     def of(cls, world: World) -> Parameters:
-        slip = world.slip if world.arena is None else None
-        return cls(formula=world.formula, slip=slip, traps=world.traps, delay=world.delay,
+        from hg2prism.frontends import parameters
+
+        return cls(formula=world.formula, front_end=tuple(parameters(world).items()), traps=world.traps, delay=world.delay,
                    hypotheses=tuple(world.hypotheses),
                    initial_hypothesis=world.initial_hypothesis, window=world.window,
                    threshold=world.threshold, rationality=world.rationality,
@@ -72,11 +74,13 @@ class Parameters:
 
     def to_json(self) -> dict:
         return {
-            "formula": self.formula, "slip": self.slip, "traps": self.traps, "delay": self.delay,
+            "formula": self.formula, **dict(self.front_end), "traps": self.traps,
+            "delay": self.delay,
             "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
             "window": self.window, "threshold": self.threshold, "rationality": self.rationality,
         } if self.inference == "cusum" else {   # CUSUM's results.json stays as it was
-            "formula": self.formula, "slip": self.slip, "traps": self.traps, "delay": self.delay,
+            "formula": self.formula, **dict(self.front_end), "traps": self.traps,
+            "delay": self.delay,
             "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
             "inference": self.inference, "window": self.window, "prior": list(self.prior),
             "decision": self.decision, "rationality": self.rationality,

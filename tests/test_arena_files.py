@@ -163,7 +163,7 @@ prior = [1, 3]
 def test_general_arena_world_loads() -> None:
     w = world_from_toml(LATERAL, name="lateral.toml")
     a = w.arena
-    assert (w.grid, w.slip, w.initial_traps, w.traps, w.delay) == (None, 0.0, (), 0, 1)
+    assert (w.grid, w.traps, w.delay) == (None, 0, 1)
     assert w.initial_standing == 2 and w.initial_hypothesis == 1
     assert a.states == ("out", "web", "mail", "db", "hr", "burnt") and a.initial == 0
     assert a.propositions == ("crown", "payroll", "noisy")
@@ -193,7 +193,7 @@ def test_trap_arena_world_loads() -> None:
     assert a.dest.shape == (5, 2, 1, 2)
     assert a.positions == ((0.0, 0.0), (1.0, 0.5), (1.0, -0.5), (2.0, 0.0), (3.0, 0.0))
     # the l-subsets of the candidates in combinations order: {d,b}, {d,c}, {b,c}; {c,d} is 1
-    assert (w.traps, w.delay, w.initial_standing, w.initial_traps) == (2, 2, 1, ())
+    assert (w.traps, w.delay, w.initial_standing) == (2, 2, 1)
     assert w.inference == "bayes" and w.prior == (0.25, 0.75) and w.initial_hypothesis == 1
     ts = transition_system(w)
     assert ts.a2_names == ("d+b", "d+c", "b+c")

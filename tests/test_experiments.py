@@ -15,6 +15,7 @@ from gridview import GridView
 from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
 from hg2prism.frontends import transition_system as build_transition_system
+from hg2prism.frontends import grid
 from hg2prism.frontends.grid import ACTIONS
 from hg2prism.errors import InputError
 from hg2prism.analyses.simulation import deviating_policy, leader_fallback
@@ -123,8 +124,8 @@ def expected(world, ts, cell, traps: int, countdown: int, a1: str, a2: int) -> d
     free = set(view.cells)
     trap_cells = set(view.trap_cells(a2))
     dist: dict[int, float] = {}
-    for direction, p in ((a1, 1 - 2 * world.slip), (SIDES[a1][0], world.slip),
-                         (SIDES[a1][1], world.slip)):
+    slip = world.grid.slip
+    for direction, p in ((a1, 1 - 2 * slip), (SIDES[a1][0], slip), (SIDES[a1][1], slip)):
         if p == 0:
             continue
         x, y = cell[0] + STEP[direction][0], cell[1] + STEP[direction][1]
@@ -244,9 +245,10 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
 
 def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsys) -> None:
     world = load_world(write_world(tmp_path, "small", SMALL))
-    assert world.initial_traps == ()
+    assert grid.initial_trap_cells(world) == ()
     # no initial_traps anywhere: the first candidate, (3, 3)
-    assert sweep.delay_initial_traps(world) == (world.grid.trap_candidates[0],) == ((3, 3),)
+    point = sweep.sweep_world(world, "delay", 1)
+    assert grid.initial_trap_cells(point) == (world.grid.trap_candidates[0],) == ((3, 3),)
     rows = sweep.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
     assert [r["window"] for r in rows] == [1, 3]
     err = capsys.readouterr().err

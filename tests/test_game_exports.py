@@ -67,7 +67,7 @@ def _world(name: str):
         return load_world(MODELS / "world1.toml")
     world = load_world(MODELS / "world2.toml")
     # delay > 0: the traps start on the first candidate
-    return dataclasses.replace(world, delay=2, initial_traps=world.grid.trap_candidates[:1])
+    return dataclasses.replace(world, delay=2, initial_standing=0)
 
 
 CASES = ["world1", "world2_delay2"]

@@ -10,6 +10,7 @@ them ties the two modules together. A package's import of its own parent package
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "hg2prism"
@@ -127,3 +128,29 @@ def test_no_function_of_the_package_is_longer_than_80_lines() -> None:
     found = {f"{path.relative_to(PACKAGE)}:{name}": lines
              for path in _modules().values() for name, lines in long_functions(path.read_text())}
     assert found == {}
+
+
+# What only the grid front end may know (issue 23): its moves, its cells and its slip.
+GRID_WORDS = re.compile(r"\bslip|\(x, ?y\)|\bCell\b|\bN/E/S/W\b|(?<!metavar=)[\"'][NESW][\"']|\bPERPENDICULAR\b"
+                        r"|\boutcome_directions\b|\bgeometry\(|\bcell_index\b|\bnorth\b|\bwest\b")
+
+
+def test_only_the_grid_front_end_knows_grids() -> None:
+    """Below the front ends the pipeline sees arenas only: no module of the package but the
+    grid front end (frontends/grid.py, its drawing and its generated worlds) names a move
+    direction, a cell or the slip."""
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")) + sorted(PACKAGE.rglob("*.j2")):
+        if path.parent.name == "frontends" and path.name.startswith("grid"):
+            continue
+        for n, line in enumerate(path.read_text().splitlines(), 1):
+            if GRID_WORDS.search(line):
+                found.append(f"{path.relative_to(PACKAGE)}:{n}: {line.strip()}")
+    assert found == []
+
+
+def test_the_grid_words_are_found_where_they_are() -> None:
+    """The pattern above finds the grid front end's own words (so the test can fail)."""
+    source = (PACKAGE / "frontends" / "grid.py").read_text()
+    hits = {m.group(0) for m in GRID_WORDS.finditer(source)}
+    assert {"slip", "Cell", '"N"', "PERPENDICULAR", "outcome_directions"} <= hits

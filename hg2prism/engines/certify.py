@@ -48,9 +48,9 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     """A strategy (a global choice index per state) from approximate values: among the choices
     within `slack` of the best by `estimate`, the first that maximises the probability of moving
     strictly closer to the target, distances counted in the graph of those choices' edges.
-    Greedy choices alone may stall where several look equally good (a push into a wall keeps
-    the value), and a choice that moves closer only by slipping makes the strategy's chain
-    slow and badly conditioned: either costs a round of improvement."""
+    Greedy choices alone may stall where several look equally good (a choice that stays put
+    keeps the value), and a choice that moves closer only through an unlikely outcome makes
+    the strategy's chain slow and badly conditioned: either costs a round of improvement."""
     n = len(target)
     counts = np.diff(group_start)
     source = np.repeat(np.arange(n), counts)

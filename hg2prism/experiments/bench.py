@@ -32,29 +32,9 @@ import signal
 import sys
 import time
 import traceback
-from collections import deque
 from pathlib import Path
 
-HYPOTHESIS_POOL = ("!obs U A", "!obs U B", "!obs U C", "!obs U D", "!obs U E")
-TASK = "(!obs U A) & (!(B | obs) U C)"
-
-# The core, top row first: P1 needs A and C (and must not touch B before C); traps stand next
-# to every region, so P2 blocks whichever region she believes in.
-CORE = (
-    "....#Ct..#..",
-    ".#..ott..o..",
-    "..#..tB...#.",
-    "........E...",
-    "........t...",
-    "..#.o.......",
-    ".#..........",
-    "....D....#..",
-    "....t.......",
-    ".....##.....",
-    ".........At#",
-    "...o...#t...",
-)
-CORE_SIZE = len(CORE)
+from hg2prism.frontends.grid_worlds import bench_world, world_name
 
 STAGES = ("games", "generate", "parse", "build", "check", "export")
 
@@ -104,97 +84,6 @@ COLUMNS = ("name", "form", "side", "window", "hypotheses", "traps", "delay", "st
            "transitions", "storm_states", "storm_transitions", "storm_choices",
            "deceptive_value", "v_lead") + tuple(f"time_{s}" for s in STAGES) + (
            "time_write", "time_total", "time_python", "peak_mb", "error")
-
-
-def _reachable(grid: list[list[str]], start: tuple[int, int]) -> set[tuple[int, int]]:
-    side = len(grid)
-    seen, queue = {start}, deque([start])
-    while queue:
-        r, c = queue.popleft()
-        for n in ((r + 1, c), (r - 1, c), (r, c + 1), (r, c - 1)):
-            if 0 <= n[0] < side and 0 <= n[1] < side and grid[n[0]][n[1]] != "#" \
-                    and n not in seen:
-                seen.add(n)
-                queue.append(n)
-    return seen
-
-
-def bench_world(side: int, window: int, hypotheses: int, traps: int, seed: int = 0,
-                delay: int = 0) -> str:
-    """TOML text of a side x side world (plus border): the fixed core in the top right corner,
-    the start in the bottom left one, 1/12 of the other cells walls and 1/25 obstacles (none
-    next to the start; cells the start cannot reach are walled in).
-
-    `hypotheses` (1-5) takes P2's candidate tasks from "!obs U A", "!obs U B", ... in that
-    order; `traps` (1-2) among the core's 8 candidates (the core fixes them); with `delay` > 0
-    the traps start on the first candidates in reading order."""
-    if side < CORE_SIZE:
-        raise ValueError(f"side must be at least {CORE_SIZE} (the core)")
-    if not 1 <= hypotheses <= len(HYPOTHESIS_POOL):
-        raise ValueError(f"hypotheses must be in 1..{len(HYPOTHESIS_POOL)}")
-    rng = random.Random(seed * 1000 + side)
-    for _ in range(10):
-        grid = [["." for _ in range(side)] for _ in range(side)]
-        for r, row in enumerate(CORE):
-            grid[r][side - CORE_SIZE:] = list(row)
-        start = (side - 1, 0)
-        grid[start[0]][start[1]] = "@"
-        # walls and obstacles anywhere but the core, its rim and the start's neighbourhood
-        field = [(r, c) for r in range(side) for c in range(side)
-                 if not (r <= CORE_SIZE and c >= side - CORE_SIZE - 1)
-                 and max(abs(r - start[0]), abs(c - start[1])) > 1]
-        rng.shuffle(field)
-        n_field = len(field)
-        for _ in range(n_field // 12):
-            r, c = field.pop()
-            grid[r][c] = "#"
-        for _ in range(n_field // 25):
-            r, c = field.pop()
-            grid[r][c] = "o"
-        reachable = _reachable(grid, start)
-        cut_off = [(r, c) for r in range(side) for c in range(side)
-                   if grid[r][c] != "#" and (r, c) not in reachable]
-        if not cut_off:
-            break
-    # Large fields are rarely connected: wall in whatever the start cannot reach.
-    for r, c in cut_off:
-        grid[r][c] = "#"
-    rows = ["#" * (side + 2)] + ["#" + "".join(row) + "#" for row in grid] + ["#" * (side + 2)]
-    hyps = ", ".join(f'"{h}"' for h in HYPOTHESIS_POOL[:hypotheses])
-    newline = "\n"
-    height = len(rows)
-    candidates = [(x, height - 1 - r) for r, row in enumerate(rows)
-                  for x, char in enumerate(row) if char == "t"]
-    initial = ", ".join(f"[{x}, {y}]" for x, y in candidates[:traps])
-    delay_lines = f"delay = {delay}\ninitial_traps = [{initial}]\n" if delay else ""
-    return f'''name = "{world_name(side, window, hypotheses, traps, delay)}"
-description = "benchmark world: {side}x{side}, window {window}, {hypotheses} hypotheses, \
-{traps} trap(s){f", delay {delay}" if delay else ""}"
-
-[grid]
-map = """
-{newline.join(rows)}
-"""
-
-[robot]
-slip = 0.1
-
-[task]
-formula = "{TASK}"
-
-[adversary]
-traps = {traps}
-{delay_lines}hypotheses = [{hyps}]
-
-[inference]
-window = {window}
-threshold = 1.5
-rationality = 5.0
-'''
-
-
-def world_name(side: int, window: int, hypotheses: int, traps: int, delay: int = 0) -> str:
-    return f"bench_s{side}_w{window}_x{hypotheses}_t{traps}" + (f"_d{delay}" if delay else "")
 
 
 RANDOM_TARGETS = ("asset_a", "asset_b", "asset_c")

@@ -2,7 +2,7 @@
 
 :func:`sweep_grid` re-solves the world at every point of the cartesian product of one or more
 parameters' values (the table :data:`SWEEP_PARAMETERS`: ``delay``, ``window``, ``threshold``,
-``rationality``, ``slip``, ``traps``) and records the deceptive value, V_lead and V_NE at the
+``rationality``, ``traps``, ``prior``, ``inference`` and each front end's own) and records the deceptive value, V_lead and V_NE at the
 initial state (docs/semantics.md §§6-7; the sweep itself: §7, Sweeps). :func:`sweep` is the
 one-parameter case. Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.{png,svg}``; each
 point's model, strategy and results stay in ``OUT/<parameter>_<value>/`` (one parameter) or
@@ -19,19 +19,18 @@ A point that fails (the size guard, a solver or Storm error, a worker lost) is r
 parameters and the others go on; only when the size guard refuses every point is the sweep
 refused as a whole, before anything is solved.
 
-The traps standing at the start when a point has a positive delay (docs/semantics.md §2 and §7, Sweeps):
-the world's own ``initial_traps`` when it has them (a world loaded with delay > 0); otherwise the
-``[adversary] initial_traps`` written in the world file (the loader drops them when delay = 0;
-here they are checked as if delay were positive, and an empty list counts as none); otherwise
-the first ``traps`` trap candidates in map reading order. When ``traps`` is swept to k, the
-standing traps are the first k of those (in candidate order), followed, when k exceeds them, by
-the first other candidates in map reading order. A delay of 0 has no initial traps.
+The action P2 has standing at the start when a point has a positive delay (docs/semantics.md §2
+and §7, Sweeps): the world's own (general P2 actions; in trap mode the world's standing trap set
+when its delay is positive, or, for a grid world loaded with delay 0, the `[adversary]
+initial_traps` written in its file: frontends.standing_candidates). When ``traps`` is swept to k,
+the standing set is the first k of those candidates (in candidate order), followed, when k
+exceeds them, by the first other candidates in the arena's order; with none given, the first k
+candidates. A delay of 0 has no standing action. A point's row names it under ``standing``
+(None when delay is 0).
 
-On an arena world (docs/semantics.md §15) every parameter but ``slip`` applies (``slip`` reads
-the map: one InputError line); ``traps`` only when P2 sets traps. Its standing action at the
-start is the world's own (an index into A2); when ``traps`` is swept to k, the standing set
-keeps the first k candidates of the world's set, then the first other candidates in the arena's
-order. A point's row names it under ``standing`` (None when delay is 0).
+A front end may add its own parameters (frontends.sweep_settings: the grid's robot); they are
+refused, in one InputError line, on worlds of another kind. ``traps`` applies only when P2 sets
+traps.
 """
 
 from __future__ import annotations
@@ -44,15 +43,15 @@ import os
 import sys
 import tempfile
 import time
-import tomllib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 from hg2prism.errors import InputError
+from hg2prism import frontends
 from hg2prism.frontends import arena_of
-from hg2prism.model.world import Cell, World
+from hg2prism.model.world import World
 from hg2prism.opponent.bayes import normalise_prior
 from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
 from hg2prism import progress
@@ -60,8 +59,7 @@ from hg2prism.outputs import write_bytes, write_json, write_text
 from hg2prism.results import Parameters
 
 __all__ = ["SweepParameter", "SWEEP_PARAMETERS", "OWNED_PATTERN", "parse_sweep_values",
-           "parse_sweep_grid", "sweep_world", "sweep_point", "delay_initial_traps",
-           "standing_traps", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
+           "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
            "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
 _CLI = "command line"
@@ -85,13 +83,14 @@ class SweepParameter:
     parse: Callable[[object], Value]
     apply: Callable[[World, Value], World]
     moves_traps: bool = False
-    grid_only: bool = False     # reads the map (slip): refused on arena worlds
+    front_end: str | None = None    # a front end's own parameter: refused on other kinds
 
     def refuse_unless_applies(self, world: World) -> None:
         """InputError (one line) when this parameter does not apply to `world`."""
-        if self.grid_only and world.arena is not None:
-            raise InputError(_CLI, f"--param {self.name}", f"applies to grid worlds only; "
-                             f"{world.name} is an arena world")
+        kind = frontends.kind_of(world)
+        if self.front_end is not None and self.front_end != kind:
+            raise InputError(_CLI, f"--param {self.name}", f"applies to {self.front_end} "
+                             f"worlds only; {world.name} is an {kind} world")
         if self.name == "traps" and world.arena is not None and not world.arena.traps_mode:
             raise InputError(_CLI, f"--param {self.name}", f"applies to worlds whose P2 sets "
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
@@ -203,8 +202,9 @@ SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
                    _with_setting("threshold")),
     SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
                    _field("rationality")),
-    SweepParameter("slip", "a number in [0, 0.5)", _number(float, 0.0, False, below=0.5),
-                   _field("slip"), grid_only=True),
+    *(SweepParameter(setting.name, setting.expected,
+                     _number(setting.kind, setting.minimum, setting.exclusive, setting.below),
+                     setting.apply, front_end=kind) for kind, setting in frontends.sweep_settings()),
     SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
                    _number(int, 1, False), _with_traps, moves_traps=True),
     SweepParameter("prior", "comma-separated positive numbers, one per hypothesis", _prior,
@@ -264,63 +264,16 @@ def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
     return parsed
 
 
-def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
-    """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
-    file has none, an empty list, or cannot be read any more."""
-    try:
-        with open(world.path, "rb") as handle:
-            data = tomllib.load(handle)
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    adversary = data.get("adversary")
-    if not isinstance(adversary, dict) or "initial_traps" not in adversary:
-        return None
-    key = "adversary.initial_traps"
-    value = adversary["initial_traps"]
-    if value == []:          # what a delay-0 world writes: nothing given, so the rule goes on
-        return None
-    numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
-    cells: list[Cell] = []
-    if isinstance(value, list):
-        for item in value:
-            if (isinstance(item, list) and len(item) == 2
-                    and all(isinstance(c, int) and not isinstance(c, bool) for c in item)):
-                cells.append((item[0], item[1]))
-            else:
-                cells = []
-                break
-        else:
-            if (len(cells) == world.traps and len(set(cells)) == len(cells)
-                    and all(c in numbering for c in cells)):
-                return tuple(sorted(cells, key=numbering.__getitem__))
-    candidates = ", ".join(f"[{x}, {y}]" for x, y in world.grid.trap_candidates)
-    raise InputError(str(world.path), key,
-                     f"sweeping delay > 0 needs initial_traps to be {world.traps} distinct trap "
-                     f"candidate cells (candidates are {candidates}), got {value!r}")
-
-
-def delay_initial_traps(world: World) -> tuple[Cell, ...]:
-    """The traps standing at the start when the world is re-solved with a positive delay (the
-    rule in the module docstring)."""
-    if world.initial_traps:
-        return tuple(world.initial_traps)
-    from_file = _file_initial_traps(world)
-    if from_file is not None:
-        return from_file
-    return tuple(world.grid.trap_candidates[:world.traps])
-
-
-def standing_traps(world: World, traps: int) -> tuple[Cell, ...]:
-    """The traps standing at the start of a point with a positive delay and `traps` traps (the
-    rule in the module docstring)."""
-    numbering = {cell: n for n, cell in enumerate(world.grid.trap_candidates)}
-    chosen = list(delay_initial_traps(world))[:traps]
-    for cell in world.grid.trap_candidates:
-        if len(chosen) >= traps:
-            break
-        if cell not in chosen:
-            chosen.append(cell)
-    return tuple(sorted(chosen, key=numbering.__getitem__))
+def standing_at(world: World, traps: int) -> int:
+    """P2's action standing at the start of a point with a positive delay and `traps` traps
+    (an index into A2; the rule in the module docstring)."""
+    arena = arena_of(world)
+    if not arena.traps_mode:
+        return world.initial_standing
+    n = len(arena.trap_candidates)
+    chosen = list(frontends.standing_candidates(world))[:traps]
+    chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]
+    return list(itertools.combinations(range(n), traps)).index(tuple(sorted(chosen)))
 
 
 def sweep_point(world: World, assignment: dict[str, Value]) -> World:
@@ -333,29 +286,9 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
             SWEEP_PARAMETERS[name].refuse_unless_applies(world)
             point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
     if any(SWEEP_PARAMETERS[name].moves_traps for name in assignment):
-        if world.arena is not None:
-            standing = arena_standing(world, point.traps) if point.delay > 0 else 0
-            point = replace(point, initial_standing=standing)
-        else:
-            traps = standing_traps(world, point.traps) if point.delay > 0 else ()
-            point = replace(point, initial_traps=traps)
+        standing = standing_at(world, point.traps) if point.delay > 0 else 0
+        point = replace(point, initial_standing=standing)
     return point
-
-
-def arena_standing(world: World, traps: int) -> int:
-    """An arena world's standing action (an index into A2) at the start of a point with a
-    positive delay and `traps` traps: the world's own standing action (general P2 actions); in
-    trap mode the first `traps` candidates of the world's standing trap set, followed, when
-    `traps` exceeds them, by the first other candidates in the arena's order (the grid's rule)."""
-    arena = world.arena
-    if not arena.traps_mode:
-        return world.initial_standing
-    n = len(arena.trap_candidates)
-    sets = list(itertools.combinations(range(n), world.traps)) if world.traps else [()]
-    chosen = list(sets[world.initial_standing] if world.initial_standing < len(sets) else ())
-    chosen = chosen[:traps]
-    chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]
-    return list(itertools.combinations(range(n), traps)).index(tuple(sorted(chosen)))
 
 
 def sweep_world(world: World, parameter: str, value: object) -> World:

@@ -8,6 +8,28 @@ from hg2prism.model.dynamics import TransitionSystem, build_transition_system
 from hg2prism.model.world import World
 
 
+def kind_of(world: World) -> str:
+    """The world's kind: "grid" or "arena"."""
+    return "arena" if world.arena is not None else "grid"
+
+
+def describe(world: World) -> str:
+    """What the world is made of, in a few words (`hg2prism validate`)."""
+    if world.arena is None:
+        return world.grid.describe()
+    arena = world.arena
+    p2 = (f"{len(arena.trap_candidates)} trap candidates" if arena.traps_mode
+          else f"{len(arena.p2_actions)} P2 actions")
+    return f"arena of {arena.n_states} states, {p2}"
+
+
+def sweep_settings():
+    """(kind, Setting) for every front end's own sweep parameters."""
+    from hg2prism.frontends import grid
+
+    return tuple(("grid", setting) for setting in grid.SETTINGS)
+
+
 def arena_of(world: World) -> Arena:
     if world.arena is not None:
         return world.arena
@@ -16,16 +38,31 @@ def arena_of(world: World) -> Arena:
     return grid.to_arena(world)
 
 
-def initial_standing(world: World) -> int:
-    """P2's action standing at the start (an index into A2; 0 when delay is 0)."""
-    if world.arena is not None:
-        return world.initial_standing
-    from hg2prism.frontends import grid
-
-    return grid.initial_standing(world)
-
-
 def transition_system(world: World) -> TransitionSystem:
     """The world's TS (docs/semantics.md §§2, 15)."""
     return build_transition_system(arena_of(world), world.traps, world.delay,
-                                   initial_standing(world))
+                                   world.initial_standing)
+
+
+def standing_candidates(world: World) -> tuple[int, ...]:
+    """In trap mode, the trap candidates (numbers) a re-solved world with a positive delay keeps
+    standing at the start: the world's own standing set when its delay is positive; a grid world
+    with delay 0 may name them in its file (frontends/grid.py); otherwise none."""
+    if world.arena is None:
+        from hg2prism.frontends import grid
+
+        return grid.standing_candidates(world)
+    if not world.delay:
+        return ()
+    from hg2prism.model.dynamics import a2_actions
+
+    return tuple(a2_actions(world.arena, world.traps)[1][world.initial_standing])
+
+
+def parameters(world: World) -> dict[str, object]:
+    """The front end's own parameters, as results.json echoes them (frontends/grid.py: parameters)."""
+    if world.arena is None:
+        from hg2prism.frontends import grid
+
+        return grid.parameters(world)
+    return {}

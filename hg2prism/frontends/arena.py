@@ -41,7 +41,7 @@ or () (traps); `trap_candidates` the candidates' state numbers in the order writ
 `positions` when given. The World's fields from here: `traps` (l, 0 for general actions),
 `delay`, `initial_standing` (with delay > 0 the index into A2 of initial_action, or of the
 sorted initial trap set among the l-subsets in itertools.combinations order; 0 when delay is 0) and
-`arena`; the loader sets `grid=None`, `slip=0.0`, `initial_traps=()`.
+`arena`; the loader sets `grid=None`.
 
 Writing (`to_toml`, `hg2prism convert`): a world's arena (a grid world compiled by
 frontends/grid.py) with every other setting, as a world file that reads back to the same
@@ -551,8 +551,8 @@ def _arena_lines(arena: Arena) -> list[str]:
                   for s, label in labelled]
     if arena.positions is not None:
         lines += ["", "[arena.positions]"]
-        lines += [f"{toml_key(names[s])} = {toml_value([float(x), float(y)])}"
-                  for s, (x, y) in enumerate(arena.positions)]
+        lines += [f"{toml_key(names[s])} = {toml_value([float(c) for c in point])}"
+                  for s, point in enumerate(arena.positions)]
     return lines + _entries(arena)
 
 
@@ -586,7 +586,7 @@ def to_toml(world) -> str:
     from hg2prism import frontends
 
     arena = frontends.arena_of(world)
-    standing = frontends.initial_standing(world)
+    standing = world.initial_standing
     source = f" (from {world.path.name})" if world.path is not None else ""
     lines = [f"# The arena form of world {world.name}{source}, written by hg2prism convert",
              "# (docs/semantics.md §15).",

@@ -1,6 +1,13 @@
-"""The grid front end (docs/semantics.md §§1-2): a grid world compiles to its arena.
+"""The grid front end (docs/semantics.md §§1-2): reading a grid world file's grid parts, and
+compiling a grid world to its arena.
 
-One arena state per free cell, in map reading order (top row first, left to right), named by
+Reading (`read`): `[grid] map`, `[robot] slip` and `[adversary]`'s traps, delay and
+initial_traps (cells), each key checked with one error line; the loader (worldfile/loader.py)
+reads the tables every world has. The `Grid` value keeps the map and the slip; the world's
+`initial_standing` is the index of the initial traps among the trap sets.
+
+Compiling (`to_arena`):
+one arena state per free cell, in map reading order (top row first, left to right), named by
 its coordinates (`x2_y4`: x the column from the left, y the row from the bottom); P1's actions
 N, E, S, W at every cell, each with its slip outcomes (the intended direction with probability
 1 - 2*slip, each perpendicular one with slip; a move into a wall or off the map stays); labels
@@ -10,12 +17,53 @@ candidate cells. Everything below this module sees only the arena.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import itertools
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
-from hg2prism.model.world import Cell, World
+from hg2prism.model.world import World
+
+Cell = tuple[int, int]
+
+MAP_LEGEND = ". # o t @ A-Z"
+# Region letters that Spot reads as temporal operators.
+FORBIDDEN_REGION_LETTERS = frozenset("FGMRUWX")
+# The tables a grid world has besides those of every world, and their keys (key -> required?)
+TABLE_KEYS = {"grid": {"map": True}, "robot": {"slip": True}}
+ADVERSARY_KEYS = {"traps": True, "delay": False, "initial_traps": False}
+MISSING_HINT = {
+    "grid.map": "a multi-line string with the map (legend: " + MAP_LEGEND + ")",
+    "robot.slip": "a number in [0, 0.5)",
+}
+SLIP_EXPECTED = "a number in [0, 0.5)"
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A grid world's map (docs/semantics.md §1) and its robot's slip (§2)."""
+
+    rows: tuple[str, ...]                 # the map as written, top row first
+    width: int
+    height: int
+    walls: frozenset[Cell]
+    obstacles: frozenset[Cell]
+    regions: tuple[tuple[str, frozenset[Cell]], ...]   # (letter, cells), letters sorted
+    trap_candidates: tuple[Cell, ...]     # map reading order: top row first, left to right
+    start: Cell
+    slip: float = 0.0                     # probability of slipping to each side of a move
+
+    def region_letters(self) -> tuple[str, ...]:
+        return tuple(letter for letter, _ in self.regions)
+
+    def propositions(self) -> tuple[str, ...]:
+        """AP: `obs`, then the region letters of the map in alphabetical order."""
+        return ("obs",) + self.region_letters()
+
+    def describe(self) -> str:
+        return (f"{self.width}x{self.height} grid, {len(self.trap_candidates)} trap candidates")
 
 ACTIONS = ("N", "E", "S", "W")
 # LEGACY: action labels in generated PRISM (E, S and W are PRISM keywords)
@@ -67,7 +115,7 @@ def geometry(world: World) -> GridGeometry:
         for d, action in enumerate(ACTIONS):
             dx, dy = STEP[action]
             move[i, d] = cell_index.get((x + dx, y + dy), i)
-    return GridGeometry(cells=cells, cell_index=cell_index, move=move, slip=world.slip)
+    return GridGeometry(cells=cells, cell_index=cell_index, move=move, slip=world.grid.slip)
 
 
 def to_arena(world: World) -> Arena:
@@ -85,7 +133,7 @@ def to_arena(world: World) -> Arena:
             labels.append(frozenset())
     directions = np.array([outcome_directions(a) for a in range(len(ACTIONS))])   # [4, 3]
     dest = geo.move[:, directions][:, :, None, :]                                   # [n, 4, 1, 3]
-    prob = np.broadcast_to(np.array([1 - 2 * world.slip, world.slip, world.slip]),
+    prob = np.broadcast_to(np.array([1 - 2 * grid.slip, grid.slip, grid.slip]),
                            dest.shape).copy()
     positions = tuple((float(x), float(y)) for x, y in geo.cells)
     return Arena(
@@ -97,12 +145,245 @@ def to_arena(world: World) -> Arena:
     )
 
 
-def initial_standing(world: World) -> int:
-    """The index into A2 (the trap sets in combinations order) of the initial traps."""
-    import itertools
+def trap_sets(grid: Grid, traps: int) -> list[tuple[int, ...]]:
+    """P2's actions: the trap sets as tuples of candidate numbers, in combinations order."""
+    return list(itertools.combinations(range(len(grid.trap_candidates)), traps))
 
+
+def initial_trap_cells(world: World) -> tuple[Cell, ...]:
+    """The cells of the traps standing at the start (empty when delay is 0)."""
     if not world.delay:
-        return 0
-    initial = tuple(sorted(world.grid.trap_candidates.index(c) for c in world.initial_traps))
-    sets = list(itertools.combinations(range(len(world.grid.trap_candidates)), world.traps))
-    return sets.index(initial)
+        return ()
+    chosen = trap_sets(world.grid, world.traps)[world.initial_standing]
+    return tuple(world.grid.trap_candidates[c] for c in chosen)
+
+
+def with_slip(world: World, slip: float) -> World:
+    """The grid world with another slip (checked by the caller)."""
+    return replace(world, grid=replace(world.grid, slip=slip))
+
+
+# What sweeps may vary in a grid world only
+SETTINGS = (Setting("slip", SLIP_EXPECTED, float, 0.0, False, 0.5, with_slip),)
+
+
+def parameters(world: World) -> dict[str, object]:
+    """The grid's own parameters, as results.json echoes them."""
+    return {"slip": world.grid.slip}
+
+
+def standing_candidates(world: World) -> tuple[int, ...]:
+    """The trap candidates (numbers) standing at the start when the world is re-solved with a
+    positive delay (a sweep, docs/semantics.md §7 Sweeps): the world's own initial traps when it
+    has them (delay > 0); otherwise the `[adversary] initial_traps` written in its file (the
+    loader drops them when delay = 0; here they are checked as if delay were positive, and an
+    empty list counts as none); otherwise none."""
+    if world.delay:
+        return trap_sets(world.grid, world.traps)[world.initial_standing]
+    cells = _file_initial_traps(world)
+    return () if cells is None else _numbers(world.grid, cells)
+
+
+def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
+    """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
+    file has none, an empty list, or cannot be read any more."""
+    import tomllib
+
+    from hg2prism.errors import InputError
+
+    try:
+        with open(world.path, "rb") as handle:
+            data = tomllib.load(handle)
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    adversary = data.get("adversary")
+    if not isinstance(adversary, dict) or "initial_traps" not in adversary:
+        return None
+    key = "adversary.initial_traps"
+    value = adversary["initial_traps"]
+    if value == []:          # what a delay-0 world writes: nothing given, so the rule goes on
+        return None
+    grid = world.grid
+    numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
+    cells: list[Cell] = []
+    if isinstance(value, list):
+        for item in value:
+            if (isinstance(item, list) and len(item) == 2
+                    and all(isinstance(c, int) and not isinstance(c, bool) for c in item)):
+                cells.append((item[0], item[1]))
+            else:
+                cells = []
+                break
+        else:
+            if (len(cells) == world.traps and len(set(cells)) == len(cells)
+                    and all(c in numbering for c in cells)):
+                return tuple(sorted(cells, key=numbering.__getitem__))
+    candidates = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
+    raise InputError(str(world.path), key,
+                     f"sweeping delay > 0 needs initial_traps to be {world.traps} distinct trap "
+                     f"candidate cells (candidates are {candidates}), got {value!r}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading a grid world file
+# ---------------------------------------------------------------------------------------------
+
+def read(ld, root: dict) -> Grid:
+    """The grid of a world file: [grid] map and [robot] slip. `ld` is the loader
+    (worldfile/loader.py): its typed getters raise its one-line errors."""
+    grid = read_map(ld, ld.table(root, "grid", TABLE_KEYS["grid"]))
+    slip = ld.number(ld.table(root, "robot", TABLE_KEYS["robot"])["slip"], "robot.slip")
+    if not 0.0 <= slip < 0.5:
+        raise ld.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
+    return replace(grid, slip=slip)
+
+
+def read_adversary(ld, adv: dict, grid: Grid) -> dict:
+    """The World fields of [adversary] that depend on the grid: traps, delay and
+    initial_standing (from initial_traps)."""
+    traps = ld.integer(adv["traps"], "adversary.traps", 1)
+    n_cand = len(grid.trap_candidates)
+    if traps > n_cand:
+        raise ld.fail("adversary.traps", f"traps = {traps} but the map has only {n_cand} "
+                                         "trap candidate cells 't'; expected traps <= "
+                                         "the number of 't' cells")
+    delay = ld.integer(adv.get("delay", 0), "adversary.delay", 0)
+    cells = initial_traps(ld, adv, grid, traps, delay)
+    standing = trap_sets(grid, traps).index(_numbers(grid, cells)) if delay else 0
+    return dict(traps=traps, delay=delay, initial_standing=standing)
+
+
+def _numbers(grid: Grid, cells) -> tuple[int, ...]:
+    return tuple(sorted(grid.trap_candidates.index(c) for c in cells))
+
+
+def read_map(ld, grid_table: dict) -> Grid:
+    key = "grid.map"
+    text = ld.string(grid_table["map"], key)
+    text = text.replace("\r\n", "\n")
+    if text.startswith("\n"):
+        text = text[1:]
+    rows = text.split("\n")
+    while rows and rows[-1].strip() == "":
+        rows.pop()
+    if not rows:
+        raise ld.fail(key, "the map is empty; expected rows of cells (legend: "
+                           + MAP_LEGEND + ")")
+    height = len(rows)
+    width = len(rows[0])
+    for i, row in enumerate(rows):
+        if len(row) != width:
+            raise ld.fail(key, f"ragged rows: row {i + 1} (from the top) has {len(row)} "
+                               f"cells but row 1 has {width}; every row must be the same "
+                               "length")
+    walls: set[Cell] = set()
+    obstacles: set[Cell] = set()
+    regions: dict[str, set[Cell]] = {}
+    candidates: list[Cell] = []
+    starts: list[Cell] = []
+    kinds = {"#": walls, "o": obstacles}
+    for i, row in enumerate(rows):
+        y = height - 1 - i
+        for x, ch in enumerate(row):
+            cell = (x, y)
+            if ch == ".":
+                pass
+            elif ch in kinds:
+                kinds[ch].add(cell)
+            elif ch == "t":
+                candidates.append(cell)
+            elif ch == "@":
+                starts.append(cell)
+            elif "A" <= ch <= "Z":
+                if ch in FORBIDDEN_REGION_LETTERS:
+                    raise ld.fail(key, f"region letter {ch} at (x={x}, y={y}) is not "
+                                       "allowed: F, G, M, R, U, W and X are Spot "
+                                       "operators; use another letter")
+                regions.setdefault(ch, set()).add(cell)
+            else:
+                raise ld.fail(key, f"unknown character {ch!r} at (x={x}, y={y}) "
+                                   f"(row {i + 1}, column {x + 1}); expected one of "
+                                   + MAP_LEGEND)
+    if not starts:
+        raise ld.fail(key, "no robot start '@' in the map; expected exactly one")
+    if len(starts) > 1:
+        where = ", ".join(f"({x}, {y})" for x, y in starts)
+        raise ld.fail(key, f"{len(starts)} robot starts '@' at {where}; expected exactly one")
+    return Grid(rows=tuple(rows), width=width, height=height, walls=frozenset(walls),
+                obstacles=frozenset(obstacles),
+                regions=tuple((letter, frozenset(c)) for letter, c in sorted(regions.items())),
+                trap_candidates=tuple(candidates), start=starts[0])
+
+
+def _cells(ld, value: object, key: str) -> list[Cell]:
+    """[[x, y], ...], each item checked."""
+    cells: list[Cell] = []
+    for i, item in enumerate(ld.array(value, key, "an array of [x, y] cells")):
+        if (not isinstance(item, list) or len(item) != 2
+                or any(isinstance(c, bool) or not isinstance(c, int) for c in item)):
+            raise ld.fail(f"{key}[{i}]", f"each initial trap must be a cell [x, y] of two "
+                                         f"integers, got {ld.written(item)}")
+        cells.append((item[0], item[1]))
+    return cells
+
+
+def initial_traps(ld, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
+    """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter
+    (and are only checked) when delay > 0. Returns cells sorted by candidate number."""
+    key = "adversary.initial_traps"
+    if "initial_traps" not in adv:
+        if delay > 0:
+            raise ld.fail(key, f"initial_traps is required when delay > 0; expected "
+                               f"{traps} distinct trap candidate cells as [[x, y], ...]")
+        return ()
+    cells = _cells(ld, adv["initial_traps"], key)
+    if delay == 0:
+        return ()
+    numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
+    cand_text = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
+    for i, cell in enumerate(cells):
+        if cell not in numbering:
+            raise ld.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is not a trap candidate "
+                                         f"'t' cell; candidates are {cand_text}")
+    for i, cell in enumerate(cells):
+        if cell in cells[:i]:
+            raise ld.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is repeated; initial "
+                                         "traps must be distinct cells")
+    if len(cells) != traps:
+        raise ld.fail(key, f"expected {traps} distinct trap candidate cells (traps = "
+                           f"{traps}) because delay > 0, got {len(cells)}")
+    return tuple(sorted(cells, key=numbering.__getitem__))
+
+
+def world_file(*, name: str, description: str, rows: list[str], slip: float, formula: str,
+               traps: int, delay: int, hypotheses, inference: dict) -> str:
+    """The text of a grid world file with map `rows` (top row first); with delay > 0 the traps
+    stand on the first `traps` candidates in reading order at the start."""
+    height = len(rows)
+    candidates = [(x, height - 1 - r) for r, row in enumerate(rows)
+                  for x, char in enumerate(row) if char == "t"]
+    initial = ", ".join(f"[{x}, {y}]" for x, y in candidates[:traps])
+    delay_lines = f"delay = {delay}\ninitial_traps = [{initial}]\n" if delay else ""
+    hyps = ", ".join(f'"{h}"' for h in hypotheses)
+    inference_lines = "".join(f"{key} = {value}\n" for key, value in inference.items())
+    newline = "\n"
+    return f'''name = "{name}"
+description = "{description}"
+
+[grid]
+map = """
+{newline.join(rows)}
+"""
+
+[robot]
+slip = {slip}
+
+[task]
+formula = "{formula}"
+
+[adversary]
+traps = {traps}
+{delay_lines}hypotheses = [{hyps}]
+
+[inference]
+{inference_lines}'''

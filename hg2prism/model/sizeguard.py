@@ -22,8 +22,7 @@ The bound (rigorous; every factor over-approximates one component of a canonical
            w-1) observations (TS state, P1's action);
   N_L(c)   the number of state/action sequences (c_1,a_1),...,(c_L,a_L) that are walks ending
            next to c: c_{i+1} is an outcome of a_i from c_i, and c an outcome of a_L from c_L
-           (outcomes: the successors of positive probability for some P2 action; on a grid the
-           intended move and, when slip > 0, the two perpendicular slips, walls bouncing).
+           (outcomes: the successors of positive probability for some P2 action).
            N_0 = 1, N_L = A N_{L-1} with A[c', c] = #{a : c' is an outcome of a from c};
   2        the merged goal and failure states.
 

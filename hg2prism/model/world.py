@@ -1,8 +1,7 @@
-"""The world (docs/semantics.md §1) as an immutable value: its grid, task, P2's hypotheses and
-observer, and the simulation and detection settings. hg2prism/worldfile/ reads and validates the
-TOML world files that make one.
-
-Coordinates: x is the column from the left, y the row from the BOTTOM (both 0-based).
+"""The world (docs/semantics.md §1) as an immutable value: what its front end reads (a grid
+world's `Grid`, an arena world's `Arena`), the task, P2's traps, delay, hypotheses and observer,
+and the simulation and detection settings. hg2prism/worldfile/ reads and validates the TOML world
+files that make one; hg2prism/frontends/ turns either kind into the arena the pipeline plays on.
 """
 
 from __future__ import annotations
@@ -13,26 +12,6 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from hg2prism.model.arena import Arena
-
-Cell = tuple[int, int]
-
-# Region letters that Spot reads as temporal operators.
-FORBIDDEN_REGION_LETTERS = frozenset("FGMRUWX")
-
-
-@dataclass(frozen=True)
-class Grid:
-    rows: tuple[str, ...]                 # the map as written, top row first
-    width: int
-    height: int
-    walls: frozenset[Cell]
-    obstacles: frozenset[Cell]
-    regions: tuple[tuple[str, frozenset[Cell]], ...]   # (letter, cells), letters sorted
-    trap_candidates: tuple[Cell, ...]     # map reading order: top row first, left to right
-    start: Cell
-
-    def region_letters(self) -> tuple[str, ...]:
-        return tuple(letter for letter, _ in self.regions)
 
 
 @dataclass(frozen=True)
@@ -54,12 +33,12 @@ class World:
     path: Path
     name: str
     description: str
-    grid: Grid | None                     # None for an arena world
-    slip: float
+    # a grid world's map and robot: a frontends.grid.Grid (the model does not import the front
+    # ends); None for an arena world
+    grid: object | None
     formula: str
     traps: int
     delay: int
-    initial_traps: tuple[Cell, ...]       # empty when delay == 0
     hypotheses: tuple[str, ...]
     initial_hypothesis: int
     window: int
@@ -70,17 +49,17 @@ class World:
     # the observer's own [inference] keys as its kind read them, in its kind's order: CUSUM's
     # threshold (§5), the Bayesian prior (normalised) and decision (§12)
     settings: tuple[tuple[str, object], ...] = ()
-    # an arena world (docs/semantics.md §15) carries its arena (and `grid` is None), with P2's
-    # action standing at the start as an index into A2
+    # an arena world (docs/semantics.md §15) carries its arena (and `grid` is None)
     arena: "Arena | None" = None
+    # P2's action standing at the start when delay > 0, an index into A2 (the trap sets in
+    # combinations order, or the arena's P2 actions); 0 when delay is 0
     initial_standing: int = 0
 
     def atomic_propositions(self) -> tuple[str, ...]:
-        """AP: a grid's are `obs`, then the region letters of the map in alphabetical order;
-        an arena world's are its arena's."""
+        """AP: an arena world's are its arena's; a grid's are its map's (frontends/grid.py)."""
         if self.arena is not None:
             return self.arena.propositions
-        return ("obs",) + self.grid.region_letters()
+        return self.grid.propositions()
 
     def setting(self, key: str, default: object = None) -> object:
         """The observer's setting `key` (default when its kind has no such key)."""

@@ -12,11 +12,9 @@ from pathlib import Path
 
 from hg2prism.errors import InputError
 from hg2prism.frontends import arena as arena_files
-from hg2prism.model.world import (FORBIDDEN_REGION_LETTERS, Cell, DetectionSettings, Grid,
-                                  SimulationSettings, World)
+from hg2prism.frontends import grid as grid_files
+from hg2prism.model.world import DetectionSettings, SimulationSettings, World
 
-
-MAP_LEGEND = ". # o t @ A-Z"
 
 # Keys allowed in each table: key -> required?
 _TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
@@ -26,11 +24,9 @@ _ARENA_TOP_KEYS = {"name": False, "description": False, "arena": True, "task": T
                    "adversary": True, "inference": True, "simulation": False,
                    "detection": False}
 _TABLE_KEYS: dict[str, dict[str, bool]] = {
-    "grid": {"map": True},
-    "robot": {"slip": True},
+    **grid_files.TABLE_KEYS,
     "task": {"formula": True},
-    "adversary": {"traps": True, "delay": False, "initial_traps": False, "hypotheses": True,
-                  "initial_hypothesis": False},
+    "adversary": {**grid_files.ADVERSARY_KEYS, "hypotheses": True, "initial_hypothesis": False},
     # and the keys of the observers' kinds (`_Loader.inference` asks opponent/registry.py)
     "inference": {"kind": False, "window": True, "rationality": True},
     "simulation": {"episodes": False, "horizon": False, "seed": False},
@@ -50,8 +46,7 @@ LIMIT_REASON = {
 }
 
 _MISSING_HINT = {
-    "grid.map": "a multi-line string with the map (legend: " + MAP_LEGEND + ")",
-    "robot.slip": "a number in [0, 0.5)",
+    **grid_files.MISSING_HINT,
     "task.formula": "a syntactically co-safe LTL formula in Spot syntax",
     "adversary.traps": "an integer >= 1",
     "adversary.hypotheses": "a non-empty array of co-safe LTL formulas",
@@ -125,12 +120,6 @@ class Vocabulary:
 
     propositions: tuple[str, ...]
     described: str
-
-
-def _grid_vocabulary(grid: Grid) -> Vocabulary:
-    return Vocabulary(("obs",) + grid.region_letters(),
-                      "obs and the region letters of the map ("
-                      + (", ".join(grid.region_letters()) or "none") + ")")
 
 
 class _Loader:
@@ -243,70 +232,6 @@ class _Loader:
 
     # -- sections ----------------------------------------------------------------------------
 
-    def grid(self, grid_table: dict) -> Grid:
-        key = "grid.map"
-        text = self.string(grid_table["map"], key)
-        text = text.replace("\r\n", "\n")
-        if text.startswith("\n"):
-            text = text[1:]
-        rows = text.split("\n")
-        while rows and rows[-1].strip() == "":
-            rows.pop()
-        if not rows:
-            raise self.fail(key, "the map is empty; expected rows of cells (legend: "
-                                 + MAP_LEGEND + ")")
-        height = len(rows)
-        width = len(rows[0])
-        for i, row in enumerate(rows):
-            if len(row) != width:
-                raise self.fail(key, f"ragged rows: row {i + 1} (from the top) has {len(row)} "
-                                     f"cells but row 1 has {width}; every row must be the same "
-                                     "length")
-        walls: set[Cell] = set()
-        obstacles: set[Cell] = set()
-        regions: dict[str, set[Cell]] = {}
-        candidates: list[Cell] = []
-        starts: list[Cell] = []
-        for i, row in enumerate(rows):
-            y = height - 1 - i
-            for x, ch in enumerate(row):
-                cell = (x, y)
-                if ch == ".":
-                    pass
-                elif ch == "#":
-                    walls.add(cell)
-                elif ch == "o":
-                    obstacles.add(cell)
-                elif ch == "t":
-                    candidates.append(cell)
-                elif ch == "@":
-                    starts.append(cell)
-                elif "A" <= ch <= "Z":
-                    if ch in FORBIDDEN_REGION_LETTERS:
-                        raise self.fail(key, f"region letter {ch} at (x={x}, y={y}) is not "
-                                             "allowed: F, G, M, R, U, W and X are Spot "
-                                             "operators; use another letter")
-                    regions.setdefault(ch, set()).add(cell)
-                else:
-                    raise self.fail(key, f"unknown character {ch!r} at (x={x}, y={y}) "
-                                         f"(row {i + 1}, column {x + 1}); expected one of "
-                                         + MAP_LEGEND)
-        if not starts:
-            raise self.fail(key, "no robot start '@' in the map; expected exactly one")
-        if len(starts) > 1:
-            where = ", ".join(f"({x}, {y})" for x, y in starts)
-            raise self.fail(key, f"{len(starts)} robot starts '@' at {where}; expected exactly one")
-        return Grid(
-            rows=tuple(rows),
-            width=width,
-            height=height,
-            walls=frozenset(walls),
-            obstacles=frozenset(obstacles),
-            regions=tuple((letter, frozenset(cells)) for letter, cells in sorted(regions.items())),
-            trap_candidates=tuple(candidates),
-            start=starts[0],
-        )
-
     def formula(self, value: object, key: str, vocabulary: Vocabulary):
         """Check a co-safe LTL formula over the world's propositions; return spot.formula."""
         import spot
@@ -348,17 +273,17 @@ class _Loader:
                                     "docs/semantics.md §15)")
         self.check_keys(root, _TOP_KEYS, "")
         name, description = self.header(root)
-        grid = self.grid(self.table(root, "grid"))
-        slip = self.number(self.table(root, "robot")["slip"], "robot.slip")
-        if not 0.0 <= slip < 0.5:
-            raise self.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
-        vocabulary = _grid_vocabulary(grid)
+        grid = grid_files.read(self, root)
+        letters = grid.region_letters()
+        vocabulary = Vocabulary(grid.propositions(), "obs and the region letters of the map ("
+                                + (", ".join(letters) or "none") + ")")
         formula = self.table(root, "task")["formula"]
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary")
-        adversary = {**self.adversary(adv, grid), **self.guesses(adv, vocabulary)}
+        adversary = {**grid_files.read_adversary(self, adv, grid),
+                     **self.guesses(adv, vocabulary)}
         observer = self.inference(root, adv, adversary)
-        return World(path=self.path, name=name, description=description, grid=grid, slip=slip,
+        return World(path=self.path, name=name, description=description, grid=grid,
                      formula=formula, **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
                      detection=self.detection(self.table(root, "detection")))
@@ -387,23 +312,11 @@ class _Loader:
         adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
         adversary = {**p2, **self.guesses(adv, vocabulary)}
         observer = self.inference(root, adv, adversary)
-        return World(path=self.path, name=name, description=description, grid=None, slip=0.0,
-                     formula=formula, initial_traps=(), arena=arena,
+        return World(path=self.path, name=name, description=description, grid=None,
+                     formula=formula, arena=arena,
                      **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
                      detection=self.detection(self.table(root, "detection")))
-
-    def adversary(self, adv: dict, grid: Grid) -> dict:
-        """[adversary] of a grid world: the World fields traps, delay and initial_traps."""
-        traps = self.integer(adv["traps"], "adversary.traps", 1)
-        n_cand = len(grid.trap_candidates)
-        if traps > n_cand:
-            raise self.fail("adversary.traps", f"traps = {traps} but the map has only {n_cand} "
-                                               "trap candidate cells 't'; expected traps <= "
-                                               "the number of 't' cells")
-        delay = self.integer(adv.get("delay", 0), "adversary.delay", 0)
-        initial_traps = self.initial_traps(adv, grid, traps, delay)
-        return dict(traps=traps, delay=delay, initial_traps=initial_traps)
 
     def guesses(self, adv: dict, vocabulary: Vocabulary) -> dict:
         """[adversary]: the World fields hypotheses and initial_hypothesis (which P2's
@@ -504,42 +417,10 @@ class _Loader:
                                      "detection.deviate_after", 0)
         return DetectionSettings(alpha=alpha, epsilon=epsilon, deviate_after=deviate_after)
 
-    def initial_traps(self, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
-        """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter
-        (and are only checked) when delay > 0. Returns cells sorted by candidate number."""
-        key = "adversary.initial_traps"
-        if "initial_traps" not in adv:
-            if delay > 0:
-                raise self.fail(key, f"initial_traps is required when delay > 0; expected "
-                                     f"{traps} distinct trap candidate cells as [[x, y], ...]")
-            return ()
-        value = adv["initial_traps"]
-        if not isinstance(value, list):
-            raise self.fail(key, f"must be an array of [x, y] cells, got {_toml_type(value)}")
-        cells: list[Cell] = []
-        for i, item in enumerate(value):
-            ikey = f"{key}[{i}]"
-            if (not isinstance(item, list) or len(item) != 2
-                    or any(isinstance(c, bool) or not isinstance(c, int) for c in item)):
-                raise self.fail(ikey, f"each initial trap must be a cell [x, y] of two integers, "
-                                      f"got {_toml_repr(item)}")
-            cells.append((item[0], item[1]))
-        if delay == 0:
-            return ()
-        numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
-        cand_text = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
-        for i, cell in enumerate(cells):
-            if cell not in numbering:
-                raise self.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is not a trap candidate "
-                                               f"'t' cell; candidates are {cand_text}")
-        for i, cell in enumerate(cells):
-            if cell in cells[:i]:
-                raise self.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is repeated; initial "
-                                               "traps must be distinct cells")
-        if len(cells) != traps:
-            raise self.fail(key, f"expected {traps} distinct trap candidate cells (traps = "
-                                 f"{traps}) because delay > 0, got {len(cells)}")
-        return tuple(sorted(cells, key=numbering.__getitem__))
+    @staticmethod
+    def written(value: object) -> str:
+        """A value as it would be written in the file (one line), for error messages."""
+        return _toml_repr(value)
 
 
 def load_world(path: str | Path) -> World:
