@@ -14,6 +14,7 @@ from typing import Callable
 from hg2prism import __version__, progress
 from hg2prism.engines import default as default_engine
 from hg2prism.errors import InputError, SolverError, StormError
+from hg2prism.strategy.records import StrategyError
 from hg2prism.model import sizeguard
 from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
 from hg2prism.experiments.sweep import SWEEP_PARAMETERS
@@ -430,6 +431,11 @@ def _command(args: argparse.Namespace) -> int:
     except StormError as err:
         print(f"hg2prism: error: {args.world}: storm: {str(err).strip().splitlines()[0]}",
               file=sys.stderr)
+        return 1
+    except StrategyError as err:
+        # a strategy that has no move where an episode went: an internal error, said in one
+        # line (with what and where) rather than a traceback
+        print(f"hg2prism: error: {args.world}: strategy: {err}", file=sys.stderr)
         return 1
     except OSError as err:
         # the output folder was checked up front; this is the disk filling up or a folder

@@ -240,3 +240,21 @@ def test_sigterm_stops_a_long_simulation_within_seconds(tmp_path: Path) -> None:
     assert proc.returncode == 143, stderr
     assert "Traceback" not in stderr
     only(tmp_path)
+
+
+def test_an_internal_strategy_error_is_one_line(tmp_path: Path, monkeypatch, capsys) -> None:
+    """A strategy without a move where an episode went (an internal error) is said in one line
+    naming the world and the strategy, not as a traceback, and nothing is written."""
+    from hg2prism import cli, pipeline
+    from hg2prism.strategy.records import StrategyError
+
+    def broken(*args, **kwargs):
+        raise StrategyError("episode 3, step 2: no record for state x1_y1")
+
+    monkeypatch.setattr(pipeline, "run", broken)
+    out = tmp_path / "out"
+    assert cli.main(["run", WORLD1, "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.splitlines() == [f"hg2prism: error: {WORLD1}: strategy: episode 3, step 2: "
+                                "no record for state x1_y1"]
+    assert not out.exists()

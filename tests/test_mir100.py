@@ -128,6 +128,9 @@ def test_the_readme_first_guess_table(tmp_path: Path) -> None:
             if delay == 0:
                 assert float(row[3]) == pytest.approx(checked.results.deceptive_value
                                                       - worth.v_naive, abs=5e-5)
+            # where deception is worth nothing it is exactly 0, never a rounding -1e-17
+            assert worth.value_of_deception >= 0.0
+            assert worth.value_of_deception == 0.0 or worth.value_of_deception > 1e-12
 
 
 def test_the_readme_arena_example_loads_and_means_what_it_says(tmp_path: Path) -> None:

@@ -42,6 +42,9 @@ from hg2prism.strategy.policy import Policy, ProductPolicy
 if TYPE_CHECKING:
     from hg2prism.results import Analysis
 
+# Below this a difference of two values computed two ways (Storm's and the naive chain's) is 0
+WORTH_TOLERANCE = 1e-12
+
 __all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
            "induced_chain", "DeceptionValues", "deception_values"]
 
@@ -271,6 +274,10 @@ def deception_values(analysis: Analysis, deceptive_value: float) -> DeceptionVal
     naive = NaiveStrategy(naive_answers(ts, task, analysis.leader), game)
     chain = induced_chain(game, naive)
     v_naive = chain.value("V_naive")
+    worth = deceptive_value - v_naive
+    # equal values computed two ways differ in the last bits (mir100 gave -1.4e-17, printed
+    # "-0.000000"): below the certification tolerance the difference is 0
+    worth = 0.0 if abs(worth) < WORTH_TOLERANCE else worth
     return DeceptionValues(v_static=static.value, v_naive=v_naive,
-                           value_of_deception=deceptive_value - v_naive, static=static,
+                           value_of_deception=worth, static=static,
                            naive=naive, naive_chain=chain)
