@@ -184,11 +184,15 @@ def _with_prior(world: World, prior: tuple[float, ...]) -> World:
     return _with_setting("prior")(world, prior)
 
 
-def _with_traps(world: World, traps: int) -> World:
+def _check_traps(world: World, traps: int) -> None:
     candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
         raise InputError(_CLI, "--values", f"traps value {traps} must be at most the world's "
                                            f"{candidates} trap candidates")
+
+
+def _with_traps(world: World, traps: int) -> World:
+    _check_traps(world, traps)
     return replace(world, traps=traps)
 
 
@@ -328,17 +332,24 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
     applied in the table's order, then the standing traps worked out again when the delay or
     the number of traps is swept."""
     point = world
+    moved = {}      # delay and traps, set with the standing traps in one (validated) World
     for name in SWEEP_PARAMETERS:
         if name in assignment:
             SWEEP_PARAMETERS[name].refuse_unless_applies(world)
-            point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
-    if any(SWEEP_PARAMETERS[name].moves_traps for name in assignment):
+            if SWEEP_PARAMETERS[name].moves_traps:
+                moved[name] = assignment[name]
+            else:
+                point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
+    if moved:
+        traps, delay = moved.get("traps", point.traps), moved.get("delay", point.delay)
+        if "traps" in moved:
+            _check_traps(world, traps)
         if world.arena is not None:
-            standing = arena_standing(world, point.traps) if point.delay > 0 else 0
-            point = replace(point, initial_standing=standing)
+            standing = arena_standing(world, traps) if delay > 0 else 0
+            point = replace(point, traps=traps, delay=delay, initial_standing=standing)
         else:
-            traps = standing_traps(world, point.traps) if point.delay > 0 else ()
-            point = replace(point, initial_traps=traps)
+            initial = standing_traps(world, traps) if delay > 0 else ()
+            point = replace(point, traps=traps, delay=delay, initial_traps=initial)
     return point
 
 

@@ -1,15 +1,18 @@
 """The world (docs/semantics.md §1) as an immutable value: its grid, task, P2's hypotheses and
 observer, and the simulation and detection settings. hg2prism/worldfile/ reads and validates the
-TOML world files that make one.
+TOML world files that make one; every World is validated when made (model/validation.py).
 
 Coordinates: x is the column from the left, y the row from the BOTTOM (both 0-based).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from hg2prism.model import validation
 
 if TYPE_CHECKING:
     from hg2prism.model.arena import Arena
@@ -74,6 +77,15 @@ class World:
     # action standing at the start as an index into A2
     arena: "Arena | None" = None
     initial_standing: int = 0
+
+    def __post_init__(self) -> None:
+        # no World exists unvalidated, however made (docs/api.md): InputError naming the key
+        validation.validate(self)
+
+    def replace(self, **changes: object) -> World:
+        """This world with `changes` (field names: rationality=2.0, window=3, ...), validated:
+        InputError(file, key, reason) on a value no world file could give."""
+        return dataclasses.replace(self, **changes)
 
     def atomic_propositions(self) -> tuple[str, ...]:
         """AP: a grid's are `obs`, then the region letters of the map in alphabetical order;
