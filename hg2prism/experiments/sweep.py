@@ -757,6 +757,18 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     return run
 
 
+def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
+    """sweep.csv: the swept parameters, then _CSV_COLUMNS, one line per solved point."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(tuple(names) + _CSV_COLUMNS)
+    for row in rows:
+        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
+                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
+                           for c in _CSV_COLUMNS])
+    return buffer.getvalue()
+
+
 def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
                    seconds: float) -> None:
     from hg2prism.report import plots
@@ -781,15 +793,8 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
         "failed": list(run.failed),
         "seconds": round(seconds, 3),
     })
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(tuple(names) + _CSV_COLUMNS)
-    for row in run.rows:
-        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
-                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                           for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)
-    write_text(out / "sweep.csv", buffer.getvalue())
+    write_text(out / "sweep.csv", sweep_csv(names, run.rows))
     if len(names) == 1:
         plots.sweep_figure(names[0], list(run.rows), out / "sweep.png", world.name)
     else:
