@@ -50,8 +50,9 @@ def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
     solution = hg2prism.solve(MODELS / "world1.toml", out=tmp_path / "out")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         ["hypergame.prism", "hypergame.props", "results.json", "strategy.json", "task.hoa",
-         "task.dot", "induced.tra", "induced.sta", "induced.lab", "induced.drn", "goal.props"]
-        + [f"hypothesis_{i}.{kind}" for i in range(3) for kind in ("hoa", "dot")])
+         "task.dot", "task.svg", "induced.tra", "induced.sta", "induced.lab", "induced.drn",
+         "goal.props"]
+        + [f"hypothesis_{i}.{kind}" for i in range(3) for kind in ("hoa", "dot", "svg")])
     saved = json.loads((tmp_path / "out" / "results.json").read_text())
     assert saved["deceptive_value"] == solution.deceptive_value
 

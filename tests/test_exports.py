@@ -118,6 +118,29 @@ def test_hoa_files_read_back_to_the_dfa(name: str, folder: str) -> None:
             assert re.search(rf"^  {q} \[label=", dot, re.MULTILINE), (stem, q)
             for target in set(ours[q].values()):
                 assert f"  {q} -> {target} [" in dot, (stem, q, target)
+        _svg_draws_the_dfa((result.out / f"{stem}.svg").read_text(), dot, ours, dfa, stem)
+
+
+def _svg_draws_the_dfa(svg: str, dot: str, table: dict, dfa, stem: str) -> None:
+    """The SVG (drawn without Graphviz) is well-formed and shows what the .dot file says: a
+    circle per state (two for a final one, grey for a sink), an arrow per (state, successor)
+    and the initial arrow, each edge's label, the formula."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(svg)
+    ns = "{http://www.w3.org/2000/svg}"
+    circles = root.findall(f"{ns}circle")
+    assert len(circles) == dfa.n_states + len(dfa.accepting), stem
+    assert sum(c.get("fill") == "lightgrey" for c in circles) == len(dfa.sink), stem
+    arrows = [p for p in root.findall(f"{ns}path") if p.get("marker-end")]
+    edges = {(q, t) for q, row in table.items() for t in row.values()}
+    assert len(arrows) == len(edges) + 1, stem
+    texts = [t.text for t in root.findall(f"{ns}text")]
+    assert texts[0].startswith(f"DFA of {dfa.formula}")
+    dot_labels = sorted(re.findall(r"^  \d+ -> \d+ \[label=\"(.*)\"\]$", dot, re.MULTILINE))
+    shown = {str(q) for q in range(dfa.n_states)}
+    edge_texts = sorted(t for t in texts[1:] if t not in shown | {"final", "sink"})
+    assert edge_texts == dot_labels, stem
 
 
 # ---------------------------------------------------------------------------------------------
@@ -276,7 +299,8 @@ def test_exports_are_owned_by_check(folder: str, tmp_path: Path, capsys) -> None
     summary = capsys.readouterr().out
     assert "expected steps infinite" in summary
     written = {p.name for p in out.iterdir()}
-    assert {"task.hoa", "task.dot", "hypothesis_0.hoa", "hypothesis_0.dot", "induced.tra",
+    assert {"task.hoa", "task.dot", "task.svg", "hypothesis_0.hoa", "hypothesis_0.dot",
+            "hypothesis_0.svg", "induced.tra",
             "induced.sta", "induced.lab", "induced.drn"} <= written
     assert json.loads((out / "results.json").read_text())["objective"]["name"] == "lexicographic"
     assert cli.main(["emit", world, "--out", str(out)]) == 0
