@@ -176,13 +176,15 @@ class Checks:
             raise self.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
         return slip
 
-    def traps(self, value: object, candidates: int) -> int:
-        """adversary.traps of a world whose P2 sets traps on `candidates` states or cells."""
+    def traps(self, value: object, candidates: int, grid: bool) -> int:
+        """adversary.traps of a world whose P2 sets traps on `candidates` cells of a grid's map
+        or states of an arena."""
         traps = self.integer(value, "adversary.traps", 1)
         if traps > candidates:
-            raise self.fail("adversary.traps", f"traps = {traps} but there are only "
-                            f"{candidates} trap candidates; expected traps <= the number of "
-                            "candidates")
+            where = (f"the map has only {candidates} trap candidate cells 't'; expected traps "
+                     "<= the number of 't' cells" if grid else f"there are only {candidates} "
+                     "trap candidates; expected traps <= the number of trap_candidates")
+            raise self.fail("adversary.traps", f"traps = {traps} but {where}")
         return traps
 
     def delay(self, value: object) -> int:
@@ -320,7 +322,7 @@ def _adversary(checks: Checks, world: Any) -> None:
         _arena_adversary(checks, world, delay)
         return
     candidates = world.grid.trap_candidates
-    checks.traps(world.traps, len(candidates))
+    checks.traps(world.traps, len(candidates), grid=True)
     key = "adversary.initial_traps"
     cells = world.initial_traps
     if not isinstance(cells, tuple):
@@ -343,7 +345,7 @@ def _adversary(checks: Checks, world: Any) -> None:
 def _arena_adversary(checks: Checks, world: Any, delay: int) -> None:
     arena = world.arena
     if arena.traps_mode:
-        checks.traps(world.traps, len(arena.trap_candidates))
+        checks.traps(world.traps, len(arena.trap_candidates), grid=False)
         n_actions = math.comb(len(arena.trap_candidates), world.traps)
         key = "adversary.initial_traps"
     else:

@@ -247,12 +247,7 @@ class _Loader(Checks):
 
     def adversary(self, adv: dict, grid: Grid) -> dict:
         """[adversary] of a grid world: the World fields traps, delay and initial_traps."""
-        traps = self.integer(adv["traps"], "adversary.traps", 1)
-        n_cand = len(grid.trap_candidates)
-        if traps > n_cand:
-            raise self.fail("adversary.traps", f"traps = {traps} but the map has only {n_cand} "
-                                               "trap candidate cells 't'; expected traps <= "
-                                               "the number of 't' cells")
+        traps = self.traps(adv["traps"], len(grid.trap_candidates), grid=True)
         delay = self.delay(adv.get("delay", 0))
         initial_traps = self.initial_traps(adv, grid, traps, delay)
         return dict(traps=traps, delay=delay, initial_traps=initial_traps)
