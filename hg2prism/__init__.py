@@ -7,6 +7,13 @@ The Python API (docs/api.md):
     solve(world, *, out=None, storm_method="sound")          -> Solution
     baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
     simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
+    deception_values(solution)                               -> V_static, V_naive, value of deception
+    robust(solution, deltas)                                 -> [RobustValue] (robust deception)
+    sweep(world, parameter, values) or sweep(world, grid=)   -> SweepTable (rows, to_csv)
+    detection(solution, *, episodes, seed, fallback)         -> detection.json's content
+    episode(solution, seed)                                  -> Episode (steps, P2's belief)
+    draw_world / draw_belief(solution, episode, ax=)         -> the figures, in a matplotlib Axes
+    draw_sweep(table, ax=)
 
 The pipeline, one module per stage, is listed in the README; the meaning of every number is in
 docs/semantics.md.
@@ -14,9 +21,13 @@ docs/semantics.md.
 
 __version__ = "0.1.0"
 
-from hg2prism.api import (Baselines, Simulation, Solution, Strategy,  # noqa: E402
-                          baselines, load_world, simulate, solve, world_from_graph,
-                          world_from_toml)
+from hg2prism.api import (Baselines, DeceptionValues, Episode, EpisodeStep,  # noqa: E402
+                          RobustValue, Simulation, Solution, Strategy, SweepRow, SweepTable,
+                          baselines, deception_values, detection, draw_belief, draw_sweep,
+                          draw_world, episode, load_world, robust, simulate, solve, sweep,
+                          world_from_graph, world_from_toml)
 
 __all__ = ["__version__", "load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
-           "Solution", "Strategy", "Baselines", "Simulation"]
+           "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
+           "draw_belief", "draw_sweep", "Solution", "Strategy", "Baselines", "Simulation",
+           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]

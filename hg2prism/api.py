@@ -25,8 +25,10 @@ from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
 
-__all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate", "Solution",
-           "Strategy", "Baselines", "Simulation"]
+__all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
+           "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
+           "draw_belief", "draw_sweep", "Solution", "Strategy", "Baselines", "Simulation",
+           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
 
 
 def _node_name(node: object, file: str) -> str:
@@ -266,31 +268,293 @@ class Simulation:
     ci95: tuple[float, float]       # Wilson score interval of the rate
 
 
+def _played(solution: Solution, horizon: int | None):
+    """What plays the solution's strategy: the analysis (P2's inference), P1's policy and the
+    horizon (by default the world's, or a step-bounded solution's bound). A step-bounded
+    strategy's move depends on the steps taken: P1 counts them beside P2's memory."""
+    import dataclasses
+
+    from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
+
+    checked = solution.check
+    analysis, strategy, bounded = checked.analysis, solution.strategy, checked.bounded
+    if horizon is None:
+        horizon = bounded.bound if bounded is not None else solution.world.simulation.horizon
+    if bounded is not None:
+        strategy = SteppedStrategy(strategy.records, analysis.ts, bounded.bound)
+        analysis = dataclasses.replace(analysis, inference=StepCounter(analysis.inference,
+                                                                       bounded.bound - 1))
+    return analysis, strategy, horizon
+
+
 def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | None = None,
              seed: int | None = None) -> Simulation:
     """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps.
     What is not given comes from the world's `[simulation]` settings, as on the command line
     (by default 10,000 episodes, horizon 200, seed 0); the horizon of a step-bounded solution
     is by default its bound, whose rate then estimates its bounded value."""
-    import dataclasses
-
     from hg2prism.analyses.simulation import simulate_deceptive
-    from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 
-    checked = solution.check
-    analysis, strategy = checked.analysis, solution.strategy
-    bounded = checked.bounded
     settings = solution.world.simulation
     episodes = settings.episodes if episodes is None else episodes
     seed = settings.seed if seed is None else seed
-    if horizon is None:
-        horizon = bounded.bound if bounded is not None else settings.horizon
-    if bounded is not None:
-        # the move depends on the steps taken: P1 counts them beside P2's memory
-        strategy = SteppedStrategy(strategy.records, analysis.ts, bounded.bound)
-        analysis = dataclasses.replace(analysis, inference=StepCounter(analysis.inference,
-                                                                       bounded.bound - 1))
+    analysis, strategy, horizon = _played(solution, horizon)
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, progress=False)
     return Simulation(episodes=summary.episodes, horizon=horizon, seed=seed,
                       completed=summary.completed, failed=summary.failed,
                       truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95))
+
+
+# ---------------------------------------------------------------------------------------------
+# What `run`, `robust`, `sweep` and `detect` compute beside the value (thin verbs over
+# analyses/ and experiments/)
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DeceptionValues:
+    """The value of deception at the initial state (docs/semantics.md §11), as results.json of
+    `hg2prism run` reports it."""
+
+    deceptive_value: float
+    v_static: float                 # P1 plans against P2's first guess, which never changes
+    v_naive: float                  # P1 ignores the deception: the leader's moves, P2 inferring
+    value_of_deception: float       # deceptive_value - v_naive
+
+
+def deception_values(solution: Solution) -> DeceptionValues:
+    """V_static, V_naive and the value of deception of a solution (what `run` adds to
+    results.json)."""
+    from hg2prism.analyses import deception_value
+
+    worth = deception_value.deception_values(solution.check.analysis, solution.deceptive_value)
+    return DeceptionValues(deceptive_value=solution.deceptive_value, v_static=worth.v_static,
+                           v_naive=worth.v_naive, value_of_deception=worth.value_of_deception)
+
+
+@dataclass(frozen=True)
+class RobustValue:
+    """One budget of robust deception (docs/semantics.md §13), a row of `hg2prism robust`'s
+    robust.json."""
+
+    delta: float                            # how far P2 may stray from P1's model of her
+    robust_value: float                     # R_delta: P1's best guarantee against such a P2
+    nominal_worst_case: float               # the deceptive strategy's worst case
+    robust_strategy_nominal_value: float    # the robust strategy against the modelled P2
+    states: int
+
+
+def robust(solution: Solution, deltas) -> list[RobustValue]:
+    """The robust value of each budget in `deltas` (numbers in [0, 1)), as `hg2prism robust`
+    computes it (without Storm's cross-check); writes nothing."""
+    from hg2prism.experiments.robust import parse_deltas, solve_budgets
+
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
+        solved = solve_budgets(solution.world, solution.check, parse_deltas(list(deltas)),
+                               Path(scratch), storm_check=False)
+    return [RobustValue(delta=r.delta, robust_value=r.robust_value,
+                        nominal_worst_case=r.nominal_worst_case,
+                        robust_strategy_nominal_value=r.robust_strategy_nominal_value,
+                        states=r.states) for r, _ in solved]
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One solved point of a sweep: the swept parameters' values and the values at the
+    initial state (a row of sweep.csv)."""
+
+    point: tuple[tuple[str, object], ...]   # (parameter, value) in the sweep's order
+    deceptive_value: float
+    v_lead: float
+    v_ne: float
+    v_ne_p1_guaranteed: float
+    v_ne_bounds: tuple[float, float]
+    states: int
+    transitions: int
+    row: dict = field(repr=False, compare=False)   # the row as sweep.json holds it
+
+    def __getitem__(self, name: str) -> object:
+        """A swept parameter's value, or a column (`row["rationality"]`)."""
+        point = dict(self.point)
+        return point[name] if name in point else self.row[name]
+
+
+@dataclass(frozen=True)
+class SweepTable:
+    """The solved points of a sweep, in grid order (the first parameter varies slowest), and
+    the points that failed with their one-line reason."""
+
+    parameters: tuple[str, ...]
+    rows: tuple[SweepRow, ...]
+    failed: tuple[dict, ...]
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def column(self, name: str) -> list:
+        """One column: a swept parameter or a value (`table.column("deceptive_value")`)."""
+        return [row[name] for row in self.rows]
+
+    def to_csv(self, path: str | Path | None = None) -> str:
+        """The table as `hg2prism sweep` writes sweep.csv (also written to `path` if given)."""
+        from hg2prism.experiments.sweep import sweep_csv
+        from hg2prism.outputs import write_text
+
+        text = sweep_csv(self.parameters, [row.row for row in self.rows])
+        if path is not None:
+            write_text(Path(path), text)
+        return text
+
+
+def sweep(world: World | str | Path, parameter: str | None = None, values=None, *,
+          grid=None, storm_method: str = "sound", workers: int = 1) -> SweepTable:
+    """Solve the world at each value of `parameter` (or at every point of `grid`, a list of
+    (parameter, values) pairs), as `hg2prism sweep` does; the parameters are those of
+    `hg2prism sweep --param` (rationality, threshold, window, delay, traps, inference, prior,
+    and a front end's own, such as a grid's robot settings). Writes nothing; a bad parameter or value raises InputError."""
+    from hg2prism.experiments.sweep import sweep_grid
+
+    if not isinstance(world, World):
+        world = load_world(world)
+    if (grid is None) == (parameter is None):
+        raise ValueError("give a parameter and its values, or a grid of (parameter, values)")
+    grid = [(parameter, list(values))] if grid is None else [(p, list(v)) for p, v in grid]
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
+        run = sweep_grid(world, grid, Path(scratch), show_progress=False,
+                         storm_method=storm_method, workers=workers)
+    names = tuple(name for name, _ in run.parameters)
+    rows = tuple(SweepRow(point=tuple((n, row[n]) for n in names),
+                          deceptive_value=row["deceptive_value"], v_lead=row["v_lead"],
+                          v_ne=row["v_ne"], v_ne_p1_guaranteed=row["v_ne_p1_guaranteed"],
+                          v_ne_bounds=tuple(row["v_ne_bounds"]), states=row["states"],
+                          transitions=row["transitions"], row=row) for row in run.rows)
+    return SweepTable(parameters=names, rows=rows, failed=run.failed)
+
+
+def detection(solution: Solution, *, episodes: int | None = None, seed: int | None = None,
+              horizon: int | None = None, fallback: str | None = None,
+              fallback_delta: float | None = None) -> dict:
+    """Whether P2 can tell that P1's model of her is wrong (docs/semantics.md §9, §14), as
+    `hg2prism detect` computes it: the content of detection.json (its `deviation`,
+    `compliant` and `mismatch` batches). `episodes` default to min(the world's, 2000), seed and
+    horizon to the world's; `fallback` ("robust" with `fallback_delta`, or "leader") re-plans
+    on detection. Writes nothing."""
+    from hg2prism import progress
+    from hg2prism.experiments.detect import detection_experiment
+
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, progress.quiet():
+        return detection_experiment(solution.world, solution.check, Path(scratch), episodes,
+                                    seed, False, horizon, fallback, fallback_delta)
+
+
+@dataclass(frozen=True)
+class EpisodeStep:
+    """One step of an episode (docs/semantics.md §8), everything by name."""
+
+    n: int                                # the step, from 1
+    state: str                            # the arena state P1 moved from (a cell: "x2_y4")
+    move: str                             # the action P1 chose, by name
+    realised: str                         # what happened, as the world's front end names the
+    #                                       outcome (a grid: the direction he went), else "outcome k"
+    landing: str                          # the state reached ("trapped" when trapped)
+    traps: tuple[str, ...]                # the states P2's trap set covered
+    p2_action: str                        # P2's action by name
+    hypothesis: int                       # the hypothesis P2 acted on
+    belief: tuple[float, ...] | None      # her observer's numbers per hypothesis (CUSUM
+    #                                       scores, Bayesian posteriors), None if unreported
+    trapped: bool
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode of the solution's strategy against P2's inference."""
+
+    seed: int
+    outcome: str                          # "task completed", "failed" or "cut by the horizon"
+    steps: tuple[EpisodeStep, ...]
+    belief_name: str | None               # what EpisodeStep.belief is ("CUSUM score Z_x")
+    threshold: float | None               # where P2 changes her mind, if her rule has one
+    drawn: object = field(repr=False, compare=False)   # analyses.episodes.ChosenEpisode
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+
+def _realised(world: World, step) -> str:
+    from hg2prism.frontends import outcome_name
+
+    return outcome_name(world, step.action_name, step.outcome)
+
+
+def episode(solution: Solution, seed: int | None = None, *, horizon: int | None = None
+            ) -> Episode:
+    """The episode of seed `seed` (by default the world's simulation seed) of the solution's
+    strategy, cut after `horizon` steps (by default as `simulate`): what `hg2prism run --episode
+    seed=N` draws, step by step."""
+    from hg2prism.analyses.episodes import belief_trace, choose_episode, episode_steps
+
+    seed = solution.world.simulation.seed if seed is None else seed
+    analysis, strategy, horizon = _played(solution, horizon)
+    drawn = choose_episode(analysis, strategy, horizon, seed, f"seed={seed}")
+    ts = solution.check.analysis.ts
+    names = ts.arena.states
+    trace = belief_trace(solution.check.analysis.inference, drawn.steps)
+    steps = tuple(EpisodeStep(
+        n=step.n, state=names[step.start], move=step.action_name,
+        realised=_realised(solution.world, step),
+        landing="trapped" if step.trapped else names[step.landing],
+        traps=tuple(names[t] for t in step.traps), p2_action=step.p2_action_name,
+        hypothesis=trace.acted[i], trapped=step.trapped,
+        belief=trace.values[i] if trace.values is not None else None)
+        for i, step in enumerate(episode_steps(ts, drawn.steps)))
+    return Episode(seed=drawn.seed, outcome=drawn.outcome, steps=steps,
+                   belief_name=trace.name, threshold=trace.threshold, drawn=drawn)
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures: each draws into the matplotlib Axes given (or a new figure's) and returns them
+# ---------------------------------------------------------------------------------------------
+
+def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
+    """The world and one episode (by default the world's seed's), as `run`'s world figure."""
+    from hg2prism.report import plots
+
+    played = episode(solution) if played is None else played
+    ts = solution.check.analysis.ts
+    ax = ax if ax is not None else _new_axes(plots.world_figure_inches(solution.world, ts))
+    plots.world_figure(solution.world, ts, played.drawn, None, ax=ax)
+    return ax
+
+
+def draw_belief(solution: Solution, played: Episode | None = None, *, ax=None):
+    """P2's belief along an episode (by default the world's seed's), as `run`'s belief
+    figure."""
+    from hg2prism.analyses.episodes import belief_trace
+    from hg2prism.report import plots
+
+    played = episode(solution) if played is None else played
+    ax = ax if ax is not None else _new_axes(plots.BELIEF_INCHES)
+    trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
+    plots.belief_figure(solution.world, trace, played.drawn, None, ax=ax)
+    return ax
+
+
+def draw_sweep(table: SweepTable, *, ax=None, world_name: str | None = None):
+    """A sweep's values against its (first) parameter, as `hg2prism sweep`'s figure."""
+    from hg2prism.report import plots
+
+    ax = ax if ax is not None else _new_axes(plots.SWEEP_INCHES)
+    rows = [row.row for row in table.rows]
+    if len(table.parameters) == 1:
+        plots.sweep_figure(table.parameters[0], rows, None, world_name, ax=ax)
+    else:
+        plots.sweep_grid_figure(list(table.parameters), rows, None, world_name, ax=ax)
+    return ax
+
+
+def _new_axes(inches):
+    import matplotlib.pyplot as plt
+
+    return plt.figure(figsize=inches, layout="constrained").add_subplot()

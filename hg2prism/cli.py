@@ -112,7 +112,7 @@ def _solving_parser(sub: Subparsers, name: str, help: str) -> argparse.ArgumentP
 
 def _check_parser(sub: Subparsers) -> None:
     _solving_parser(sub, "check", "Emit, then check with Storm: writes OUT/strategy.json and "
-                    "OUT/results.json too, the automata (task.hoa/.dot, hypothesis_<i>.hoa/.dot) "
+                    "OUT/results.json too, the automata (task.hoa/.dot/.svg, hypothesis_<i>.hoa/.dot/.svg) "
                     "and the DTMC P1's strategy induces (induced.tra/.sta/.lab for PRISM, "
                     "induced.drn for Storm, goal.props the property that re-checks it).")
 

@@ -47,7 +47,7 @@ def write_bytes(path: Path, data: bytes) -> None:
 # The sweep's pattern is built from its parameter table: experiments.sweep.OWNED_PATTERN.
 _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
           r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif"
-          r"|task\.(hoa|dot)|hypothesis_\d+\.(hoa|dot)|induced\.(tra|sta|lab|drn)|goal\.props"
+          r"|task\.(hoa|dot|svg)|hypothesis_\d+\.(hoa|dot|svg)|induced\.(tra|sta|lab|drn)|goal\.props"
           r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,

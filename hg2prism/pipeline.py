@@ -103,12 +103,17 @@ def emit(world: World, out: Path) -> PrismModel:
 
 
 def automata_files(analysis: Analysis) -> dict[str, str]:
-    """task.hoa/.dot and hypothesis_<i>.hoa/.dot: every DFA, numbered as hg2prism numbers it."""
+    """task.hoa/.dot/.svg and hypothesis_<i>.hoa/.dot/.svg: every DFA, numbered as hg2prism
+    numbers it (the SVG drawn without Graphviz: report/automaton_svg.py)."""
+    from hg2prism.report.automaton_svg import to_svg
+
     names = analysis.ts.label_names
-    files = {"task.hoa": to_hoa(analysis.task, names), "task.dot": to_dot(analysis.task, names)}
+    files = {"task.hoa": to_hoa(analysis.task, names), "task.dot": to_dot(analysis.task, names),
+             "task.svg": to_svg(analysis.task, names)}
     for i, game in enumerate(analysis.games):
         files[f"hypothesis_{i}.hoa"] = to_hoa(game.dfa, names)
         files[f"hypothesis_{i}.dot"] = to_dot(game.dfa, names)
+        files[f"hypothesis_{i}.svg"] = to_svg(game.dfa, names)
     return files
 
 

@@ -64,6 +64,7 @@ def lateral(delay: int = 0, kind: str = "cusum", traps_mode: bool = False) -> Wo
     world = World(path=Path("lateral.toml"), name="lateral", description="", grid=None,
                   formula="F crown", traps=1 if traps_mode else 0, delay=delay,
                   hypotheses=("F crown", "F payroll"), initial_hypothesis=1,
-                  window=2, rationality=1.0, arena=arena, initial_standing=0)
+                  window=2, rationality=1.0, arena=arena, initial_standing=0,
+                  settings=(("threshold", 0.6),))
     settings = {"threshold": 0.6} if kind == "cusum" else {}
     return registry.configure(world, kind, **settings)

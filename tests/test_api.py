@@ -50,8 +50,9 @@ def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
     solution = hg2prism.solve(MODELS / "world1.toml", out=tmp_path / "out")
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
         ["hypergame.prism", "hypergame.props", "results.json", "strategy.json", "task.hoa",
-         "task.dot", "induced.tra", "induced.sta", "induced.lab", "induced.drn", "goal.props"]
-        + [f"hypothesis_{i}.{kind}" for i in range(3) for kind in ("hoa", "dot")])
+         "task.dot", "task.svg", "induced.tra", "induced.sta", "induced.lab", "induced.drn",
+         "goal.props"]
+        + [f"hypothesis_{i}.{kind}" for i in range(3) for kind in ("hoa", "dot", "svg")])
     saved = json.loads((tmp_path / "out" / "results.json").read_text())
     assert saved["deceptive_value"] == solution.deceptive_value
 
@@ -138,7 +139,8 @@ def test_docs_api_counts_the_functions_it_lists() -> None:
     together they are the functions `import hg2prism` exports."""
     import re
 
-    numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7}
+    numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7,
+               "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12}
     text = (ROOT / "docs" / "api.md").read_text().split("\n\n")[1].replace("\n", " ")
     groups = re.findall(r"(\w+) (?:verbs over the pipeline|ways to make a world) \(([^)]*)\)", text)
     assert len(groups) == 2, text
@@ -184,3 +186,186 @@ def test_quick_start_claims_match_the_strategy() -> None:
     assert max(values, key=values.get) == "W" and abs(values["W"] - 0.9498) < 1e-4
     assert solution.strategy.move(state=start["state"], q=start["q"],
                                   hypothesis=start["hypothesis"]) == "W"
+
+
+# ---------------------------------------------------------------------------------------------
+# The verbs beside the value (issue 25 item 3): each against what the command line computes
+# ---------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def lateral_solution():
+    import arenas
+
+    return hg2prism.solve(arenas.lateral())
+
+
+@pytest.fixture(scope="module")
+def world1_solution():
+    return hg2prism.solve(MODELS / "world1.toml")
+
+
+def _without(data: object, keys: set[str]) -> object:
+    if isinstance(data, dict):
+        return {k: _without(v, keys) for k, v in data.items() if k not in keys}
+    if isinstance(data, list):
+        return [_without(v, keys) for v in data]
+    return data
+
+
+def test_deception_values_are_what_run_reports(lateral_solution) -> None:
+    from hg2prism import pipeline
+
+    worth = hg2prism.deception_values(lateral_solution)
+    reported = pipeline._deception_stage(lateral_solution.check)     # what `run` writes
+    assert (worth.v_static, worth.v_naive, worth.value_of_deception) == (
+        reported.v_static, reported.v_naive, reported.value_of_deception)
+    assert worth.deceptive_value == lateral_solution.deceptive_value
+    assert worth.value_of_deception == worth.deceptive_value - worth.v_naive
+
+
+def test_robust_values_are_robust_json_rows(lateral_solution, tmp_path: Path) -> None:
+    from hg2prism.experiments import robust
+
+    rows = hg2prism.robust(lateral_solution, [0, 0.2])
+    written = robust.robust(lateral_solution.world, [0, 0.2], tmp_path, show_progress=False,
+                            check_result=lateral_solution.check)
+    assert len(rows) == len(written["rows"]) == 2
+    for row, expected in zip(rows, written["rows"]):
+        for name in ("delta", "robust_value", "nominal_worst_case",
+                     "robust_strategy_nominal_value", "states"):
+            assert getattr(row, name) == expected[name], name
+    assert rows[0].robust_value == pytest.approx(lateral_solution.deceptive_value, abs=1e-9)
+    assert rows[1].robust_value <= rows[0].robust_value + 1e-12
+
+
+def test_sweep_table_is_sweep_csv(tmp_path: Path) -> None:
+    import arenas
+    from hg2prism.experiments import sweep
+
+    world = arenas.lateral()
+    table = hg2prism.sweep(world, "rationality", [0.5, 2])
+    run = sweep.sweep_grid(world, [("rationality", [0.5, 2])], tmp_path, show_progress=False)
+    assert table.parameters == ("rationality",) and len(table) == 2 and not table.failed
+    assert table.column("rationality") == [0.5, 2.0]
+    assert [row.deceptive_value for row in table] == [row["deceptive_value"] for row in run.rows]
+    assert [row.v_ne_bounds for row in table] == [tuple(row["v_ne_bounds"]) for row in run.rows]
+
+    def timeless(text: str) -> list[list[str]]:
+        return [line.split(",")[:-1] for line in text.splitlines()]      # seconds last
+
+    assert timeless(table.to_csv()) == timeless((tmp_path / "sweep.csv").read_text())
+    table.to_csv(tmp_path / "mine.csv")
+    assert (tmp_path / "mine.csv").read_text() == table.to_csv()
+    grid = hg2prism.sweep(world, grid=[("window", [1, 2]), ("rationality", [1.0])])
+    assert [row.point for row in grid] == [(("window", 1), ("rationality", 1.0)),
+                                           (("window", 2), ("rationality", 1.0))]
+    assert grid.rows[1]["window"] == 2
+    with pytest.raises(InputError):
+        hg2prism.sweep(world, "rationality", [-1])
+
+
+def test_detection_is_detection_json(lateral_solution, tmp_path: Path) -> None:
+    from hg2prism.experiments import detect
+
+    found = hg2prism.detection(lateral_solution, episodes=60)
+    written = detect.detection_experiment(lateral_solution.world, lateral_solution.check,
+                                          tmp_path, 60, show_progress=False)
+    assert _without(found, {"seconds"}) == _without(written, {"seconds"})
+    assert found["compliant"]["episodes"] == 60
+    assert list(Path(tmp_path).iterdir())      # the experiment writes; the verb does not
+
+
+def test_an_episode_step_by_step(world1_solution) -> None:
+    """Steps follow on from each other; on a grid the realised direction leads from the state
+    to the landing cell (or bounces off a wall); the first move is the strategy's."""
+    from hg2prism.analyses.episodes import choose_episode
+
+    played = hg2prism.episode(world1_solution, seed=3)
+    analysis = world1_solution.check.analysis
+    drawn = choose_episode(analysis, world1_solution.strategy, 200, 0, "seed=3")
+    assert (played.seed, played.outcome, len(played)) == (3, drawn.outcome, drawn.n_steps)
+    assert played.steps[0].state == "x2_y4" and played.steps[0].move == "W"
+    assert played.belief_name and played.threshold == world1_solution.world.threshold
+    step_of = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
+    slips = 0
+    for before, after in zip(played.steps, played.steps[1:]):
+        assert after.state == before.landing and after.n == before.n + 1
+    for step in played.steps:
+        assert len(step.belief) == len(world1_solution.world.hypotheses)
+        assert step.state in step.traps or not step.trapped
+        slips += step.realised != step.move
+        if step.trapped:
+            continue
+        x, y = (int(v) for v in step.state[1:].split("_y"))
+        dx, dy = step_of[step.realised]
+        assert step.landing in {f"x{x + dx}_y{y + dy}", step.state}, step
+    assert 0 < slips < len(played)        # slip 0.1 over 70 steps
+    assert hg2prism.episode(world1_solution, seed=3) == played
+
+
+def test_figures_draw_into_the_axes_given(world1_solution, tmp_path: Path, monkeypatch) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    monkeypatch.chdir(tmp_path)
+    played = hg2prism.episode(world1_solution, seed=3)
+    fig, (left, right, third) = plt.subplots(1, 3)
+    assert hg2prism.draw_world(world1_solution, played, ax=left) is left
+    assert hg2prism.draw_belief(world1_solution, played, ax=right) is right
+    rows = (hg2prism.SweepRow(point=(("window", w),), deceptive_value=v, v_lead=0.5, v_ne=0.2,
+                              v_ne_p1_guaranteed=0.2, v_ne_bounds=(0.2, 0.2), states=1,
+                              transitions=1, row={"window": w, "deceptive_value": v,
+                                                  "v_lead": 0.5, "v_ne": 0.2})
+            for w, v in ((1, 0.7), (2, 0.8)))
+    table = hg2prism.SweepTable(("window",), tuple(rows), ())
+    assert hg2prism.draw_sweep(table, ax=third) is third
+    assert left.patches and right.lines and len(third.lines) == 3
+    assert "episode of seed 3" in left.get_title(loc="left") and "belief" in right.get_title()
+    own = hg2prism.draw_world(world1_solution)      # a new figure, the world's seed
+    assert own.figure is not fig and own.patches
+    plt.close("all")
+    assert list(tmp_path.iterdir()) == []           # nothing written
+
+
+def _expected_output(block: str) -> list[str] | None:
+    """What a code block's comments say it prints: the comment after each print and the
+    comment lines right below it; None when some print has none."""
+    prints: list[list[str]] = []
+    below = False                   # the previous code line printed
+    for line in block.splitlines():
+        stripped = line.strip()
+        if stripped.startswith("# "):
+            if below:
+                prints[-1].append(stripped[2:])
+            continue
+        code, _, comment = line.partition("  # ")
+        below = "print(" in code
+        if below:
+            prints.append([comment.strip()] if comment.strip() else [])
+    if not prints or not all(prints):
+        return None
+    return [text for said in prints for text in said]
+
+
+def test_docs_api_examples_run_and_print_what_they_say(monkeypatch) -> None:
+    """docs/api.md: the validation example of "Worlds" and every block of "Beyond the value",
+    in order in one namespace, each printing what its comments say."""
+    import re
+
+    text = (ROOT / "docs" / "api.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.DOTALL)
+    validation = [b for b in blocks if "world.replace(slip=0.7)" in b]
+    beyond = re.findall(r"```python\n(.*?)```",
+                        text.split("## Beyond the value", 1)[1].split("\n## ", 1)[0], re.DOTALL)
+    assert len(validation) == 1 and len(beyond) >= 6
+    monkeypatch.chdir(ROOT)
+    namespace: dict = {}
+    for block in validation + beyond:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            exec(compile(block, "docs/api.md", "exec"), namespace)
+        expected = _expected_output(block)
+        if expected is not None:
+            assert out.getvalue().splitlines() == expected, block

@@ -118,6 +118,29 @@ def test_hoa_files_read_back_to_the_dfa(name: str, folder: str) -> None:
             assert re.search(rf"^  {q} \[label=", dot, re.MULTILINE), (stem, q)
             for target in set(ours[q].values()):
                 assert f"  {q} -> {target} [" in dot, (stem, q, target)
+        _svg_draws_the_dfa((result.out / f"{stem}.svg").read_text(), dot, ours, dfa, stem)
+
+
+def _svg_draws_the_dfa(svg: str, dot: str, table: dict, dfa, stem: str) -> None:
+    """The SVG (drawn without Graphviz) is well-formed and shows what the .dot file says: a
+    circle per state (two for a final one, grey for a sink), an arrow per (state, successor)
+    and the initial arrow, each edge's label, the formula."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(svg)
+    ns = "{http://www.w3.org/2000/svg}"
+    circles = root.findall(f"{ns}circle")
+    assert len(circles) == dfa.n_states + len(dfa.accepting), stem
+    assert sum(c.get("fill") == "lightgrey" for c in circles) == len(dfa.sink), stem
+    arrows = [p for p in root.findall(f"{ns}path") if p.get("marker-end")]
+    edges = {(q, t) for q, row in table.items() for t in row.values()}
+    assert len(arrows) == len(edges) + 1, stem
+    texts = [t.text for t in root.findall(f"{ns}text")]
+    assert texts[0].startswith(f"DFA of {dfa.formula}")
+    dot_labels = sorted(re.findall(r"^  \d+ -> \d+ \[label=\"(.*)\"\]$", dot, re.MULTILINE))
+    shown = {str(q) for q in range(dfa.n_states)}
+    edge_texts = sorted(t for t in texts[1:] if t not in shown | {"final", "sink"})
+    assert edge_texts == dot_labels, stem
 
 
 # ---------------------------------------------------------------------------------------------
@@ -276,7 +299,8 @@ def test_exports_are_owned_by_check(folder: str, tmp_path: Path, capsys) -> None
     summary = capsys.readouterr().out
     assert "expected steps infinite" in summary
     written = {p.name for p in out.iterdir()}
-    assert {"task.hoa", "task.dot", "hypothesis_0.hoa", "hypothesis_0.dot", "induced.tra",
+    assert {"task.hoa", "task.dot", "task.svg", "hypothesis_0.hoa", "hypothesis_0.dot",
+            "hypothesis_0.svg", "induced.tra",
             "induced.sta", "induced.lab", "induced.drn"} <= written
     assert json.loads((out / "results.json").read_text())["objective"]["name"] == "lexicographic"
     assert cli.main(["emit", world, "--out", str(out)]) == 0
@@ -299,3 +323,51 @@ def test_run_simulates_the_bounded_strategy(folder: str, tmp_path: Path) -> None
     # the same world under the default strategy completes less within 7 steps, or as much
     default = checked("gen_d1", "pmax", folder)
     assert default.engine.induced_within(default.checked, default.strategy.choice, 7) <= objective.value + TOL
+
+
+# ---------------------------------------------------------------------------------------------
+# Probabilities as the world gives them (issue 25 item 4)
+# ---------------------------------------------------------------------------------------------
+
+def _significant_digits(text: str) -> int:
+    mantissa = text.lower().split("e")[0].lstrip("-").replace(".", "")
+    return len(mantissa.lstrip("0").rstrip("0") or "0")
+
+
+def _written_probabilities(out: Path) -> dict[str, list[str]]:
+    """Every probability of the induced DTMC (.tra, .drn) and of the hypergame's commands."""
+    tra = [line.split()[2] for line in (out / "induced.tra").read_text().splitlines()[1:]]
+    drn = re.findall(r"^\t\t\d+ : (\S+)$", (out / "induced.drn").read_text(), re.MULTILINE)
+    prism = re.findall(r"([0-9][0-9.eE-]*)\s*:\s*\(", "\n".join(
+        line for line in (out / "hypergame.prism").read_text().splitlines()
+        if line.lstrip().startswith("[")))
+    return {"induced.tra": tra, "induced.drn": drn, "hypergame.prism": prism}
+
+
+@pytest.mark.parametrize("name", ["world1", "world2"])
+def test_probabilities_are_written_as_the_world_gives_them(name: str, folder: str) -> None:
+    """slip 0.1 gives 0.8 and 0.1 (and their sums 0.9, 0.2), never 0.7999999999999999."""
+    out = (checked(name, "pmax", folder).out if name in WORLDS else
+           pipeline.check(load_world(MODELS / f"{name}.toml"), Path(folder) / name).out)
+    written = _written_probabilities(out)
+    assert written["induced.tra"] and written["hypergame.prism"]
+    assert sorted(written["induced.tra"]) == sorted(written["induced.drn"])
+    for file, numbers in written.items():
+        long = sorted({p for p in numbers if _significant_digits(p) >= 15})
+        assert not long, (file, long[:5])
+        assert set(numbers) <= {"0.8", "0.1", "0.9", "0.2", "1.0", "1"}, (file, set(numbers))
+
+
+def test_a_short_decimal_moves_a_value_by_at_most_two_units_in_the_last_place() -> None:
+    import math
+
+    from hg2prism.prism.rendering import prism_number, probability_text, short_decimal
+
+    assert (probability_text(1 - 2 * 0.1), probability_text(0.7999999999999999)) == ("0.8", "0.8")
+    assert probability_text(0.7999999999999999 + 0.1) == "0.9"
+    assert probability_text(0.1 + 0.05) == "0.15" and prism_number(0.1 + 0.05) == "0.15"
+    rng = __import__("numpy").random.default_rng(7)
+    for value in [*rng.random(2000), *(rng.random(200) * 1e-6), 1 / 3, 2 / 3, 0.0, 1.0]:
+        snapped = short_decimal(value)
+        assert abs(snapped - value) <= 2 * math.ulp(value), value
+        assert float(probability_text(value)) == snapped

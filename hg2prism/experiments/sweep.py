@@ -183,11 +183,15 @@ def _with_prior(world: World, prior: tuple[float, ...]) -> World:
     return _with_setting("prior")(world, prior)
 
 
-def _with_traps(world: World, traps: int) -> World:
+def _check_traps(world: World, traps: int) -> None:
     candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
         raise InputError(_CLI, "--values", f"traps value {traps} must be at most the world's "
                                            f"{candidates} trap candidates")
+
+
+def _with_traps(world: World, traps: int) -> World:
+    _check_traps(world, traps)
     return replace(world, traps=traps)
 
 
@@ -281,13 +285,20 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
     applied in the table's order, then the standing traps worked out again when the delay or
     the number of traps is swept."""
     point = world
+    moved = {}      # delay and traps, set with the standing traps in one (validated) World
     for name in SWEEP_PARAMETERS:
         if name in assignment:
             SWEEP_PARAMETERS[name].refuse_unless_applies(world)
-            point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
-    if any(SWEEP_PARAMETERS[name].moves_traps for name in assignment):
-        standing = standing_at(world, point.traps) if point.delay > 0 else 0
-        point = replace(point, initial_standing=standing)
+            if SWEEP_PARAMETERS[name].moves_traps:
+                moved[name] = assignment[name]
+            else:
+                point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
+    if moved:
+        traps, delay = moved.get("traps", point.traps), moved.get("delay", point.delay)
+        if "traps" in moved:
+            _check_traps(world, traps)
+        standing = standing_at(world, traps) if delay > 0 else 0
+        point = replace(point, traps=traps, delay=delay, initial_standing=standing)
     return point
 
 
@@ -679,6 +690,18 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     return run
 
 
+def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
+    """sweep.csv: the swept parameters, then _CSV_COLUMNS, one line per solved point."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(tuple(names) + _CSV_COLUMNS)
+    for row in rows:
+        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
+                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
+                           for c in _CSV_COLUMNS])
+    return buffer.getvalue()
+
+
 def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
                    seconds: float) -> None:
     from hg2prism.report import plots
@@ -703,15 +726,8 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
         "failed": list(run.failed),
         "seconds": round(seconds, 3),
     })
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(tuple(names) + _CSV_COLUMNS)
-    for row in run.rows:
-        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
-                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                           for c in _CSV_COLUMNS])
     write_json(out / "sweep.json", summary)
-    write_text(out / "sweep.csv", buffer.getvalue())
+    write_text(out / "sweep.csv", sweep_csv(names, run.rows))
     if len(names) == 1:
         plots.sweep_figure(names[0], list(run.rows), out / "sweep.png", world.name)
     else:

@@ -23,6 +23,16 @@ def describe(world: World) -> str:
     return f"arena of {arena.n_states} states, {p2}"
 
 
+def outcome_name(world: World, action: str, outcome: int) -> str:
+    """How the world's front end names outcome `outcome` of P1's action `action` (a grid: the
+    direction the robot went); "outcome k" for an arena world."""
+    if world.arena is None:
+        from hg2prism.frontends import grid
+
+        return grid.outcome_name(action, outcome)
+    return f"outcome {outcome}"
+
+
 def sweep_settings():
     """(kind, Setting) for every front end's own sweep parameters."""
     from hg2prism.frontends import grid

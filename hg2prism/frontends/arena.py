@@ -268,7 +268,7 @@ class _Reader:
             raise self.fail("adversary", "missing P2's actions; expected actions = [...] "
                                          "(general P2 actions) or traps = l with "
                                          "trap_candidates = [states]")
-        delay = self.ld.integer(adv.get("delay", 0), "adversary.delay", 0)
+        delay = self.ld.delay(adv.get("delay", 0))
         unused = (("trap_candidates", "initial_traps") if general else ("initial_action",))
         for name in unused:
             if name in adv:
@@ -305,10 +305,7 @@ class _Reader:
             raise self.fail(key, "missing required key with traps; expected "
                             + MISSING_HINT[key])
         candidates = self.state_list(adv["trap_candidates"], key, "trap candidate")
-        if traps > len(candidates):
-            raise self.fail("adversary.traps", f"traps = {traps} but there are only "
-                                               f"{len(candidates)} trap candidates; expected "
-                                               "traps <= the number of trap_candidates")
+        self.ld.traps(traps, len(candidates), grid=False)
         standing = 0
         key = "adversary.initial_traps"
         if "initial_traps" in adv and delay == 0:   # as for grids: only its type is checked

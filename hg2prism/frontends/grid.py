@@ -62,6 +62,10 @@ class Grid:
         """AP: `obs`, then the region letters of the map in alphabetical order."""
         return ("obs",) + self.region_letters()
 
+    def check(self, checks) -> None:
+        """What validation (model/validation.py) checks of a grid World's own values."""
+        check_slip(checks, self.slip)
+
     def describe(self) -> str:
         return (f"{self.width}x{self.height} grid, {len(self.trap_candidates)} trap candidates")
 
@@ -79,6 +83,11 @@ def outcome_directions(action: int) -> tuple[int, int, int]:
     slips, in the order of the arena's outcome axis."""
     name = ACTIONS[action]
     return (action, *(ACTIONS.index(p) for p in PERPENDICULAR[name]))
+
+
+def outcome_name(action: str, outcome: int) -> str:
+    """The direction of outcome `outcome` of move `action` (the move itself, then its slips)."""
+    return ACTIONS[outcome_directions(ACTIONS.index(action))[outcome]]
 
 
 def cell_name(cell: Cell) -> str:
@@ -232,22 +241,22 @@ def read(ld, root: dict) -> Grid:
     """The grid of a world file: [grid] map and [robot] slip. `ld` is the loader
     (worldfile/loader.py): its typed getters raise its one-line errors."""
     grid = read_map(ld, ld.table(root, "grid", TABLE_KEYS["grid"]))
-    slip = ld.number(ld.table(root, "robot", TABLE_KEYS["robot"])["slip"], "robot.slip")
+    return replace(grid, slip=check_slip(ld, ld.table(root, "robot", TABLE_KEYS["robot"])["slip"]))
+
+
+def check_slip(checks, value: object) -> float:
+    """[robot] slip: a number in [0, 0.5) (`checks`: model/validation.py's Checks)."""
+    slip = checks.number(value, "robot.slip")
     if not 0.0 <= slip < 0.5:
-        raise ld.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
-    return replace(grid, slip=slip)
+        raise checks.fail("robot.slip", f"slip must be in [0, 0.5), got {slip}")
+    return slip
 
 
 def read_adversary(ld, adv: dict, grid: Grid) -> dict:
     """The World fields of [adversary] that depend on the grid: traps, delay and
     initial_standing (from initial_traps)."""
-    traps = ld.integer(adv["traps"], "adversary.traps", 1)
-    n_cand = len(grid.trap_candidates)
-    if traps > n_cand:
-        raise ld.fail("adversary.traps", f"traps = {traps} but the map has only {n_cand} "
-                                         "trap candidate cells 't'; expected traps <= "
-                                         "the number of 't' cells")
-    delay = ld.integer(adv.get("delay", 0), "adversary.delay", 0)
+    traps = ld.traps(adv["traps"], len(grid.trap_candidates), grid=True)
+    delay = ld.delay(adv.get("delay", 0))
     cells = initial_traps(ld, adv, grid, traps, delay)
     standing = trap_sets(grid, traps).index(_numbers(grid, cells)) if delay else 0
     return dict(traps=traps, delay=delay, initial_standing=standing)

@@ -1,14 +1,18 @@
 """The world (docs/semantics.md §1) as an immutable value: what its front end reads (a grid
 world's `Grid`, an arena world's `Arena`), the task, P2's traps, delay, hypotheses and observer,
 and the simulation and detection settings. hg2prism/worldfile/ reads and validates the TOML world
-files that make one; hg2prism/frontends/ turns either kind into the arena the pipeline plays on.
+files that make one; hg2prism/frontends/ turns either kind into the arena the pipeline plays on;
+every World is validated when made (model/validation.py).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from hg2prism.model import validation
 
 if TYPE_CHECKING:
     from hg2prism.model.arena import Arena
@@ -55,6 +59,27 @@ class World:
     # combinations order, or the arena's P2 actions); 0 when delay is 0
     initial_standing: int = 0
 
+    def __post_init__(self) -> None:
+        # no World exists unvalidated, however made (docs/api.md): InputError naming the key
+        validation.validate(self)
+
+    def replace(self, **changes: object) -> World:
+        """This world with `changes` (field names: rationality=2.0, window=3, ...; a grid
+        world's own robot settings too), validated: InputError(file, key, reason) on a value
+        no world file could give or on a name that is no setting of this world."""
+        own = {name: value for name, value in changes.items() if name in _FIELDS}
+        front = {name: value for name, value in changes.items() if name not in _FIELDS}
+        if front:
+            if self.grid is None or not all(name in _fields(self.grid) for name in front):
+                from hg2prism.errors import InputError
+
+                known = _FIELDS | (_fields(self.grid) if self.grid is not None else frozenset())
+                unknown = sorted(set(front) - known)[0]
+                raise InputError(str(self.path), unknown, "not a setting of this world; expected "
+                                 "one of " + ", ".join(sorted(known)))
+            own["grid"] = dataclasses.replace(own.get("grid", self.grid), **front)
+        return dataclasses.replace(self, **own)
+
     def atomic_propositions(self) -> tuple[str, ...]:
         """AP: an arena world's are its arena's; a grid's are its map's (frontends/grid.py)."""
         if self.arena is not None:
@@ -77,3 +102,10 @@ class World:
     @property
     def decision(self) -> str:
         return self.setting("decision", "map")
+
+
+def _fields(value: object) -> frozenset[str]:
+    return frozenset(f.name for f in dataclasses.fields(value))
+
+
+_FIELDS = _fields(World)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
+from hg2prism.model import validation
 from hg2prism.model.world import World
 from hg2prism.opponent import bayes, inference
 from hg2prism.opponent.observer import Observer, ObserverKind
@@ -39,6 +40,50 @@ register(inference.KIND, render_cusum)
 register(bayes.KIND, render_bayes)
 
 
+def _same(read: object, held: object) -> bool:
+    """Whether a setting as its kind reads it equals the value a World holds (numbers within
+    rounding: a normalised prior normalises to itself up to the last bits)."""
+    import math
+
+    if isinstance(read, tuple) and isinstance(held, tuple):
+        return len(read) == len(held) and all(map(_same, read, held))
+    if isinstance(read, float) and isinstance(held, (int, float)) and not isinstance(held, bool):
+        return math.isclose(read, held, rel_tol=1e-12, abs_tol=0.0)
+    return read == held
+
+
+def check_observer(checks: validation.Checks, world: World) -> None:
+    """A World's [inference] kind and the kind's settings, as its kind reads them from a world
+    file, and P2's first guess when her kind sets it (model/validation.py calls this for every
+    World)."""
+    kind = KINDS[checks.choice(world.inference, "inference.kind", "inference kind", tuple(KINDS))]
+    held = dict(world.settings) if isinstance(world.settings, tuple) else None
+    if held is None or len(held) != len(world.settings):
+        raise checks.fail("inference", "settings must be a tuple of (key, value) pairs")
+    for key in held:
+        if key not in kind.keys():
+            raise checks.fail(f"inference.{key}", f"the {kind.title} observer has no {key}")
+    for setting in kind.settings:
+        key = f"inference.{setting.key}"
+        if setting.key not in held:
+            raise checks.fail(key, f"missing; expected {setting.expected}")
+        value = held[setting.key]
+        read = setting.read(checks, list(value) if isinstance(value, tuple) else value,
+                            len(world.hypotheses))
+        if not _same(read, value):
+            raise checks.fail(key, f"{setting.key} = {value!r} is not as the {kind.title} "
+                                   f"observer reads it ({read!r}); use registry.configure")
+    if kind.first_guess is not None:
+        first = kind.first_guess(held)
+        if world.initial_hypothesis != first:
+            raise checks.fail("adversary.initial_hypothesis", f"with kind = \"{kind.name}\" "
+                              f"P2's first guess is {kind.first_guess_rule} ({first}), got "
+                              f"{world.initial_hypothesis}")
+
+
+validation.set_observer_check(check_observer)
+
+
 def observer_kind(name: str) -> ObserverKind:
     """The kind registered as `name` (KeyError when there is none)."""
     return KINDS[name]
@@ -57,13 +102,18 @@ def owner(key: str) -> ObserverKind | None:
 def configure(world: World, name: str | None = None, **settings: object) -> World:
     """The world with P2's observer of kind `name` (default: the world's) and the given
     settings, the others kept when the kind stays and defaulted when it changes; P2's first
-    guess follows when her kind sets it. ValueError names a required setting not given."""
+    guess follows when her kind sets it. ValueError names a required setting not given;
+    InputError a bad value, as in a world file."""
     kind = KINDS[name or world.inference]
     n = len(world.hypotheses)
     values = dict(world.settings) if kind.name == world.inference else {}
-    values.update(settings)
+    checks = validation.Checks(str(world.path))
     for setting in kind.settings:
-        if setting.key not in values:
+        if setting.key in settings:     # read as from a world file (a prior normalised)
+            value = settings[setting.key]
+            read = setting.read(checks, list(value) if isinstance(value, tuple) else value, n)
+            values[setting.key] = value if _same(read, value) else read
+        elif setting.key not in values:
             if setting.default is None:
                 raise ValueError(setting.key)
             values[setting.key] = setting.default(n)

@@ -6,17 +6,52 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
+import math
 from pathlib import Path
 
 import jinja2
 import numpy as np
 
 
+# A written number is snapped to the shortest decimal of at most this many significant digits
+# within SNAP_ULPS units in its last place (short_decimal).
+SNAP_DIGITS = 12
+SNAP_ULPS = 2
+
+
+def short_decimal(value: float) -> float:
+    """`value`, or the shortest decimal of at most 12 significant digits within 2 units in the
+    last place of it. The world's probabilities are short decimals (a grid's 0.8 and 0.1);
+    the model checker hands some back a unit in the last place off (it converts the rational
+    4/5 to a double by truncation: 0.7999999999999999), and so do sums of them (0.9 as
+    0.8999999999999999). Every writer of a probability writes this value (`prism_number`,
+    `probability_text`), so an exported model reads 0.8; it differs from the computed value
+    by at most 2 units in the last place (about 4e-16 for a probability)."""
+    value = float(value)
+    if not math.isfinite(value) or value == 0:
+        return value
+    text = repr(value)
+    if len(text.lstrip("-0.").replace(".", "").split("e")[0]) <= SNAP_DIGITS:
+        return value                # already short: nothing to snap
+    slack = SNAP_ULPS * math.ulp(value)
+    for digits in range(1, SNAP_DIGITS + 1):
+        near = float(f"{value:.{digits}g}")
+        if abs(near - value) <= slack:
+            return near
+    return value
+
+
+def probability_text(value: float) -> str:
+    """A probability as the exports write it (Python's repr of its short decimal: 0.8)."""
+    return repr(short_decimal(value))
+
+
 def prism_number(value: float | int) -> str:
-    """A number as PRISM reads it: integers plain, floats in their shortest exact decimal."""
+    """A number as PRISM reads it: integers plain, floats in their shortest exact decimal
+    (of `short_decimal`: 0.8, not 0.7999999999999999)."""
     if isinstance(value, (int, np.integer)):
         return str(int(value))
-    text = np.format_float_positional(float(value), unique=True, trim="0")
+    text = np.format_float_positional(short_decimal(value), unique=True, trim="0")
     return text if "." in text else text + ".0"
 
 

@@ -61,6 +61,20 @@ def _save(fig: plt.Figure, path: Path) -> list[Path]:
     return written
 
 
+def _axes(ax: plt.Axes | None, inches: tuple[float, float]) -> tuple[plt.Figure, plt.Axes]:
+    """The caller's axes (a figure function then draws into them and saves nothing), or a new
+    figure of `inches` with constrained layout and its axes."""
+    if ax is not None:
+        return ax.figure, ax
+    fig = plt.figure(figsize=inches, layout="constrained")
+    return fig, fig.add_subplot()
+
+
+def _done(fig: plt.Figure, path: Path | None, given: plt.Axes | None) -> list[Path]:
+    """Save a figure function's own figure to `path`; nothing when it drew into given axes."""
+    return [] if given is not None or path is None else _save(fig, path)
+
+
 def world_drawer(world: World, ts: TransitionSystem):
     """What draws `world` (docs/semantics.md §15 "Figures"): the grid front end's drawer for a
     grid world (frontends/grid_drawing.py), else the arena as a graph (report/arena_graph.py)."""
@@ -78,16 +92,17 @@ def world_figure_inches(world: World, ts: TransitionSystem) -> tuple[float, floa
     return world_drawer(world, ts).world_inches()
 
 
-def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> list[Path]:
+def world_figure(world: World, ts: TransitionSystem, episode, path: Path | None,
+                 ax: plt.Axes | None = None) -> list[Path]:
     """The world and one deceptive episode (episodes.ChosenEpisode), drawn by the world's
     drawer (`world_drawer`): every distinct step drawn once, coloured by P2's hypothesis,
     labelled with its step numbers; the traps P2 set; where P2 changed her mind. Returns the
-    files written (PNG and SVG)."""
+    files written (PNG and SVG); into the given `ax` it draws and writes nothing."""
     from hg2prism.analyses.episodes import episode_steps
 
     drawer = world_drawer(world, ts)
-    fig = plt.figure(figsize=drawer.world_inches(), layout="constrained")
-    ax = fig.add_subplot()
+    given = ax
+    fig, ax = _axes(ax, drawer.world_inches())
     handles = drawer.draw_world(ax, episode_steps(ts, episode.steps))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
@@ -95,15 +110,16 @@ def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> lis
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
                  f"task {world.formula}", fontsize=8.5, loc="left")
     drawer.finish(ax)
-    return _save(fig, path)
+    return _done(fig, path, given)
 
 
-def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
+def belief_figure(world: World, trace, episode, path: Path | None,
+                  ax: plt.Axes | None = None) -> list[Path]:
     """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
     reports per hypothesis against the step, her threshold, and, shaded, the hypothesis she
-    acted on at each step."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+    acted on at each step (into `ax` when given, then writing nothing)."""
+    given = ax
+    fig, ax = _axes(ax, BELIEF_INCHES)
     n = len(trace.acted)
     steps = np.arange(1, n + 1)
     for i, x in enumerate(trace.acted):
@@ -132,7 +148,7 @@ def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world.name}: P2's belief along the drawn episode (seed {episode.seed}, "
                  f"{episode.n_steps} steps)", fontsize=9)
-    return _save(fig, path)
+    return _done(fig, path, given)
 
 
 def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
@@ -208,12 +224,13 @@ def _parameter_axis(ax: plt.Axes, parameter: str, values: Sequence[object]):
     return x_of
 
 
-def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
-                 world_name: str | None = None) -> list[Path]:
+def sweep_figure(parameter: str, rows: Sequence[dict], path: Path | None,
+                 world_name: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
     """Completion probability against a swept parameter, one line per value; a logarithmic
-    axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes."""
-    fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+    axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes (into `ax`
+    when given, then writing nothing)."""
+    given = ax
+    fig, ax = _axes(ax, SWEEP_INCHES)
     x_of = _parameter_axis(ax, parameter, [row[parameter] for row in rows])
     xs = [x_of(row[parameter]) for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
@@ -221,19 +238,19 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path,
                               ("v_ne", "symmetric, Nash", "^:")):
         if all(key in row for row in rows):
             ax.plot(xs, [row[key] for row in rows], style, label=label)
-    return _finish_sweep(fig, ax, path, parameter, world_name, ncol=3, fontsize=8)
+    return _finish_sweep(fig, ax, path, parameter, world_name, ncol=3, fontsize=8, given=given)
 
 
 DETECTION_ZOOM = 6      # steps shown either side of the detection in the zoomed panel
 
 
-def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Path,
-                      world_name: str | None = None) -> list[Path]:
+def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Path | None,
+                      world_name: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
     """A sweep over several parameters: the deceptive value (solid) and V_lead (dashed) against
     the first parameter, one colour per combination of the others' values; the same axis and
     legend rules as :func:`sweep_figure`."""
-    fig = plt.figure(figsize=SWEEP_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+    given = ax
+    fig, ax = _axes(ax, SWEEP_INCHES)
     first, others = parameters[0], list(parameters[1:])
     series: dict[tuple, list[dict]] = {}
     for row in rows:     # a prior is a list: keyed by its text
@@ -249,19 +266,24 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
                 label=f"deceptive, {label}")
         ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
                 label=f"V_lead, {label}")
-    return _finish_sweep(fig, ax, path, " x ".join(parameters), world_name, ncol=2, fontsize=7)
+    return _finish_sweep(fig, ax, path, " x ".join(parameters), world_name, ncol=2, fontsize=7,
+                         given=given)
 
 
-def _finish_sweep(fig, ax, path: Path, against: str, world_name: str | None, ncol: int,
-                  fontsize: int) -> list[Path]:
-    """The axis, legend and title every sweep figure shares; saves the figure."""
+def _finish_sweep(fig, ax, path: Path | None, against: str, world_name: str | None, ncol: int,
+                  fontsize: int, given: plt.Axes | None = None) -> list[Path]:
+    """The axis, legend and title every sweep figure shares; saves the figure (not the
+    caller's: in given axes the legend is the axes')."""
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", ncol=ncol, fontsize=fontsize, frameon=False)
+    if given is not None:
+        ax.legend(ncol=ncol, fontsize=fontsize, frameon=False)
+    else:
+        fig.legend(loc="outside lower center", ncol=ncol, fontsize=fontsize, frameon=False)
     title = f"completion probability at the initial state against {against}"
     ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
-    return _save(fig, path)
+    return _done(fig, path, given)
 
 
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from hg2prism import numeric
 from hg2prism.prism.decoding import DecodedStates
+from hg2prism.prism.rendering import probability_text
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
@@ -84,8 +85,9 @@ class InducedDTMC:
 
     @functools.cached_property
     def probabilities(self) -> Field:
-        """The transitions' probabilities as a text column (`repr`)."""
-        return tokens(self.probability)
+        """The transitions' probabilities as a text column (their short decimals:
+        prism/rendering.py:probability_text)."""
+        return tokens(self.probability, probability_text)
 
 
 def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,

@@ -2,17 +2,23 @@
 error line (file, key, reason), and return an immutable `model.world.World`.
 
 The loader sits above the model and the observers: which `[inference]` keys a world may have,
-and how they are read, is asked of the observer registry (opponent/registry.py).
+and how they are read, is asked of the observer registry (opponent/registry.py). The rules of
+each value are model/validation.py's (`Checks`, which the loader extends with the file's
+tables), the same rules World.__post_init__ checks every World with.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
-from hg2prism.errors import InputError
+from hg2prism.model.validation import Checks, Vocabulary, arena_vocabulary, grid_vocabulary
+from hg2prism.model.validation import key_part as _key_part
+from hg2prism.model.validation import toml_repr as _toml_repr
+from hg2prism.model.validation import toml_type as _toml_type
 from hg2prism.frontends import arena as arena_files
 from hg2prism.frontends import grid as grid_files
+# the registry checks every World's observer settings (model/validation.py) once imported
+from hg2prism.opponent.registry import KINDS, owner
 from hg2prism.model.world import DetectionSettings, SimulationSettings, World
 
 
@@ -32,19 +38,6 @@ _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
-# Limits that keep every accepted world within bounded time and memory. Simulated episodes run
-# side by side (arrays of `episodes` entries); a horizon bounds the steps of an episode that
-# never ends (P1 kept away from both goal and traps), and the exact within-horizon numbers stop
-# once converged. 10^5 steps x 10^6 episodes is the worst case these admit.
-MAX_EPISODES = 1_000_000
-MAX_HORIZON = 100_000
-LIMIT_REASON = {
-    "simulation.episodes": "episodes are simulated side by side in memory",
-    "simulation.horizon": "an episode that never ends is simulated to the horizon",
-    "--episodes": "episodes are simulated side by side in memory",
-    "--horizon": "an episode that never ends is simulated to the horizon",
-}
-
 _MISSING_HINT = {
     **grid_files.MISSING_HINT,
     "task.formula": "a syntactically co-safe LTL formula in Spot syntax",
@@ -56,81 +49,12 @@ _MISSING_HINT = {
 }
 
 
-def _toml_type(value: object) -> str:
-    import datetime
-
-    if isinstance(value, bool):
-        return "boolean"
-    if isinstance(value, int):
-        return "integer"
-    if isinstance(value, float):
-        return "float"
-    if isinstance(value, str):
-        return "string"
-    if isinstance(value, list):
-        return "array"
-    if isinstance(value, dict):
-        return "table"
-    if isinstance(value, (datetime.datetime, datetime.date, datetime.time)):
-        return "date/time"
-    return type(value).__name__
-
-
-def _shown(value: object) -> str:
-    """The TOML type of a value, with the value itself when it is a short scalar."""
-    if isinstance(value, bool):
-        return f"boolean {'true' if value else 'false'}"
-    if isinstance(value, (int, float)):
-        return f"{_toml_type(value)} {value!r}"
-    if isinstance(value, str) and len(value) <= 40:
-        return f"string {value!r}"
-    return _toml_type(value)
-
-
-def _toml_repr(value: object) -> str:
-    """A short one-line rendering of a TOML value as it would be written in the file."""
-    import json
-
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_repr(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{_key_part(k)} = {_toml_repr(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, str):
-        return json.dumps(value)
-    return str(value)
-
-
-def _key_part(name: str) -> str:
-    """A TOML key as it would be written: bare when possible, else quoted (always one line)."""
-    import json
-    import re
-
-    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
-
-
-def _one_line(text: str) -> str:
-    return " ".join(text.split())
-
-
-@dataclass(frozen=True)
-class Vocabulary:
-    """The atomic propositions formulas may use, and how an error message describes them."""
-
-    propositions: tuple[str, ...]
-    described: str
-
-
-class _Loader:
+class _Loader(Checks):
     def __init__(self, path: Path, text: str | None = None, data: dict | None = None) -> None:
+        super().__init__(str(path))
         self.path = path
-        self.file = str(path)
         self.text = text        # the file's text when it does not come from a file
         self.data = data        # or the parsed file (a world built in Python)
-
-    def fail(self, key: str, reason: str) -> InputError:
-        return InputError(self.file, key, _one_line(reason))
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -193,70 +117,12 @@ class _Loader:
         self.check_keys(value, _TABLE_KEYS[name] if allowed is None else allowed, name)
         return value
 
-    def string(self, value: object, key: str) -> str:
-        if not isinstance(value, str):
-            raise self.fail(key, f"must be a string, got {_toml_type(value)}")
-        return value
-
-    def integer(self, value: object, key: str, minimum: int | None = None,
-                maximum: int | None = None) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(key, f"must be an integer, got {_shown(value)}")
-        name = key.rsplit(".", 1)[-1]
-        if minimum is not None and value < minimum:
-            raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
-        if maximum is not None and value > maximum:
-            raise self.fail(key, f"{name} must be <= {maximum:,} ({LIMIT_REASON[key]}), got {value:,}")
-        return value
-
-    def array(self, value: object, key: str, expected: str) -> list:
-        if not isinstance(value, list):
-            raise self.fail(key, f"must be {expected}, got {_toml_type(value)}")
-        return value
-
-    def choice(self, value: object, key: str, what: str, options: tuple[str, ...]) -> str:
-        if value not in options:
-            raise self.fail(key, f"unknown {what} {_toml_repr(value)}; expected "
-                                 + " or ".join(f'"{option}"' for option in options))
-        return value
-
-    def number(self, value: object, key: str) -> float:
-        import math
-
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.fail(key, f"must be a number, got {_shown(value)}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(key, f"must be a finite number, got {value}")
-        return value
+    @staticmethod
+    def written(value: object) -> str:
+        """A value as it would be written in the file (one line), for error messages."""
+        return _toml_repr(value)
 
     # -- sections ----------------------------------------------------------------------------
-
-    def formula(self, value: object, key: str, vocabulary: Vocabulary):
-        """Check a co-safe LTL formula over the world's propositions; return spot.formula."""
-        import spot
-
-        text = self.string(value, key)
-        if text.strip() == "":
-            raise self.fail(key, "the formula is empty; expected a co-safe LTL formula in Spot "
-                                 "syntax, e.g. \"!obs U A\"")
-        try:
-            parsed = spot.formula(text)
-        except Exception as err:  # Spot raises SyntaxError with a multi-line diagnosis
-            lines = [ln.strip() for ln in str(err).splitlines()]
-            detail = "; ".join(ln for ln in lines
-                               if ln and not ln.startswith(">>>") and set(ln) != {"^"})
-            raise self.fail(key, f"formula {text!r} does not parse in Spot syntax"
-                                 + (f": {detail}" if detail else "")) from None
-        for ap in sorted(a.ap_name() for a in spot.atomic_prop_collect(parsed)):
-            if ap not in vocabulary.propositions:
-                raise self.fail(key, f"formula {text!r} uses proposition {ap!r}; only "
-                                     f"{vocabulary.described} may be used")
-        if not parsed.is_syntactic_guarantee():
-            raise self.fail(key, f"formula {text!r} is not syntactically co-safe (Spot's "
-                                 "is_syntactic_guarantee is false); expected a co-safe formula "
-                                 "such as \"!obs U A\" or \"F A\"")
-        return parsed
 
     def load(self) -> World:
         root = self.read()
@@ -274,9 +140,7 @@ class _Loader:
         self.check_keys(root, _TOP_KEYS, "")
         name, description = self.header(root)
         grid = grid_files.read(self, root)
-        letters = grid.region_letters()
-        vocabulary = Vocabulary(grid.propositions(), "obs and the region letters of the map ("
-                                + (", ".join(letters) or "none") + ")")
+        vocabulary = grid_vocabulary(grid)
         formula = self.table(root, "task")["formula"]
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary")
@@ -305,8 +169,7 @@ class _Loader:
         self.check_keys(root, _ARENA_TOP_KEYS, "", tables)
         name, description = self.header(root)
         arena, p2 = arena_files.read(self, root)
-        vocabulary = Vocabulary(arena.propositions, "the arena's propositions ("
-                                + (", ".join(arena.propositions) or "none") + ")")
+        vocabulary = arena_vocabulary(arena)
         formula = self.table(root, "task")["formula"]
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
@@ -322,45 +185,21 @@ class _Loader:
         """[adversary]: the World fields hypotheses and initial_hypothesis (which P2's
         observer may set instead: `inference`)."""
         hypotheses = self.hypotheses(adv["hypotheses"], vocabulary)
-        initial_hypothesis = self.integer(adv.get("initial_hypothesis", 0),
-                                          "adversary.initial_hypothesis")
-        if not 0 <= initial_hypothesis < len(hypotheses):
-            raise self.fail("adversary.initial_hypothesis",
-                            f"initial_hypothesis must be an index into hypotheses "
-                            f"(0..{len(hypotheses) - 1}), got {initial_hypothesis}")
+        initial_hypothesis = self.initial_hypothesis(adv.get("initial_hypothesis", 0),
+                                                     len(hypotheses))
         return dict(hypotheses=hypotheses, initial_hypothesis=initial_hypothesis)
-
-    def hypotheses(self, value: object, vocabulary: Vocabulary) -> tuple[str, ...]:
-        """[adversary] hypotheses: distinct co-safe formulas, at least one."""
-        items = self.array(value, "adversary.hypotheses", "an array of formulas")
-        if not items:
-            raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
-                                                    "co-safe LTL formula")
-        seen: dict[str, int] = {}
-        for i, h in enumerate(items):
-            key = f"adversary.hypotheses[{i}]"
-            canon = str(self.formula(h, key, vocabulary))
-            if canon in seen:
-                j = seen[canon]
-                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
-                                     f"hypotheses[{j}] ({items[j]!r}); expected distinct "
-                                     "hypotheses")
-            seen[canon] = i
-        return tuple(items)
 
     def inference(self, root: dict, adv: dict, adversary: dict) -> dict:
         """[inference]: the World fields inference (the observer's kind), window, settings
         (the kind's own keys, read by the kind: opponent/registry.py), rationality, and
         initial_hypothesis when the kind sets P2's first guess."""
-        from hg2prism.opponent.registry import KINDS
-
         allowed = dict(_TABLE_KEYS["inference"])
         for kind in KINDS.values():
             allowed.update({key: False for key in kind.keys()})
         inf = self.table(root, "inference", allowed)
         kind = KINDS[self.choice(inf.get("kind", "cusum"), "inference.kind", "inference kind",
                                  tuple(KINDS))]
-        window = self.integer(inf["window"], "inference.window", 1)
+        window = self.window(inf["window"])
         settings = self.observer_settings(kind, inf, len(adversary["hypotheses"]))
         fields = dict(inference=kind.name, window=window, settings=tuple(settings.items()))
         if kind.first_guess is not None:
@@ -368,16 +207,11 @@ class _Loader:
                 raise self.fail("adversary.initial_hypothesis", f"not allowed with kind = "
                                 f"\"{kind.name}\": P2's first guess is {kind.first_guess_rule}")
             fields["initial_hypothesis"] = kind.first_guess(settings)
-        rationality = self.number(inf["rationality"], "inference.rationality")
-        if rationality <= 0:
-            raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
-        return dict(fields, rationality=rationality)
+        return dict(fields, rationality=self.rationality(inf["rationality"]))
 
     def observer_settings(self, kind, inf: dict, n_hypotheses: int) -> dict[str, object]:
         """The keys of [inference] that belong to observer `kind`, as it reads them (a key of
         another kind refused)."""
-        from hg2prism.opponent.registry import owner
-
         for key in inf:
             other = owner(key)
             if other is not None and key not in kind.keys():
@@ -398,29 +232,17 @@ class _Loader:
     def simulation(self, sim: dict) -> SimulationSettings:
         d = SimulationSettings()
         return SimulationSettings(
-            episodes=self.integer(sim.get("episodes", d.episodes), "simulation.episodes", 1,
-                                  MAX_EPISODES),
-            horizon=self.integer(sim.get("horizon", d.horizon), "simulation.horizon", 1,
-                                 MAX_HORIZON),
-            seed=self.integer(sim.get("seed", d.seed), "simulation.seed", 0),
+            episodes=self.episodes(sim.get("episodes", d.episodes)),
+            horizon=self.horizon(sim.get("horizon", d.horizon)),
+            seed=self.seed(sim.get("seed", d.seed)),
         )
 
     def detection(self, det: dict) -> DetectionSettings:
         dd = DetectionSettings()
-        alpha = self.number(det.get("alpha", dd.alpha), "detection.alpha")
-        if not 0 < alpha < 1:
-            raise self.fail("detection.alpha", f"alpha must be in (0, 1), got {alpha}")
-        epsilon = self.number(det.get("epsilon", dd.epsilon), "detection.epsilon")
-        if not 0 < epsilon < 1:
-            raise self.fail("detection.epsilon", f"epsilon must be in (0, 1), got {epsilon}")
-        deviate_after = self.integer(det.get("deviate_after", dd.deviate_after),
-                                     "detection.deviate_after", 0)
-        return DetectionSettings(alpha=alpha, epsilon=epsilon, deviate_after=deviate_after)
-
-    @staticmethod
-    def written(value: object) -> str:
-        """A value as it would be written in the file (one line), for error messages."""
-        return _toml_repr(value)
+        return DetectionSettings(alpha=self.alpha(det.get("alpha", dd.alpha)),
+                                 epsilon=self.epsilon(det.get("epsilon", dd.epsilon)),
+                                 deviate_after=self.deviate_after(det.get("deviate_after",
+                                                                          dd.deviate_after)))
 
 
 def load_world(path: str | Path) -> World:

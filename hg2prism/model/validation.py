@@ -1,0 +1,334 @@
+"""The rules every value of a world obeys (docs/semantics.md §1), written once: the world loader
+(worldfile/loader.py, frontends/arena.py) reads a file with them, and `World.__post_init__`
+checks every World with them (`validate`), so that no World exists unvalidated, however it was
+made (`world.replace(...)`, `dataclasses.replace`, the constructor).
+
+Each rule fails with one `InputError(file, key, reason)`, the key as the world file spells it
+(`inference.rationality`, `adversary.traps`). The checks are cheap (no transition system is built):
+the keys that need the map or the arena (trap counts, initial traps, P2's standing action) read
+the data the World carries. The observer's own keys (`[inference] kind` and its settings) are
+checked by the observer registry (opponent/registry.py), which hands its check to
+`set_observer_check`; the model layer does not know the kinds of observer.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from hg2prism.errors import InputError
+
+# Limits that keep every accepted world within bounded time and memory. Simulated episodes run
+# side by side (arrays of `episodes` entries); a horizon bounds the steps of an episode that
+# never ends (P1 kept away from both goal and traps), and the exact within-horizon numbers stop
+# once converged. 10^5 steps x 10^6 episodes is the worst case these admit.
+MAX_EPISODES = 1_000_000
+MAX_HORIZON = 100_000
+LIMIT_REASON = {
+    "simulation.episodes": "episodes are simulated side by side in memory",
+    "simulation.horizon": "an episode that never ends is simulated to the horizon",
+    "--episodes": "episodes are simulated side by side in memory",
+    "--horizon": "an episode that never ends is simulated to the horizon",
+}
+
+
+def toml_type(value: object) -> str:
+    import datetime
+
+    if isinstance(value, bool):
+        return "boolean"
+    if isinstance(value, int):
+        return "integer"
+    if isinstance(value, float):
+        return "float"
+    if isinstance(value, str):
+        return "string"
+    if isinstance(value, list):
+        return "array"
+    if isinstance(value, dict):
+        return "table"
+    if isinstance(value, (datetime.datetime, datetime.date, datetime.time)):
+        return "date/time"
+    return type(value).__name__
+
+
+def shown(value: object) -> str:
+    """The TOML type of a value, with the value itself when it is a short scalar."""
+    if isinstance(value, bool):
+        return f"boolean {'true' if value else 'false'}"
+    if isinstance(value, (int, float)):
+        return f"{toml_type(value)} {value!r}"
+    if isinstance(value, str) and len(value) <= 40:
+        return f"string {value!r}"
+    return toml_type(value)
+
+
+def toml_repr(value: object) -> str:
+    """A short one-line rendering of a TOML value as it would be written in the file."""
+    import json
+
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_repr(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{key_part(k)} = {toml_repr(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, str):
+        return json.dumps(value)
+    return str(value)
+
+
+def key_part(name: str) -> str:
+    """A TOML key as it would be written: bare when possible, else quoted (always one line)."""
+    import json
+    import re
+
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+@dataclass(frozen=True)
+class Vocabulary:
+    """The atomic propositions formulas may use, and how an error message describes them."""
+
+    propositions: tuple[str, ...]
+    described: str
+
+
+def grid_vocabulary(grid: Any) -> Vocabulary:
+    """A grid world's propositions (frontends/grid.py: Grid.propositions)."""
+    return Vocabulary(grid.propositions(), "obs and the region letters of the map ("
+                      + (", ".join(grid.region_letters()) or "none") + ")")
+
+
+def arena_vocabulary(arena: Any) -> Vocabulary:
+    return Vocabulary(arena.propositions, "the arena's propositions ("
+                      + (", ".join(arena.propositions) or "none") + ")")
+
+
+class Checks:
+    """The value rules, failing with InputError(file, key, reason). The world loader is one
+    (reading a file), `validate` makes one for a World (its path as the file)."""
+
+    file: str
+
+    def __init__(self, file: str) -> None:
+        self.file = file
+
+    def fail(self, key: str, reason: str) -> InputError:
+        return InputError(self.file, key, one_line(reason))
+
+    # -- types -------------------------------------------------------------------------------
+
+    def string(self, value: object, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.fail(key, f"must be a string, got {toml_type(value)}")
+        return value
+
+    def integer(self, value: object, key: str, minimum: int | None = None,
+                maximum: int | None = None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"must be an integer, got {shown(value)}")
+        name = key.rsplit(".", 1)[-1]
+        if minimum is not None and value < minimum:
+            raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
+        if maximum is not None and value > maximum:
+            raise self.fail(key, f"{name} must be <= {maximum:,} ({LIMIT_REASON[key]}), "
+                                 f"got {value:,}")
+        return value
+
+    def array(self, value: object, key: str, expected: str) -> list:
+        if not isinstance(value, list):
+            raise self.fail(key, f"must be {expected}, got {toml_type(value)}")
+        return value
+
+    def choice(self, value: object, key: str, what: str, options: tuple[str, ...]) -> str:
+        if value not in options:
+            raise self.fail(key, f"unknown {what} {toml_repr(value)}; expected "
+                                 + " or ".join(f'"{option}"' for option in options))
+        return value
+
+    def number(self, value: object, key: str) -> float:
+        import numbers
+
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise self.fail(key, f"must be a number, got {shown(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(key, f"must be a finite number, got {value}")
+        return value
+
+    # -- the keys ----------------------------------------------------------------------------
+
+    def name(self, value: object) -> str:
+        if self.string(value, "name").strip() == "":
+            raise self.fail("name", "name must not be empty")
+        return value
+
+    def traps(self, value: object, candidates: int, grid: bool) -> int:
+        """adversary.traps of a world whose P2 sets traps on `candidates` cells of a grid's map
+        or states of an arena."""
+        traps = self.integer(value, "adversary.traps", 1)
+        if traps > candidates:
+            where = (f"the map has only {candidates} trap candidate cells 't'; expected traps "
+                     "<= the number of 't' cells" if grid else f"there are only {candidates} "
+                     "trap candidates; expected traps <= the number of trap_candidates")
+            raise self.fail("adversary.traps", f"traps = {traps} but {where}")
+        return traps
+
+    def delay(self, value: object) -> int:
+        return self.integer(value, "adversary.delay", 0)
+
+    def initial_hypothesis(self, value: object, n_hypotheses: int) -> int:
+        key = "adversary.initial_hypothesis"
+        index = self.integer(value, key)
+        if not 0 <= index < n_hypotheses:
+            raise self.fail(key, f"initial_hypothesis must be an index into hypotheses "
+                                 f"(0..{n_hypotheses - 1}), got {index}")
+        return index
+
+    def window(self, value: object) -> int:
+        return self.integer(value, "inference.window", 1)
+
+    def rationality(self, value: object) -> float:
+        rationality = self.number(value, "inference.rationality")
+        if rationality <= 0:
+            raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
+        return rationality
+
+    def episodes(self, value: object) -> int:
+        return self.integer(value, "simulation.episodes", 1, MAX_EPISODES)
+
+    def horizon(self, value: object) -> int:
+        return self.integer(value, "simulation.horizon", 1, MAX_HORIZON)
+
+    def seed(self, value: object) -> int:
+        return self.integer(value, "simulation.seed", 0)
+
+    def open_unit(self, value: object, key: str) -> float:
+        number = self.number(value, key)
+        if not 0 < number < 1:
+            raise self.fail(key, f"{key.rsplit('.', 1)[-1]} must be in (0, 1), got {number}")
+        return number
+
+    def alpha(self, value: object) -> float:
+        return self.open_unit(value, "detection.alpha")
+
+    def epsilon(self, value: object) -> float:
+        return self.open_unit(value, "detection.epsilon")
+
+    def deviate_after(self, value: object) -> int:
+        return self.integer(value, "detection.deviate_after", 0)
+
+    def formula(self, value: object, key: str, vocabulary: Vocabulary):
+        """Check a co-safe LTL formula over the world's propositions; return spot.formula."""
+        import spot
+
+        text = self.string(value, key)
+        if text.strip() == "":
+            raise self.fail(key, "the formula is empty; expected a co-safe LTL formula in Spot "
+                                 "syntax, e.g. \"!obs U A\"")
+        try:
+            parsed = spot.formula(text)
+        except Exception as err:  # Spot raises SyntaxError with a multi-line diagnosis
+            lines = [ln.strip() for ln in str(err).splitlines()]
+            detail = "; ".join(ln for ln in lines
+                               if ln and not ln.startswith(">>>") and set(ln) != {"^"})
+            raise self.fail(key, f"formula {text!r} does not parse in Spot syntax"
+                                 + (f": {detail}" if detail else "")) from None
+        for ap in sorted(a.ap_name() for a in spot.atomic_prop_collect(parsed)):
+            if ap not in vocabulary.propositions:
+                raise self.fail(key, f"formula {text!r} uses proposition {ap!r}; only "
+                                     f"{vocabulary.described} may be used")
+        if not parsed.is_syntactic_guarantee():
+            raise self.fail(key, f"formula {text!r} is not syntactically co-safe (Spot's "
+                                 "is_syntactic_guarantee is false); expected a co-safe formula "
+                                 "such as \"!obs U A\" or \"F A\"")
+        return parsed
+
+    def hypotheses(self, value: object, vocabulary: Vocabulary) -> tuple[str, ...]:
+        """[adversary] hypotheses: distinct co-safe formulas, at least one."""
+        items = self.array(value, "adversary.hypotheses", "an array of formulas")
+        if not items:
+            raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
+                                                    "co-safe LTL formula")
+        seen: dict[str, int] = {}
+        for i, h in enumerate(items):
+            key = f"adversary.hypotheses[{i}]"
+            canon = str(self.formula(h, key, vocabulary))
+            if canon in seen:
+                j = seen[canon]
+                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
+                                     f"hypotheses[{j}] ({items[j]!r}); expected distinct "
+                                     "hypotheses")
+            seen[canon] = i
+        return tuple(items)
+
+
+# The observer registry's check of [inference] kind and the kind's settings (and of P2's first
+# guess when her kind sets it): (checks, world) -> None, raising checks.fail(...).
+_observer_check: Callable[[Checks, Any], None] | None = None
+
+
+def set_observer_check(check: Callable[[Checks, Any], None]) -> None:
+    global _observer_check
+    _observer_check = check
+
+
+def validate(world: Any) -> None:
+    """Raise InputError(world's path, key, reason) at the first value of `world` that no world
+    file could give (called by World.__post_init__)."""
+    checks = Checks(str(world.path))
+    checks.name(world.name)
+    checks.string(world.description, "description")
+    if (world.grid is None) == (world.arena is None):
+        raise checks.fail("grid", "a world has a grid (grid, arena=None) or an arena (arena, "
+                                  "grid=None), not both nor neither")
+    if world.grid is not None:
+        world.grid.check(checks)        # the front end's own values (a grid's robot)
+    vocabulary = (grid_vocabulary(world.grid) if world.grid is not None
+                  else arena_vocabulary(world.arena))
+    checks.formula(world.formula, "task.formula", vocabulary)
+    if not isinstance(world.hypotheses, tuple):
+        raise checks.fail("adversary.hypotheses", "must be a tuple of formulas, got "
+                                                  f"{type(world.hypotheses).__name__}")
+    checks.hypotheses(list(world.hypotheses), vocabulary)
+    checks.initial_hypothesis(world.initial_hypothesis, len(world.hypotheses))
+    _adversary(checks, world)
+    checks.window(world.window)
+    checks.rationality(world.rationality)
+    sim, det = world.simulation, world.detection
+    checks.episodes(sim.episodes), checks.horizon(sim.horizon), checks.seed(sim.seed)
+    checks.alpha(det.alpha), checks.epsilon(det.epsilon), checks.deviate_after(det.deviate_after)
+    if _observer_check is not None:
+        _observer_check(checks, world)
+
+
+def _adversary(checks: Checks, world: Any) -> None:
+    """traps, delay, and what stands at the start when delay > 0: P2's standing action, an
+    index into her actions (the trap sets in combinations order, or an arena's P2 actions)."""
+    delay = checks.delay(world.delay)
+    arena = world.arena
+    if arena is None or arena.traps_mode:
+        candidates = len(world.grid.trap_candidates if arena is None else arena.trap_candidates)
+        checks.traps(world.traps, candidates, grid=arena is None)
+        n_actions = math.comb(candidates, world.traps)
+        key = "adversary.initial_traps"
+    else:
+        if world.traps != 0:
+            raise checks.fail("adversary.traps", "P2 has general actions (adversary.actions): "
+                                                 f"traps must be 0, got {world.traps!r}")
+        n_actions = len(arena.p2_actions)
+        key = "adversary.initial_action"
+    standing = checks.integer(world.initial_standing, key, 0)
+    if delay == 0 and standing != 0:
+        raise checks.fail(key, "must be 0 when delay is 0 (nothing stands at the start), got "
+                               f"initial_standing = {standing}")
+    if delay > 0 and standing >= n_actions:
+        raise checks.fail(key, f"P2's standing action at the start (initial_standing = "
+                               f"{standing}) must index one of her {n_actions} actions")

@@ -1,0 +1,127 @@
+"""No World exists unvalidated (issue 25 item 3): every way the API offers to make a variant
+(`world.replace`, `dataclasses.replace`, the constructor) refuses a value no world file could
+give with one InputError naming the key, in well under a second, before any work."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import pytest
+
+import hg2prism
+from conftest import MODELS
+from hg2prism.errors import InputError
+from hg2prism.model.world import World
+from hg2prism.opponent import registry
+
+GRID = hg2prism.load_world(MODELS / "world1.toml")
+ARENA = hg2prism.load_world(MODELS / "mir100.toml")
+BAYES = hg2prism.load_world(MODELS / "world3_bayes.toml")
+
+GRID_SETTINGS = ("slip",)
+
+# (world, field, invalid value, the key named)
+INVALID = [
+    (GRID, "rationality", -1.0, "inference.rationality"),
+    (GRID, "rationality", float("nan"), "inference.rationality"),
+    (GRID, "slip", 0.7, "robot.slip"),
+    (GRID, "window", 0, "inference.window"),
+    (GRID, "window", 1.5, "inference.window"),
+    (GRID, "initial_hypothesis", 7, "adversary.initial_hypothesis"),
+    (GRID, "name", "", "name"),
+    (GRID, "description", 3, "description"),
+    (GRID, "formula", "G obs", "task.formula"),
+    (GRID, "formula", "F Q", "task.formula"),
+    (GRID, "hypotheses", ("F A", "F A"), "adversary.hypotheses[1]"),
+    (GRID, "hypotheses", (), "adversary.hypotheses"),
+    (GRID, "traps", 0, "adversary.traps"),
+    (GRID, "traps", 5, "adversary.traps"),
+    (GRID, "delay", -1, "adversary.delay"),
+    (GRID, "initial_standing", 1, "adversary.initial_traps"),      # delay 0: nothing stands
+    (GRID, "initial_standing", 1.0, "adversary.initial_traps"),
+    (GRID, "inference", "oracle", "inference.kind"),
+    (GRID, "settings", (("threshold", 0.0),), "inference.threshold"),
+    (GRID, "settings", (), "inference.threshold"),
+    (GRID, "settings", (("threshold", 1.0), ("prior", (1.0,))), "inference.prior"),
+    (GRID, "simulation", hg2prism.model.world.SimulationSettings(episodes=0), "simulation.episodes"),
+    (GRID, "simulation", hg2prism.model.world.SimulationSettings(horizon=10**6),
+     "simulation.horizon"),
+    (GRID, "simulation", hg2prism.model.world.SimulationSettings(seed=-1), "simulation.seed"),
+    (GRID, "detection", hg2prism.model.world.DetectionSettings(alpha=1.0), "detection.alpha"),
+    (GRID, "detection", hg2prism.model.world.DetectionSettings(epsilon=0.0), "detection.epsilon"),
+    (GRID, "detection", hg2prism.model.world.DetectionSettings(deviate_after=-2),
+     "detection.deviate_after"),
+    (GRID, "arena", ARENA.arena, "grid"),
+    (ARENA, "traps", 13, "adversary.traps"),
+    (ARENA, "formula", "F asset99", "task.formula"),
+    (ARENA, "initial_standing", -1, "adversary.initial_traps"),
+    (BAYES, "initial_hypothesis", 1, "adversary.initial_hypothesis"),
+    (BAYES, "settings", (("prior", (0.5, 0.25, 0.25)), ("decision", "map")), "inference.prior"),
+    (BAYES, "settings", (("prior", (2.0, 1.0)), ("decision", "map")), "inference.prior"),
+    (BAYES, "settings", (("prior", (0.5, 0.5)), ("decision", "vote")), "inference.decision"),
+]
+
+
+@pytest.mark.parametrize("world, name, value, key", INVALID,
+                         ids=[f"{w.name}-{n}-{v!r}"[:60] for w, n, v, _ in INVALID])
+def test_every_way_to_make_a_variant_validates(world: World, name: str, value: object,
+                                               key: str) -> None:
+    # a grid world's own settings (its robot's slip) live in its Grid (the grid front end):
+    # dataclasses.replace and the constructor reach them through the `grid` field
+    change = ({"grid": dataclasses.replace(world.grid, **{name: value})}
+              if name in GRID_SETTINGS else {name: value})
+    makers = {"World.replace": lambda: world.replace(**{name: value}),
+              "dataclasses.replace": lambda: dataclasses.replace(world, **change),
+              "World(...)": lambda: World(**{**{f.name: getattr(world, f.name)
+                                                for f in dataclasses.fields(world)},
+                                             **change})}
+    for how, make in makers.items():
+        start = time.perf_counter()
+        with pytest.raises(InputError) as caught:
+            make()
+        assert time.perf_counter() - start < 1.0, how
+        assert caught.value.key == key, (how, str(caught.value))
+        assert caught.value.file == str(world.path)
+        assert "\n" not in str(caught.value)
+
+
+def test_the_arena_standing_action_is_checked_when_it_stands() -> None:
+    standing = ARENA.replace(delay=1, initial_standing=11)        # 12 candidates, 1 trap
+    assert standing.initial_standing == 11
+    with pytest.raises(InputError, match="adversary.initial_traps"):
+        ARENA.replace(delay=1, initial_standing=12)
+
+
+def test_valid_variants_pass_and_keep_every_other_field() -> None:
+    variant = GRID.replace(rationality=2.5, window=3, slip=0.0, initial_hypothesis=2)
+    assert (variant.rationality, variant.window, variant.grid.slip,
+            variant.initial_hypothesis) == (2.5, 3, 0.0, 2)
+    assert variant.replace(rationality=GRID.rationality, window=GRID.window,
+                           slip=GRID.grid.slip, initial_hypothesis=GRID.initial_hypothesis) == GRID
+    delayed = GRID.replace(delay=2, initial_standing=0)
+    assert delayed.delay == 2
+    # the observer's own settings change through the registry, P2's first guess following
+    skewed = registry.configure(BAYES, prior=(1.0, 3.0))
+    assert skewed.initial_hypothesis == 1 and skewed.prior == (0.25, 0.75)
+
+
+def test_the_loader_and_the_world_share_one_rule() -> None:
+    """The same key and reason from a world file and from a variant."""
+    text = (MODELS / "world1.toml").read_text().replace("slip = 0.1", "slip = 0.7")
+    assert "slip = 0.7" in text
+    with pytest.raises(InputError) as from_file:
+        hg2prism.world_from_toml(text, name=str(GRID.path))
+    with pytest.raises(InputError) as from_variant:
+        GRID.replace(slip=0.7)
+    assert str(from_file.value) == str(from_variant.value)
+
+
+def test_a_name_that_is_no_setting_is_refused() -> None:
+    """world.replace(name=...) for a name that no world (or no world of this kind) has."""
+    with pytest.raises(InputError) as caught:
+        GRID.replace(speed=2)
+    assert caught.value.key == "speed" and "slip" in str(caught.value)
+    with pytest.raises(InputError) as caught:
+        ARENA.replace(slip=0.1)             # an arena's outcomes are its own: no slip
+    assert caught.value.key == "slip"
