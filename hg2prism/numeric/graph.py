@@ -115,13 +115,17 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     return progress
 
 
-def move_predecessors(successor: np.ndarray, probability: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def move_predecessors(successor: np.ndarray, probability: np.ndarray,
+                      only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(moves, start) of a game given as outcome tables successor/probability [G, A1, A2, K]:
     moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat indices into [G, A1, A2],
-    with a positive chance of entering state t, in increasing order."""
+    with a positive chance of entering state t, in increasing order; only the moves of the
+    mask `only` [G, A1, A2] (all by default)."""
     outcomes = successor.shape[-1]
-    positive = np.flatnonzero(probability.reshape(-1) > 0)
+    positive = probability > 0
+    if only is not None:
+        positive &= only[..., None]
+    positive = np.flatnonzero(positive.reshape(-1))
     target = successor.reshape(-1)[positive]
     order = stable_order(target, successor.shape[0])
     start = np.r_[0, np.cumsum(np.bincount(target, minlength=successor.shape[0]))]

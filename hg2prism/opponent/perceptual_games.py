@@ -120,7 +120,11 @@ class TurnBasedGame:
     def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
         """The moves (g, a1, a2) entering each game state (numeric.move_predecessors), once."""
         if self._reverse is None:
-            self._reverse = move_predecessors(self.next, self.prob)
+            # The attractor reads only P2's allowed sets (where she has one in every state),
+            # so the moves of the others are left out (most of them on delay worlds).
+            only = (np.broadcast_to(self.allowed[:, None, :], self.next.shape[:3])
+                    if self.allowed.any(axis=1).all() and not self.allowed.all() else None)
+            self._reverse = move_predecessors(self.next, self.prob, only)
         return self._reverse
 
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
