@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from hg2prism import __version__
+from hg2prism import __version__, memory
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
@@ -205,10 +205,12 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
     structure: ModelStructure = checked.alongside
+    memory.trim()       # what reading Storm's model freed, before the strategy's arrays
     decoded, moves = structure.decoded, structure.moves
     states, transitions = structure.size
     strategy, extras, make_dtmc, bounded, objective_value = _objective_strategy(
         objective, bound, structure, checked, analysis.ts)
+    memory.trim()       # the strategy's temporaries, before the exports
     comment = (f"the DTMC P1's strategy ({objective}) induces on the hypergame of {world.name}; "
                "states as in induced.sta")
 

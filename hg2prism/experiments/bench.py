@@ -327,6 +327,9 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
 
 def _child(world_path: str, out: str, storm_method: str, connection, quiet: bool) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)   # the parent's handler is not for a world
+    from hg2prism import memory
+
+    memory.release_large_arrays()
     try:
         if quiet:
             devnull = open(os.devnull, "w")
