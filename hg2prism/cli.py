@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from hg2prism import __version__, progress
+from hg2prism import __version__, memory, progress
 from hg2prism.engines import default as default_engine
 from hg2prism.errors import InputError, SolverError, StormError
 from hg2prism.strategy.records import StrategyError
@@ -395,6 +395,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else argv
+    memory.release_large_arrays()
     if argv[:1] == ["bench"]:
         from hg2prism.experiments import bench
 

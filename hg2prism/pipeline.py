@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from hg2prism import __version__
+from hg2prism import __version__, memory
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
@@ -28,13 +28,13 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, goal_pr
                                        prism_explicit, stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
-from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json
+from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json_chunks
 from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.observer import Observer
 from hg2prism.opponent import registry
-from hg2prism.outputs import write_bytes, write_json, write_text
+from hg2prism.outputs import write_bytes, write_chunks, write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (Analysis, CheckResult, CheckResults, DrawnEpisode, Parameters,
                               RunResult, RunResults, SimulatedRow, Simulations, StrategyObjective)
@@ -210,27 +210,29 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     analysis.timings.update(checked.timings)
     start = time.perf_counter()
     structure: ModelStructure = checked.alongside
+    memory.trim()       # what reading Storm's model freed, before the strategy's arrays
     decoded, moves = structure.decoded, structure.moves
     states, transitions = structure.size
     strategy, extras, make_dtmc, bounded, objective_value = _objective_strategy(
         objective, bound, structure, checked, analysis.ts)
+    memory.trim()       # the strategy's temporaries, before the exports
     comment = (f"the DTMC P1's strategy ({objective}) induces on the hypergame of {world.name}; "
                "states as in induced.sta")
 
     def write_explicit(dtmc: InducedDTMC) -> None:
         for suffix, text in prism_explicit(dtmc).items():
-            write_bytes(out / f"induced.{suffix}", text)
+            write_chunks(out / f"induced.{suffix}", text)
         write_bytes(out / "goal.props", goal_props())
 
     # The exports are independent: they are formatted and written side by side (numpy and
     # scipy release the GIL in their loops). One record per line in strategy.json: compact
     # for millions of states, still easy to grep and diff.
     with ThreadPoolExecutor(max_workers=3) as pool:
-        jobs = [pool.submit(lambda: write_bytes(out / "strategy.json", strategy_json(
+        jobs = [pool.submit(lambda: write_chunks(out / "strategy.json", strategy_json_chunks(
             decoded, strategy, moves, analysis.ts, extras, structure.initial)))]
         dtmc = make_dtmc()
         jobs += [pool.submit(write_explicit, dtmc),
-                 pool.submit(lambda: write_bytes(out / "induced.drn", drn(dtmc, comment)))]
+                 pool.submit(lambda: write_chunks(out / "induced.drn", drn(dtmc, comment)))]
         steps = expected_steps(dtmc)
         for job in jobs:
             job.result()

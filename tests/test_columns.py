@@ -76,3 +76,28 @@ def test_texts_column_spans_blocks() -> None:
     strings = ["x" * int(k) for k in rng.integers(0, 40, 300)]
     text = Lines([integers(np.arange(300)), Texts(strings), literal("\n")], 300).render()
     assert text.decode() == "".join(f"{i}{t}\n" for i, t in enumerate(strings))
+
+
+def test_chunks_stream_the_rendered_text_block_by_block(tmp_path) -> None:
+    """Lines.chunks gives render's text in pieces of about BLOCK_BYTES (97 here), formatted
+    as they are consumed, and outputs.write_chunks writes exactly their concatenation,
+    atomically: a failure half-way leaves neither the file nor a temporary beside it."""
+    from hg2prism.outputs import write_chunks
+
+    n = 1000
+    lines = Lines([integers(np.arange(n)), literal("\n")], n)
+    pieces = list(lines.chunks(b"[", b"]"))
+    assert pieces[0] == b"[" and pieces[-1] == b"]" and len(pieces) > 40
+    assert max(len(p) for p in pieces) <= 97
+    expected = "[" + "".join(f"{i}\n" for i in range(n)) + "]"
+    assert b"".join(pieces) == lines.render(b"[", b"]") == expected.encode()
+    path = tmp_path / "out.txt"
+    write_chunks(path, lines.chunks(b"[", b"]"))
+    assert path.read_bytes() == expected.encode()
+
+    def failing():
+        yield b"partial"
+        raise RuntimeError("disk full")
+    with pytest.raises(RuntimeError):
+        write_chunks(tmp_path / "other.txt", failing())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.txt"]

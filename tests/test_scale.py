@@ -167,3 +167,42 @@ def test_bench_arena_rows(tmp_path: Path) -> None:
     assert [name for name, *_ in bench.arena_costs(rows)] == [form["name"]]
     assert "time per canonical state against the grid form" in bench.summary(rows)
     assert bench.random_arena_world(60) == bench.random_arena_world(60)      # seeded
+
+
+def test_summary_flags_every_missed_target() -> None:
+    """The summary's per-world table (games / build, total per state against the no-delay
+    twin, peak per state) and the targets of issue 27 it flags, on made-up rows."""
+    def row(name, states, games, build, total, peak_mb, delay=0, side=12, traps=1) -> dict:
+        return {"name": name, "form": "grid", "side": side, "window": 1, "hypotheses": 3,
+                "traps": traps, "delay": delay, "states": states, "estimate": states,
+                "time_games": games, "time_build": build, "time_total": total,
+                "peak_mb": peak_mb, "deceptive_value": 0.5, "v_lead": 0.0, "storm_states": states,
+                **{f"time_{s}": 0.0 for s in bench.STAGES if s not in ("games", "build")},
+                "time_write": 0.0, "time_python": games}
+    base = row("s12", 1000, 0.01, 0.1, 1.0, 100)
+    delayed = row("s12_d2", 3000, 6.4, 0.09, 6.7, 300, delay=2)      # 2.2x per state
+    fine = row("s12_d1", 2000, 0.01, 0.1, 2.9, 100, delay=1)         # 1.45x
+    big = row("s64", 4_200_000, 1.0, 107.0, 189.0, 10_600, side=64)  # 2.6 KB per state
+    lean = row("s31", 1_000_000, 0.3, 21.0, 36.0, 1_500, side=31)    # 1.6 KB per state
+    rows = [base, delayed, fine, big, lean]
+    table = bench.target_table(rows)
+    assert len(table) == 1 + len(rows)
+    assert table[2].split()[2:] == ["71.11", "2233.3", "2.23x", "104858"]
+    assert table[3].split()[4] == "1.45x" and table[1].split()[4] == "-"
+    missed = bench.missed_targets(rows)
+    assert missed[0] == "games above 0.5 x Storm's build: s12_d2 (71.1x)"
+    assert missed[1] == "delay above 1.5x the no-delay twin per state: s12_d2 (2.2x)"
+    assert missed[2] == "peak above 1600 bytes per state: s64 (2646 B)"
+    assert missed[3] == "no Bayesian world of 1e+06 states or more"
+    assert missed[4] == "no world of 1e+07 states (make bench-huge)"
+    assert missed[5] == "s64: 189 s (target 150 s on an idle machine)"
+    assert len(missed) == 6
+    text = bench.summary(rows)
+    assert "targets missed:" in text and "MISSED games above" in text
+    met = [dict(r, time_total=r["time_total"] / 2) for r in (base, fine)]
+    met.append(dict(lean, states=10_000_000, peak_mb=1_000, time_total=100.0,
+                    inference="bayes"))
+    met.append(dict(lean, name="s31_cusum", states=10_000_000, peak_mb=1_000,
+                    time_total=90.0))
+    assert bench.missed_targets(met) == []
+    assert "targets missed: none" in bench.summary(met)

@@ -216,6 +216,9 @@ def _measure(world_path: Path, out: Path, storm_method: str = "sound") -> dict:
 
 def _child(world_path: str, out: str, storm_method: str, connection, quiet: bool) -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)   # the parent's handler is not for a world
+    from hg2prism import memory
+
+    memory.release_large_arrays()
     try:
         if quiet:
             devnull = open(os.devnull, "w")
@@ -342,6 +345,83 @@ def delay_costs(rows: list[dict]) -> list[tuple[str, float]]:
     return costs
 
 
+# Issue 27's targets, which the summary checks (`target_table`, `missed_targets`).
+GAMES_PER_BUILD = 0.5           # P2's games at most half of Storm's build, on every world
+DELAY_PER_STATE = 1.5           # a delayed world's total per canonical state against its twin
+PEAK_PER_STATE = 1600           # bytes of peak memory per canonical state, on the largest worlds
+LARGEST = 1e6                   # "the largest worlds": this many canonical states or more
+BAYES_STATES = 1e6              # the Bayesian worlds the benchmark must hold ...
+BAYES_PER_STATE = 1.5           # ... within this of the CUSUM world of the same map, per state
+HUGE_STATES = 1e7               # `make bench-huge`
+FOUR_MILLION = (4e6, 150.0)     # the world of about 4.2e6 states in at most 150 s (idle machine)
+
+
+def twin(row: dict, rows: list[dict]) -> dict | None:
+    """A delayed grid world's twin: the grid world of the same side, window, hypotheses and
+    traps without delay (None for an undelayed world or when the twin was not run)."""
+    if not row.get("delay") or row.get("form", "grid") != "grid":
+        return None
+    key = (row["side"], row["window"], row["hypotheses"], row["traps"])
+    return next((r for r in undelayed(rows)
+                 if (r["side"], r["window"], r["hypotheses"], r["traps"]) == key), None)
+
+
+def per_state(row: dict) -> float:
+    """Total seconds per canonical state."""
+    return row["time_total"] / row["states"]
+
+
+def target_table(rows: list[dict]) -> list[str]:
+    """One line per measured world: games / build, total per canonical state (and against
+    the no-delay twin), peak memory per canonical state."""
+    good = [r for r in rows if not r.get("error")]
+    lines = [f"{'world':<32} {'states':>10} {'games/build':>11} {'us/state':>9} "
+             f"{'vs no delay':>11} {'peak B/state':>12}"]
+    for row in good:
+        other = twin(row, good)
+        games = row["time_games"] / row["time_build"] if row["time_build"] > 0 else math.inf
+        against = f"{per_state(row) / per_state(other):.2f}x" if other else "-"
+        lines.append(f"{row['name']:<32} {row['states']:>10,} {games:>11.2f} "
+                     f"{per_state(row) * 1e6:>9.1f} {against:>11} "
+                     f"{row['peak_mb'] * 2 ** 20 / row['states']:>12.0f}")
+    return lines
+
+
+def missed_targets(rows: list[dict]) -> list[str]:
+    """Issue 27's targets that these rows miss, one line each (none: every target met)."""
+    good = [r for r in rows if not r.get("error")]
+    missed = []
+    slow_games = [f"{r['name']} ({r['time_games'] / max(r['time_build'], 1e-9):.1f}x)"
+                  for r in good if r["time_games"] > GAMES_PER_BUILD * r["time_build"]]
+    if slow_games:
+        missed.append(f"games above {GAMES_PER_BUILD} x Storm's build: " + ", ".join(slow_games))
+    costly = [f"{r['name']} ({per_state(r) / per_state(twin(r, good)):.1f}x)" for r in good
+              if twin(r, good) and per_state(r) > DELAY_PER_STATE * per_state(twin(r, good))]
+    if costly:
+        missed.append(f"delay above {DELAY_PER_STATE}x the no-delay twin per state: "
+                      + ", ".join(costly))
+    largest = [r for r in good if r["states"] >= LARGEST]
+    heavy = [f"{r['name']} ({r['peak_mb'] * 2 ** 20 / r['states']:.0f} B)" for r in largest
+             if r["peak_mb"] * 2 ** 20 > PEAK_PER_STATE * r["states"]]
+    if heavy:
+        missed.append(f"peak above {PEAK_PER_STATE} bytes per state: " + ", ".join(heavy))
+    bayes = [r for r in good if r.get("inference") == "bayes" and r["states"] >= BAYES_STATES]
+    if not bayes:
+        missed.append(f"no Bayesian world of {BAYES_STATES:.0e} states or more")
+    for row in bayes:
+        cusum = next((r for r in good if r.get("inference", "cusum") == "cusum"
+                      and r.get("side") == row.get("side") and r.get("form") == "grid"), None)
+        if cusum and per_state(row) > BAYES_PER_STATE * per_state(cusum):
+            missed.append(f"{row['name']}: {per_state(row) / per_state(cusum):.1f}x the CUSUM "
+                          f"world's time per state (target {BAYES_PER_STATE}x)")
+    if not any(r["states"] >= HUGE_STATES for r in good):
+        missed.append(f"no world of {HUGE_STATES:.0e} states (make bench-huge)")
+    big, limit = FOUR_MILLION
+    missed += [f"{r['name']}: {r['time_total']:.0f} s (target {limit:.0f} s on an idle machine)"
+               for r in good if r["states"] >= big and r["time_total"] > limit]
+    return missed
+
+
 def summary(rows: list[dict]) -> str:
     """The closing lines: slope, the largest world, Python stages against Storm's build, the
     cost of delay."""
@@ -390,6 +470,14 @@ def summary(rows: list[dict]) -> str:
     failed = [r["name"] for r in rows if r.get("error")]
     if failed:
         lines.append("failed: " + ", ".join(failed))
+    if good:
+        lines += ["per world (issue 27's targets: games/build <= "
+                  f"{GAMES_PER_BUILD}, delayed <= {DELAY_PER_STATE}x the no-delay twin per "
+                  f"state, peak <= {PEAK_PER_STATE} B per state from {LARGEST:.0e} states):"]
+        lines += ["  " + line for line in target_table(good)]
+        missed = missed_targets(good)
+        lines.append("targets missed: " + ("none" if not missed else ""))
+        lines += ["  MISSED " + line for line in missed]
     return "\n".join(lines)
 
 

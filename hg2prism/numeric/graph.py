@@ -115,17 +115,35 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     return progress
 
 
-def move_predecessors(successor: np.ndarray, probability: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def move_predecessors(successor: np.ndarray, probability: np.ndarray,
+                      only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(moves, start) of a game given as outcome tables successor/probability [G, A1, A2, K]:
     moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat indices into [G, A1, A2],
-    with a positive chance of entering state t, in increasing order."""
+    with a positive chance of entering state t, in increasing order; only the moves of the
+    mask `only` [G, A1, A2] (all by default)."""
     outcomes = successor.shape[-1]
-    positive = np.flatnonzero(probability.reshape(-1) > 0)
+    positive = probability > 0
+    if only is not None:
+        positive &= only[..., None]
+    positive = np.flatnonzero(positive.reshape(-1))
     target = successor.reshape(-1)[positive]
-    order = np.argsort(target, kind="stable")
-    start = np.searchsorted(target[order], np.arange(successor.shape[0] + 1))
+    order = stable_order(target, successor.shape[0])
+    start = np.r_[0, np.cumsum(np.bincount(target, minlength=successor.shape[0]))]
     return positive[order] // outcomes, start
+
+
+def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
+    """np.argsort(keys, kind="stable") for integer keys in 0..bound-1, as a radix sort on
+    16-bit digits (numpy sorts 16-bit integers by counting, several times faster than its
+    merge sort of wider ones)."""
+    digits = np.uint16
+    order = np.argsort(keys.astype(digits), kind="stable")
+    shift = 16
+    while bound > 1 << shift:
+        digit = (keys[order] >> shift).astype(digits)
+        order = order[np.argsort(digit, kind="stable")]
+        shift += 16
+    return order
 
 
 def alternating_attractor(predecessors: tuple[np.ndarray, np.ndarray], shape: tuple[int, int, int],

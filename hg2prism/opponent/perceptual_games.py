@@ -81,10 +81,34 @@ class TurnBasedGame:
         self._reverse: tuple[np.ndarray, np.ndarray] | None = None
         standing = _standing_sets(ts)
         self.standing = None if standing is None else np.repeat(standing, n_q)
+        self._allowed_moves: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
-    def q_values(self, v: np.ndarray) -> np.ndarray:
-        """Q[g, a1, a2]; for absorbing g every entry is V(g)."""
-        q = outcome_sum(self.prob, v, self.next)
+    def q_values(self, v: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Q[g, a1, a2] (at the game states `rows` only, if given); for absorbing g every
+        entry is V(g)."""
+        if rows is None:
+            q = outcome_sum(self.prob, v, self.next)
+            q[~self.free] = v[~self.free, None, None]
+            return q
+        q = outcome_sum(self.prob[rows], v, self.next[rows])
+        absorbing = ~self.free[rows]
+        q[absorbing] = v[rows[absorbing], None, None]
+        return q
+
+    def allowed_q(self, v: np.ndarray) -> np.ndarray:
+        """q_values(v) at the trap sets P2 may play (`allowed`), 0 at the others, which the
+        solver never reads: with delay P2 has one set in most states (the standing one while
+        it counts down), so this skips most of the work. Bit-identical to q_values there."""
+        if self.allowed.all():
+            return self.q_values(v)
+        if self._allowed_moves is None:
+            shape = self.next.shape
+            moves = np.flatnonzero(np.broadcast_to(self.allowed[:, None, :], shape[:3]))
+            self._allowed_moves = (moves, self.next.reshape(-1, shape[-1])[moves],
+                                   self.prob.reshape(-1, shape[-1])[moves])
+        moves, nxt, prob = self._allowed_moves
+        q = np.zeros(self.next.shape[:3])
+        q.reshape(-1)[moves] = outcome_sum(prob, v, nxt)
         q[~self.free] = v[~self.free, None, None]
         return q
 
@@ -96,7 +120,11 @@ class TurnBasedGame:
     def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
         """The moves (g, a1, a2) entering each game state (numeric.move_predecessors), once."""
         if self._reverse is None:
-            self._reverse = move_predecessors(self.next, self.prob)
+            # The attractor reads only P2's allowed sets (where she has one in every state),
+            # so the moves of the others are left out (most of them on delay worlds).
+            only = (np.broadcast_to(self.allowed[:, None, :], self.next.shape[:3])
+                    if self.allowed.any(axis=1).all() and not self.allowed.all() else None)
+            self._reverse = move_predecessors(self.next, self.prob, only)
         return self._reverse
 
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
@@ -124,7 +152,11 @@ def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
 
 
 def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
-    game = TurnBasedGame(ts, dfa)
+    return _solve(TurnBasedGame(ts, dfa))
+
+
+def _solve(game: TurnBasedGame) -> GameSolution:
+    ts, dfa = game.ts, game.dfa
     rank = game.positive_attractor()
     zero = ~game.goal & (rank < 0)
     fixed = ~game.free | zero
@@ -147,7 +179,7 @@ def _value_iteration(game: TurnBasedGame, v: np.ndarray, fixed: np.ndarray,
                      tolerance: float) -> tuple[np.ndarray, int]:
     """Value iteration from below: every iterate is a lower bound of the least fixed point."""
     for sweep in range(1, MAX_SWEEPS + 1):
-        new = game.operator(game.q_values(v))
+        new = game.operator(game.allowed_q(v))
         new[fixed] = v[fixed]
         change = np.abs(new - v).max()
         v = new
@@ -165,17 +197,17 @@ def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack
     # First the pair greedy for the values, re-evaluated (usually certified within a few
     # rounds; kept first because it finds the same values to the last bit as before); where it
     # cycles (delay worlds), Hoffman-Karp strategy iteration from the last pair.
-    q = game.q_values(v)
+    q = game.allowed_q(v)
     for _ in range(POLISH_ROUNDS):
         p1, p2 = _greedy(game, q, optimal_slack)
         x = _evaluate_pair(game, p1, p2, zero)
-        q = game.q_values(x)
+        q = game.allowed_q(x)
         if _residual(game, x, q) <= 1e-11:
             break
         optimal_slack = 1e-12
     else:
         x = _strategy_iteration(game, p1, p2, zero)
-        q = game.q_values(x)
+        q = game.allowed_q(x)
         if _residual(game, x, q) > 1e-11:
             return None
     # From exact values of a pair, only float noise separates truly optimal moves.
@@ -211,7 +243,7 @@ def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zer
     p1 = p1.copy()
     p2, x = _trap_response(game, p1, p2, zero)
     for _ in range(MAX_ROUNDS):
-        q = game.q_values(x)                                          # [G, A1, A2]
+        q = game.allowed_q(x)                                         # [G, A1, A2]
         current = np.take_along_axis(q, p1[:, None, :], axis=1)[:, 0, :]
         better = (solve[:, None] & game.allowed) & (q.max(axis=1) > current + IMPROVEMENT)
         if not better.any():
@@ -269,8 +301,15 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
     # The chance of moving strictly closer: maximising it (not merely asking for a chance > 0)
     # keeps hitting times short and the linear systems well conditioned.
-    closer = (game.prob * (lower[game.next] < lower[:, None, None, None])).sum(-1)
-    p1 = np.where(optimal, closer, -1.0).argmax(axis=1)
+    # Only at P2's allowed sets and P1's optimal answers (the rest are never read).
+    optimal &= game.allowed[:, None, :]
+    moves = np.flatnonzero(optimal)
+    outcomes = game.next.shape[-1]
+    nxt = game.next.reshape(-1, outcomes)[moves]
+    closer = np.full(optimal.shape, -1.0)
+    closer.reshape(-1)[moves] = (game.prob.reshape(-1, outcomes)[moves]
+                                 * (lower[nxt] < lower[moves // optimal[0].size, None])).sum(-1)
+    p1 = closer.argmax(axis=1)
     return p1, p2
 
 
@@ -377,13 +416,13 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:
     """Solve G(x) and derive P2's strategy and her softmax model of P1 (docs/semantics.md
     §§4, 15): the softmax and the max over a1 range over the actions enabled at v."""
-    solution = solve_game(ts, dfa)
     game = TurnBasedGame(ts, dfa)
+    solution = _solve(game)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
     g = product_state(np.arange(ts.n_states), fresh_q, dfa.n_states)
-    q = game.q_values(flat)[g]                                        # [S, A1, A2]
+    q = game.q_values(flat, g)                                        # [S, A1, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
     choice = trap_rule(worst, _standing_sets(ts))
     # A padded slot repeats action 0, so the max above is right unmasked; the softmax is not.

@@ -14,14 +14,14 @@ Python's formatting gives: integers as `str(int)`, other values as the caller sp
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TypeVar
 
 import numpy as np
 
-BLOCK_BYTES = 1 << 25      # the byte matrix of one block of rows: 32 MB
+BLOCK_BYTES = 1 << 23      # the byte matrix of one block of rows: 8 MB (a few are formatted at once)
 THREADS = min(2, os.cpu_count() or 1)
 SAMPLE = 4096              # values sampled to find a column's few distinct ones
 T = TypeVar("T")
@@ -164,16 +164,28 @@ class Lines:
 
     def render(self, before: bytes = b"", after: bytes = b"") -> bytes:
         """`before`, all rows' text one after another, then `after`."""
+        return b"".join(self.chunks(before, after))
+
+    def chunks(self, before: bytes = b"", after: bytes = b"") -> Iterator[bytes]:
+        """The text of `render` in pieces of about BLOCK_BYTES, formatted THREADS at a time as
+        they are consumed (outputs.write_chunks): a file of gigabytes never sits in memory."""
         step = max(1, BLOCK_BYTES // max(self.width, 1))
         starts = range(0, self.n, step)
-        parts = _in_threads(lambda start: _packed(self.block(start, min(self.n, start + step))),
-                            starts)
-        return b"".join([before, *parts, after])
+        yield before
+        yield from _in_threads(lambda start: _packed(self.block(start, min(self.n, start + step))),
+                               starts)
+        yield after
 
 
 def render_grouped(heads: Lines, items: Lines, starts: np.ndarray, before: bytes = b"") -> bytes:
     """`before`, then each row of `heads` followed by its rows of `items`,
     starts[i]..starts[i + 1] - 1 (`starts` ascending, from 0 to items.n)."""
+    return b"".join(grouped_chunks(heads, items, starts, before))
+
+
+def grouped_chunks(heads: Lines, items: Lines, starts: np.ndarray, before: bytes = b""
+                   ) -> Iterator[bytes]:
+    """The text of `render_grouped` in pieces, formatted as they are consumed (`Lines.chunks`)."""
     per_block = max(1, BLOCK_BYTES // max(heads.width, items.width, 1))
     blocks = []
     head = 0
@@ -194,7 +206,8 @@ def render_grouped(heads: Lines, items: Lines, starts: np.ndarray, before: bytes
         text[np.arange(last - first) + owner + 1, :items.width] = items.block(first, last)
         return _packed(text)
 
-    return b"".join([before, *_in_threads(render_block, blocks)])
+    yield before
+    yield from _in_threads(render_block, blocks)
 
 
 def _packed(text: np.ndarray) -> bytes:
@@ -202,10 +215,13 @@ def _packed(text: np.ndarray) -> bytes:
     return text[text != 0].tobytes()
 
 
-def _in_threads(work: Callable[[T], bytes], items: Sequence[T]) -> list[bytes]:
+def _in_threads(work: Callable[[T], bytes], items: Sequence[T]) -> Iterator[bytes]:
     """work(item) for each item, in order, on up to THREADS threads: numpy releases the GIL
-    while it copies and packs bytes, so blocks are formatted side by side."""
+    while it copies and packs bytes, so blocks are formatted side by side, THREADS at a time
+    (only those are held until they are consumed)."""
     if len(items) < 2:
-        return [work(item) for item in items]
+        yield from (work(item) for item in items)
+        return
     with ThreadPoolExecutor(max_workers=THREADS) as pool:
-        return list(pool.map(work, items))
+        for first in range(0, len(items), THREADS):
+            yield from pool.map(work, items[first:first + THREADS])

@@ -14,7 +14,7 @@ breadth-first order, then `goal`, `fail` and `horizon` (H steps taken without re
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,7 +27,7 @@ from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.numeric import ExplicitModel, Steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.columns import (Field, Lines, Vocabulary, integers, literal,
-                                       render_grouped, tokens)
+                                       grouped_chunks, tokens)
 
 ABSENT = -1     # the value of a state variable that does not apply (an empty window slot)
 # Every variable of the merged absorbing states takes one of these values, so that no two states
@@ -259,8 +259,9 @@ def _valuation_fields(dtmc: InducedDTMC, before: str, between: str, after: str,
     return fields + [literal(after)]
 
 
-def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
-    """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}. PRISM reads them with
+def prism_explicit(dtmc: InducedDTMC) -> dict[str, Iterable[bytes]]:
+    """PRISM's explicit files: {"tra": ..., "sta": ..., "lab": ...}, each as pieces of text
+    formatted as they are written (outputs.write_chunks). PRISM reads them with
     `prism -importtrans induced.tra -importstates induced.sta -importlabels induced.lab -dtmc`."""
     state = dtmc.numbers
     tra = Lines([Field(state.vocabulary, dtmc.source), literal(" "),
@@ -274,9 +275,9 @@ def prism_explicit(dtmc: InducedDTMC) -> dict[str, bytes]:
         for i in np.flatnonzero(dtmc.labels[name]).tolist():
             members.setdefault(i, []).append(k)
     lab += [f"{i}: " + " ".join(map(str, sorted(members[i]))) for i in sorted(members)]
-    return {"tra": tra.render(f"{dtmc.n} {len(dtmc.source)}\n".encode()),
-            "sta": sta.render(("(" + ",".join(dtmc.variables) + ")\n").encode()),
-            "lab": ("\n".join(lab) + "\n").encode()}
+    return {"tra": tra.chunks(f"{dtmc.n} {len(dtmc.source)}\n".encode()),
+            "sta": sta.chunks(("(" + ",".join(dtmc.variables) + ")\n").encode()),
+            "lab": [("\n".join(lab) + "\n").encode()]}
 
 
 GOAL_PROPERTY = 'P=? [F "goal"]'
@@ -293,10 +294,10 @@ def goal_props() -> bytes:
             f"{GOAL_PROPERTY}\n").encode()
 
 
-def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
+def drn(dtmc: InducedDTMC, comment: str = "") -> Iterable[bytes]:
     """Storm's DRN format (stormpy.build_model_from_drn): per state its labels, its valuation
     as a comment and one choice labelled with P1's action by name (`absorbing` in absorbing
-    states)."""
+    states); as pieces of text formatted as they are written (outputs.write_chunks)."""
     lines = [f"// {line}" for line in comment.splitlines()] + [
         "@type: DTMC", "@value_type: double", "@parameters", "", "@reward_models", "",
         "@nr_states", str(dtmc.n), "@nr_choices", str(dtmc.n), "@model"]
@@ -318,7 +319,7 @@ def drn(dtmc: InducedDTMC, comment: str = "") -> bytes:
     branches = Lines([literal("\t\t"), Field(state.vocabulary, dtmc.target), literal(" : "),
                       dtmc.probabilities, literal("\n")], len(dtmc.target))
     starts = np.searchsorted(dtmc.source, np.arange(dtmc.n + 1))
-    return render_grouped(heads, branches, starts, ("\n".join(lines) + "\n").encode())
+    return grouped_chunks(heads, branches, starts, ("\n".join(lines) + "\n").encode())
 
 
 # ---------------------------------------------------------------------------------------------

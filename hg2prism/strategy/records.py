@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 import json
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -172,7 +172,15 @@ def window_entry(ts: TransitionSystem, entry: list[int], described: dict) -> dic
 def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
                   ts: TransitionSystem, extras: RecordExtras | None = None,
                   initial: int | None = None) -> bytes:
-    """strategy.json: the records of `strategy_records`, one compact JSON object per line.
+    """strategy.json: the records of `strategy_records`, one compact JSON object per line."""
+    return b"".join(strategy_json_chunks(decoded, choices, moves, ts, extras, initial))
+
+
+def strategy_json_chunks(decoded: DecodedStates, choices: StormChoices, moves: Transitions,
+                         ts: TransitionSystem, extras: RecordExtras | None = None,
+                         initial: int | None = None) -> Iterator[bytes]:
+    """The text of `strategy_json` in pieces, formatted as they are written
+    (outputs.write_chunks).
 
     Built column-wise from JSON fragments per TS state (and per observed move), because a few
     hundred TS states describe millions of records: the same text as json.dumps of each record,
@@ -217,7 +225,7 @@ def strategy_json(decoded: DecodedStates, choices: StormChoices, moves: Transiti
                             chosen))
         fields += extras.json_tail(decoded.canonical[states], ts, ts_state)
     fields.append(literal(",\n").where(np.arange(len(states)) < len(states) - 1))
-    return Lines(fields, len(states)).render(b"[\n", b"\n]\n")
+    return Lines(fields, len(states)).chunks(b"[\n", b"\n]\n")
 
 
 def _record_key(ts: TransitionSystem, record: Mapping, where: str) -> tuple[int, int, Memory]:
