@@ -415,7 +415,7 @@ def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horiz
     with _timed(timings, "plots"):
         drawn = choose_episode(played.analysis, played.strategy, horizon, seed, rule)
         trace = belief_trace(analysis.inference, drawn.steps)
-        plots.world_figure(world, analysis.ts, drawn, out / "world.png")
+        plots.world_figure(world, analysis.ts, drawn, trace, out / "world.png")
         plots.belief_figure(world, trace, drawn, out / "belief.png")
         plots.completion_figure(world.name, [
             ("deceptive vs inference-driven P2", played.summaries["deceptive"],

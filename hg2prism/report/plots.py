@@ -23,7 +23,7 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_figure", "belief_figure", "completion_figure", "sweep_figure",
+           "world_picture", "world_figure", "belief_figure", "completion_figure", "sweep_figure",
            "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
            "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
            "LOG_PARAMETERS"]
@@ -78,23 +78,32 @@ def world_figure_inches(world: World, ts: TransitionSystem) -> tuple[float, floa
     return world_drawer(world, ts).world_inches()
 
 
-def world_figure(world: World, ts: TransitionSystem, episode, path: Path) -> list[Path]:
-    """The world and one deceptive episode (episodes.ChosenEpisode), drawn by the world's
-    drawer (`world_drawer`): every distinct step drawn once, coloured by P2's hypothesis,
-    labelled with its step numbers; the traps P2 set; where P2 changed her mind. Returns the
-    files written (PNG and SVG)."""
+def world_picture(world: World, ts: TransitionSystem, episode, trace):
+    """The world figure, laid out and labelled (not saved), and the drawer that drew it (its
+    `changes_shown`: the changes of mind (n, x) labelled)."""
     from hg2prism.analyses.episodes import episode_steps
+    from hg2prism.report.style import STEP_RULE
 
     drawer = world_drawer(world, ts)
-    fig = plt.figure(figsize=drawer.world_inches(), layout="constrained")
+    fig = plt.figure(figsize=drawer.world_inches(), dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    handles = drawer.draw_world(ax, episode_steps(ts, episode.steps))
+    handles = drawer.draw_world(ax, episode_steps(ts, episode.steps), trace.changes)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
-                 f"task {world.formula}", fontsize=8.5, loc="left")
+                 f"task {world.formula}\n{STEP_RULE}", fontsize=8.5, loc="left")
     drawer.finish(ax)
+    return fig, drawer
+
+
+def world_figure(world: World, ts: TransitionSystem, episode, trace, path: Path) -> list[Path]:
+    """The world and one deceptive episode (episodes.ChosenEpisode) with P2's belief along it
+    (episodes.BeliefTrace), drawn by the world's drawer (`world_drawer`): every distinct step
+    drawn once, coloured by P2's hypothesis, labelled with its step numbers; the traps P2 set;
+    where P2 changed her mind ("n=k: P2 now x": observing step k made her switch). Returns
+    the files written (PNG and SVG)."""
+    fig, _ = world_picture(world, ts, episode, trace)
     return _save(fig, path)
 
 
