@@ -77,8 +77,9 @@ def grid_moves(geo: GridGeometry, state_names: Sequence[str], steps) -> list[Mov
     return moves
 
 
-def draw_grid(ax: plt.Axes, world: World) -> list:
-    """The map, every cell coloured by its kind; returns legend handles for the kinds present."""
+def draw_grid(ax: plt.Axes, world: World, min_font: float = 0.0) -> list:
+    """The map, every cell coloured by its kind, no text smaller than `min_font` points;
+    returns legend handles for the kinds present."""
     grid = world.grid
     regions = {cell: letter for letter, cells in grid.regions for cell in cells}
     present = {"wall", "free"}
@@ -99,9 +100,9 @@ def draw_grid(ax: plt.Axes, world: World) -> list:
                                        edgecolor="0.8", lw=0.8, zorder=0))
             if text:
                 ax.text(x, y, text, ha="center", va="center", color=text_colour, zorder=1,
-                        fontsize=13 if kind == "region" else 8, weight="bold")
+                        fontsize=max(13 if kind == "region" else 8, min_font), weight="bold")
             if cell in grid.trap_candidates:
-                ax.text(x + 0.42, y - 0.42, "t", ha="right", va="bottom", fontsize=7,
+                ax.text(x + 0.42, y - 0.42, "t", ha="right", va="bottom", fontsize=max(7, min_font),
                         color=TRAP_COLOUR, zorder=1)
     sx, sy = grid.start
     ax.plot(sx, sy, marker="o", ms=20, mfc="none", mec="black", mew=1.2, ls="", zorder=1)
@@ -110,7 +111,7 @@ def draw_grid(ax: plt.Axes, world: World) -> list:
     ax.set_aspect("equal")
     ax.set_xticks(range(grid.width))
     ax.set_yticks(range(grid.height))
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=max(7, min_font))
     handles = [plt.Rectangle((0, 0), 1, 1, facecolor=CELL_STYLE[k][0], edgecolor="0.6",
                              label=CELL_STYLE[k][1]) for k in CELL_STYLE if k in present]
     handles.append(plt.Line2D([], [], marker="o", ms=10, mfc="none", mec="black", ls="",
@@ -363,16 +364,17 @@ class GridDrawer:
     robot_style = {"ms": 15}
 
     def replay_inches(self) -> tuple[float, float]:
-        """The grid at 0.55 in a cell beside a 4.5 in panel."""
+        """The grid at 0.55 in a cell beside a 4.5 in panel, room above for the captions and
+        below for the hypotheses."""
         grid = self.world.grid
-        return (0.55 * grid.width + 4.5, max(0.55 * grid.height + 1.2, 4.0))
+        return (0.55 * grid.width + 4.5, max(0.55 * grid.height + 2.4, 4.8))
 
     @property
     def replay_map_width(self) -> float:
         return 0.55 * self.world.grid.width
 
-    def draw_map(self, ax: plt.Axes) -> None:
-        draw_grid(ax, self.world)
+    def draw_map(self, ax: plt.Axes, min_font: float = 0.0) -> None:
+        draw_grid(ax, self.world, min_font)
 
     def position(self, state: int) -> tuple[float, float]:
         return self.geo.cell_of(self.state_names[state])

@@ -179,7 +179,7 @@ class ArenaDrawer:
 
     def replay_inches(self) -> tuple[float, float]:
         width, height = self._map_inches()
-        return (width + 4.5, max(height + 1.2, 4.0))
+        return (width + 4.5, max(height + 2.4, 4.8))
 
     @property
     def replay_map_width(self) -> float:
@@ -199,8 +199,9 @@ class ArenaDrawer:
         props = [p for p in self.arena.propositions if p in label]
         return self.arena.states[s] + ("\n{" + ", ".join(props) + "}" if props else "")
 
-    def draw_map(self, ax: plt.Axes) -> list:
-        """The states (arrows follow in `finish`); returns the legend handles of the map."""
+    def draw_map(self, ax: plt.Axes, min_font: float = 0.0) -> list:
+        """The states (arrows follow in `finish`), no text smaller than `min_font` points;
+        returns the legend handles of the map."""
         width, height = self._map_inches()
         pad_x, pad_y = (width - self.span[0]) / 2, (height - self.span[1]) / 2
         ax.set_xlim(-pad_x, self.span[0] + pad_x)
@@ -214,7 +215,7 @@ class ArenaDrawer:
             edge = TRAP_COLOUR if s in candidates else "black"
             self.nodes.append(ax.text(
                 *self.position(s), self.node_text(s), ha="center", va="center",
-                fontsize=NODE_FONT, zorder=5, multialignment="center",
+                fontsize=max(NODE_FONT, min_font), zorder=5, multialignment="center",
                 bbox=dict(boxstyle="round,pad=0.35", fc=NODE_STYLE[self._kind(s)][0], ec=edge,
                           lw=2.6 if s == self.arena.initial else 1.0,
                           ls="--" if self.arena.terminal[s] else "-")))

@@ -23,7 +23,8 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_picture", "world_figure", "belief_figure", "completion_figure", "sweep_figure",
+           "world_picture", "world_figure", "belief_picture", "belief_figure", "completion_figure",
+           "sweep_figure",
            "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
            "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
            "LOG_PARAMETERS"]
@@ -107,40 +108,61 @@ def world_figure(world: World, ts: TransitionSystem, episode, trace, path: Path)
     return _save(fig, path)
 
 
-def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
-    """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
-    reports per hypothesis against the step, her threshold, and, shaded, the hypothesis she
-    acted on at each step."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+BELIEF_MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def belief_picture(world: World, trace, episode):
+    """The belief figure (not saved) and the steps it marks as changes of mind
+    (BeliefTrace.changes: the step whose observation made P2 switch)."""
+    from hg2prism.report.style import STEP_RULE
+
+    fig = plt.figure(figsize=BELIEF_INCHES, dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    n = len(trace.acted)
+    n = len(trace.after)
     steps = np.arange(1, n + 1)
-    for i, x in enumerate(trace.acted):
+    for i, x in enumerate(trace.after):
         ax.axvspan(i + 0.5, i + 1.5, color=hypothesis_colour(x), alpha=0.10, lw=0)
     if trace.values is not None and n:
         values = np.array(trace.values)
-        for x in range(values.shape[1]):
-            ax.plot(steps, values[:, x], "o-", ms=2.5, lw=1.1, color=hypothesis_colour(x),
-                    label=f"x{x}: {world.hypotheses[x]}")
+        k = values.shape[1]
+        for x in range(k):
+            # lines that coincide stay visible: each hypothesis its marker, size and dash,
+            # and a small sideways shift (the larger markers drawn first, under the smaller)
+            shift = (x - (k - 1) / 2) * min(0.12, 0.5 / k)
+            ax.plot(steps + shift, values[:, x], BELIEF_MARKERS[x % len(BELIEF_MARKERS)],
+                    ls=("-", "--", ":", "-.")[x % 4], ms=5.5 - 1.2 * min(x, 3), lw=1.1,
+                    color=hypothesis_colour(x), mfc="white" if x == 0 else hypothesis_colour(x),
+                    zorder=2 + x, label=f"x{x}: {world.hypotheses[x]}")
         if trace.threshold is not None:
             ax.axhline(trace.threshold, color="black", ls="--", lw=1,
                        label=f"threshold {trace.threshold:g}")
         ax.set_ylabel(trace.name, fontsize=8)
     else:
-        ax.step(steps, trace.acted, where="mid", color="black", label="P2's hypothesis")
+        ax.step(steps, trace.after, "o-", where="mid", ms=3, color="black",
+                label="P2's hypothesis")
         ax.set_ylabel("P2's hypothesis", fontsize=8)
-    switches = [i + 1 for i in range(n) if trace.after[i] != trace.acted[i]]
-    for s in switches:
+    changes = tuple(n for n, _ in trace.changes)
+    for s in changes:
         ax.axvline(s, color="red", lw=0.8, alpha=0.6)
-    shading = ", ".join(f"x{x}" for x in sorted(set(trace.acted)))
-    ax.set_xlabel(f"step n (shaded: the hypothesis P2 acts on: {shading}; "
-                  f"{len(switches)} change(s) of mind)", fontsize=8)
+    if changes:
+        ax.plot([], [], color="red", lw=0.8, alpha=0.6, label="change of mind")
+    shading = ", ".join(f"x{x}" for x in sorted(set(trace.after)))
+    ax.set_xlabel(f"{STEP_RULE}\n(shaded: her hypothesis at step n: {shading}; "
+                  f"{len(changes)} change(s) of mind)", fontsize=8)
     ax.set_xlim(0.5, max(n, 1) + 0.5)
     ax.grid(alpha=0.3)
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world.name}: P2's belief along the drawn episode (seed {episode.seed}, "
                  f"{episode.n_steps} steps)", fontsize=9)
+    return fig, changes
+
+
+def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
+    """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
+    reports per hypothesis after observing each step, her threshold, and, shaded, the
+    hypothesis she holds after each step; red lines where she changed her mind."""
+    fig, _ = belief_picture(world, trace, episode)
     return _save(fig, path)
 
 
