@@ -23,7 +23,8 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_picture", "world_figure", "belief_picture", "belief_figure", "completion_figure",
+           "world_picture", "world_figure", "belief_picture", "belief_figure", "completion_picture",
+           "completion_figure",
            "sweep_figure",
            "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
            "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
@@ -166,18 +167,19 @@ def belief_figure(world: World, trace, episode, path: Path) -> list[Path]:
     return _save(fig, path)
 
 
-def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
-                      path: Path) -> list[Path]:
-    """Completion by step n of each simulated strategy pair: `rows` holds (label,
-    simulation.SimulationSummary, exact within-horizon probability or None). Each curve is the
-    share of episodes completed within n steps with its 95 % Wilson band; the exact value at
-    the horizon is marked."""
+COMPLETION_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "P"), ((0, (6, 2, 1, 2)), "v"))
+
+
+def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float | None]]):
+    """The completion figure (not saved): a curve per row (tables.COMPLETION_ROWS's order), each
+    its colour, dash and marker (markers staggered, so that curves that coincide stay
+    visible)."""
     from hg2prism.analyses.simulation import GOAL, wilson_interval
 
-    fig = plt.figure(figsize=COMPLETION_INCHES, layout="constrained")
+    fig = plt.figure(figsize=COMPLETION_INCHES, dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    styles = ("-", "--", ":")
     horizon = 1
+    episodes = sorted({summary.episodes for _, summary, _ in rows})
     for i, (label, summary, exact) in enumerate(rows):
         horizon = max(horizon, summary.horizon)
         done = np.sort(summary.lengths[summary.outcomes == GOAL])
@@ -186,11 +188,16 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
         rate = counts / summary.episodes
         band = np.array([wilson_interval(int(k), summary.episodes) for k in counts])
         colour = f"C{i}"
-        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.25, lw=0)
-        ax.plot(steps, rate, styles[i % len(styles)], color=colour, lw=1.4,
-                label=f"{label} ({summary.episodes} episodes)")
+        dash, marker = COMPLETION_STYLES[i % len(COMPLETION_STYLES)]
+        every = max(1, summary.horizon // 8)
+        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.18, lw=0)
+        ax.plot(steps, rate, ls=dash, marker=marker, ms=4, markevery=(i * every // len(rows),
+                                                                      every),
+                color=colour, lw=1.4, label=label if len(episodes) == 1
+                else f"{label} ({summary.episodes} episodes)")
         if exact is not None:
-            ax.plot([summary.horizon], [exact], marker="D", color=colour, ms=5, ls="")
+            ax.plot([summary.horizon], [exact], marker="D", color=colour, ms=5, ls="",
+                    mec="black", mew=0.5)
     ax.plot([], [], marker="D", color="0.3", ls="", label="exact at the horizon")
     ax.fill_between([], [], [], color="0.3", alpha=0.25, label="95 % Wilson band")
     ax.set_xlim(0, horizon)
@@ -199,8 +206,19 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
     ax.set_ylabel("share completed within n steps")
     ax.grid(alpha=0.3)
     fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
-    ax.set_title(f"{world_name}: completion against time, simulated", fontsize=9)
-    return _save(fig, path)
+    each = f", {episodes[0]} episodes each" if len(episodes) == 1 else ""
+    ax.set_title(f"{world_name}: completion against time, simulated{each}", fontsize=9)
+    return fig
+
+
+def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
+                      path: Path) -> list[Path]:
+    """Completion by step n of each simulated strategy pair: `rows` holds (label,
+    simulation.SimulationSummary, exact within-horizon probability or None), one per row of
+    the completion table (tables.COMPLETION_ROWS). Each curve is the share of episodes
+    completed within n steps with its 95 % Wilson band; the exact value at the horizon is
+    marked."""
+    return _save(completion_picture(world_name, rows), path)
 
 
 def _value_text(value: object) -> str:
