@@ -23,12 +23,11 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_picture", "world_figure", "belief_picture", "belief_figure", "completion_picture",
-           "completion_figure",
-           "sweep_figure",
-           "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
-           "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
-           "LOG_PARAMETERS"]
+           "world_picture", "world_figure", "belief_picture", "belief_figure",
+           "completion_picture", "completion_figure", "sweep_figure", "detection_figure",
+           "scaling_picture", "scaling_figure", "robust_figure", "SWEEP_INCHES",
+           "DETECTION_INCHES", "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES",
+           "HYPOTHESIS_COLOURS", "LOG_PARAMETERS"]
 
 FIGURE_DPI = 150
 FIGURE_FORMATS = ("png", "svg")
@@ -387,28 +386,48 @@ def _replanning_panel(bars: plt.Axes, replanning: dict) -> None:
 SCALING_INCHES = (8.5, 4.8)
 
 
-def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
-                   title: str | None = None) -> list[Path]:
-    """Time per stage against canonical states, log-log, with a slope-1 guide through the
-    largest world's total (a stage parallel to it grows linearly)."""
-    fig = plt.figure(figsize=SCALING_INCHES, layout="constrained")
+DELAY_MARKERS = ("s", "D", "v", "P", "*", "X")
+
+
+def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | None = None):
+    """The scaling figure (not saved): time per stage against canonical states, log-log, of
+    the worlds without delay (a line each, ordered by states) with a slope-1 guide through the
+    largest one's total; each delay's worlds as a separate series of their total time (its
+    own marker, "delay d" in the legend)."""
+    fig = plt.figure(figsize=SCALING_INCHES, dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    rows = sorted(rows, key=lambda r: r["states"])
-    xs = [r["states"] for r in rows]
+    by_delay: dict[int, list[dict]] = {}
+    for row in rows:
+        by_delay.setdefault(int(row.get("delay") or 0), []).append(row)
+    plain = sorted(by_delay.pop(0, []), key=lambda r: r["states"])
+    xs = [r["states"] for r in plain]
     for stage in stages:
-        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-3) for r in rows], "o-", ms=4, lw=0.8,
+        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-3) for r in plain], "o-", ms=4, lw=0.8,
                   alpha=0.85, label=stage)
-    totals = [r["time_total"] for r in rows]
-    ax.loglog(xs, totals, "k^-", lw=2, label="total")
+    totals = [r["time_total"] for r in plain]
+    if plain:
+        ax.loglog(xs, totals, "k^-", lw=2, label="total (no delay)")
     if len(xs) >= 2 and xs[0] < xs[-1]:
         ax.loglog([xs[0], xs[-1]], [totals[-1] * xs[0] / xs[-1], totals[-1]], "k:", lw=1,
                   label="slope 1")
+    for i, delay in enumerate(sorted(by_delay)):
+        delayed = sorted(by_delay[delay], key=lambda r: r["states"])
+        ax.loglog([r["states"] for r in delayed], [r["time_total"] for r in delayed],
+                  DELAY_MARKERS[i % len(DELAY_MARKERS)], ls="none", ms=8, mfc="none", mew=1.6,
+                  color=("crimson", "darkorange", "teal", "olive", "navy", "grey")[i % 6],
+                  label=f"total, delay {delay} ({len(delayed)} world{'s' * (len(delayed) > 1)})")
     ax.set_xlabel("hypergame states (canonical)")
     ax.set_ylabel("seconds (floor 1 ms)")
     ax.set_title(title or "hg2prism: time per stage against hypergame size", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    return _save(fig, path)
+    return fig
+
+
+def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
+                   title: str | None = None) -> list[Path]:
+    """`scaling_picture` written as PNG and SVG."""
+    return _save(scaling_picture(rows, stages, title), path)
 
 
 def robust_figure(result: dict, path: Path) -> list[Path]:
