@@ -192,11 +192,14 @@ def _beside(segment: Segment, clearances=(0.06, 0.16, 0.28, 0.42, 0.58)):
     return spots
 
 
-def _around_cell(cell: tuple[int, int]):
+TAG_REACH = tuple(np.round(np.arange(0.0, 1.0, 0.04), 2))     # a tag's clearances (cells)
+
+
+def _around_cell(cell: tuple[int, int], reaches=(0.25, 0.36, 0.5, 0.65, 0.8)):
     """Label centres around a cell's centre, nearest first, for a label of data size (w, h)."""
     def spots(w: float, h: float) -> list:
         out = []
-        for reach in (0.25, 0.36, 0.5, 0.65, 0.8):
+        for reach in reaches:
             for ux, uy in ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, 1), (1, -1), (-1, -1)):
                 out.append((cell[0] + ux * (reach + w / 2 - 0.2 * abs(ux)),
                             cell[1] + uy * (reach + h / 2 - 0.1 * abs(uy))))
@@ -210,12 +213,13 @@ class _Label:
 
     text: str
     colour: str
-    spots: object
+    spots: object               # label centres for its size (w, h), nearest first
+    tag_spots: object           # the same for its tag, reaching further
     bold: bool = False
 
 
 LABEL_FONT = 6.5
-KEY_FONT = 6.5
+KEY_FONTS = (6.5, 6.0, 5.5, 5.0, 4.5)      # the key's font sizes, tried in turn
 
 
 def _tag(i: int) -> str:
@@ -244,13 +248,15 @@ def place_labels(ax: plt.Axes, labels: Sequence[_Label]) -> list[tuple[str, _Lab
         if placer.place(label.spots, label.text, pad=0.1, strict=True, **style) is None:
             tag = _tag(len(key))
             key.append((tag, label))
-            placer.place(label.spots, tag, pad=0.1, strict=True, **style)
+            if placer.place(label.tag_spots, tag, pad=0.1, strict=True, **style) is None:
+                key[-1] = (tag + " (not on the map)", label)
     return key
 
 
 def draw_key(ax: plt.Axes, key: Sequence[tuple[str, _Label]]) -> None:
     """The labels that did not fit on the map, by tag, in the legend's column below the
-    legend, in as many columns as the height needs."""
+    legend, in as many columns as the height needs, at the largest of KEY_FONTS that keeps
+    them inside the figure."""
     if not key:
         return
     fig = ax.figure
@@ -263,9 +269,23 @@ def draw_key(ax: plt.Axes, key: Sequence[tuple[str, _Label]]) -> None:
     else:
         box = ax.get_window_extent(renderer).transformed(to_fig)
         left, top = box.x1 + 0.02, box.y1
-    line = KEY_FONT * 1.5 / 72 / fig.get_size_inches()[1]
-    fig.text(left, top, "labels that did not fit on the map, by their tag:", fontsize=KEY_FONT,
-             va="top", ha="left", style="italic")
+    for size in KEY_FONTS:
+        drawn = _key_texts(fig, key, left, top, size)
+        right = max(t.get_window_extent(renderer).transformed(to_fig).x1 for t in drawn)
+        if right <= 0.995 or size == KEY_FONTS[-1]:
+            return
+        for text in drawn:
+            text.remove()
+
+
+def _key_texts(fig, key: Sequence[tuple[str, _Label]], left: float, top: float,
+               size: float) -> list:
+    """The key's texts at font `size` from (left, top) down, column after column."""
+    renderer = fig.canvas.get_renderer()
+    to_fig = fig.transFigure.inverted()
+    line = size * 1.5 / 72 / fig.get_size_inches()[1]
+    drawn = [fig.text(left, top, "labels that did not fit on the map, by their tag:",
+                      fontsize=size, va="top", ha="left", style="italic")]
     rows = max(1, int((top - line - 0.02) / line))
     column_width = 0.0
     x, y = left, top - line
@@ -273,11 +293,13 @@ def draw_key(ax: plt.Axes, key: Sequence[tuple[str, _Label]]) -> None:
         if i and i % rows == 0:
             x, y = x + column_width + 0.01, top - line
             column_width = 0.0
-        text = fig.text(x, y, f"{tag}: {label.text}", fontsize=KEY_FONT, va="top", ha="left",
-                        color=label.colour, weight="bold" if label.bold else "normal")
+        drawn.append(fig.text(x, y, f"{tag}: {label.text}", fontsize=size, va="top",
+                              ha="left", color=label.colour,
+                              weight="bold" if label.bold else "normal"))
         column_width = max(column_width,
-                           text.get_window_extent(renderer).transformed(to_fig).width)
+                           drawn[-1].get_window_extent(renderer).transformed(to_fig).width)
         y -= line
+    return drawn
 
 
 def _draw_moves(ax: plt.Axes, world: World, moves: list[Move],
@@ -294,7 +316,8 @@ def _draw_moves(ax: plt.Axes, world: World, moves: list[Move],
         first_of.setdefault(key, move)
     landing = {move.n: move.landing for move in moves}
     labels = [_Label(f"n={n}: P2 now x{x}", hypothesis_colour(x), _around_cell(landing[n]),
-                     bold=True) for n, x in changes if n in landing]
+                     _around_cell(landing[n], TAG_REACH), bold=True)
+              for n, x in changes if n in landing]
     on_segment: dict[tuple, int] = {}
     for key, numbers in groups.items():
         move = first_of[key]
@@ -302,7 +325,8 @@ def _draw_moves(ax: plt.Axes, world: World, moves: list[Move],
             (move.start, move.landing, move.realised), -1) + 1
         colour = hypothesis_colour(move.hypothesis)
         segment = draw_move(ax, move, colour, offset=0.14 + 0.11 * k)
-        labels.append(_Label("n=" + steps_text(numbers), colour, _beside(segment)))
+        labels.append(_Label("n=" + steps_text(numbers), colour, _beside(segment),
+                             _beside(segment, TAG_REACH)))
     trap_counts: dict[tuple[int, int], int] = {}
     for move in moves:
         for cell in move.traps:
