@@ -521,10 +521,13 @@ def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
     """The world and one episode (by default the world's seed's), as `run`'s world figure."""
     from hg2prism.report import plots
 
+    from hg2prism.analyses.episodes import belief_trace
+
     played = episode(solution) if played is None else played
     ts = solution.check.analysis.ts
     ax = ax if ax is not None else _new_axes(plots.world_figure_inches(solution.world, ts))
-    plots.world_figure(solution.world, ts, played.drawn, None, ax=ax)
+    trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
+    plots.world_figure(solution.world, ts, played.drawn, trace, None, ax=ax)
     return ax
 
 

@@ -417,19 +417,17 @@ def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horiz
     frames."""
     from hg2prism.analyses.episodes import belief_trace, choose_episode
     from hg2prism.report import plots, replay
+    from hg2prism.report.tables import COMPLETION_ROWS
 
     timings = analysis.timings
     with _timed(timings, "plots"):
         drawn = choose_episode(played.analysis, played.strategy, horizon, seed, rule)
         trace = belief_trace(analysis.inference, drawn.steps)
-        plots.world_figure(world, analysis.ts, drawn, out / "world.png")
+        plots.world_figure(world, analysis.ts, drawn, trace, out / "world.png")
         plots.belief_figure(world, trace, drawn, out / "belief.png")
         plots.completion_figure(world.name, [
-            ("deceptive vs inference-driven P2", played.summaries["deceptive"],
-             played.within["deceptive"]),
-            ("symmetric, Nash", played.summaries["nash"], played.within["nash"]),
-            ("symmetric, leader", played.summaries["leader"], played.within["leader"])],
-            out / "completion.png")
+            (row.information, played.summaries[row.key], played.within[row.key])
+            for row in COMPLETION_ROWS], out / "completion.png")
     say(f"plots: {drawn.describe()}: seed {drawn.seed}, {drawn.n_steps} steps, {drawn.outcome}")
     with _timed(timings, "replay"):
         frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")

@@ -96,6 +96,17 @@ def test_every_figure_is_written_as_png_and_svg_at_its_size(world1_run: Path) ->
         assert "world1" in assert_figure(world1_run, name, SIZES[name])
 
 
+def test_completion_figure_plots_every_row_of_the_table(world1_run: Path) -> None:
+    """table.md's rows (its first column) are the completion figure's curves, in order."""
+    rows = [line.split("|")[1].strip() for line in
+            (world1_run / "table.md").read_text().splitlines()
+            if line.startswith("| ") and not line.startswith("| information")]
+    assert len(rows) == 5
+    texts = re.findall(r">([^<>]*)</text>", svg_text(world1_run / "completion.svg"))
+    legend = [t for t in texts if t in rows]
+    assert legend == rows
+
+
 def test_world_picture_draws_the_median_completed_episode(world1_run: Path, seed_set) -> None:
     _, _, _, rows = seed_set
     completed = sorted((length, seed) for seed, length, outcome, _ in rows
@@ -252,7 +263,7 @@ def lateral_drawn(request, tmp_path_factory: pytest.TempPathFactory):
     ts = transition_system(world)
     episode, trace = hand_episode(ts, LATERAL_SCRIPTS[traps_mode])
     out = tmp_path_factory.mktemp("arena")
-    plots.world_figure(world, ts, episode, out / "world.png")
+    plots.world_figure(world, ts, episode, trace, out / "world.png")
     frames = replay.replay_gif(world, ts, episode, trace, out / "replay.gif")
     return world, ts, episode, out, frames
 
@@ -327,7 +338,7 @@ def test_arena_labels_do_not_overlap(lateral_drawn) -> None:
     drawer = plots.world_drawer(world, ts)
     fig = plt.figure(figsize=drawer.world_inches(), layout="constrained")
     ax = fig.add_subplot()
-    drawer.draw_world(ax, episodes.episode_steps(ts, episode.steps))
+    drawer.draw_world(ax, episodes.episode_steps(ts, episode.steps), ())
     drawer.finish(ax)
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
@@ -353,7 +364,7 @@ def test_arena_trapped_step_and_given_positions(tmp_path: Path) -> None:
     # phish while P2 traps mail: trapped with probability 0.6
     episode, trace = hand_episode(ts, [(0, 1, 0)], pick=lambda s: s[-1].next_state == ts.trapped)
     assert episode.steps[-1].next_state == ts.trapped
-    plots.world_figure(world, ts, episode, tmp_path / "world.png")
+    plots.world_figure(world, ts, episode, trace, tmp_path / "world.png")
     texts = re.findall(r">([^<>]*)</text>", svg_text(tmp_path / "world.svg"))
     assert "P1 trapped" in texts and "n=1: phish" in texts
     drawer = plots.world_drawer(world, ts)

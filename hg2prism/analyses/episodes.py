@@ -213,6 +213,13 @@ class BeliefTrace:
     threshold: float | None         # the level at which she changes her mind, if any
     values: tuple[tuple[float, ...], ...] | None    # [n-1][x]
 
+    @property
+    def changes(self) -> tuple[tuple[int, int], ...]:
+        """P2's changes of mind as (n, x): observing step n made her switch to x (the
+        figures' step-numbering rule, docs/semantics.md §15 "Figures": shown at step n)."""
+        return tuple((n, after) for n, (acted, after) in enumerate(zip(self.acted, self.after),
+                                                                   start=1) if after != acted)
+
 
 def belief_trace(observer, steps) -> BeliefTrace:
     """P2's belief along `steps` (simulation.StepRecord) under `observer` (her inference)."""

@@ -19,7 +19,6 @@ candidate spots where its box overlaps no state box and no label placed before i
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass, field
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -27,8 +26,8 @@ from matplotlib.patches import FancyArrowPatch
 
 from hg2prism.model.arena import Arena
 from hg2prism.model.world import World
-from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, hypothesis_colour,
-                                   hypothesis_handles, steps_text)
+from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, Box, Placer,
+                                   hypothesis_colour, hypothesis_handles, steps_text)
 
 __all__ = ["NODE_STYLE", "graph_edges", "layout", "ArenaDrawer"]
 
@@ -48,7 +47,6 @@ NODE_STYLE = {
     "labelled": ("#f4a6a6", "labelled state"),
     "candidate": ("#c8ecc8", "trap candidate (honeypot)"),
 }
-Box = tuple[float, float, float, float]      # x0, y0, x1, y1 in data units
 
 
 def graph_edges(arena: Arena) -> dict[tuple[int, int], list[str]]:
@@ -135,49 +133,6 @@ def _exit(box: Box, centre: np.ndarray, towards: np.ndarray, gap: float = 0.04) 
     return centre + d * min(scales + [1.0])
 
 
-@dataclass
-class _Placer:
-    """Places texts on the first free candidate spot (module docstring)."""
-
-    ax: plt.Axes
-    taken: list = field(default_factory=list)
-
-    def size(self, text, pad: float) -> tuple[float, float]:
-        """The data size of `text` with a box padded by `pad` times its font size."""
-        renderer = self.ax.figure.canvas.get_renderer()
-        extent = text.get_window_extent(renderer)
-        inverse = self.ax.transData.inverted()
-        (x0, y0), (x1, y1) = inverse.transform([[0, 0], [extent.width, extent.height]])
-        pad_pixels = pad * text.get_fontsize() * self.ax.figure.dpi / 72
-        (px0, _), (px1, _) = inverse.transform([[0, 0], [pad_pixels, 0]])
-        return (x1 - x0) + 2 * (px1 - px0), (y1 - y0) + 2 * (px1 - px0)
-
-    def place(self, candidates, label: str, pad: float = 0.15, **style) -> Box:
-        """Draw `label` at the first candidate centre where it is free and inside the axes
-        (else where it overlaps least); returns its box."""
-        text = self.ax.text(0, 0, label, ha="center", va="center", zorder=6,
-                            bbox=dict(boxstyle=f"round,pad={pad}", fc="white", ec="none",
-                                      alpha=0.85), **style)
-        w, h = self.size(text, pad)
-        (x0, x1), (y0, y1) = self.ax.get_xlim(), self.ax.get_ylim()
-        taken = np.array(self.taken, dtype=float).reshape(-1, 4)
-        best, best_cost = None, np.inf
-        for x, y in candidates:
-            box = (x - w / 2, y - h / 2, x + w / 2, y + h / 2)
-            across = np.minimum(box[2], taken[:, 2]) - np.maximum(box[0], taken[:, 0])
-            up = np.minimum(box[3], taken[:, 3]) - np.maximum(box[1], taken[:, 1])
-            cost = float(np.sum(np.clip(across, 0, None) * np.clip(up, 0, None)))
-            if box[0] < x0 or box[2] > x1 or box[1] < y0 or box[3] > y1:
-                cost += w * h
-            if cost < best_cost:
-                best, best_cost = box, cost
-            if cost == 0:
-                break
-        text.set_position(((best[0] + best[2]) / 2, (best[1] + best[3]) / 2))
-        self.taken.append(best)
-        return best
-
-
 def _around(box: Box, step: float = 0.16) -> list[tuple[float, float]]:
     """Spots around a state's box: below, above, right, left, then further out."""
     cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
@@ -209,6 +164,7 @@ class ArenaDrawer:
         self.span = self.points.max(axis=0)
         self.general = not ts.traps_mode
         self.steps: list = []
+        self.changes_shown: tuple = ()
         self.boxes: list[Box] = []
         self.nodes: list = []
 
@@ -223,7 +179,7 @@ class ArenaDrawer:
 
     def replay_inches(self) -> tuple[float, float]:
         width, height = self._map_inches()
-        return (width + 4.5, max(height + 1.2, 4.0))
+        return (width + 4.5, max(height + 2.4, 4.8))
 
     @property
     def replay_map_width(self) -> float:
@@ -243,8 +199,9 @@ class ArenaDrawer:
         props = [p for p in self.arena.propositions if p in label]
         return self.arena.states[s] + ("\n{" + ", ".join(props) + "}" if props else "")
 
-    def draw_map(self, ax: plt.Axes) -> list:
-        """The states (arrows follow in `finish`); returns the legend handles of the map."""
+    def draw_map(self, ax: plt.Axes, min_font: float = 0.0) -> list:
+        """The states (arrows follow in `finish`), no text smaller than `min_font` points;
+        returns the legend handles of the map."""
         width, height = self._map_inches()
         pad_x, pad_y = (width - self.span[0]) / 2, (height - self.span[1]) / 2
         ax.set_xlim(-pad_x, self.span[0] + pad_x)
@@ -258,7 +215,7 @@ class ArenaDrawer:
             edge = TRAP_COLOUR if s in candidates else "black"
             self.nodes.append(ax.text(
                 *self.position(s), self.node_text(s), ha="center", va="center",
-                fontsize=NODE_FONT, zorder=5, multialignment="center",
+                fontsize=max(NODE_FONT, min_font), zorder=5, multialignment="center",
                 bbox=dict(boxstyle="round,pad=0.35", fc=NODE_STYLE[self._kind(s)][0], ec=edge,
                           lw=2.6 if s == self.arena.initial else 1.0,
                           ls="--" if self.arena.terminal[s] else "-")))
@@ -275,10 +232,13 @@ class ArenaDrawer:
         return handles
 
     # ---- the world figure ----
-    def draw_world(self, ax: plt.Axes, steps) -> list:
-        """The states; the episode and the arrows follow in `finish` (after the layout).
+    def draw_world(self, ax: plt.Axes, steps, changes) -> list:
+        """The states; the episode, P2's `changes` of mind (n, x) at state n
+        (episodes.BeliefTrace.changes) and the arrows follow in `finish` (after the layout).
         Returns the legend handles (episode first, then the map)."""
         self.steps = list(steps)
+        landing = {step.n: step.landing for step in self.steps}
+        self.changes_shown = tuple((n, x) for n, x in changes if n in landing)
         map_handles = self.draw_map(ax)
         used = sorted({s.hypothesis for s in self.steps}) or [self.world.initial_hypothesis]
         handles = hypothesis_handles(self.world.hypotheses, used)
@@ -308,7 +268,7 @@ class ArenaDrawer:
             (x0, y0), (x1, y1) = inverse.transform(
                 node.get_bbox_patch().get_window_extent(renderer).get_points())
             self.boxes.append((x0, y0, x1, y1))
-        placer = _Placer(ax, list(self.boxes))
+        placer = Placer(ax, list(self.boxes))
         self._draw_episode(ax, placer)
         for (u, v), names in self.edges.items():
             p0, p2 = self._ends(u, v, BASE_RAD)
@@ -357,7 +317,7 @@ class ArenaDrawer:
         text = f"n={steps_text(numbers)}: {step.action_name}"
         return text + (f" (P2 {step.p2_action_name})" if self.general else "")
 
-    def _draw_episode(self, ax: plt.Axes, placer: _Placer) -> None:
+    def _draw_episode(self, ax: plt.Axes, placer: Placer) -> None:
         """Every distinct step once (by start, landing, action, trapped, hypothesis and, with
         general P2 actions, P2's action), coloured by P2's hypothesis, with its step numbers;
         the traps P2 set; where she changed her mind."""
@@ -382,11 +342,10 @@ class ArenaDrawer:
             ax.plot(x0, y1, marker="X", ms=10, color=TRAP_COLOUR, zorder=7)
             placer.place(_around(self.boxes[s]), f"trap {count}×", fontsize=LABEL_FONT,
                          color=TRAP_COLOUR, weight="bold")
-        for before, step in zip(self.steps, self.steps[1:]):
-            if before.hypothesis != step.hypothesis:
-                placer.place(_around(self.boxes[step.start]),
-                             f"n={step.n}: P2 now x{step.hypothesis}", fontsize=LABEL_FONT,
-                             color=hypothesis_colour(step.hypothesis), weight="bold")
+        landing = {step.n: step.landing for step in self.steps}
+        for n, x in self.changes_shown:
+            placer.place(_around(self.boxes[landing[n]]), f"n={n}: P2 now x{x}",
+                         fontsize=LABEL_FONT, color=hypothesis_colour(x), weight="bold")
 
     # ---- the replay ----
     def draw_step(self, ax: plt.Axes, step) -> None:

@@ -23,10 +23,11 @@ from hg2prism.outputs import write_bytes  # noqa: E402
 from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
 
 __all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_figure", "belief_figure", "completion_figure", "sweep_figure",
-           "detection_figure", "scaling_figure", "robust_figure", "SWEEP_INCHES", "DETECTION_INCHES",
-           "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES", "HYPOTHESIS_COLOURS",
-           "LOG_PARAMETERS"]
+           "world_picture", "world_figure", "belief_picture", "belief_figure",
+           "completion_picture", "completion_figure", "sweep_figure", "detection_figure",
+           "scaling_picture", "scaling_figure", "robust_figure", "SWEEP_INCHES",
+           "DETECTION_INCHES", "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES",
+           "HYPOTHESIS_COLOURS", "LOG_PARAMETERS"]
 
 FIGURE_DPI = 150
 FIGURE_FORMATS = ("png", "svg")
@@ -61,12 +62,13 @@ def _save(fig: plt.Figure, path: Path) -> list[Path]:
     return written
 
 
-def _axes(ax: plt.Axes | None, inches: tuple[float, float]) -> tuple[plt.Figure, plt.Axes]:
+def _axes(ax: plt.Axes | None, inches: tuple[float, float], dpi: float | None = None
+          ) -> tuple[plt.Figure, plt.Axes]:
     """The caller's axes (a figure function then draws into them and saves nothing), or a new
     figure of `inches` with constrained layout and its axes."""
     if ax is not None:
         return ax.figure, ax
-    fig = plt.figure(figsize=inches, layout="constrained")
+    fig = plt.figure(figsize=inches, dpi=dpi, layout="constrained")
     return fig, fig.add_subplot()
 
 
@@ -92,77 +94,108 @@ def world_figure_inches(world: World, ts: TransitionSystem) -> tuple[float, floa
     return world_drawer(world, ts).world_inches()
 
 
-def world_figure(world: World, ts: TransitionSystem, episode, path: Path | None,
-                 ax: plt.Axes | None = None) -> list[Path]:
-    """The world and one deceptive episode (episodes.ChosenEpisode), drawn by the world's
-    drawer (`world_drawer`): every distinct step drawn once, coloured by P2's hypothesis,
-    labelled with its step numbers; the traps P2 set; where P2 changed her mind. Returns the
-    files written (PNG and SVG); into the given `ax` it draws and writes nothing."""
+def world_picture(world: World, ts: TransitionSystem, episode, trace,
+                  ax: plt.Axes | None = None):
+    """The world figure, laid out and labelled (not saved; into `ax` when given), and the
+    drawer that drew it (its `changes_shown`: the changes of mind (n, x) labelled)."""
     from hg2prism.analyses.episodes import episode_steps
+    from hg2prism.report.style import STEP_RULE
 
     drawer = world_drawer(world, ts)
-    given = ax
-    fig, ax = _axes(ax, drawer.world_inches())
-    handles = drawer.draw_world(ax, episode_steps(ts, episode.steps))
+    fig, ax = _axes(ax, drawer.world_inches(), FIGURE_DPI)
+    handles = drawer.draw_world(ax, episode_steps(ts, episode.steps), trace.changes)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
-                 f"task {world.formula}", fontsize=8.5, loc="left")
+                 f"task {world.formula}\n{STEP_RULE}", fontsize=8.5, loc="left")
     drawer.finish(ax)
-    return _done(fig, path, given)
+    return fig, drawer
 
 
-def belief_figure(world: World, trace, episode, path: Path | None,
-                  ax: plt.Axes | None = None) -> list[Path]:
-    """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
-    reports per hypothesis against the step, her threshold, and, shaded, the hypothesis she
-    acted on at each step (into `ax` when given, then writing nothing)."""
-    given = ax
-    fig, ax = _axes(ax, BELIEF_INCHES)
-    n = len(trace.acted)
+def world_figure(world: World, ts: TransitionSystem, episode, trace, path: Path | None,
+                 ax: plt.Axes | None = None) -> list[Path]:
+    """The world and one deceptive episode (episodes.ChosenEpisode) with P2's belief along it
+    (episodes.BeliefTrace), drawn by the world's drawer (`world_drawer`): every distinct step
+    drawn once, coloured by P2's hypothesis, labelled with its step numbers; the traps P2 set;
+    where P2 changed her mind ("n=k: P2 now x": observing step k made her switch). Returns
+    the files written (PNG and SVG); into the given `ax` it draws and writes nothing."""
+    fig, _ = world_picture(world, ts, episode, trace, ax)
+    return _done(fig, path, ax)
+
+
+BELIEF_MARKERS = ("o", "s", "^", "D", "v", "P")
+
+
+def belief_picture(world: World, trace, episode, ax: plt.Axes | None = None):
+    """The belief figure (not saved; into `ax` when given) and the steps it marks as changes
+    of mind (BeliefTrace.changes: the step whose observation made P2 switch)."""
+    from hg2prism.report.style import STEP_RULE
+
+    fig, ax = _axes(ax, BELIEF_INCHES, FIGURE_DPI)
+    n = len(trace.after)
     steps = np.arange(1, n + 1)
-    for i, x in enumerate(trace.acted):
+    for i, x in enumerate(trace.after):
         ax.axvspan(i + 0.5, i + 1.5, color=hypothesis_colour(x), alpha=0.10, lw=0)
     if trace.values is not None and n:
         values = np.array(trace.values)
-        for x in range(values.shape[1]):
-            ax.plot(steps, values[:, x], "o-", ms=2.5, lw=1.1, color=hypothesis_colour(x),
-                    label=f"x{x}: {world.hypotheses[x]}")
+        k = values.shape[1]
+        for x in range(k):
+            # lines that coincide stay visible: each hypothesis its marker, size and dash,
+            # and a small sideways shift (the larger markers drawn first, under the smaller)
+            shift = (x - (k - 1) / 2) * min(0.12, 0.5 / k)
+            ax.plot(steps + shift, values[:, x], BELIEF_MARKERS[x % len(BELIEF_MARKERS)],
+                    ls=("-", "--", ":", "-.")[x % 4], ms=5.5 - 1.2 * min(x, 3), lw=1.1,
+                    color=hypothesis_colour(x), mfc="white" if x == 0 else hypothesis_colour(x),
+                    zorder=2 + x, label=f"x{x}: {world.hypotheses[x]}")
         if trace.threshold is not None:
             ax.axhline(trace.threshold, color="black", ls="--", lw=1,
                        label=f"threshold {trace.threshold:g}")
         ax.set_ylabel(trace.name, fontsize=8)
     else:
-        ax.step(steps, trace.acted, where="mid", color="black", label="P2's hypothesis")
+        ax.step(steps, trace.after, "o-", where="mid", ms=3, color="black",
+                label="P2's hypothesis")
         ax.set_ylabel("P2's hypothesis", fontsize=8)
-    switches = [i + 1 for i in range(n) if trace.after[i] != trace.acted[i]]
-    for s in switches:
+    changes = tuple(n for n, _ in trace.changes)
+    for s in changes:
         ax.axvline(s, color="red", lw=0.8, alpha=0.6)
-    shading = ", ".join(f"x{x}" for x in sorted(set(trace.acted)))
-    ax.set_xlabel(f"step n (shaded: the hypothesis P2 acts on: {shading}; "
-                  f"{len(switches)} change(s) of mind)", fontsize=8)
+    if changes:
+        ax.plot([], [], color="red", lw=0.8, alpha=0.6, label="change of mind")
+    shading = ", ".join(f"x{x}" for x in sorted(set(trace.after)))
+    ax.set_xlabel(f"{STEP_RULE}\n(shaded: her hypothesis at step n: {shading}; "
+                  f"{len(changes)} change(s) of mind)", fontsize=8)
     ax.set_xlim(0.5, max(n, 1) + 0.5)
     ax.grid(alpha=0.3)
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world.name}: P2's belief along the drawn episode (seed {episode.seed}, "
                  f"{episode.n_steps} steps)", fontsize=9)
-    return _done(fig, path, given)
+    return fig, changes
 
 
-def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
-                      path: Path) -> list[Path]:
-    """Completion by step n of each simulated strategy pair: `rows` holds (label,
-    simulation.SimulationSummary, exact within-horizon probability or None). Each curve is the
-    share of episodes completed within n steps with its 95 % Wilson band; the exact value at
-    the horizon is marked."""
+def belief_figure(world: World, trace, episode, path: Path | None,
+                  ax: plt.Axes | None = None) -> list[Path]:
+    """P2's belief along the drawn episode (episodes.BeliefTrace): the numbers her observer
+    reports per hypothesis after observing each step, her threshold, and, shaded, the
+    hypothesis she holds after each step; red lines where she changed her mind (into `ax`
+    when given, then writing nothing)."""
+    fig, _ = belief_picture(world, trace, episode, ax)
+    return _done(fig, path, ax)
+
+
+COMPLETION_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "P"), ((0, (6, 2, 1, 2)), "v"))
+
+
+def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float | None]]):
+    """The completion figure (not saved): a curve per row (tables.COMPLETION_ROWS's order), each
+    its colour, dash and marker (markers staggered, so that curves that coincide stay
+    visible)."""
     from hg2prism.analyses.simulation import GOAL, wilson_interval
 
-    fig = plt.figure(figsize=COMPLETION_INCHES, layout="constrained")
+    fig = plt.figure(figsize=COMPLETION_INCHES, dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    styles = ("-", "--", ":")
     horizon = 1
+    episodes = sorted({summary.episodes for _, summary, _ in rows})
     for i, (label, summary, exact) in enumerate(rows):
         horizon = max(horizon, summary.horizon)
         done = np.sort(summary.lengths[summary.outcomes == GOAL])
@@ -171,11 +204,16 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
         rate = counts / summary.episodes
         band = np.array([wilson_interval(int(k), summary.episodes) for k in counts])
         colour = f"C{i}"
-        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.25, lw=0)
-        ax.plot(steps, rate, styles[i % len(styles)], color=colour, lw=1.4,
-                label=f"{label} ({summary.episodes} episodes)")
+        dash, marker = COMPLETION_STYLES[i % len(COMPLETION_STYLES)]
+        every = max(1, summary.horizon // 8)
+        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.18, lw=0)
+        ax.plot(steps, rate, ls=dash, marker=marker, ms=4, markevery=(i * every // len(rows),
+                                                                      every),
+                color=colour, lw=1.4, label=label if len(episodes) == 1
+                else f"{label} ({summary.episodes} episodes)")
         if exact is not None:
-            ax.plot([summary.horizon], [exact], marker="D", color=colour, ms=5, ls="")
+            ax.plot([summary.horizon], [exact], marker="D", color=colour, ms=5, ls="",
+                    mec="black", mew=0.5)
     ax.plot([], [], marker="D", color="0.3", ls="", label="exact at the horizon")
     ax.fill_between([], [], [], color="0.3", alpha=0.25, label="95 % Wilson band")
     ax.set_xlim(0, horizon)
@@ -184,8 +222,19 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
     ax.set_ylabel("share completed within n steps")
     ax.grid(alpha=0.3)
     fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
-    ax.set_title(f"{world_name}: completion against time, simulated", fontsize=9)
-    return _save(fig, path)
+    each = f", {episodes[0]} episodes each" if len(episodes) == 1 else ""
+    ax.set_title(f"{world_name}: completion against time, simulated{each}", fontsize=9)
+    return fig
+
+
+def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
+                      path: Path) -> list[Path]:
+    """Completion by step n of each simulated strategy pair: `rows` holds (label,
+    simulation.SimulationSummary, exact within-horizon probability or None), one per row of
+    the completion table (tables.COMPLETION_ROWS). Each curve is the share of episodes
+    completed within n steps with its 95 % Wilson band; the exact value at the horizon is
+    marked."""
+    return _save(completion_picture(world_name, rows), path)
 
 
 def _value_text(value: object) -> str:
@@ -360,28 +409,48 @@ def _replanning_panel(bars: plt.Axes, replanning: dict) -> None:
 SCALING_INCHES = (8.5, 4.8)
 
 
-def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
-                   title: str | None = None) -> list[Path]:
-    """Time per stage against canonical states, log-log, with a slope-1 guide through the
-    largest world's total (a stage parallel to it grows linearly)."""
-    fig = plt.figure(figsize=SCALING_INCHES, layout="constrained")
+DELAY_MARKERS = ("s", "D", "v", "P", "*", "X")
+
+
+def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | None = None):
+    """The scaling figure (not saved): time per stage against canonical states, log-log, of
+    the worlds without delay (a line each, ordered by states) with a slope-1 guide through the
+    largest one's total; each delay's worlds as a separate series of their total time (its
+    own marker, "delay d" in the legend)."""
+    fig = plt.figure(figsize=SCALING_INCHES, dpi=FIGURE_DPI, layout="constrained")
     ax = fig.add_subplot()
-    rows = sorted(rows, key=lambda r: r["states"])
-    xs = [r["states"] for r in rows]
+    by_delay: dict[int, list[dict]] = {}
+    for row in rows:
+        by_delay.setdefault(int(row.get("delay") or 0), []).append(row)
+    plain = sorted(by_delay.pop(0, []), key=lambda r: r["states"])
+    xs = [r["states"] for r in plain]
     for stage in stages:
-        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-3) for r in rows], "o-", ms=4, lw=0.8,
+        ax.loglog(xs, [max(r[f"time_{stage}"], 1e-3) for r in plain], "o-", ms=4, lw=0.8,
                   alpha=0.85, label=stage)
-    totals = [r["time_total"] for r in rows]
-    ax.loglog(xs, totals, "k^-", lw=2, label="total")
+    totals = [r["time_total"] for r in plain]
+    if plain:
+        ax.loglog(xs, totals, "k^-", lw=2, label="total (no delay)")
     if len(xs) >= 2 and xs[0] < xs[-1]:
         ax.loglog([xs[0], xs[-1]], [totals[-1] * xs[0] / xs[-1], totals[-1]], "k:", lw=1,
                   label="slope 1")
+    for i, delay in enumerate(sorted(by_delay)):
+        delayed = sorted(by_delay[delay], key=lambda r: r["states"])
+        ax.loglog([r["states"] for r in delayed], [r["time_total"] for r in delayed],
+                  DELAY_MARKERS[i % len(DELAY_MARKERS)], ls="none", ms=8, mfc="none", mew=1.6,
+                  color=("crimson", "darkorange", "teal", "olive", "navy", "grey")[i % 6],
+                  label=f"total, delay {delay} ({len(delayed)} world{'s' * (len(delayed) > 1)})")
     ax.set_xlabel("hypergame states (canonical)")
     ax.set_ylabel("seconds (floor 1 ms)")
     ax.set_title(title or "hg2prism: time per stage against hypergame size", fontsize=9)
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
-    return _save(fig, path)
+    return fig
+
+
+def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
+                   title: str | None = None) -> list[Path]:
+    """`scaling_picture` written as PNG and SVG."""
+    return _save(scaling_picture(rows, stages, title), path)
 
 
 def robust_figure(result: dict, path: Path) -> list[Path]:

@@ -25,7 +25,8 @@ from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes
 from hg2prism.report import plots
 
-__all__ = ["REPLAY_MAX_FRAMES", "REPLAY_FRAME_MS", "REPLAY_DPI", "replay_frames", "replay_inches",
+__all__ = ["REPLAY_MAX_FRAMES", "REPLAY_FRAME_MS", "REPLAY_DPI", "REPLAY_FONT", "REPLAY_MIN_FONT",
+           "FrameNote", "frame_notes", "replay_frames", "replay_inches", "replay_figure",
            "replay_gif"]
 
 REPLAY_MAX_FRAMES = 100
@@ -55,6 +56,39 @@ def _acted_text(ts: TransitionSystem) -> str:
     return "set traps for" if ts.traps_mode else "acted on"
 
 
+REPLAY_FONT = 10         # captions and titles, in points (= pixels at REPLAY_DPI)
+REPLAY_MIN_FONT = 9      # no text of a frame is smaller (ticks, legends, map marks)
+
+
+@dataclass(frozen=True)
+class FrameNote:
+    """What a frame says: the episode state it shows (0 = the start, n = after step n, the
+    figures' step-numbering rule), its caption, P2's line, and the hypothesis she switched to
+    on observing step n (None: no change of mind at this step)."""
+
+    state: int
+    caption: str
+    believes: str
+    changed_to: int | None
+
+
+def frame_notes(world: World, ts: TransitionSystem, drawer, steps, trace) -> list[FrameNote]:
+    """Every episode state's texts, in order (state 0 .. N)."""
+    changes = dict(trace.changes)
+    n_steps = len(steps)
+    notes = [FrameNote(0, f"start (state 0 of {n_steps})", "P2 starts believing "
+                       f"x{world.initial_hypothesis}", None)]
+    for n, step in enumerate(steps, start=1):
+        after = trace.after[n - 1]
+        line = (f"P2 {_acted_text(ts)} x{trace.acted[n - 1]} at step {n};\n"
+                f"after observing it: x{after}")
+        if n in changes:
+            line += " (changed her mind)"
+        notes.append(FrameNote(n, f"step {n}/{n_steps}: {drawer.caption(step)}", line,
+                               changes.get(n)))
+    return notes
+
+
 @dataclass
 class _Replay:
     """The replay's figure, laid out once: the artists each frame changes, and the background
@@ -69,18 +103,25 @@ class _Replay:
     caption: object
     believes: object
     bars: list
+    threshold: object              # the threshold's line (drawn over the bars), or None
     values: np.ndarray | None      # [steps + 1, hypotheses] the observer's numbers, or None
+    wrap: int = 40                 # characters of a caption line
     background: object = None
 
     @property
     def moving(self) -> list:
         """The artists every frame redraws."""
-        return [self.trail, self.robot, self.traps, self.caption, self.believes, *self.bars]
+        return [self.trail, self.robot, self.traps, self.caption, self.believes, *self.bars,
+                *([self.threshold] if self.threshold is not None else [])]
 
 
-def _belief_panel(ax, world: World, trace) -> tuple[list, np.ndarray | None, object]:
-    """The bar chart of P2's numbers (or her hypothesis), its threshold and the legend;
-    returns the bars, the per-state values (None: bars show the hypothesis) and the title."""
+def _belief_panel(ax, world: World, trace, wrap: int) -> tuple[list, np.ndarray | None, object,
+                                                                 object]:
+    """The bar chart of P2's numbers (or her hypothesis), its threshold and the legend below
+    it; returns the bars, the per-state values (None: bars show the hypothesis), the title and
+    the threshold's line."""
+    import textwrap
+
     n_x = len(world.hypotheses)
     if trace.values is not None:
         values = np.vstack([np.zeros(n_x), np.array(trace.values, dtype=float).reshape(-1, n_x)])
@@ -92,54 +133,75 @@ def _belief_panel(ax, world: World, trace) -> tuple[list, np.ndarray | None, obj
     bars = ax.bar(range(n_x), np.zeros(n_x),
                   color=[plots.HYPOTHESIS_COLOURS[x % len(plots.HYPOTHESIS_COLOURS)]
                          for x in range(n_x)])
+    legend = [textwrap.fill(f"x{x}: {h}", wrap, subsequent_indent="    ")
+              for x, h in enumerate(world.hypotheses)]
+    threshold = None
     if trace.threshold is not None:
-        ax.axhline(trace.threshold, color="black", ls="--", lw=1)
-        ax.text(n_x - 0.5, trace.threshold, f"threshold {trace.threshold:g}",
-                ha="right", va="bottom", fontsize=8)
+        threshold = ax.axhline(trace.threshold, color="black", ls="--", lw=1)
+        legend.append(f"dashed line: threshold {trace.threshold:g}")
     ax.set_ylim(0, top)
     ax.set_xticks(range(n_x), [f"x{x}" for x in range(n_x)])
-    ax.set_ylabel(label, fontsize=8)
-    ax.tick_params(labelsize=8)
-    believes = ax.set_title("", fontsize=9)
-    legend = "\n".join(f"x{x}: {h}" for x, h in enumerate(world.hypotheses))
-    ax.text(0.02, 0.98, legend, transform=ax.transAxes, ha="left", va="top", fontsize=7)
-    return list(bars), values, believes
+    ax.set_ylabel(label, fontsize=REPLAY_MIN_FONT)
+    ax.set_xlabel("\n".join(legend), fontsize=REPLAY_MIN_FONT, loc="left")
+    ax.tick_params(labelsize=REPLAY_MIN_FONT)
+    believes = ax.set_title("", fontsize=REPLAY_FONT, loc="left")
+    return list(bars), values, believes, threshold
 
 
-def _layout(world: World, ts: TransitionSystem, drawer, episode, trace, steps) -> _Replay:
-    """The figure with everything that does not move drawn, laid out once with captions as
-    long as any frame's, so that nothing moves from frame to frame."""
-    n_x, n_steps = len(world.hypotheses), len(steps)
+def _wrapped(text: str, width: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.fill(line, width) for line in text.split("\n"))
+
+
+def replay_figure(world: World, ts: TransitionSystem, episode, trace) -> tuple[_Replay, list]:
+    """The replay's figure with everything that does not move drawn, laid out once with the
+    widest texts of any frame, so that nothing moves from frame to frame; and the frames'
+    notes (`frame_notes`)."""
+    from hg2prism.analyses.episodes import episode_steps
+    from hg2prism.report.style import STEP_RULE
+
+    drawer = plots.world_drawer(world, ts)
+    steps = episode_steps(ts, episode.steps)
+    notes = frame_notes(world, ts, drawer, steps, trace)
+    width, _ = drawer.replay_inches()
+    panel = width * 3.2 / (drawer.replay_map_width + 3.2)      # the belief panel, inches
+    # characters per line: a caption spans its panel (about 0.55 em a character)
+    wrap_map = max(16, int(drawer.replay_map_width * 72 / (0.58 * REPLAY_FONT)))
+    wrap_panel = max(16, int(min(panel, 3.6) * 72 / (0.58 * REPLAY_MIN_FONT)))
     fig = _plt.figure(figsize=drawer.replay_inches(), dpi=REPLAY_DPI, layout="constrained")
     map_ax, belief_ax = fig.subplots(1, 2, width_ratios=(drawer.replay_map_width, 3.2))
-    drawer.draw_map(map_ax)
+    drawer.draw_map(map_ax, REPLAY_MIN_FONT)
     trail, = map_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
     robot, = map_ax.plot([], [], "o", mec="black", mew=1.2, zorder=6, **drawer.robot_style)
     traps, = map_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
-    caption = map_ax.set_title("", fontsize=9, loc="left")
-    bars, values, believes = _belief_panel(belief_ax, world, trace)
-    fig.suptitle(f"{world.name}: replay of the drawn episode (seed {episode.seed}, "
-                 f"{n_steps} steps, {episode.outcome})", fontsize=9)
-    caption.set_text(f"step {n_steps}/{n_steps}: {drawer.widest_caption(steps)}")
-    believes.set_text(f"P2 {_acted_text(ts)} x{n_x - 1}; now believes x{n_x - 1}")
+    caption = map_ax.set_title("", fontsize=REPLAY_FONT, loc="left")
+    bars, values, believes, threshold = _belief_panel(belief_ax, world, trace, wrap_panel)
+    fig.suptitle(_wrapped(f"{world.name}: replay of the drawn episode (seed {episode.seed}, "
+                          f"{len(steps)} steps, {episode.outcome})\n{STEP_RULE}",
+                          int(width * 72 / (0.58 * REPLAY_FONT))), fontsize=REPLAY_FONT)
+    widest = max(notes, key=lambda note: len(_wrapped(note.caption, wrap_map)))
+    caption.set_text(_wrapped(widest.caption, wrap_map))
+    believes.set_text(max((note.believes for note in notes), key=len))
     fig.canvas.draw()
     fig.set_layout_engine("none")
     drawer.finish(map_ax)
-    replay = _Replay(fig, drawer, map_ax, trail, robot, traps, caption, believes, bars, values)
+    replay = _Replay(fig, drawer, map_ax, trail, robot, traps, caption, believes, bars,
+                     threshold, values, wrap_map)
     # Blitting: the map, axes and labels are drawn once; each frame restores them and draws
     # only what moves (a full redraw per frame is about ten times slower).
     for artist in replay.moving:
         artist.set_animated(True)
     fig.canvas.draw()
     replay.background = fig.canvas.copy_from_bbox(fig.bbox)
-    return replay
+    return replay, notes
 
 
-def _frame(replay: _Replay, world: World, ts: TransitionSystem, positions: list, steps: list,
-           trace, state: int) -> tuple[Image.Image, list]:
-    """Draw episode state `state` over the background; returns the image and the artists
-    added for it (removed before the next frame)."""
-    map_ax, n_x, n_steps = replay.map_ax, len(world.hypotheses), len(steps)
+def _frame(replay: _Replay, world: World, positions: list, steps: list, trace,
+           note: FrameNote) -> tuple[Image.Image, list]:
+    """Draw episode state `note.state` over the background; returns the image and the
+    artists added for it (removed before the next frame)."""
+    map_ax, n_x, state = replay.map_ax, len(world.hypotheses), note.state
     xs, ys = zip(*positions[:state + 1])
     replay.trail.set_data(xs, ys)
     step = steps[state - 1] if state else None
@@ -153,13 +215,10 @@ def _frame(replay: _Replay, world: World, ts: TransitionSystem, positions: list,
         trap_at = [replay.drawer.position(p) for p in step.traps]
         replay.traps.set_data([c[0] for c in trap_at], [c[1] for c in trap_at])
         replay.drawer.draw_step(map_ax, step)
-        replay.caption.set_text(f"step {state}/{n_steps}: {replay.drawer.caption(step)}")
-        replay.believes.set_text(f"P2 {_acted_text(ts)} x{trace.acted[state - 1]}; "
-                                 f"now believes x{hypothesis_after}")
     else:
         replay.traps.set_data([], [])
-        replay.caption.set_text(f"start (0/{n_steps})")
-        replay.believes.set_text(f"P2 starts believing x{hypothesis_after}")
+    replay.caption.set_text(_wrapped(note.caption, replay.wrap))
+    replay.believes.set_text(note.believes)
     added = [a for a in map_ax.get_children() if a not in before]
     for artist in added:
         artist.set_animated(True)
@@ -197,17 +256,17 @@ def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -
     (episodes.BeliefTrace) to `path`; returns the number of frames."""
     from hg2prism.analyses.episodes import episode_steps
 
-    drawer = plots.world_drawer(world, ts)
+    replay, notes = replay_figure(world, ts, episode, trace)
     steps = episode_steps(ts, episode.steps)
     start = ts.decode(ts.start_state)[0]
-    positions = [drawer.position(start)] + [drawer.position(s.landing) for s in steps]
-    replay = _layout(world, ts, drawer, episode, trace, steps)
+    positions = [replay.drawer.position(start)] + [replay.drawer.position(s.landing)
+                                                   for s in steps]
     images: list[Image.Image] = []
     added: list = []
     for state in replay_frames(len(steps)):
         for artist in added:
             artist.remove()
-        image, added = _frame(replay, world, ts, positions, steps, trace, state)
+        image, added = _frame(replay, world, positions, steps, trace, notes[state])
         images.append(image)
     _plt.close(replay.fig)
     write_bytes(path, _gif(images))

@@ -2,24 +2,43 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from hg2prism.results import CheckResults, RunResults
 
 
+@dataclass(frozen=True)
+class CompletionRow:
+    """A row of the completion table (and a curve of the completion figure): the strategy
+    pair's key in `results.simulation`, its information setting and policies, and the result
+    holding its exact value."""
+
+    key: str
+    information: str
+    p1: str
+    p2: str
+    exact: str
+
+
+COMPLETION_ROWS = (
+    CompletionRow("deceptive", "Asymmetric", "deceptive π1*", "inference-driven π2",
+                  "deceptive_value"),
+    CompletionRow("static", "Asymmetric, P2 never revises", "best response",
+                  "π2 of her first guess", "v_static"),
+    CompletionRow("naive", "Asymmetric, P1 ignores P2's misperception", "leader-game answer",
+                  "inference-driven π2", "v_naive"),
+    CompletionRow("nash", "Symmetric, Nash", "π1^NE", "π2^NE", "v_ne"),
+    CompletionRow("leader", "Symmetric, leader", "best response", "leader π2", "v_lead"),
+)
+
+
 def completion_table(results: RunResults) -> str:
     """The paper's Table I, with the leader row and the two rows of docs/semantics.md §11 added
-    (docs/semantics.md §8, table.md)."""
+    (docs/semantics.md §8, table.md): a row per COMPLETION_ROWS."""
     sim = results.simulation
-    rows = [
-        ("Asymmetric", "deceptive π1*", "inference-driven π2", results.deceptive_value, sim.deceptive),
-        ("Asymmetric, P2 never revises", "best response", "π2 of her first guess",
-         results.v_static, sim.static),
-        ("Asymmetric, P1 ignores P2's misperception", "leader-game answer", "inference-driven π2",
-         results.v_naive, sim.naive),
-        ("Symmetric, Nash", "π1^NE", "π2^NE", results.v_ne, sim.nash),
-        ("Symmetric, leader", "best response", "leader π2", results.v_lead, sim.leader),
-    ]
+    rows = [(row.information, row.p1, row.p2, getattr(results, row.exact), getattr(sim, row.key))
+            for row in COMPLETION_ROWS]
     lines = [
         f"Completion of the task `{results.parameters.formula}` in {results.world} "
         f"(simulation: horizon {sim.horizon}, seed {sim.seed})",

@@ -1,0 +1,330 @@
+"""Figures a reader can read (issue 26), measured on the rendered figures, not by eye:
+
+- no text of a world picture (labels, the key, the legend, titles, ticks, the map's letters)
+  overlaps another or a mark (start, traps, trapped), and none leaves the figure: the showcase
+  worlds' drawn episodes and 20 episodes on generated worlds;
+- one step-numbering rule: world3's change of mind is at the same step in the world picture's
+  label, the belief plot's marker and the replay's frame, the step whose observation made P2
+  switch (read from the simulation's records, not from BeliefTrace);
+- the replay's texts are at least 9 px high at the GIF's 72 dpi, inside the frame and apart
+  in every frame; the belief plot's lines stay visible where they coincide; scaling.png has a
+  series per delay.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.text import Text
+
+import worldgen
+from conftest import MODELS
+from hg2prism import pipeline
+from hg2prism.analyses import episodes, simulation
+from hg2prism.frontends import transition_system
+from hg2prism.opponent.observer import Memory
+from hg2prism.report import plots, replay
+from hg2prism.strategy.records import Strategy
+from hg2prism.worldfile import load_world
+
+SHOWCASE = ("world1", "world2", "world3", "world3_bayes")
+GENERATED = range(20)
+TOLERANCE = 0.5        # pixels two boxes may share (anti-aliasing), each side
+
+
+@functools.lru_cache(maxsize=None)
+def showcase(name: str):
+    """A showcase world's drawn episode as `run` draws it: (world, ts, episode, trace, steps)."""
+    world = load_world(MODELS / f"{name}.toml")
+    checked = pipeline.check(world, Path(tempfile.mkdtemp()))
+    assert checked.bounded is None
+    strategy = Strategy.from_records(checked.records, checked.analysis.ts)
+    episode = episodes.choose_episode(checked.analysis, strategy, world.simulation.horizon,
+                                      world.simulation.seed)
+    trace = episodes.belief_trace(checked.analysis.inference, episode.steps)
+    return world, checked.analysis.ts, episode, trace
+
+
+def random_episode(seed: int, length: int = 60):
+    """A generated world (tests/worldgen.py) and a random walk on it: P1's actions, P2's trap
+    sets and her hypothesis (switching now and then) drawn at random, mostly avoiding steps
+    into a trap (one ends the walk); the longest of a few walks. No model checking: only the
+    drawing is under test."""
+    folder = Path(tempfile.mkdtemp())
+    (folder / "w.toml").write_text(worldgen.random_world(seed))
+    world = load_world(folder / "w.toml")
+    ts = transition_system(world)
+    rng = np.random.default_rng(seed)
+    n_x = len(world.hypotheses)
+
+    def walk():
+        state, hypothesis, records = ts.start_state, world.initial_hypothesis, []
+        for n in range(1, length + 1):
+            if ts.terminal[state]:
+                break
+            for _ in range(10):         # mostly steps that do not end in a trap
+                a1 = int(rng.choice(np.flatnonzero(ts.enabled[state])))
+                a2 = int(rng.choice(np.flatnonzero(ts.allowed[state])))
+                p = ts.prob[state, a1, a2]
+                nxt = int(ts.succ[state, a1, a2, rng.choice(len(p), p=p / p.sum())])
+                if nxt != ts.trapped:
+                    break
+            memory = Memory(hypothesis)
+            records.append(simulation.StepRecord(0, n, state, 0, memory, a1, a2, a2, ts.n_sets,
+                                                 memory, nxt, 0))
+            if nxt == ts.trapped:
+                break
+            state = nxt
+            if n_x > 1 and rng.random() < 0.15:
+                hypothesis = int(rng.choice([x for x in range(n_x) if x != hypothesis]))
+        return records
+
+    steps = max((walk() for _ in range(4)), key=len)
+    acted = tuple(s.p2_memory.hypothesis for s in steps)
+    trace = episodes.BeliefTrace(acted, acted[1:] + acted[-1:], None, None, None)
+    episode = episodes.ChosenEpisode(steps, seed, "cut by the horizon",
+                                     episodes.EpisodeRule("seed", seed), None, ())
+    return world, ts, episode, trace
+
+
+def texts_of(fig) -> list[tuple[str, object]]:
+    """Every visible non-empty text of a drawn figure with its window box (its bbox patch
+    when it has one: the white box that would hide what lies under it)."""
+    renderer = fig.canvas.get_renderer()
+    boxes = []
+    for text in fig.findobj(Text):
+        if not text.get_visible() or not text.get_text().strip():
+            continue
+        patch = text.get_bbox_patch()
+        boxes.append((text.get_text(), (patch or text).get_window_extent(renderer)))
+    return boxes
+
+
+def marks_of(ax) -> list[tuple[str, object]]:
+    """The marks of a map (start, traps set, trapped): its lines drawn as markers (not the
+    replay's moving robot and traps, which pass over the map)."""
+    renderer = ax.figure.canvas.get_renderer()
+    return [(f"mark {line.get_marker()}", line.get_window_extent(renderer)) for line in ax.lines
+            if line.get_visible() and not line.get_animated()
+            and line.get_marker() not in (None, "", "None") and len(line.get_xdata())]
+
+
+def _apart(a, b) -> bool:
+    return (a.x1 - TOLERANCE <= b.x0 or b.x1 - TOLERANCE <= a.x0
+            or a.y1 - TOLERANCE <= b.y0 or b.y1 - TOLERANCE <= a.y0)
+
+
+def problems(fig, ax) -> list[str]:
+    """Overlapping texts, texts over marks, texts outside the figure."""
+    fig.canvas.draw()
+    texts, marks = texts_of(fig), marks_of(ax)
+    frame = fig.bbox
+    found = []
+    for i, (a, box_a) in enumerate(texts):
+        if (box_a.x0 < frame.x0 - TOLERANCE or box_a.y0 < frame.y0 - TOLERANCE
+                or box_a.x1 > frame.x1 + TOLERANCE or box_a.y1 > frame.y1 + TOLERANCE):
+            found.append(f"{a!r} leaves the figure")
+        for b, box_b in texts[i + 1:] + marks:
+            if not _apart(box_a, box_b):
+                found.append(f"{a!r} overlaps {b!r}")
+    return found
+
+
+def world_problems(world, ts, episode, trace) -> tuple[list[str], list[str]]:
+    """What `problems` finds in the world picture, and its texts."""
+    fig, _ = plots.world_picture(world, ts, episode, trace)
+    try:
+        return problems(fig, fig.axes[0]), [t for t, _ in texts_of(fig)]
+    finally:
+        plots.plt.close(fig)
+
+
+@pytest.mark.parametrize("name", SHOWCASE)
+def test_showcase_world_pictures_hide_nothing(name: str) -> None:
+    found, texts = world_problems(*showcase(name))
+    assert not found, found
+    # every step of the episode is labelled on the map or in the key (first and last of a
+    # long list)
+    _, _, episode, _ = showcase(name)
+    labelled = {n for t in texts for n in _step_numbers(t)}
+    assert {1, episode.n_steps} <= labelled
+
+
+@pytest.mark.parametrize("seed", GENERATED)
+def test_generated_world_pictures_hide_nothing(seed: int) -> None:
+    world, ts, episode, trace = random_episode(seed)
+    assert episode.n_steps >= 5
+    found, _ = world_problems(world, ts, episode, trace)
+    assert not found, found
+
+
+@pytest.mark.parametrize("seed", (3, 4))
+def test_crowded_pictures_list_labels_in_the_key(seed: int) -> None:
+    """200 random steps on a small map: labels that find no free spot become tags (a, b, ...)
+    beside their arrow, listed in the key; still nothing overlaps, and every step is named."""
+    world, ts, episode, trace = random_episode(seed, length=200)
+    fig, drawer = plots.world_picture(world, ts, episode, trace)
+    try:
+        found = problems(fig, fig.axes[0])
+        texts = [t for t, _ in texts_of(fig)]
+    finally:
+        plots.plt.close(fig)
+    assert not found, found
+    assert len(drawer.key) >= 10
+    for tag, label in drawer.key:
+        assert f"{tag}: {label.text}" in texts
+        assert tag in texts or tag.endswith(" (not on the map)")
+    assert sum(tag in texts for tag, _ in drawer.key) >= 0.9 * len(drawer.key)
+    named = {n for t in texts for n in _step_numbers(t)}
+    assert {1, episode.n_steps} <= named
+
+
+def _step_numbers(text: str) -> list[int]:
+    """The step numbers a label names: "n=3", "n=3,5", "n=2…40 (20×)" (first and last), "a: n=…"
+    in the key."""
+    match = re.search(r"n=([\d,…]+)", text)
+    if not match:
+        return []
+    return [int(n) for n in re.split(r"[,…]", match.group(1)) if n]
+
+
+def test_overlap_check_can_fail() -> None:
+    """The measurement finds an overlap when there is one: two labels at the same place."""
+    world, ts, episode, trace = showcase("world3")
+    fig, _ = plots.world_picture(world, ts, episode, trace)
+    ax = fig.axes[0]
+    ax.text(3, 2, "n=99", fontsize=6.5)
+    ax.text(3, 2, "n=98", fontsize=6.5)
+    try:
+        assert any("'n=99' overlaps 'n=98'" in p for p in problems(fig, ax))
+    finally:
+        plots.plt.close(fig)
+
+
+# ---- one step-numbering rule ----
+
+def test_world3_change_of_mind_is_at_the_same_step_everywhere() -> None:
+    """docs/semantics.md §15 "Figures": step n is P1's n-th move, P2's hypothesis at step n
+    the one she holds after observing it. The change of mind caused by step n's observation:
+    step n+1's records show P2 acting on another hypothesis than at step n."""
+    world, ts, episode, trace = showcase("world3")
+    steps = episode.steps
+    expected = [(n, steps[n].p2_memory.hypothesis) for n in range(1, len(steps))
+                if steps[n].p2_memory.hypothesis != steps[n - 1].p2_memory.hypothesis]
+    assert expected, "world3's drawn episode has a change of mind (its feint)"
+    # the world picture: its "n=k: P2 now xi" labels (on the map or in the key)
+    fig, drawer = plots.world_picture(world, ts, episode, trace)
+    fig.canvas.draw()
+    labels = sorted((int(m.group(1)), int(m.group(2))) for t, _ in texts_of(fig)
+                    for m in [re.search(r"n=(\d+): P2 now x(\d+)", t)] if m)
+    plots.plt.close(fig)
+    # the belief plot: its red lines
+    fig, marked = plots.belief_picture(world, trace, episode)
+    lines = sorted(int(round(line.get_xdata()[0])) for line in fig.axes[0].lines
+                   if line.get_color() == "red" and len(line.get_xdata()))
+    plots.plt.close(fig)
+    # the replay: the frames that say she changed her mind
+    shown, notes = replay.replay_figure(world, ts, episode, trace)
+    plots.plt.close(shown.fig)
+    frames = [(note.state, note.changed_to) for note in notes if note.changed_to is not None]
+    assert all("changed her mind" in note.believes for note in notes if note.changed_to is not None)
+    assert labels == expected == frames
+    assert lines == list(marked) == [n for n, _ in expected]
+    assert expected[0][0] == 2      # the feint: observing step 2 ((4,2) -> (5,2)) convinces her
+
+
+def test_step_rule_is_stated_in_each_figure() -> None:
+    from hg2prism.report.style import STEP_RULE
+
+    world, ts, episode, trace = showcase("world3")
+    fig, _ = plots.world_picture(world, ts, episode, trace)
+    assert STEP_RULE in fig.axes[0].get_title(loc="left")
+    plots.plt.close(fig)
+    fig, _ = plots.belief_picture(world, trace, episode)
+    assert fig.axes[0].get_xlabel().startswith(STEP_RULE)
+    plots.plt.close(fig)
+    shown, _ = replay.replay_figure(world, ts, episode, trace)
+    assert STEP_RULE.split(";")[0] in shown.fig.get_suptitle()
+    plots.plt.close(shown.fig)
+
+
+# ---- the replay ----
+
+def _legible(fig, text) -> bool:
+    """At least 9 px a line at the figure's resolution (its font size and its drawn box)."""
+    lines = text.get_text().count("\n") + 1
+    height = text.get_window_extent(fig.canvas.get_renderer()).height / lines
+    return text.get_fontsize() * fig.dpi / 72 >= 9 and height >= 9
+
+
+@pytest.mark.parametrize("name", ("world1", "world3", "world3_bayes"))
+def test_replay_texts_are_legible_and_apart_in_every_frame(name: str) -> None:
+    """The frame laid out (with the widest caption) hides nothing and loses nothing; in every
+    frame the caption and P2's line are legible, inside the frame and apart from the rest."""
+    world, ts, episode, trace = showcase(name)
+    shown, notes = replay.replay_figure(world, ts, episode, trace)
+    fig = shown.fig
+    drawn = episodes.episode_steps(ts, episode.steps)
+    start = ts.decode(ts.start_state)[0]
+    positions = [shown.drawer.position(start)] + [shown.drawer.position(s.landing)
+                                                  for s in drawn]
+    try:
+        assert fig.dpi == replay.REPLAY_DPI == 72
+        found = problems(fig, shown.map_ax)
+        assert not found, found
+        texts = [t for t in fig.findobj(Text) if t.get_visible() and t.get_text().strip()]
+        assert all(_legible(fig, t) for t in texts), [t.get_text() for t in texts
+                                                      if not _legible(fig, t)]
+        renderer = fig.canvas.get_renderer()
+        fixed = [t.get_window_extent(renderer) for t in texts
+                 if t not in (shown.caption, shown.believes)]
+        added: list = []
+        for state in replay.replay_frames(len(drawn)):
+            for artist in added:
+                artist.remove()
+            _, added = replay._frame(shown, world, positions, drawn, trace, notes[state])
+            for text in (shown.caption, shown.believes):
+                box = text.get_window_extent(renderer)
+                assert _legible(fig, text)
+                assert fig.bbox.x0 <= box.x0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1
+                assert all(_apart(box, other) for other in fixed), (state, text.get_text())
+    finally:
+        plots.plt.close(fig)
+
+
+# ---- the belief plot and scaling ----
+
+def test_belief_lines_that_coincide_stay_visible() -> None:
+    """world1's scores: x0's (the hypothesis she holds) is 0 at every step, like most of the
+    others'; each line has its own marker and dash and sits apart sideways."""
+    world, ts, episode, trace = showcase("world1")
+    fig, _ = plots.belief_picture(world, trace, episode)
+    lines = [line for line in fig.axes[0].lines if line.get_label().startswith("x")]
+    plots.plt.close(fig)
+    assert len(lines) == len(world.hypotheses) == 3
+    assert len({(line.get_marker(), line.get_linestyle()) for line in lines}) == 3
+    xs = [np.asarray(line.get_xdata(), dtype=float) for line in lines]
+    for i in range(len(xs)):
+        for j in range(i + 1, len(xs)):
+            assert np.all(np.abs(xs[i] - xs[j]) >= 0.05)
+            assert np.all(np.abs(xs[i] - xs[j]) < 0.5)       # still at their step
+
+
+def test_scaling_has_a_series_per_delay() -> None:
+    rows = [{"states": n, "delay": 0, "time_games": 0.01, "time_total": 1e-4 * n}
+            for n in (1000, 10000, 100000)]
+    rows += [{"states": n, "delay": d, "time_games": 2.0 * d, "time_total": 3.0 * d}
+             for n, d in ((2500, 1), (2600, 2), (45000, 1))]
+    fig = plots.scaling_picture(rows, ("games",))
+    ax = fig.axes[0]
+    by_label = {line.get_label(): list(line.get_xdata()) for line in ax.lines}
+    plots.plt.close(fig)
+    assert by_label["total (no delay)"] == [1000, 10000, 100000]
+    assert by_label["games"] == [1000, 10000, 100000]
+    assert by_label["total, delay 1 (2 worlds)"] == [2500, 45000]
+    assert by_label["total, delay 2 (1 world)"] == [2600]
