@@ -261,3 +261,30 @@ def _assert_not_blank(path: Path) -> None:
         # the map is drawn: its left half holds dark cells or text
         left = rgb.crop((0, 60, rgb.size[0] // 2, rgb.size[1] - 100)).convert("L")
         assert left.getextrema()[0] < 80
+
+
+def test_explorer_shows_a_change_of_mind_at_the_step_of_the_belief_trace(runs: dict[str, Path]
+                                                                         ) -> None:
+    """Step numbering (issue #26 item 2): the explorer marks a change of mind at step n exactly
+    when belief.png's trace does (analyses/episodes.belief_trace: after[n-1] != acted[n-1]);
+    world3's drawn episode has one."""
+    from hg2prism import pipeline
+    from hg2prism.analyses import episodes, simulation
+    from hg2prism.strategy.records import Strategy
+    from hg2prism.worldfile import load_world
+
+    world = load_world(MODELS / "world3.toml")
+    out = runs["world3"]
+    analysis = pipeline.analyse(world)
+    strategy = Strategy.load(out / "strategy.json", analysis.ts)
+    seed = json.loads((out / "results.json").read_text())["episode"]["seed"]
+    steps: list = []
+    simulation.simulate_deceptive(analysis, strategy, 1, world.simulation.horizon, seed,
+                                  observer=steps.append, progress=False)
+    trace = episodes.belief_trace(analysis.inference, steps)
+    changes = [n for n in range(1, len(steps) + 1) if trace.after[n - 1] != trace.acted[n - 1]]
+    (episode,) = [e for e in page_data(out / "explorer.html")["episodes"] if e["drawn"]]
+    shown = [n for n, state in enumerate(episode["states"]) if state["belief"]["changed"]]
+    assert changes and shown == changes
+    assert [s["belief"]["hypothesis"] for s in episode["states"][1:]] == list(trace.after)
+    assert [s["belief"]["belief"] for s in episode["states"][1:]] == [list(v) for v in trace.values]
