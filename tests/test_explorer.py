@@ -75,6 +75,10 @@ def test_explorer_data_agrees_with_the_run(runs: dict[str, Path]) -> None:
             for n, step in enumerate(steps, start=1):
                 before, after = states[n - 1], states[n]
                 assert step["start"] == before["place"]
+                record = data["records"][before["record"]]
+                assert record["state"] == data["states"][before["place"]]
+                assert set(record["values"]) == {a["move"] for a in
+                                                 data["answers"][before["answers"]]}
                 assert step["landing"] == after["place"]
                 (played,) = [a for a in data["answers"][before["answers"]]
                              if a["move"] == step["action"]]

@@ -406,6 +406,9 @@ class Strategy:
         the strategy was not read from records)."""
         if not self.records:
             return None
+        if self._rows is None and len(self.table) == len(self.records):
+            # one record per state (as written): the table holds the states in record order
+            self._rows = {key: i for i, key in enumerate(self.table)}
         row = self._record_rows().get((ts_state, q, memory))
         return None if row is None else self.records[row]
 
