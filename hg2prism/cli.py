@@ -121,11 +121,12 @@ def _run_parser(sub: Subparsers) -> None:
     p = _solving_parser(sub, "run", "Everything computed for a world: check, the symmetric "
                         "baselines (Nash, leader), PRISM-games exports (symmetric.prism, "
                         "perceptual_<i>.prism), online simulation, the completion table "
-                        "(table.md), the figures (world, belief, completion; PNG and SVG) and the "
-                        "replay of one episode (replay.gif).")
+                        "(table.md), the figures (world, belief, completion; PNG and SVG), the "
+                        "replay of one episode (replay.gif) and explorer.html, a self-contained "
+                        "page stepping through it and its candidate episodes.")
     _episode_options(p, "simulated episodes (default: the world's)")
     p.add_argument("--episode", metavar="RULE", default="median",
-                   help="the episode world.png, belief.png and replay.gif draw: median "
+                   help="the episode world.png, belief.png, replay.gif and explorer.html draw: median "
                         "(default: a median-length completed episode of the seeds "
                         "SEED..SEED+49), shortest (the shortest of them) or seed=N "
                         "(the episode of seed N)")

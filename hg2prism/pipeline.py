@@ -432,7 +432,19 @@ def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horiz
     with _timed(timings, "replay"):
         frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")
     say(f"replay: replay.gif, {frames} frames ({timings['replay']:.2f} s)")
+    _explorer(world, out, analysis, played, drawn, horizon, seed)
     return drawn, frames
+
+
+def _explorer(world: World, out: Path, analysis: Analysis, played: _Played,
+              drawn: ChosenEpisode, horizon: int, seed: int) -> None:
+    """explorer.html: the drawn episode and its candidates, state by state (report/explorer.py)."""
+    from hg2prism.report.explorer import write_explorer
+
+    start = time.perf_counter()
+    write_explorer(world, analysis, played.analysis, played.strategy, drawn, horizon, seed,
+                   out / "explorer.html")
+    say(f"explorer: explorer.html ({time.perf_counter() - start:.2f} s)")
 
 
 def _leader_strategies(analysis: Analysis) -> tuple[np.ndarray, np.ndarray]:

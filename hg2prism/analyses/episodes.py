@@ -27,7 +27,8 @@ from hg2prism.strategy.policy import Policy
 if TYPE_CHECKING:
     from hg2prism.results import Analysis
 
-__all__ = ["EPISODE_SEEDS", "EpisodeRule", "ChosenEpisode", "parse_episode_rule", "choose_episode",
+__all__ = ["EPISODE_SEEDS", "EpisodeRule", "ChosenEpisode", "parse_episode_rule", "candidate_episodes",
+           "choose_episode",
            "outcome_text", "Step", "episode_steps", "BeliefTrace", "belief_trace"]
 
 EPISODE_SEEDS = 50
@@ -75,6 +76,8 @@ class ChosenEpisode:
     seeds: tuple[int, int] | None       # the seed set searched (first, last), None for seed=N
     completed_lengths: tuple[int, ...]  # lengths of the completed candidates, sorted
     fallback: bool = False              # no candidate completed: the first one is drawn
+    # every candidate simulated, (steps, outcome code, seed) by seed (seed=N: the one drawn)
+    candidates: tuple = ()
 
     @property
     def n_steps(self) -> int:
@@ -114,6 +117,13 @@ def _one_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int) 
     return steps, int(summary.outcomes[0])
 
 
+def candidate_episodes(analysis: Analysis, strategy: Policy, horizon: int, seed: int
+                       ) -> list[tuple[list, int, int]]:
+    """The seed set's episodes (module docstring): (steps, outcome code, seed) by seed."""
+    return [(*_one_episode(analysis, strategy, horizon, candidate), candidate)
+            for candidate in range(seed, seed + EPISODE_SEEDS)]
+
+
 def choose_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int,
                    rule: EpisodeRule | str | None = None) -> ChosenEpisode:
     """The deceptive episode `rule` names (module docstring); `analysis` is a
@@ -123,21 +133,21 @@ def choose_episode(analysis: Analysis, strategy: Policy, horizon: int, seed: int
     rule = parse_episode_rule(rule)
     if rule.kind == "seed":
         steps, code = _one_episode(analysis, strategy, horizon, rule.seed)
-        return ChosenEpisode(steps, rule.seed, outcome_text(code), rule, None, ())
-    candidates = []
-    for candidate in range(seed, seed + EPISODE_SEEDS):
-        steps, code = _one_episode(analysis, strategy, horizon, candidate)
-        candidates.append((steps, code, candidate))
+        return ChosenEpisode(steps, rule.seed, outcome_text(code), rule, None, (),
+                             candidates=((steps, code, rule.seed),))
+    candidates = tuple(candidate_episodes(analysis, strategy, horizon, seed))
     completed = sorted((c for c in candidates if c[1] == simulation.GOAL),
                        key=lambda c: (len(c[0]), c[2]))
     lengths = tuple(len(c[0]) for c in completed)
     seeds = (seed, seed + EPISODE_SEEDS - 1)
     if not completed:
         steps, code, first = candidates[0]
-        return ChosenEpisode(steps, first, outcome_text(code), rule, seeds, lengths, True)
+        return ChosenEpisode(steps, first, outcome_text(code), rule, seeds, lengths, True,
+                             candidates)
     index = (len(completed) - 1) // 2 if rule.kind == "median" else 0
     steps, code, chosen = completed[index]
-    return ChosenEpisode(steps, chosen, outcome_text(code), rule, seeds, lengths)
+    return ChosenEpisode(steps, chosen, outcome_text(code), rule, seeds, lengths,
+                         candidates=candidates)
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,8 @@ from hg2prism.model.world import World
 from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, hypothesis_colour,
                                    hypothesis_handles, steps_text)
 
-__all__ = ["CELL_STYLE", "WORLD_CELL_INCHES", "Move", "Segment", "grid_moves", "draw_grid",
-           "draw_move", "place_labels", "draw_key", "GridDrawer"]
+__all__ = ["CELL_STYLE", "WORLD_CELL_INCHES", "Move", "Segment", "grid_moves", "cell_kind",
+           "draw_grid", "draw_move", "place_labels", "draw_key", "GridDrawer"]
 
 WORLD_CELL_INCHES = 0.85     # one grid cell
 WORLD_LEGEND_INCHES = 4.2    # the legend column right of the grid
@@ -77,6 +77,18 @@ def grid_moves(geo: GridGeometry, state_names: Sequence[str], steps) -> list[Mov
     return moves
 
 
+def cell_kind(grid, regions: dict, cell: tuple[int, int]) -> tuple[str, str]:
+    """A cell's kind (a key of CELL_STYLE) and the text drawn in it; `regions`: cell ->
+    its region's letter."""
+    if cell in grid.walls:
+        return "wall", ""
+    if cell in grid.obstacles:
+        return "obstacle", "obs"
+    if cell in regions:
+        return "region", regions[cell]
+    return ("candidate" if cell in grid.trap_candidates else "free"), ""
+
+
 def draw_grid(ax: plt.Axes, world: World, min_font: float = 0.0) -> list:
     """The map, every cell coloured by its kind, no text smaller than `min_font` points;
     returns legend handles for the kinds present."""
@@ -86,15 +98,8 @@ def draw_grid(ax: plt.Axes, world: World, min_font: float = 0.0) -> list:
     for x in range(grid.width):
         for y in range(grid.height):
             cell = (x, y)
-            kind, text, text_colour = "free", "", "black"
-            if cell in grid.walls:
-                kind = "wall"
-            elif cell in grid.obstacles:
-                kind, text, text_colour = "obstacle", "obs", "white"
-            elif cell in regions:
-                kind, text = "region", regions[cell]
-            elif cell in grid.trap_candidates:
-                kind = "candidate"
+            kind, text = cell_kind(grid, regions, cell)
+            text_colour = "white" if kind == "obstacle" else "black"
             present.add(kind)
             ax.add_patch(plt.Rectangle((x - 0.5, y - 0.5), 1, 1, facecolor=CELL_STYLE[kind][0],
                                        edgecolor="0.8", lw=0.8, zorder=0))
@@ -415,3 +420,20 @@ class GridDrawer:
     def widest_caption(self, steps) -> str:
         """A caption at least as wide as any frame's, for the layout."""
         return "chose W, went W (bumped into a wall, trapped)"
+
+    # ---- the explorer (report/explorer.py) ----
+    def explorer_map(self) -> dict:
+        """The map as the explorer draws it: the grid's cells with their kinds, colours and
+        texts (cells are positions, `position`)."""
+        from matplotlib.colors import to_hex
+
+        grid = self.world.grid
+        regions = {cell: letter for letter, cells in grid.regions for cell in cells}
+        cells = []
+        for y in range(grid.height):
+            for x in range(grid.width):
+                kind, text = cell_kind(grid, regions, (x, y))
+                cells.append({"x": x, "y": y, "kind": kind, "text": text,
+                              "fill": to_hex(CELL_STYLE[kind][0])})
+        return {"kind": "grid", "width": grid.width, "height": grid.height, "cells": cells,
+                "legend": {k: [to_hex(CELL_STYLE[k][0]), CELL_STYLE[k][1]] for k in CELL_STYLE}}

@@ -363,3 +363,17 @@ class ArenaDrawer:
 
     def widest_caption(self, steps) -> str:
         return max((self.caption(s) for s in steps), key=len, default="")
+
+    # ---- the explorer (report/explorer.py) ----
+    def explorer_map(self) -> dict:
+        """The graph as the explorer draws it: each state's text, kind and colour (at
+        `position`), whether it is terminal, and the arrows u -> v with their actions."""
+        from matplotlib.colors import to_hex
+
+        nodes = [{"text": self.node_text(s), "kind": self._kind(s),
+                  "fill": to_hex(NODE_STYLE[self._kind(s)][0]),
+                  "terminal": bool(self.arena.terminal[s])}
+                 for s in range(self.arena.n_states)]
+        return {"kind": "graph", "nodes": nodes,
+                "edges": [[u, v, ", ".join(names)] for (u, v), names in self.edges.items()],
+                "legend": {k: [to_hex(NODE_STYLE[k][0]), NODE_STYLE[k][1]] for k in NODE_STYLE}}

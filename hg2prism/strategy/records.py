@@ -409,11 +409,27 @@ class Strategy:
                     return str(move)
         return ts.action_names(v)[self.table[key]]
 
+    def record(self, ts_state: int, q: int, memory: Memory) -> Mapping | None:
+        """The record (strategy.json's) of the hypergame state, None when there is none (or
+        the strategy was not read from records)."""
+        if not self.records:
+            return None
+        if self._rows is None and len(self.table) == len(self.records):
+            # one record per state (as written): the table holds the states in record order
+            self._rows = {key: i for i, key in enumerate(self.table)}
+        row = self._record_rows().get((ts_state, q, memory))
+        return None if row is None else self.records[row]
+
     def _schedule(self, key: tuple[int, int, Memory]) -> list | None:
         """The ``schedule`` of the record of `key` (step-bounded strategies), else None."""
         if not self.records or "schedule" not in self.records[0]:
             return None
-        if self._rows is None:      # built when first asked: bounded strategies only
+        return self.records[self._record_rows()[key]]["schedule"]
+
+    def _record_rows(self) -> dict:
+        """Table key -> the index of its first record; records of one state must agree on
+        their schedule."""
+        if self._rows is None:      # built when first asked
             rows: dict[tuple[int, int, Memory], int] = {}
             for i, record in enumerate(self.records):
                 where = f"strategy record {i}"
@@ -422,7 +438,7 @@ class Strategy:
                     raise StrategyError(f"{where}: another schedule for the state of "
                                         f"strategy record {first}")
             self._rows = rows
-        return self.records[self._rows[key]]["schedule"]
+        return self._rows
 
     def describe(self, ts_state: int, q: int, memory: Memory) -> str:
         if self.ts is None:

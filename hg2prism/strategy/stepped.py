@@ -69,6 +69,7 @@ class SteppedStrategy:
         if len(base.table) != len(records):
             raise StrategyError("strategy records repeat a state")
         self.bound = bound
+        self.base = base        # the records as a Strategy (their values, for the explorer)
         self.row = {key: i for i, key in enumerate(base.table)}
         self.actions = np.full((len(records), bound), -1, dtype=np.int8)
         for i, (record, key) in enumerate(zip(records, base.table)):

@@ -1,0 +1,294 @@
+"""explorer.html (issue #26 items 4 and 5): the page `run` writes beside the figures.
+
+Without a browser: the page is self-contained (no external resource) and its data agrees with
+itself (what P2 would believe after the move P1 plays is what she believes at the next step).
+In headless Chromium (Debian's `chromium`, driven by Playwright; skipped, saying why, when
+either is missing): world1's and world3's pages are stepped through the whole drawn episode
+with the keyboard, and at every state the values, the traps and the belief the page shows
+are compared with strategy.json, results.json and tests/reference.py (the reference's P2
+strategy, its inference and CUSUM scores computed from its softmax model of P1); the page
+logs no error, and a screenshot at 1280x800 is not blank.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+import reference
+from conftest import MODELS
+from hg2prism import cli
+
+WORLDS = ("world1", "world3")
+VIEWPORT = {"width": 1280, "height": 800}
+TOLERANCE = 1e-6        # the reference's and the package's scores: separate solvers
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    outs = {}
+    for name in WORLDS:
+        out = tmp_path_factory.mktemp("explorer") / name
+        assert cli.main(["run", str(MODELS / f"{name}.toml"), "--out", str(out),
+                         "--episodes", "200"]) == 0
+        outs[name] = out
+    return outs
+
+
+def page_data(path: Path) -> dict:
+    text = path.read_text(encoding="utf-8")
+    match = re.search(r'<script type="application/json" id="data">(.*?)</script>', text, re.S)
+    assert match, "the page holds its data inline"
+    return json.loads(match.group(1))
+
+
+def test_explorer_is_self_contained(runs: dict[str, Path]) -> None:
+    for name, out in runs.items():
+        text = (out / "explorer.html").read_text(encoding="utf-8")
+        assert text.startswith("<!DOCTYPE html>")
+        # no file or address is loaded: scripts and styles are inline, the only URL is SVG's
+        # namespace name
+        assert not re.search(r"<(script|img|link|iframe)[^>]*\b(src|href)=", text)
+        assert set(re.findall(r"https?://[^\s\"')]+", text)) <= {"http://www.w3.org/2000/svg"}
+        assert "@import" not in text and "url(http" not in text
+
+
+def test_explorer_data_agrees_with_the_run(runs: dict[str, Path]) -> None:
+    """The drawn episode is results.json's, every candidate of the seed set is there, and
+    P2's answer to the move P1 played is the belief shown at the next step."""
+    for name, out in runs.items():
+        data = page_data(out / "explorer.html")
+        drawn = json.loads((out / "results.json").read_text())["episode"]
+        first, last = drawn["seed_set"]
+        assert [e["seed"] for e in data["episodes"]] == list(range(first, last + 1))
+        (episode,) = [e for e in data["episodes"] if e["drawn"]]
+        assert (episode["seed"], len(episode["steps"]), episode["outcome"]) == (
+            drawn["seed"], drawn["steps"], drawn["outcome"])
+        for e in data["episodes"]:
+            states, steps = e["states"], e["steps"]
+            assert len(states) == len(steps) + 1
+            assert [s["n"] for s in steps] == list(range(1, len(steps) + 1))
+            for n, step in enumerate(steps, start=1):
+                before, after = states[n - 1], states[n]
+                assert step["start"] == before["place"]
+                record = data["records"][before["record"]]
+                assert record["state"] == data["states"][before["place"]]
+                assert set(record["values"]) == {a["move"] for a in
+                                                 data["answers"][before["answers"]]}
+                assert step["landing"] == after["place"]
+                (played,) = [a for a in data["answers"][before["answers"]]
+                             if a["move"] == step["action"]]
+                assert played["hypothesis"] == after["belief"]["hypothesis"]
+                assert played["belief"] == after["belief"]["belief"]
+                assert after["belief"]["acted"] == step["hypothesis"]
+                assert after["belief"]["changed"] == (after["belief"]["hypothesis"]
+                                                      != step["hypothesis"])
+
+
+# ---- in a browser ----
+
+def _browser():
+    """Playwright's Chromium on the system's chromium, or pytest.skip saying why not."""
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        pytest.skip("Playwright for Python is not installed (pip install playwright)")
+    executable = shutil.which("chromium") or shutil.which("chromium-browser")
+    if executable is None:
+        pytest.skip("no chromium on PATH (Debian: apt-get install chromium; .ci/run does)")
+    return sync_playwright, executable
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_playwright, executable = _browser()
+    manager = sync_playwright().start()
+    try:
+        try:
+            chromium = manager.chromium.launch(executable_path=executable,
+                                               args=["--no-sandbox"])
+        except Exception as err:    # noqa: BLE001: the browser cannot run here
+            pytest.skip(f"chromium at {executable} does not start under Playwright: "
+                        f"{str(err).splitlines()[0]}")
+        yield chromium
+        chromium.close()
+    finally:
+        manager.stop()
+
+
+READ_STATE = """() => {
+  const q = (s) => document.querySelector(s);
+  const data = (e) => e ? Object.assign({}, e.dataset) : null;
+  return {
+    step: Number(q('#step').dataset.step),
+    episode: data(q('#episode')),
+    robot: q('#robot').dataset.state,
+    belief: data(q('#belief')),
+    scores: [...document.querySelectorAll('#beliefbox tr.score')].map((r) => [Number(r.dataset.x), r.dataset.value]),
+    record: data(q('#record')),
+    traps: data(q('#traps')),
+    trapMarks: [...document.querySelectorAll('#dynamic g.trap')].map((g) => g.dataset.state),
+    moves: [...document.querySelectorAll('#moves tr.move')].map((r) => Object.assign({}, r.dataset)),
+  };
+}"""
+
+
+def _cell(name: str) -> tuple[int, int]:
+    x, y = reference._cell_of(name)
+    return x, y
+
+
+def _z_scores(ref: reference.World, hypothesis: int, window: list, observation) -> list[float]:
+    """CUSUM scores Z_x (docs/semantics.md §5) from the reference's log-likelihood ratios:
+    Z_x = max(0, Z_x + r) over the window with the new observation, 0 for the current x."""
+    recent = (list(window) + [observation])[-ref.window:]
+    scores = []
+    for x in range(len(ref.hyps)):
+        z = 0.0
+        if x != hypothesis:
+            for v, a in recent:
+                z = max(0.0, z + ref.r(x, hypothesis, v, a))
+        scores.append(z)
+    return scores
+
+
+def _check_state(shown: dict, records: dict, ref: reference.Reference, previous: dict | None
+                 ) -> dict:
+    """One state of the page against strategy.json and the reference; returns what the next
+    state's belief must be (P2's answer to the move played)."""
+    key = json.loads(shown["record"]["key"])
+    record = records[json.dumps(key, sort_keys=True)]
+    assert shown["robot"] == record["state"]
+    values = {m["move"]: float(m["value"]) if m["value"] else None for m in shown["moves"]}
+    assert values == record["values"]
+    (chosen,) = [m["move"] for m in shown["moves"] if m["chosen"] == "true"]
+    assert chosen == record["action"]
+    cell = _cell(record["state"])
+    hypothesis = record["hypothesis"]
+    window = [(_cell(w["state"]), w["action"]) for w in record["window"]]
+    # the traps P2 sets for the next step: her strategy for the hypothesis she acts on
+    assert int(shown["traps"]["hypothesis"]) == hypothesis
+    traps = sorted(_cell(t) for t in json.loads(shown["traps"]["traps"]))
+    assert traps == sorted(ref.trap_strategy(hypothesis, cell))
+    assert sorted(_cell(t) for t in shown["trapMarks"]) == traps
+    # what she would believe after each move
+    answers = {}
+    for move in shown["moves"]:
+        after, _ = ref.infer(hypothesis, window, (cell, move["move"]))
+        scores = _z_scores(ref.world, hypothesis, window, (cell, move["move"]))
+        assert int(move["after"]) == after
+        assert json.loads(move["belief"]) == pytest.approx(scores, abs=TOLERANCE)
+        answers[move["move"]] = (after, scores, after != hypothesis)
+    if previous is not None:        # this state's belief is P2's answer to the last move
+        after, scores, changed = previous
+        assert int(shown["belief"]["hypothesis"]) == after
+        assert shown["belief"]["changed"] == str(changed).lower()
+        assert [float(v) for _, v in sorted(shown["scores"])] == pytest.approx(scores,
+                                                                                 abs=TOLERANCE)
+    return answers[chosen]
+
+
+@pytest.mark.parametrize("name", WORLDS)
+def test_explorer_in_chromium(name: str, runs: dict[str, Path], browser, tmp_path: Path
+                              ) -> None:
+    out = runs[name]
+    results = json.loads((out / "results.json").read_text())
+    drawn = results["episode"]
+    records = {}
+    for record in json.loads((out / "strategy.json").read_text()):
+        key = {k: record[k] for k in ("state", "standing", "countdown", "q", "hypothesis",
+                                      "window")}
+        records.setdefault(json.dumps(key, sort_keys=True), record)
+    ref = reference.solve(MODELS / f"{name}.toml")
+    threshold = results["parameters"]["threshold"]
+
+    page = browser.new_page(viewport=VIEWPORT)
+    errors: list[str] = []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda err: errors.append(str(err)))
+    page.goto((out / "explorer.html").as_uri())
+
+    shown = page.evaluate(READ_STATE)
+    assert shown["episode"] == {"seed": str(drawn["seed"]), "steps": str(drawn["steps"]),
+                                "outcome": drawn["outcome"]}
+    assert shown["step"] == 0 and shown["belief"]["threshold"] == str(threshold)
+    assert int(shown["belief"]["hypothesis"]) == ref.world.h0
+    previous = None
+    changes = []
+    for n in range(drawn["steps"] + 1):
+        shown = page.evaluate(READ_STATE) if n else shown
+        assert shown["step"] == n
+        if n and shown["belief"]["changed"] == "true":
+            changes.append(n)
+        if n < drawn["steps"]:
+            previous = _check_state(shown, records, ref, previous)
+            page.keyboard.press("ArrowRight")
+        else:       # the end: P2's answer to the last move, no further move
+            after, scores, _ = previous
+            assert int(shown["belief"]["hypothesis"]) == after
+            assert shown["moves"] == [] and shown["record"] is None
+    page.keyboard.press("ArrowRight")           # nothing beyond the end
+    assert page.evaluate(READ_STATE)["step"] == drawn["steps"]
+    page.keyboard.press("ArrowLeft")
+    assert page.evaluate(READ_STATE)["step"] == drawn["steps"] - 1
+    page.keyboard.press("Home")
+    page.click("#next")                          # the mouse
+    assert page.evaluate(READ_STATE)["step"] == 1
+    page.keyboard.press("ArrowDown")             # the next candidate episode, from its start
+    other = page.evaluate(READ_STATE)
+    assert other["step"] == 0 and other["episode"]["seed"] == str(
+        drawn["seed"] + 1 if drawn["seed"] < drawn["seed_set"][1] else drawn["seed_set"][0])
+    if name == "world3":       # the feint: she changes her mind during the drawn episode
+        assert changes
+    shot = tmp_path / f"{name}.png"
+    page.keyboard.press("End")
+    page.screenshot(path=str(shot))
+    page.close()
+    assert errors == []
+    _assert_not_blank(shot)
+
+
+def _assert_not_blank(path: Path) -> None:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        assert image.size == (VIEWPORT["width"], VIEWPORT["height"])
+        rgb = image.convert("RGB")
+        colours = rgb.getcolors(maxcolors=1 << 20)
+        assert colours is not None and len(colours) > 50
+        # no single colour covers nearly everything (a blank or error page)
+        assert max(count for count, _ in colours) < 0.9 * rgb.size[0] * rgb.size[1]
+        # the map is drawn: its left half holds dark cells or text
+        left = rgb.crop((0, 60, rgb.size[0] // 2, rgb.size[1] - 100)).convert("L")
+        assert left.getextrema()[0] < 80
+
+
+def test_explorer_shows_a_change_of_mind_at_the_step_of_the_belief_trace(runs: dict[str, Path]
+                                                                         ) -> None:
+    """Step numbering (issue #26 item 2): the explorer marks a change of mind at step n exactly
+    when belief.png's trace does (analyses/episodes.belief_trace: after[n-1] != acted[n-1]);
+    world3's drawn episode has one."""
+    from hg2prism import pipeline
+    from hg2prism.analyses import episodes, simulation
+    from hg2prism.strategy.records import Strategy
+    from hg2prism.worldfile import load_world
+
+    world = load_world(MODELS / "world3.toml")
+    out = runs["world3"]
+    analysis = pipeline.analyse(world)
+    strategy = Strategy.load(out / "strategy.json", analysis.ts)
+    seed = json.loads((out / "results.json").read_text())["episode"]["seed"]
+    steps: list = []
+    simulation.simulate_deceptive(analysis, strategy, 1, world.simulation.horizon, seed,
+                                  observer=steps.append, progress=False)
+    trace = episodes.belief_trace(analysis.inference, steps)
+    changes = [n for n in range(1, len(steps) + 1) if trace.after[n - 1] != trace.acted[n - 1]]
+    (episode,) = [e for e in page_data(out / "explorer.html")["episodes"] if e["drawn"]]
+    shown = [n for n, state in enumerate(episode["states"]) if state["belief"]["changed"]]
+    assert changes and shown == changes
+    assert [s["belief"]["hypothesis"] for s in episode["states"][1:]] == list(trace.after)
+    assert [s["belief"]["belief"] for s in episode["states"][1:]] == [list(v) for v in trace.values]
