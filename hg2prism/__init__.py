@@ -8,7 +8,7 @@ The Python API (docs/api.md):
     baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
     simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
 
-The pipeline, one module per stage, is listed in the README; the meaning of every number is in
+The pipeline, one module per stage, is listed in docs/architecture.md; the meaning of every number is in
 docs/semantics.md.
 """
 
