@@ -44,7 +44,8 @@ SOURCES: dict[str, tuple[str, ...]] = {
     "mir100_sweep": ("sweep.json",),
 }
 VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file"}
-MARK = re.compile(r"<!-- (generated|value): (.*?) -->(.*?)<!-- /\1 -->", re.DOTALL)
+# a marker quoted in a code span (a backtick before it) is text, not a marker
+MARK = re.compile(r"(?<!`)<!-- (generated|value): (.*?) -->(.*?)<!-- /\1 -->", re.DOTALL)
 
 
 def documents(root: Path = ROOT) -> list[Path]:
@@ -233,6 +234,8 @@ def render(text: str, out: Outputs) -> str:
     def one(match: re.Match) -> str:
         kind, spec, _ = match.groups()
         if kind == "generated":
+            if spec not in BLOCKS:
+                raise ValueError(f"unknown generated block {spec!r} (known: {', '.join(BLOCKS)})")
             body = "\n" + BLOCKS[spec](out) + "\n"
         else:
             body = value(out, spec)
