@@ -49,6 +49,7 @@ docs: world1 world3 mir100
 	$(BIN)/python -m hg2prism.report.docs
 
 docs-all: world1 world2 world3 mir100
+	$(BIN)/hg2prism robust models/world1.toml --out models/world1_robust
 	$(BIN)/python -m hg2prism.report.docs
 
 bench: $(STAMP)

@@ -42,6 +42,7 @@ SOURCES: dict[str, tuple[str, ...]] = {
     "world3_bayes": ("results.json",),
     "mir100": ("results.json", "strategy.json"),
     "mir100_sweep": ("sweep.json",),
+    "world1_robust": ("robust.json",),      # make docs-all
 }
 VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file"}
 # a marker quoted in a code span (a backtick before it) is text, not a marker
