@@ -5,9 +5,10 @@
   docs/data holds, so that `make docs` leaves the documents unchanged; world2's sweep,
   detection and robustness experiments are compared from their committed outputs;
 * every Python block of README.md and docs/api.md runs (in order, in one namespace with
-  `hg2prism` imported, from the repository's root) and prints what its comments say; a block
-  that is a signature (`x = hg2prism.f(a, *, b=1)`, not Python) has the function's parameters
-  and defaults; every `hg2prism` command in a code block of the documents parses, and every
+  `hg2prism` imported, from the repository's root) and prints what its comments say (when every
+  `print(` line has a comment); a signature block — fenced ```` ```python signature ````, or
+  any block that is not Python, such as `x = hg2prism.f(a, *, b=1)` — has the function's
+  parameters, kinds and defaults; every `hg2prism` command in a code block of the documents parses, and every
   `make` target named there exists;
 * tests/README.md lists every test file, docs/architecture.md every module of hg2prism/;
 * examples/tour.ipynb runs.
@@ -32,7 +33,7 @@ from hg2prism import cli, pipeline
 from hg2prism.report import docs
 from hg2prism.worldfile import load_world
 
-FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.MULTILINE | re.DOTALL)
+FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
 FRESH = ("world1", "world3", "world3_bayes", "mir100")      # fast: run afresh here
 
 
@@ -121,7 +122,8 @@ def test_every_block_and_value_is_rendered_from_the_data() -> None:
 # ---- code blocks ----
 
 def _blocks(path: Path) -> list[tuple[str, str]]:
-    return [(m.group(1), m.group(2)) for m in FENCE.finditer(path.read_text())]
+    """(info string, text) of each fenced block; the info string's first word is the language."""
+    return [(m.group(1).strip(), m.group(2)) for m in FENCE.finditer(path.read_text())]
 
 
 def _signature_of(block: str) -> tuple[str, inspect.Signature] | None:
@@ -153,10 +155,12 @@ def test_python_blocks_run(document: str, monkeypatch: pytest.MonkeyPatch) -> No
     monkeypatch.chdir(ROOT)
     namespace = {"hg2prism": hg2prism}
     ran = 0
-    for language, block in _blocks(ROOT / document):
-        if language != "python":
+    for info, block in _blocks(ROOT / document):
+        if info.split()[:1] != ["python"]:
             continue
         try:
+            if "signature" in info.split():
+                raise SyntaxError("a signature")
             code = compile(block, document, "exec")
         except SyntaxError:
             signature = _signature_of(block)
@@ -227,7 +231,7 @@ def test_architecture_lists_every_module() -> None:
 def test_readme_world_file_is_world3() -> None:
     """README's world file is models/world3.toml as it is, and a valid world."""
     text = (ROOT / "README.md").read_text()
-    toml = [block for language, block in _blocks(ROOT / "README.md") if language == "toml"]
+    toml = [block for info, block in _blocks(ROOT / "README.md") if info == "toml"]
     assert toml == [(MODELS / "world3.toml").read_text()]
     assert "models/world3.toml" in text
 
