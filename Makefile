@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 mir100 sweep-demo test mazes bench clean
+.PHONY: world1 world2 world3 mir100 sweep-demo test mazes bench clean docs docs-all
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,16 @@ mir100: $(STAMP)
 # takes about 3 minutes on two cores).
 mazes: $(STAMP)
 	HG2PRISM_ALL_MAZES=1 $(BIN)/python -m pytest -q -n 2 tests/test_mazes.py -k run_completes
+
+# The numbers and tables of README.md and docs/ rendered from the showcase worlds' outputs
+# (docs/cli.md, "Documentation that cannot go stale"): the fast worlds afresh, the others from
+# docs/data (docs-all runs them all afresh, about two minutes).
+docs: world1 world3 mir100
+	$(BIN)/python -m hg2prism.report.docs
+
+docs-all: world1 world2 world3 mir100
+	$(BIN)/hg2prism robust models/world1.toml --out models/world1_robust
+	$(BIN)/python -m hg2prism.report.docs
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

@@ -15,7 +15,7 @@ The Python API (docs/api.md):
     draw_world / draw_belief(solution, episode, ax=)         -> the figures, in a matplotlib Axes
     draw_sweep(table, ax=)
 
-The pipeline, one module per stage, is listed in the README; the meaning of every number is in
+The pipeline, one module per stage, is listed in docs/architecture.md; the meaning of every number is in
 docs/semantics.md.
 """
 

@@ -1,6 +1,6 @@
 """hg2prism: deceptive strategies in dynamic hypergames, model-checked with Storm through
 generated PRISM models. Each command takes a world file (TOML); docs/semantics.md defines every
-quantity, README.md the world format and the outputs."""
+quantity, docs/worlds.md the world format, docs/cli.md the commands and outputs."""
 
 from __future__ import annotations
 
@@ -44,7 +44,7 @@ Subparsers = argparse._SubParsersAction     # what add_subparsers returns
 
 def _add(sub: Subparsers, name: str, help: str) -> argparse.ArgumentParser:
     p = sub.add_parser(name, help=help, description=help)
-    p.add_argument("world", help="world file (TOML, see README)")
+    p.add_argument("world", help="world file (TOML, see docs/worlds.md)")
     return p
 
 

@@ -11,7 +11,7 @@
 * the simulated share of episodes in which P2 changes her hypothesis agrees with the exact
   probability of a change within the horizon, computed by the reference on the chain the
   exported strategy induces (99.9 % Wilson interval);
-* world3 has the properties it was designed for (README, "What deception is worth").
+* world3 has the properties it was designed for (docs/results.md, "What deception is worth").
 """
 
 from __future__ import annotations
@@ -180,7 +180,7 @@ def test_simulated_switches_agree_with_exact(name: str, solved) -> None:
 
 
 def test_world3_deception_steers_belief(solved) -> None:
-    """world3 is what the README says: the deceptive value exceeds V_static and V_naive by at
+    """world3 is what docs/results.md says: the deceptive value exceeds V_static and V_naive by at
     least 0.1, and P2 changes her mind in at least half of the deceptive episodes (simulated,
     and exactly within the horizon by the reference)."""
     path, checked, worth = solved("world3")

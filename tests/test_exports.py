@@ -202,7 +202,7 @@ PRISM = _prism()
                                                   ("gen_d1", "bounded", 7)])
 def test_prism_reads_the_induced_dtmc(name: str, objective: str, bound: int | None,
                                       folder: str) -> None:
-    """The command of the README (plus -epsilon: PRISM's default stopping rule is relative), with
+    """The command of docs/cli.md (plus -epsilon: PRISM's default stopping rule is relative), with
     the goal.props that check writes beside the induced DTMC."""
     result = checked(name, objective, folder, bound)
     out = result.out

@@ -1,4 +1,4 @@
-"""Figures and the replay (README "Figures"): every figure as PNG and SVG at its stated size, the
+"""Figures and the replay (docs/cli.md "Figures"): every figure as PNG and SVG at its stated size, the
 world picture drawing the episode its rule names, the replay's frames, P2's belief trace, and
 `--episode` errors."""
 
@@ -24,7 +24,7 @@ from hg2prism.worldfile import load_world
 from hg2prism.report import plots, replay
 from hg2prism.strategy.records import Strategy
 
-# The sizes README "Figures" states: inches at 150 dpi.
+# The sizes docs/cli.md "Figures" states: inches at 150 dpi.
 DPI = 150
 EPISODE_SEEDS = 50
 SIZES = {"belief": (8.0, 3.8), "completion": (6.4, 4.4), "sweep": (6.4, 4.4),

@@ -1,5 +1,5 @@
-"""MIR100, the attack graph of README "MIR100": `run` on models/mir100.toml gives what the README
-reports, the deceptive value is the value of the DTMC the strategy induces (induced.tra/.lab
+"""MIR100, the attack graph of docs/results.md "MIR100": `run` on models/mir100.toml gives what
+docs/results.md reports, the deceptive value is the value of the DTMC the strategy induces (induced.tra/.lab
 solved here with a plain linear solve), and each simulated completion rate lies in its 95 %
 Wilson interval around the exact within-horizon probability."""
 
@@ -17,7 +17,9 @@ from conftest import MODELS
 from hg2prism import pipeline
 from hg2prism.worldfile import load_world
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+DOCS = Path(__file__).resolve().parent.parent / "docs"
+RESULTS = DOCS / "results.md"     # the MIR100 section
+WORLDS = DOCS / "worlds.md"       # the arena example
 
 
 @pytest.fixture(scope="module")
@@ -85,10 +87,10 @@ def test_simulated_rates_agree_with_the_exact_within_horizon_probability(mir100:
         assert low - 1e-12 <= row["rate"] <= high + 1e-12, (name, row["rate"], exact)
 
 
-def test_the_readme_reports_these_numbers(mir100: Path) -> None:
-    """README "MIR100": each value in its table is the run's, at the printed precision."""
+def test_the_docs_report_these_numbers(mir100: Path) -> None:
+    """docs/results.md "MIR100": each value in its table is the run's, at the printed precision."""
     results = json.loads((mir100 / "results.json").read_text())
-    section = README.read_text().split("## MIR100", 1)[1].split("\n## ", 1)[0]
+    section = RESULTS.read_text().split("## MIR100", 1)[1].split("\n## ", 1)[0]
     table = {m.group(1).strip(): float(m.group(2)) for m in
              re.finditer(r"^\| ([^|]+?) \| ([0-9.]+) \|", section, re.MULTILINE)}
     expected = {"deceptive value": results["deceptive_value"], "V_lead": results["v_lead"],
@@ -108,12 +110,12 @@ def _table(section: str, header: str) -> list[list[str]]:
             if line.startswith("|") and not line.startswith("|---")]
 
 
-def test_the_readme_first_guess_table(tmp_path: Path) -> None:
-    """README "MIR100": deceptive value and V_naive for each first guess, delay 0 and 1."""
+def test_the_docs_first_guess_table(tmp_path: Path) -> None:
+    """docs/results.md "MIR100": deceptive value and V_naive for each first guess, delay 0 and 1."""
     import dataclasses
 
     world = load_world(MODELS / "mir100.toml")
-    section = README.read_text().split("## MIR100", 1)[1].split("\n## ", 1)[0]
+    section = RESULTS.read_text().split("## MIR100", 1)[1].split("\n## ", 1)[0]
     rows = _table(section, "| P2's first guess |")
     assert len(rows) == 4
     for h, row in enumerate(rows):
@@ -133,11 +135,11 @@ def test_the_readme_first_guess_table(tmp_path: Path) -> None:
             assert worth.value_of_deception == 0.0 or worth.value_of_deception > 1e-12
 
 
-def test_the_readme_arena_example_loads_and_means_what_it_says(tmp_path: Path) -> None:
-    """README "World files": the `lateral` arena world is valid; `db` and `hr` are terminal;
+def test_the_docs_arena_example_loads_and_means_what_it_says(tmp_path: Path) -> None:
+    """docs/worlds.md "Arena worlds": the `lateral` arena world is valid; `db` and `hr` are terminal;
     while the defender watches db the pivot to db fails, against her other actions it succeeds
     with probability 0.5; and it solves."""
-    text = README.read_text()
+    text = WORLDS.read_text()
     block = text.split('```toml\nname = "lateral"', 1)[1].split("```", 1)[0]
     path = tmp_path / "lateral.toml"
     path.write_text('name = "lateral"' + block)
@@ -161,7 +163,7 @@ def test_the_world_from_graph_example_of_docs_api_prints_what_it_says() -> None:
     import contextlib
     import io
 
-    text = (README.parent / "docs" / "api.md").read_text()
+    text = (DOCS / "api.md").read_text()
     block = text.split("hg2prism.world_from_graph(G", 1)[0].rsplit("```python", 1)[1]
     block += "hg2prism.world_from_graph(G" + \
         text.split("hg2prism.world_from_graph(G", 1)[1].split("```", 1)[0]

@@ -6,7 +6,7 @@ the strategies; the pair greedy for the values is evaluated exactly (a sparse li
 re-greedied for a few rounds; where that cycles (on delay worlds P2 changed about a third of her
 trap sets every round), Hoffman-Karp strategy iteration — P1 improves his answers, P2
 best-responds exactly — finds the values (the games stage of the benchmark's delay worlds fell
-from 9-151 s to 3-30 s, README "Scaling"). The result is certified:
+from 9-151 s to 3-30 s, docs/performance.md). The result is certified:
   * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
     greedy strategy is at most x (the least fixed point lies below every fixed point), and
   * x is 0 wherever P2 can keep P1 away from the target forever against P1's strategy; then

@@ -3,7 +3,7 @@ against time, the sweep, the detector, scaling.
 
 Every figure is written twice, as PNG (FIGURE_DPI dots per inch) and as SVG (text kept as text),
 at a fixed size in inches: no tight bounding box, so that a figure's pixel size is known in
-advance (README "Figures")."""
+advance (docs/cli.md "Figures")."""
 
 from __future__ import annotations
 

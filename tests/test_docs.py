@@ -1,0 +1,254 @@
+"""Documentation that cannot go stale (docs/cli.md, "Documentation that cannot go stale"):
+
+* every document (README.md, docs/*.md) is what `make docs` renders from docs/data, and a fresh
+  `run` of the fast showcase worlds (world1, world3, world3_bayes, mir100) gives the data
+  docs/data holds, so that `make docs` leaves the documents unchanged; world2's sweep,
+  detection and robustness experiments are compared from their committed outputs;
+* every Python block of README.md and docs/api.md runs (in order, in one namespace with
+  `hg2prism` imported, from the repository's root) and prints what its comments say (when every
+  `print(` line has a comment); a signature block — fenced ```` ```python signature ````, or
+  any block that is not Python, such as `x = hg2prism.f(a, *, b=1)` — has the function's
+  parameters, kinds and defaults; every `hg2prism` command in a code block of the documents parses, and every
+  `make` target named there exists;
+* tests/README.md lists every test file, docs/architecture.md every module of hg2prism/;
+* examples/tour.ipynb runs.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import inspect
+import io
+import json
+import re
+import shlex
+import shutil
+from pathlib import Path
+
+import pytest
+
+import hg2prism
+from conftest import MODELS, ROOT
+from hg2prism import cli, pipeline
+from hg2prism.report import docs
+from hg2prism.worldfile import load_world
+
+FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
+FRESH = ("world1", "world3", "world3_bayes", "mir100")      # fast: run afresh here
+
+
+def test_every_document_is_its_render() -> None:
+    assert [str(d.relative_to(ROOT)) for d in docs.stale()] == []
+
+
+def test_a_document_differing_from_its_render_is_found(tmp_path: Path) -> None:
+    """The check can fail: a changed number inside a block, and one inside a value."""
+    (tmp_path / "docs").mkdir()
+    readme = (ROOT / "README.md").read_text()
+    assert "| deceptive value | 0.9498 |" in readme
+    (tmp_path / "README.md").write_text(readme.replace("| deceptive value | 0.9498 |",
+                                                       "| deceptive value | 0.9499 |"))
+    results = (ROOT / "docs" / "results.md").read_text()
+    changed = re.sub(r"(<!-- value: world1 v_lead \.2f -->)0\.73", r"\g<1>0.74", results)
+    assert changed != results
+    (tmp_path / "docs" / "results.md").write_text(changed)
+    stale = docs.stale(tmp_path, ROOT / "docs" / "data")
+    assert [p.name for p in stale] == ["README.md", "results.md"]
+    rendered = docs.render(changed, docs.Outputs(ROOT / "docs" / "data"))
+    assert rendered == results
+
+
+def _close(fresh: object, kept: object, where: str) -> None:
+    """The same JSON, numbers within 1e-9 (the last bits differ between machines)."""
+    if isinstance(kept, dict):
+        assert isinstance(fresh, dict) and fresh.keys() == kept.keys(), where
+        for key in kept:
+            _close(fresh[key], kept[key], f"{where}.{key}")
+    elif isinstance(kept, list):
+        assert isinstance(fresh, list) and len(fresh) == len(kept), where
+        for i, (a, b) in enumerate(zip(fresh, kept)):
+            _close(a, b, f"{where}.{i}")
+    elif isinstance(kept, float) and not isinstance(kept, bool):
+        assert fresh == pytest.approx(kept, abs=1e-9), where
+    else:
+        assert fresh == kept, where
+
+
+@pytest.fixture(scope="module")
+def fresh(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """models/CASE/ as `make docs` writes them for the fast showcase worlds (`hg2prism run
+    models/CASE.toml`), in a temporary folder."""
+    root = tmp_path_factory.mktemp("showcase")
+    for case in FRESH:
+        pipeline.run(load_world(MODELS / f"{case}.toml"), root / case, show_progress=False)
+    return root
+
+
+def test_a_fresh_run_gives_the_committed_data(fresh: Path) -> None:
+    data = ROOT / "docs" / "data"
+    for case in FRESH:
+        for name in docs.SOURCES[case]:
+            new = docs.extract(name, (fresh / case / name).read_text())
+            kept = (data / case / name).read_text()
+            if name.endswith(".json"):
+                _close(json.loads(new), json.loads(kept), f"{case}/{name}")
+            else:
+                assert new == kept, f"{case}/{name}"
+
+
+def test_make_docs_after_a_fresh_run_changes_no_document(fresh: Path, tmp_path: Path) -> None:
+    """`make docs`: the fresh outputs copied over docs/data, every document rendered again."""
+    data = tmp_path / "data"
+    shutil.copytree(ROOT / "docs" / "data", data)
+    copied = docs.collect(fresh, data)
+    assert len(copied) == sum(len(docs.SOURCES[case]) for case in FRESH)
+    assert [str(d.relative_to(ROOT)) for d in docs.stale(ROOT, data)] == []
+
+
+def test_every_block_and_value_is_rendered_from_the_data() -> None:
+    """Each block name is known, each value's path exists, and every block is used."""
+    out = docs.Outputs(ROOT / "docs" / "data")
+    used = set()
+    for doc in docs.documents():
+        for kind, spec, _ in docs.MARK.findall(doc.read_text()):
+            if kind == "generated":
+                assert spec in docs.BLOCKS, (doc.name, spec)
+                used.add(spec)
+            else:
+                docs.value(out, spec)
+    assert used == set(docs.BLOCKS)
+
+
+# ---- code blocks ----
+
+def _blocks(path: Path) -> list[tuple[str, str]]:
+    """(info string, text) of each fenced block; the info string's first word is the language."""
+    return [(m.group(1).strip(), m.group(2)) for m in FENCE.finditer(path.read_text())]
+
+
+def _signature_of(block: str) -> tuple[str, inspect.Signature] | None:
+    """`x = hg2prism.f(params)` read as the signature of f; None when it is not one."""
+    match = re.fullmatch(r"\s*\w+ = hg2prism\.(\w+)\((.*)\)\s*", block, re.DOTALL)
+    if match is None:
+        return None
+    namespace: dict = {}
+    exec(f"def {match.group(1)}({match.group(2)}): pass", namespace)
+    return match.group(1), inspect.signature(namespace[match.group(1)])
+
+
+def _plain(signature: inspect.Signature) -> list[tuple[str, object, object]]:
+    """Names, kinds and defaults (not annotations)."""
+    return [(p.name, p.kind, p.default) for p in signature.parameters.values()]
+
+
+def _claims(block: str) -> list[str] | None:
+    """What the block's `print(...)  # comment` lines say they print; None when a print has
+    no comment."""
+    prints = [line for line in block.splitlines() if line.startswith("print(")]
+    if not prints or any("#" not in line for line in prints):
+        return None
+    return [line.split("#", 1)[1].split(":")[0].strip() for line in prints]
+
+
+@pytest.mark.parametrize("document", ["README.md", "docs/api.md"])
+def test_python_blocks_run(document: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(ROOT)
+    namespace = {"hg2prism": hg2prism}
+    ran = 0
+    for info, block in _blocks(ROOT / document):
+        if info.split()[:1] != ["python"]:
+            continue
+        try:
+            if "signature" in info.split():
+                raise SyntaxError("a signature")
+            code = compile(block, document, "exec")
+        except SyntaxError:
+            signature = _signature_of(block)
+            assert signature is not None, f"{document}: neither Python nor a signature:\n{block}"
+            name, documented = signature
+            assert _plain(documented) == _plain(inspect.signature(getattr(hg2prism, name))), name
+            continue
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            exec(code, namespace)
+        claims = _claims(block)
+        if claims is not None:
+            assert printed.getvalue().splitlines() == claims, block
+        ran += 1
+    assert ran >= 1
+
+
+def test_signature_blocks_are_checked() -> None:
+    """A documented signature that differs from the function's is found."""
+    name, documented = _signature_of("solution = hg2prism.solve(world, out=None)")
+    assert name == "solve" and _plain(documented) != _plain(inspect.signature(hg2prism.solve))
+    assert _signature_of("print(1)") is None
+
+
+def _commands() -> list[tuple[str, list[str]]]:
+    found = []
+    for doc in docs.documents():
+        for _, block in _blocks(doc):
+            for line in block.splitlines():
+                line = line.split(" #", 1)[0].strip()
+                if line.startswith(("hg2prism ", "make ")):
+                    found.append((doc.name, shlex.split(line)))
+    return found
+
+
+def test_commands_in_the_documents_parse() -> None:
+    commands = _commands()
+    assert any(words[0] == "hg2prism" for _, words in commands)
+    parser = cli.build_parser()
+    targets = set(re.findall(r"^([\w.-]+):", (ROOT / "Makefile").read_text(), re.MULTILINE))
+    for doc, words in commands:
+        if words[0] == "make":
+            assert set(words[1:]) <= targets, (doc, words)
+            continue
+        try:
+            parser.parse_args(words[1:])
+        except SystemExit as stop:           # --version, --help: exit 0
+            assert stop.code == 0, (doc, words)
+
+
+# ---- what lists what ----
+
+def test_tests_readme_lists_every_test_file() -> None:
+    text = (ROOT / "tests" / "README.md").read_text()
+    missing = [p.name for p in sorted((ROOT / "tests").glob("test_*.py"))
+               if f"`tests/{p.name}`" not in text]
+    assert missing == []
+
+
+def test_architecture_lists_every_module() -> None:
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    package = ROOT / "hg2prism"
+    modules = [str(p.relative_to(package)) for p in sorted(package.rglob("*.py"))
+               if p.name != "__init__.py" and "__pycache__" not in p.parts]
+    assert [m for m in modules if m not in text] == []
+
+
+def test_readme_world_file_is_world3() -> None:
+    """README's world file is models/world3.toml as it is, and a valid world."""
+    text = (ROOT / "README.md").read_text()
+    toml = [block for info, block in _blocks(ROOT / "README.md") if info == "toml"]
+    assert toml == [(MODELS / "world3.toml").read_text()]
+    assert "models/world3.toml" in text
+
+
+# ---- the notebook ----
+
+def test_the_tour_notebook_runs() -> None:
+    import nbclient
+    import nbformat
+
+    notebook = nbformat.read(ROOT / "examples" / "tour.ipynb", as_version=4)
+    client = nbclient.NotebookClient(notebook, timeout=180, kernel_name="python3",
+                                     resources={"metadata": {"path": str(ROOT / "examples")}})
+    client.execute()
+    outputs = [o for cell in notebook.cells if cell.cell_type == "code" for o in cell.outputs]
+    assert not [o for o in outputs if o.output_type == "error"]
+    images = [o for o in outputs if o.output_type == "display_data" and "image/png" in o.data]
+    assert len(images) == 3, "the world, P2's belief and the sweep"
+    text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
+    assert "deceptive value 0.9498" in text
