@@ -50,6 +50,21 @@ class DetectionSettings:
 
 
 @dataclass(frozen=True)
+class PlayerType:
+    """One of P2's possible types (docs/semantics.md §16): her inference as an `[inference]`
+    table sets it (kind, window, rationality, the kind's settings), her first guess and the
+    prior probability of the type (normalised over the world's types)."""
+
+    name: str
+    weight: float
+    initial_hypothesis: int
+    inference: str
+    window: int
+    rationality: float
+    settings: tuple[tuple[str, object], ...] = ()
+
+
+@dataclass(frozen=True)
 class World:
     path: Path
     name: str
@@ -74,6 +89,10 @@ class World:
     # action standing at the start as an index into A2
     arena: "Arena | None" = None
     initial_standing: int = 0
+    # P2's possible types (docs/semantics.md §16; empty: one, as [inference] sets it). The
+    # world's own observer is then its first type's; `worldfile.types.world_of_type` gives each
+    # type's ordinary world.
+    types: tuple[PlayerType, ...] = ()
 
     def atomic_propositions(self) -> tuple[str, ...]:
         """AP: a grid's are `obs`, then the region letters of the map in alphabetical order;

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from hg2prism.errors import InputError
 from hg2prism.frontends import arena as arena_files
+from hg2prism.worldfile import types as player_types
 from hg2prism.model.world import (FORBIDDEN_REGION_LETTERS, Cell, DetectionSettings, Grid,
                                   SimulationSettings, World)
 
@@ -346,7 +347,7 @@ class _Loader:
             raise self.fail("grid", "missing required table: a world is a grid world ([grid] "
                                     "with map, and [robot]) or an arena world ([arena], "
                                     "docs/semantics.md §15)")
-        self.check_keys(root, _TOP_KEYS, "")
+        self.check_keys(root, player_types.top_keys(root, _TOP_KEYS), "")
         name, description = self.header(root)
         grid = self.grid(self.table(root, "grid"))
         slip = self.number(self.table(root, "robot")["slip"], "robot.slip")
@@ -357,7 +358,7 @@ class _Loader:
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary")
         adversary = {**self.adversary(adv, grid), **self.guesses(adv, vocabulary)}
-        observer = self.inference(root, adv, adversary)
+        observer = player_types.observer_fields(self, root, adv, adversary)
         return World(path=self.path, name=name, description=description, grid=grid, slip=slip,
                      formula=formula, **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
@@ -377,7 +378,7 @@ class _Loader:
         actions)."""
         tables = {**_TABLE_KEYS, "arena": arena_files.ARENA_KEYS,
                   "adversary": arena_files.ADVERSARY_KEYS}
-        self.check_keys(root, _ARENA_TOP_KEYS, "", tables)
+        self.check_keys(root, player_types.top_keys(root, _ARENA_TOP_KEYS), "", tables)
         name, description = self.header(root)
         arena, p2 = arena_files.read(self, root)
         vocabulary = Vocabulary(arena.propositions, "the arena's propositions ("
@@ -386,7 +387,7 @@ class _Loader:
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
         adversary = {**p2, **self.guesses(adv, vocabulary)}
-        observer = self.inference(root, adv, adversary)
+        observer = player_types.observer_fields(self, root, adv, adversary)
         return World(path=self.path, name=name, description=description, grid=None, slip=0.0,
                      formula=formula, initial_traps=(), arena=arena,
                      **{**adversary, **observer},
