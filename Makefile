@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 mir100 sweep-demo test mazes bench clean docs docs-all
+.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench clean docs docs-all
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,10 @@ sweep-demo: $(STAMP)
 world3: $(STAMP)
 	$(BIN)/hg2prism run models/world3.toml
 	$(BIN)/hg2prism run models/world3_bayes.toml
+
+# world4: adaptive deception (P2's type unknown to P1: jumpy or stubborn), the adaptivity table
+world4: $(STAMP)
+	$(BIN)/hg2prism run models/world4.toml
 
 # MIR100, a robot's attack graph (an arena world): the run, then delay x honeypots
 mir100: $(STAMP)

@@ -214,6 +214,14 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
     if args.workers is not None and args.scheduler is not None:
         raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
                          "its own workers; leave out --workers")
+    if world.types:         # adaptive deception: the prior is swept (docs/adaptive.md)
+        from hg2prism.experiments.adaptive import parse_weights
+
+        if args.param != ["weight"]:
+            raise InputError("command line", "--param", "a world with P2's types sweeps "
+                             "--param weight (the first type's prior weight) only")
+        parse_weights(args.values[0])
+        return
     # every point is guarded before the first is solved: all refused refuses the sweep
     sweep.check_grid(world, list(zip(args.param, args.values)), args.max_states)
 
@@ -280,6 +288,9 @@ def _emit(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
 def _check(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     from hg2prism import pipeline
 
+    if world.types:             # P2's type unknown: adaptive deception (docs/semantics.md §16)
+        return _adaptive(args, world, stage)
+
     return Outcome(pipeline.check(world, stage, args.storm_method, args.objective,
                                   args.bound).results)
 
@@ -287,15 +298,35 @@ def _check(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
 def _run(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     from hg2prism import pipeline
 
+    if world.types:
+        return _adaptive(args, world, stage)
+
     result = pipeline.run(world, stage, args.episodes, args.horizon, args.seed,
                           storm_method=args.storm_method, episode=args.episode,
                           objective=args.objective, bound=args.bound)
     return Outcome(result.results, result.table)
 
 
+def _adaptive(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
+    from hg2prism.experiments import adaptive
+
+    simulation = None
+    if args.command == "run":
+        settings = world.simulation
+        simulation = (args.episodes or settings.episodes, args.horizon or settings.horizon,
+                      settings.seed if args.seed is None else args.seed)
+    return Outcome(table=adaptive.check_adaptive(world, stage, args.storm_method,
+                                                 simulation=simulation).table)
+
+
 def _sweep(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     from hg2prism.experiments import sweep
 
+    if world.types:
+        from hg2prism.experiments.adaptive import parse_weights, sweep_weights
+
+        return Outcome(table="\n".join(sweep_weights(
+            world, parse_weights(args.values[0]), stage, args.storm_method)))
     workers = args.workers if args.workers is not None else sweep.default_workers()
     run = sweep.sweep_grid(world, list(zip(args.param, args.values)), stage,
                            storm_method=args.storm_method, workers=workers,
@@ -458,6 +489,13 @@ def _perform(args: argparse.Namespace) -> int:
 
     world = load_world(args.world)
     command = COMMANDS[args.command]
+    if world.types and (args.command not in ("check", "run", "sweep")
+                        or getattr(args, "objective", "pmax") != "pmax"):
+        raise InputError(args.world, "type", f"a world with P2's types (adaptive deception, "
+                         f"docs/semantics.md §16) is handled by check and run with the pmax "
+                         f"objective and by sweep --param weight only, not by {args.command}"
+                         + (f" --objective {args.objective}" if args.command in ("check", "run")
+                            else ""))
     if command.alone is not None:
         return command.alone(args, world)
     out = _out_dir(Path(args.world), args.out)

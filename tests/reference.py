@@ -694,9 +694,10 @@ class World:
     ``(x, y, T, c)``; an arena's ``name`` or ``(name, standing, c)`` (standing: the trap set as
     a tuple of candidates in candidate order, or P2's action name)."""
 
-    def __init__(self, path):
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
+    def __init__(self, path, doc=None):
+        if doc is None:
+            with open(path, "rb") as fh:
+                doc = tomllib.load(fh)
         self.doc = doc
         self.arena = arena = arena_of(doc)
         self.kind = arena["kind"]
@@ -1234,3 +1235,246 @@ def dtmc_reach(succs):
 
 def solve(path) -> Reference:
     return World(path).solve()
+
+
+# --------------------------------------------------------------------------------------
+# adaptive deception (semantics §16): P2's type is unknown to P1
+# --------------------------------------------------------------------------------------
+
+class TypedWorld:
+    """A world with P2's types ([[type]]): one World per type (its [inference] and first
+    guess; the Bayesian ones from reference_bayes), sharing the arena and hypotheses.
+
+    A type's memory: (hypothesis, window) for CUSUM (§5), the window W for the Bayesian "map"
+    observer (§12). What it plays at v: pi2 of its hypothesis. Its update after P1 plays a1 at
+    v and P2 plays a2: eta for CUSUM (a2 not used), W + (v, a1, a2) (last w) for Bayes."""
+
+    def __init__(self, path):
+        import copy
+
+        import reference_bayes
+
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+        types = doc["type"]
+        total = math.fsum(float(t["weight"]) for t in types)
+        self.weights = [float(t["weight"]) / total for t in types]
+        self.names = [t.get("name", f"type{i}") for i, t in enumerate(types)]
+        self.worlds = []
+        for t in types:
+            one = copy.deepcopy(doc)
+            del one["type"]
+            one["inference"] = dict(t["inference"])
+            one["adversary"]["initial_hypothesis"] = int(t.get("initial_hypothesis", 0))
+            if one["inference"].get("kind", "cusum") == "bayes":
+                self.worlds.append(reference_bayes.BayesWorld(path, doc=one))
+            else:
+                self.worlds.append(World(path, doc=one))
+        self.base = self.worlds[0]
+
+    # ----- one type's memory -----
+    def _bayes(self, k):
+        return hasattr(self.worlds[k], "log_posterior")
+
+    def memory0(self, k):
+        return () if self._bayes(k) else (self.worlds[k].h0, ())
+
+    def plays(self, k, M, v):
+        w = self.worlds[k]
+        if self._bayes(k):
+            (x,) = w.draw(M)
+            return w.pi2(x, v)
+        return w.pi2(M[0], v)
+
+    def update(self, k, M, v, a1, a2):
+        w = self.worlds[k]
+        if self._bayes(k):
+            return (tuple(M) + ((v, a1, a2),))[-w.window:]
+        return w.eta(M, (v, a1))
+
+    # ----- the adaptive hypergame: states (v, q, C, memories of C) -----
+    def classify(self, v, q, rest):
+        w = self.base
+        if v == TRAPPED:
+            return "fail"
+        if q in w.task_dfa.acc:
+            return "goal"
+        if q in w.task_dfa.sink or w.terminal(v):
+            return "fail"
+        return (v, q) + rest
+
+    def adaptive_initial(self):
+        w = self.base
+        C = tuple(k for k in range(len(self.worlds)) if self.weights[k] > 0)
+        q0 = w.task_dfa.step(w.task_dfa.init, w.label(w.v0))
+        return self.classify(w.v0, q0, (C, tuple(self.memory0(k) for k in C)))
+
+    def adaptive_successors(self, s, a1):
+        """{successor: probability}: the consistent types grouped by the action they play,
+        the group of alpha with its share of the weight, then P(v' | v, a1, alpha)."""
+        v, q, C, Ms = s
+        w = self.base
+        groups = {}
+        for k, M in zip(C, Ms):
+            groups.setdefault(self.plays(k, M, v), []).append((k, M))
+        total = math.fsum(self.weights[k] for k in C)
+        res = {}
+        for alpha, members in groups.items():
+            share = math.fsum(self.weights[k] for k, _ in members) / total
+            C2 = tuple(k for k, _ in members)
+            Ms2 = tuple(self.update(k, M, v, a1, alpha) for k, M in members)
+            for v2, pr in w.outcomes(v, a1, alpha).items():
+                t = w._target(w.task_dfa, q, v2)
+                if t not in ("goal", "fail"):
+                    t = (v2, t[1], C2, Ms2)
+                res[t] = res.get(t, 0.0) + share * pr
+        return res
+
+    def v_adapt(self):
+        """Pmax F goal of the adaptive hypergame, its canonical size (states, transitions)."""
+        s0 = self.adaptive_initial()
+        if s0 in ("goal", "fail"):
+            return (1.0 if s0 == "goal" else 0.0), 1, 1
+        idx, order, queue, trans = {s0: 0}, [s0], deque([s0]), {}
+        reached = set()
+        while queue:
+            s = queue.popleft()
+            for a1 in self.base.actions(s[0]):
+                succ = trans[(s, a1)] = self.adaptive_successors(s, a1)
+                for t in succ:
+                    if t in ("goal", "fail"):
+                        reached.add(t)
+                    elif t not in idx:
+                        idx[t] = len(order)
+                        order.append(t)
+                        queue.append(t)
+        state_pairs, pair_rows, row_succ = [], [], []
+        for i, s in enumerate(order):
+            rows = []
+            for a1 in self.base.actions(s[0]):
+                rows.append(len(row_succ))
+                row_succ.append([(t if t in ("goal", "fail") else idx[t], pr)
+                                 for t, pr in trans[(s, a1)].items()])
+            state_pairs.append([i])
+            pair_rows.append(rows)
+        x = solve_reach_game(state_pairs, pair_rows, row_succ)
+        ntrans = sum(len(succ) for succ in trans.values()) + len(reached)
+        return min(1.0, max(0.0, float(x[0]))), len(order) + len(reached), ntrans
+
+    # ----- a committed strategy against each type -----
+    def _records(self, j, records):
+        """The records of type j's deceptive strategy as {(v, q, M_j): action}."""
+        w = self.worlds[j]
+        set_of = lambda name: self._played(w, name)       # noqa: E731
+
+        def state(o):
+            return w.record_ts_state(o["cell"], set_of(o.get("traps")), o.get("countdown"))
+
+        table = {}
+        for rec in map(grid_record, records):
+            if self._bayes(j):
+                M = tuple((state(o), o["action"], w.norm_traps(set_of(o["played"])))
+                          for o in rec["window"])
+            else:
+                M = (int(rec["hypothesis"]), tuple((state(o), o["action"])
+                                                   for o in rec["window"]))
+            table[(state(rec), int(rec["q"]), M)] = rec["action"]
+        return table
+
+    @staticmethod
+    def _played(w, played):
+        """A record's played trap set of an arena (its candidates joined by '+')."""
+        if isinstance(played, str) and w.kind == "arena" and w.mode == "traps":
+            return played.split("+")
+        return played
+
+    def leader_move(self, v, q, a2):
+        """The leader game's move against a2 (§11: the naive answer, with its tie rules),
+        from tests/reference_deception.py on the types' common arena and task."""
+        if getattr(self, "_naive", None) is None:
+            import reference_deception
+
+            naive = reference_deception.Deception.__new__(reference_deception.Deception)
+            naive.w, naive.dfa = self.base, self.base.task_dfa
+            naive._leader_a2, naive._speed = {}, None
+            self._naive = naive
+        return self._naive.naive_move(v, q, a2)
+
+    def committed_value(self, j, records, k):
+        """The value of type j's deceptive strategy (records; the leader move where it has
+        none) when P2 is of type k. P1 tracks type j's memory from what it observes (the
+        actions P2 plays); P2 plays with type k's."""
+        table = self._records(j, records)
+        w = self.base
+        q0 = w.task_dfa.step(w.task_dfa.init, w.label(w.v0))
+        s0 = self.classify(w.v0, q0, (self.memory0(j), self.memory0(k)))
+        if s0 in ("goal", "fail"):
+            return 1.0 if s0 == "goal" else 0.0
+
+        def move(s):
+            v, q, Mj, Mk = s
+            a = table.get((v, q, Mj))
+            return a if a is not None else self.leader_move(v, q, self.plays(j, Mj, v))
+
+        def successors(s):
+            v, q, Mj, Mk = s
+            a1 = move(s)
+            a2 = self.plays(k, Mk, v)
+            Mj2 = self.update(j, Mj, v, a1, a2)
+            Mk2 = self.update(k, Mk, v, a1, a2)
+            res = {}
+            for v2, pr in w.outcomes(v, a1, a2).items():
+                t = w._target(w.task_dfa, q, v2)
+                if t not in ("goal", "fail"):
+                    t = (v2, t[1], Mj2, Mk2)
+                res[t] = res.get(t, 0.0) + pr
+            return res
+
+        idx, order, queue, succs = {s0: 0}, [s0], deque([s0]), []
+        while queue:
+            s = queue.popleft()
+            succ = successors(s)
+            for t in succ:
+                if t not in ("goal", "fail") and t not in idx:
+                    idx[t] = len(order)
+                    order.append(t)
+                    queue.append(t)
+            succs.append(succ)
+        rows = [[(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()]
+                for succ in succs]
+        return min(1.0, max(0.0, float(dtmc_reach(rows)[0])))
+
+    def v_commit(self, j, records):
+        """sum_k w_k (value of type j's strategy against type k)."""
+        return math.fsum(self.weights[k] * self.committed_value(j, records, k)
+                         for k in range(len(self.worlds)) if self.weights[k] > 0)
+
+    def adaptive_strategy_value(self, records):
+        """The value of an exported adaptive strategy (records {state, standing, countdown, q,
+        types: {name: {hypothesis, window}}, action}) on the adaptive hypergame."""
+        index = {name: k for k, name in enumerate(self.names)}
+        table = {}
+        for rec in records:
+            v = self._records(0, [dict(rec, hypothesis=0, window=[])])
+            ((v, q, _),) = v.keys()
+            C = tuple(sorted(index[name] for name in rec["types"]))
+            Ms = tuple(next(iter(self._records(k, [dict(
+                rec, hypothesis=rec["types"][self.names[k]]["hypothesis"],
+                window=rec["types"][self.names[k]]["window"])])))[2] for k in C)
+            table[(v, q, C, Ms)] = rec["action"]
+        s0 = self.adaptive_initial()
+        if s0 in ("goal", "fail"):
+            return 1.0 if s0 == "goal" else 0.0
+        idx, order, queue, succs = {s0: 0}, [s0], deque([s0]), []
+        while queue:
+            s = queue.popleft()
+            succ = self.adaptive_successors(s, table[s])
+            succs.append(succ)
+            for t in succ:
+                if t not in ("goal", "fail") and t not in idx:
+                    idx[t] = len(order)
+                    order.append(t)
+                    queue.append(t)
+        rows = [[(t if t in ("goal", "fail") else idx[t], pr) for t, pr in succ.items()]
+                for succ in succs]
+        return min(1.0, max(0.0, float(dtmc_reach(rows)[0])))

@@ -21,7 +21,6 @@ and her memory stays empty, which gives V_static (the value of a fixed mispercep
 from __future__ import annotations
 
 import math
-import tomllib
 from collections import deque
 
 import reference
@@ -30,10 +29,9 @@ TIE = 1e-9      # hypotheses within this of the largest log-posterior tie (first
 
 
 class BayesWorld(reference.World):
-    def __init__(self, path, static: bool = False):
-        super().__init__(path)
-        with open(path, "rb") as fh:
-            inf = tomllib.load(fh)["inference"]
+    def __init__(self, path, static: bool = False, doc=None):
+        super().__init__(path, doc)
+        inf = self.doc["inference"]
         n = len(self.hyps)
         prior = [float(p) for p in inf.get("prior", [1.0] * n)]
         total = math.fsum(prior)

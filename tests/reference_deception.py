@@ -53,7 +53,7 @@ class Deception:
         q2 = self.dfa.step(q, self.w.label(v2))
         if q2 in self.dfa.acc:
             return "goal"
-        if q2 in self.dfa.sink:
+        if q2 in self.dfa.sink or self.w.terminal(v2):     # a terminal arena state ends it
             return "fail"
         return (v2, q2)
 
@@ -116,9 +116,9 @@ class Deception:
         if key not in self._leader_a2:
             w, task = self.w, self.w.task
             acts = w.A2(v)
-            m = [max(w.Q(task, v, q, a1, a2) for a1 in ACTIONS) for a2 in acts]
+            m = [max(w.Q(task, v, q, a1, a2) for a1 in w.actions(v)) for a2 in acts]
             tied = [a2 for a2, mv in zip(acts, m) if mv <= min(m) + TIE_P2]
-            self._leader_a2[key] = v[2] if w.delay > 0 and v[2] in tied else tied[0]
+            self._leader_a2[key] = w.standing(v) if w.delay > 0 and w.standing(v) in tied else tied[0]
         return self._leader_a2[key]
 
     def _gain(self, v, q, a1, a2, scores):
@@ -145,7 +145,7 @@ class Deception:
         row_node, goal_now, ri, ci, vals = [], [], [], [], []
         for i, (v, q) in enumerate(nodes):
             a2 = self.leader_a2(v, q)
-            for a1 in ACTIONS:
+            for a1 in w.actions(v):
                 if w.Q(task, v, q, a1, a2) < values[(v, q)] - 1e-9:
                     continue
                 r = len(row_node)
@@ -179,9 +179,9 @@ class Deception:
     def naive_move(self, v, q, a2):
         """P1's naive answer to the trap set a2 at the tracked (v, q)."""
         w, task = self.w, self.w.task
-        qs = {a1: w.Q(task, v, q, a1, a2) for a1 in ACTIONS}
+        qs = {a1: w.Q(task, v, q, a1, a2) for a1 in w.actions(v)}
         best = max(qs.values())
-        candidates = [a1 for a1 in ACTIONS if qs[a1] >= best - ANSWER_TIE]
+        candidates = [a1 for a1 in w.actions(v) if qs[a1] >= best - ANSWER_TIE]
         scores = self.speed()
         gain = {a1: self._gain(v, q, a1, a2, scores) for a1 in candidates}
         top = max(gain.values())

@@ -82,6 +82,19 @@ class CheckedModel:
     alongside: object = None       # what check(..., alongside=...) computed beside the engine
 
 
+@dataclass(frozen=True)
+class PomdpValue:
+    """A POMDP's Pmax by belief exploration (docs/semantics.md §16): the value found (a lower
+    bound of the maximum), whether the exploration of the reachable beliefs completed (then the
+    value is the belief MDP's), the POMDP's size and the time taken."""
+
+    value: float
+    completed: bool
+    states: int
+    observations: int
+    seconds: float
+
+
 class ModelChecker(Protocol):
     """A model checker the pipeline, the experiments and the API can use."""
 

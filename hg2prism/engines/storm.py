@@ -23,7 +23,8 @@ from stormpy import developer
 from stormpy.io import export_to_umb
 
 from hg2prism.engines import certify
-from hg2prism.engines.engine import BuiltModel, CheckedModel, Transitions, slot_of_label
+from hg2prism.engines.engine import (BuiltModel, CheckedModel, PomdpValue, Transitions,
+                                    slot_of_label)
 from hg2prism.numeric import ExplicitModel
 from hg2prism.errors import StormError, probability
 
@@ -383,6 +384,30 @@ class StormEngine:
 
     def check_robust(self, prism_path: Path, prop: str) -> float:
         return check_robust(prism_path, prop)
+
+    def check_pomdp(self, prism_path: Path, prop: str,
+                    max_exploration_time: int | None = None) -> PomdpValue:
+        return check_pomdp(prism_path, prop, max_exploration_time)
+
+
+def check_pomdp(prism_path: Path, prop: str, max_exploration_time: int | None = None
+                ) -> PomdpValue:
+    """`prop` (a Pmax) on the POMDP of a PRISM file by Storm's belief unfolding
+    (stormpy.pomdp.verify_with_belief_unfolding, no clipping): the beliefs reachable from the
+    initial one are explored (within `max_exploration_time` seconds, if given) and the belief
+    MDP they span is solved."""
+    import stormpy.pomdp
+
+    start = time.perf_counter()
+    try:
+        model, formula, _ = build(prism_path, prop)
+        result = stormpy.pomdp.verify_with_belief_unfolding(
+            model, formula, max_exploration_time=max_exploration_time)
+    except RuntimeError as err:
+        raise StormError(f"{prism_path}: {err}") from err
+    return PomdpValue(value=float(result.value), completed=bool(result.completed_exploration),
+                      states=model.nr_states, observations=model.nr_observations,
+                      seconds=time.perf_counter() - start)
 
 
 STORM = StormEngine()

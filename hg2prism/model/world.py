@@ -33,6 +33,21 @@ class DetectionSettings:
 
 
 @dataclass(frozen=True)
+class PlayerType:
+    """One of P2's possible types (docs/semantics.md §16): her inference as an `[inference]`
+    table sets it (kind, window, rationality, the kind's settings), her first guess and the
+    prior probability of the type (normalised over the world's types)."""
+
+    name: str
+    weight: float
+    initial_hypothesis: int
+    inference: str
+    window: int
+    rationality: float
+    settings: tuple[tuple[str, object], ...] = ()
+
+
+@dataclass(frozen=True)
 class World:
     path: Path
     name: str
@@ -58,6 +73,10 @@ class World:
     # P2's action standing at the start when delay > 0, an index into A2 (the trap sets in
     # combinations order, or the arena's P2 actions); 0 when delay is 0
     initial_standing: int = 0
+    # P2's possible types (docs/semantics.md §16; empty: one, as [inference] sets it). The
+    # world's own observer is then its first type's; `worldfile.types.world_of_type` gives each
+    # type's ordinary world.
+    types: tuple[PlayerType, ...] = ()
 
     def __post_init__(self) -> None:
         # no World exists unvalidated, however made (docs/api.md): InputError naming the key

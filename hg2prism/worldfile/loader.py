@@ -17,6 +17,7 @@ from hg2prism.model.validation import toml_repr as _toml_repr
 from hg2prism.model.validation import toml_type as _toml_type
 from hg2prism.frontends import arena as arena_files
 from hg2prism.frontends import grid as grid_files
+from hg2prism.worldfile import types as player_types
 # the registry checks every World's observer settings (model/validation.py) once imported
 from hg2prism.opponent.registry import KINDS, owner
 from hg2prism.model.world import DetectionSettings, SimulationSettings, World
@@ -137,7 +138,7 @@ class _Loader(Checks):
             raise self.fail("grid", "missing required table: a world is a grid world ([grid] "
                                     "with map, and [robot]) or an arena world ([arena], "
                                     "docs/semantics.md §15)")
-        self.check_keys(root, _TOP_KEYS, "")
+        self.check_keys(root, player_types.top_keys(root, _TOP_KEYS), "")
         name, description = self.header(root)
         grid = grid_files.read(self, root)
         vocabulary = grid_vocabulary(grid)
@@ -146,7 +147,7 @@ class _Loader(Checks):
         adv = self.table(root, "adversary")
         adversary = {**grid_files.read_adversary(self, adv, grid),
                      **self.guesses(adv, vocabulary)}
-        observer = self.inference(root, adv, adversary)
+        observer = player_types.observer_fields(self, root, adv, adversary)
         return World(path=self.path, name=name, description=description, grid=grid,
                      formula=formula, **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
@@ -166,7 +167,7 @@ class _Loader(Checks):
         actions)."""
         tables = {**_TABLE_KEYS, "arena": arena_files.ARENA_KEYS,
                   "adversary": arena_files.ADVERSARY_KEYS}
-        self.check_keys(root, _ARENA_TOP_KEYS, "", tables)
+        self.check_keys(root, player_types.top_keys(root, _ARENA_TOP_KEYS), "", tables)
         name, description = self.header(root)
         arena, p2 = arena_files.read(self, root)
         vocabulary = arena_vocabulary(arena)
@@ -174,7 +175,7 @@ class _Loader(Checks):
         self.formula(formula, "task.formula", vocabulary)
         adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
         adversary = {**p2, **self.guesses(adv, vocabulary)}
-        observer = self.inference(root, adv, adversary)
+        observer = player_types.observer_fields(self, root, adv, adversary)
         return World(path=self.path, name=name, description=description, grid=None,
                      formula=formula, arena=arena,
                      **{**adversary, **observer},

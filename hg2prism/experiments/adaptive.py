@@ -1,0 +1,360 @@
+"""Adaptive deception for a world with P2's types (docs/semantics.md §16): each type's ordinary
+check (V_k and its deceptive strategy), the adaptive hypergame checked by the engine (V_adapt),
+the committed strategies against the prior (V_commit(j)), and what adaptivity is worth.
+
+Outputs in the output folder: `adaptive.prism`/`.props` (the adaptive hypergame, an MDP),
+`adaptive_pomdp.prism` (the same problem with the type hidden), `strategy.json` (P1's adaptive
+strategy: records with the consistent types, P1's belief and their memories), `results.json`,
+`table.md`,
+and per type a folder `type<k>/` with that type's ordinary check (hypergame.prism,
+strategy.json, results.json ...).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from hg2prism import __version__
+from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
+from hg2prism.analyses.deception_value import NaiveStrategy, induced_chain, naive_answers
+from hg2prism.analyses.successor import Hypergame
+from hg2prism.engines import default as default_engine
+from hg2prism.engines.engine import ModelChecker
+from hg2prism.errors import probability
+from hg2prism.model.world import World
+from hg2prism.outputs import write_json, write_text
+from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
+from hg2prism.prism.hypergame import PROPERTY
+from hg2prism.progress import say, warn
+from hg2prism.results import CheckResult
+from hg2prism.strategy.adaptive import adaptive_strategy
+from hg2prism.strategy.records import Strategy
+from hg2prism.worldfile.types import world_of_type
+
+__all__ = ["AdaptiveResult", "check_adaptive", "adaptivity_table"]
+
+
+@dataclass(frozen=True, eq=False)
+class AdaptiveResult:
+    """What adaptive deception is worth for a world with types (results.json's content in
+    `results`), with each type's check."""
+
+    results: dict
+    checks: tuple[CheckResult, ...]
+    table: str
+
+
+def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[float]]:
+    """value[j][k]: type j's deceptive strategy when P2 is of type k; where the strategy has no
+    record P1 plays the leader-game move of docs/semantics.md §11 (the naive answer to the
+    action type j predicts, with its tie rules)."""
+    games = [Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games, c.analysis.inference)
+             for c in checks]
+    values = []
+    for j, check in enumerate(checks):
+        naive = NaiveStrategy(naive_answers(check.analysis.ts, check.analysis.task,
+                                            check.analysis.leader), games[j])
+        strategy = Strategy.from_records(check.records, check.analysis.ts,
+                                         fallback=naive.action)
+        row = []
+        for k in range(len(checks)):
+            if weights[k] == 0:
+                row.append(float("nan"))
+                continue
+            chain = induced_chain(committed_game(games[j], games[k]), CommittedPolicy(strategy))
+            row.append(chain.value(f"V_commit({j}) against type {k}"))
+        values.append(row)
+    return values
+
+
+def check_adaptive(world: World, out: Path, storm_method: str = "sound",
+                   engine: ModelChecker | None = None, prism: str | None = None,
+                   simulation: tuple[int, int, int] | None = None) -> AdaptiveResult:
+    """Every value of docs/semantics.md §16 for `world` (which lists P2's types); with `prism`
+    (the path of a PRISM executable) also PRISM's POMDP bounds on the POMDP form; with
+    `simulation` (episodes, horizon, seed) the adaptive strategy's simulated episodes beside
+    the exact within-horizon numbers."""
+    from hg2prism import pipeline
+
+    engine = engine or default_engine()
+    start = time.perf_counter()
+    weights = [t.weight for t in world.types]
+    checks = []
+    for k, t in enumerate(world.types):
+        say(f"adaptive: type {k} ({t.name}) alone")
+        checks.append(pipeline.check(world_of_type(world, k), out / f"type{k}", storm_method,
+                                     engine=engine))
+    analysis = checks[0].analysis
+    types = [TypeModel(t.name, t.weight, t.rationality, c.analysis.inference,
+                       tuple(c.analysis.games)) for t, c in zip(world.types, checks)]
+    model = build_adaptive_model(world, analysis.ts, analysis.task, types)
+    write_text(out / "adaptive.prism", model.text)
+    write_text(out / "adaptive.props", model.properties)
+    pomdp = build_adaptive_model(world, analysis.ts, analysis.task, types, hidden=True)
+    write_text(out / "adaptive_pomdp.prism", pomdp.text)
+    checked = engine.check(out / "adaptive.prism", PROPERTY, storm_method,
+                           alongside=lambda built: built)
+    v_adapt = probability(checked.value, "V_adapt")
+    strategy = adaptive_strategy(
+        checked.alongside, checked.values, model, analysis.ts, analysis.task,
+        [t.name for t in world.types], weights,
+        [getattr(c.analysis.inference, "window_hypotheses", None) for c in checks])
+    write_text(out / "strategy.json",
+               "[\n" + ",\n".join(json.dumps(r) for r in strategy.records) + "\n]\n")
+    v_types = [c.results.deceptive_value for c in checks]
+    v_oracle = sum(w * v for w, v in zip(weights, v_types))
+    against = _committed(checks, weights)
+    v_commit = [sum(w * v for w, v in zip(weights, row) if w > 0) for row in against]
+    best = max(v_commit)
+    if v_adapt < best - 1e-6 or v_adapt > v_oracle + 1e-6:
+        warn(f"V_adapt {v_adapt:.9f} is not between max V_commit {best:.9f} and V_oracle "
+             f"{v_oracle:.9f}")
+    results = {
+        "world": world.name, "world_file": str(world.path), "hg2prism_version": __version__,
+        "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
+        "value_of_adaptivity": v_adapt - best, "cost_of_not_knowing": v_oracle - v_adapt,
+        "storm_method": storm_method, "sound": storm_method in engine.sound_methods,
+        "states": strategy.size[0], "transitions": strategy.size[1],
+        "storm_states": checked.size[0], "storm_transitions": checked.size[1],
+        "storm_choices": checked.size[2], "model_commands": dict(model.commands),
+        "types": [{"name": t.name, "weight": t.weight, "inference": t.inference,
+                   "window": t.window, "rationality": t.rationality,
+                   "initial_hypothesis": t.initial_hypothesis,
+                   "settings": {key: list(v) if isinstance(v, tuple) else v
+                                for key, v in t.settings},
+                   "deceptive_value": v_types[k], "v_commit": v_commit[k],
+                   "committed_against": {world.types[i].name: None if weights[i] == 0 else
+                                         against[k][i] for i in range(len(weights))},
+                   "folder": f"type{k}"}
+                  for k, t in enumerate(world.types)],
+        "timings": {"total": time.perf_counter() - start, **checked.timings},
+    }
+    results["pomdp"] = _pomdp(engine, out / "adaptive_pomdp.prism", v_adapt)
+    if prism is not None:
+        results["prism_pomdp"] = prism_pomdp_bounds(prism, out / "adaptive_pomdp.prism")
+    if simulation is not None:
+        results["simulation"] = _simulation(checks, weights, world, strategy.records, out,
+                                            *simulation)
+    table = adaptivity_table(results)
+    write_json(out / "results.json", results)
+    write_text(out / "table.md", table + "\n")
+    say(f"adaptive: V_adapt {v_adapt:.6f}, V_oracle {v_oracle:.6f}, max V_commit {best:.6f}")
+    return AdaptiveResult(results, tuple(checks), table)
+
+
+def _simulation(checks: list[CheckResult], weights: list[float], world: World,
+                records: list[dict], out: Path, episodes: int, horizon: int, seed: int) -> dict:
+    """The adaptive strategy simulated (P2's type drawn per episode) and its exact numbers
+    within the horizon: completion and identification of P2's type (docs/semantics.md §16);
+    the figure of P1's belief along an episode drawn with `seed` (adaptive_belief.png)."""
+    from statistics import median
+
+    import numpy as np
+
+    from hg2prism.analyses.adaptive import (AdaptiveGame, adaptive_chain, adaptive_policy,
+                                            belief, play_episode, simulate_adaptive)
+    from hg2prism.analyses.successor import GOAL
+    from hg2prism.report.adaptive_plot import adaptive_belief_figure
+    from hg2prism.analyses.simulation import wilson_interval
+
+    game = AdaptiveGame([Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games,
+                                   c.analysis.inference) for c in checks], weights)
+    policy = adaptive_policy(records, game, [t.name for t in world.types])
+    chain = adaptive_chain(game, policy)
+    run = simulate_adaptive(game, policy, episodes, horizon, seed)
+    rng = np.random.default_rng(seed)
+    drawn = int(rng.choice(len(weights), p=np.array(weights) / sum(weights)))
+    trace = play_episode(game, policy, drawn, horizon, rng)
+    outcome = "goal" if game.status(trace[-1]) == GOAL else (
+        "failed" if not game.running(trace[-1]) else "unfinished")
+    adaptive_belief_figure(world.name, [t.name for t in world.types],
+                           [belief(game, s) for s in trace], drawn, seed, outcome,
+                           out / "adaptive_belief")
+    return {
+        "episodes": episodes, "horizon": horizon, "seed": seed,
+        "completion_rate": run.completed / episodes,
+        "completion_interval_95": list(wilson_interval(run.completed, episodes)),
+        "exact_within_horizon": chain.within(horizon),
+        "identified_share": run.identified / episodes,
+        "identified_interval_95": list(wilson_interval(run.identified, episodes)),
+        "identified_exact_within_horizon": chain.identified_within(horizon),
+        "median_identification_step": (median(run.identification_steps)
+                                       if run.identification_steps else None),
+        "by_type": {t.name: {"episodes": n, "completed": c}
+                    for t, (n, c) in zip(world.types, run.by_type)},
+        "drawn_episode": {"seed": seed, "type": world.types[drawn].name, "steps": len(trace) - 1,
+                          "outcome": outcome},
+    }
+
+
+# Storm's belief exploration of the POMDP form stops after this many seconds (then it is
+# reported as not complete).
+POMDP_SECONDS = 120
+
+
+def _pomdp(engine: ModelChecker, path: Path, v_adapt: float) -> dict | None:
+    """Storm's POMDP engine on the POMDP form (docs/semantics.md §16): its value, whether its
+    belief exploration completed, and whether the value is in [0, 1] and equals V_adapt
+    within 1e-6; None when the engine has no POMDP method."""
+    check = getattr(engine, "check_pomdp", None)
+    if check is None:
+        return None
+    found = check(path, PROPERTY, POMDP_SECONDS)
+    in_range = 0.0 <= found.value <= 1.0
+    agrees = found.completed and in_range and abs(found.value - v_adapt) <= 1e-6
+    if not found.completed:
+        warn(f"Storm's POMDP engine: the belief exploration did not complete within "
+             f"{POMDP_SECONDS} s; its value {found.value:.9f} is only a lower bound of V_adapt")
+    elif not agrees:
+        warn(f"Storm's POMDP engine gives {found.value:.9f}, V_adapt is {v_adapt:.9f}")
+    return {"value": found.value, "completed_exploration": found.completed,
+            "in_range": in_range, "equals_v_adapt": agrees, "states": found.states,
+            "observations": found.observations, "seconds": found.seconds}
+
+
+def prism_pomdp_bounds(prism: str, path: Path, seconds: int = 600) -> dict:
+    """PRISM's POMDP engine (its fixed-resolution grid approximation) on the POMDP form: the
+    bounds it reports on Pmax ("Result bounds: [lower,upper]"), or the error it gave. PRISM's
+    bounds come from value iterations stopped at a relative 1e-6: not certified."""
+    import re
+    import subprocess
+
+    start = time.perf_counter()
+    try:
+        run = subprocess.run([prism, str(path), "-pf", PROPERTY], capture_output=True,
+                             text=True, timeout=seconds)
+    except (OSError, subprocess.TimeoutExpired) as err:
+        return {"error": str(err).splitlines()[0]}
+    found = re.search(r"Result bounds: \[([-0-9.eE]+),\s*([-0-9.eE]+)\]", run.stdout)
+    if found is None:
+        lines = [ln for ln in run.stdout.splitlines() + run.stderr.splitlines()
+                 if "rror" in ln] or ["no bounds in PRISM's output"]
+        return {"error": lines[0].strip()}
+    return {"lower": float(found[1]), "upper": float(found[2]),
+            "seconds": time.perf_counter() - start}
+
+
+def adaptivity_table(results: dict) -> str:
+    """The values of §16 as a markdown table: a row per type, then the adaptive strategy."""
+    lines = [f"Adaptive deception in {results['world']} (docs/semantics.md §16)", "",
+             "| strategy | against | value |", "|---|---|---|"]
+    for t in results["types"]:
+        lines.append(f"| type {t['name']}'s deceptive strategy | type {t['name']} "
+                     f"(weight {t['weight']:.4g}) | V_k = {t['deceptive_value']:.6f} |")
+    for t in results["types"]:
+        lines.append(f"| committed to type {t['name']} | the prior | V_commit = "
+                     f"{t['v_commit']:.6f} |")
+    lines += [f"| adaptive | the prior | V_adapt = {results['v_adapt']:.6f} |",
+              f"| oracle (knows the type) | the prior | V_oracle = {results['v_oracle']:.6f} |",
+              *_pomdp_rows(results.get("pomdp"), results.get("prism_pomdp")),
+              *_simulation_rows(results.get("simulation")),
+              "", f"value of adaptivity (V_adapt - max V_commit): "
+                  f"{results['value_of_adaptivity']:.6f}",
+              f"cost of not knowing (V_oracle - V_adapt): {results['cost_of_not_knowing']:.6f}"]
+    return "\n".join(lines)
+
+
+def _pomdp_rows(pomdp: dict | None, prism: dict | None = None) -> list[str]:
+    rows = []
+    if prism is not None:
+        rows.append("| adaptive, POMDP form (PRISM, grid approximation) | the prior | "
+                    + (f"[{prism['lower']:.6f}, {prism['upper']:.6f}]" if "lower" in prism
+                       else f"error: {prism['error']}") + " |")
+    if pomdp is None:
+        return rows
+    how = ("exploration complete" if pomdp["completed_exploration"]
+           else "exploration NOT complete: a lower bound")
+    if not pomdp["in_range"]:
+        how += "; OUTSIDE [0, 1]"
+    return [f"| adaptive, POMDP form (Storm, belief unfolding; {how}) | the prior | "
+            f"{pomdp['value']:.6f} |"] + rows
+
+
+def _simulation_rows(sim: dict | None) -> list[str]:
+    if sim is None:
+        return []
+    low, high = sim["completion_interval_95"]
+    i_low, i_high = sim["identified_interval_95"]
+    median = sim["median_identification_step"]
+    return ["", f"Adaptive strategy simulated ({sim['episodes']} episodes, horizon "
+                f"{sim['horizon']}, P2's type drawn from the prior):", "",
+            "| | simulated | 95 % interval | exact within horizon |", "|---|---|---|---|",
+            f"| completion | {sim['completion_rate']:.4f} | [{low:.4f}, {high:.4f}] | "
+            f"{sim['exact_within_horizon']:.6f} |",
+            f"| P1's belief singles out P2's type | {sim['identified_share']:.4f} | "
+            f"[{i_low:.4f}, {i_high:.4f}] | {sim['identified_exact_within_horizon']:.6f} |",
+            "", "median step of identification: "
+                + ("never" if median is None else f"{median:g}")]
+
+
+# ---------------------------------------------------------------------------------------------
+# Sweeping the prior: `hg2prism sweep --param weight` on a world with types
+# ---------------------------------------------------------------------------------------------
+
+def with_first_weight(world: World, weight: float) -> World:
+    """The world whose first type has prior `weight` (in [0, 1]) and the others share 1 - weight
+    in the proportions of their weights (equally when theirs are all 0)."""
+    from dataclasses import replace
+
+    rest = world.types[1:]
+    total = sum(t.weight for t in rest)
+    shares = ([t.weight / total for t in rest] if total > 0 else [1.0 / len(rest)] * len(rest))
+    types = (replace(world.types[0], weight=weight),) + tuple(
+        replace(t, weight=(1.0 - weight) * s) for t, s in zip(rest, shares))
+    return replace(world, types=types)
+
+
+def parse_weights(values: list[str]) -> list[float]:
+    """--values of --param weight: numbers in [0, 1]."""
+    from hg2prism.errors import InputError
+
+    weights = []
+    for value in values:
+        try:
+            weight = float(value)
+        except ValueError:
+            weight = float("nan")
+        if not 0.0 <= weight <= 1.0:
+            raise InputError("command line", "--values", f"a weight is a number in [0, 1], "
+                             f"got {value!r}")
+        weights.append(weight)
+    return weights
+
+
+def sweep_weights(world: World, weights: list[float], out: Path,
+                  storm_method: str = "sound") -> list[str]:
+    """V_adapt, V_oracle and every V_commit against the first type's prior weight: sweep.json,
+    sweep.csv, sweep.{png,svg}; returns the summary table's lines."""
+    import tempfile
+
+    from hg2prism.report.adaptive_plot import weight_sweep_figure
+
+    names = [t.name for t in world.types]
+    rows = []
+    for weight in weights:
+        say(f"sweep: weight of {names[0]} = {weight:g}")
+        with tempfile.TemporaryDirectory(prefix="hg2prism-weight-") as scratch:
+            r = check_adaptive(with_first_weight(world, weight), Path(scratch) / "point",
+                               storm_method).results
+        rows.append({"weight": weight, "v_adapt": r["v_adapt"], "v_oracle": r["v_oracle"],
+                     "v_commit": {t["name"]: t["v_commit"] for t in r["types"]},
+                     "value_of_adaptivity": r["value_of_adaptivity"],
+                     "cost_of_not_knowing": r["cost_of_not_knowing"]})
+    write_json(out / "sweep.json", {"world": world.name, "parameter": "weight",
+                                    "type": names[0], "rows": rows})
+    header = ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names]
+    lines = [",".join(header)] + [",".join(repr(x) for x in [
+        row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()])
+        for row in rows]
+    write_text(out / "sweep.csv", "\n".join(lines) + "\n")
+    weight_sweep_figure(world.name, names, rows, out / "sweep")
+    table = [f"{world.name}: adaptive deception against the prior weight of {names[0]}", "",
+             "| weight | V_adapt | V_oracle | " + " | ".join(f"V_commit({n})" for n in names)
+             + " |", "|---" * (3 + len(names)) + "|"]
+    for row in rows:
+        table.append(f"| {row['weight']:g} | {row['v_adapt']:.6f} | {row['v_oracle']:.6f} | "
+                     + " | ".join(f"{v:.6f}" for v in row["v_commit"].values()) + " |")
+    return table

@@ -1,0 +1,66 @@
+"""The figure of adaptive deception (docs/semantics.md §16): P1's belief over P2's types along
+a drawn episode (`adaptive_belief.{png,svg}`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from hg2prism.report.plots import BELIEF_INCHES, _save
+from hg2prism.report.style import hypothesis_colour
+
+__all__ = ["adaptive_belief_figure"]
+
+
+def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Sequence[Sequence[float]],
+                           true_type: int, seed: int, outcome: str, path: Path) -> list[Path]:
+    """P1's belief in each type (the prior restricted to the consistent types) against the
+    step of the episode, P2's true type drawn bold."""
+    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    values = np.asarray(beliefs, dtype=float)
+    steps = np.arange(len(values))
+    for k, name in enumerate(names):
+        true = k == true_type
+        ax.step(steps, values[:, k], where="post", color=hypothesis_colour(k),
+                lw=2.2 if true else 1.1, ls="-" if true else "--",
+                label=f"{name}" + (" (P2's type)" if true else ""))
+    singled = next((i for i, row in enumerate(values) if row.max() >= 1.0 - 1e-12), None)
+    if singled is not None:
+        ax.axvline(singled, color="black", lw=0.8, alpha=0.6)
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlim(0, max(len(values) - 1, 1))
+    ax.set_xlabel("step n" + ("" if singled is None else
+                              f" (P1's belief singles out P2's type at step {singled})"),
+                  fontsize=8)
+    ax.set_ylabel("P1's belief in the type", fontsize=8)
+    ax.grid(alpha=0.3)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
+    ax.set_title(f"{world_name}: P1's belief over P2's types along the drawn episode "
+                 f"(seed {seed}, {len(values) - 1} steps, {outcome})", fontsize=9)
+    return _save(fig, path)
+
+
+def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[dict],
+                        path: Path) -> list[Path]:
+    """V_adapt, V_oracle and every V_commit(j) against the first type's prior weight."""
+    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+    ax = fig.add_subplot()
+    weights = [row["weight"] for row in rows]
+    ax.plot(weights, [row["v_oracle"] for row in rows], "k:", lw=1.2, label="V_oracle")
+    ax.plot(weights, [row["v_adapt"] for row in rows], "k-o", ms=3, lw=1.8, label="V_adapt")
+    for k, name in enumerate(names):
+        ax.plot(weights, [row["v_commit"][name] for row in rows], "--o", ms=2.5, lw=1.1,
+                color=hypothesis_colour(k), label=f"V_commit({name})")
+    ax.set_xlabel(f"prior weight of {names[0]}", fontsize=8)
+    ax.set_ylabel("probability of completing the task", fontsize=8)
+    ax.set_ylim(-0.03, 1.03)
+    ax.grid(alpha=0.3)
+    ax.tick_params(labelsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
+    ax.set_title(f"{world_name}: adaptive deception against the prior", fontsize=9)
+    return _save(fig, path)

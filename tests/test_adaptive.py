@@ -1,0 +1,225 @@
+"""Adaptive deception (docs/semantics.md §16) against the independent reference
+(tests/reference.py: TypedWorld, written from the semantics alone): V_adapt from Storm on the
+adaptive hypergame's PRISM model, and every V_commit(j), within 1e-6 on generated grid and
+arena worlds with 2-3 types (CUSUM and Bayesian "map", delay 0-2); V_commit(j) <= V_adapt <=
+V_oracle; the canonical size and the exported adaptive strategy's value; and the boundary cases (one type carries all the weight; two identical types)."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+import reference
+import typegen
+from hg2prism.experiments.adaptive import check_adaptive
+from hg2prism.worldfile.loader import load_world
+
+TOL = 1e-6
+# seeds of tests/typegen.py whose worlds check in under 3 s each (of the first 40; all 40 agree
+# with the reference)
+GRID_SEEDS = [2, 3, 6, 7, 8, 9, 12, 14, 15, 18, 19, 25, 27, 28, 29, 30, 31, 32, 36, 37, 39]
+ARENA_SEEDS = list(range(10))
+
+
+def solve(tmp_path, text: str, name: str = "typed"):
+    path = tmp_path / f"{name}.toml"
+    path.write_text(text)
+    out = tmp_path / f"{name}_out"
+    return path, check_adaptive(load_world(path), out), out
+
+
+def compare(tmp_path, text: str, records: bool = True) -> dict:
+    """The package's adaptive results against the reference. With `records`, also what is
+    judged from exported records (V_commit(j), the adaptive strategy's value): on grid worlds
+    only, since the reference numbers an arena's DFA states its own way (the records' q)."""
+    path, result, out = solve(tmp_path, text)
+    r = result.results
+    ref = reference.TypedWorld(path)
+    v_adapt, states, transitions = ref.v_adapt()
+    assert r["v_adapt"] == pytest.approx(v_adapt, abs=TOL)
+    # the canonical adaptive hypergame (§16 states, goal and failure merged) has the
+    # reference's size, and the exported adaptive strategy attains V_adapt
+    assert (r["states"], r["transitions"]) == (states, transitions)
+    if records:
+        exported = json.loads((out / "strategy.json").read_text())
+        assert ref.adaptive_strategy_value(exported) == pytest.approx(v_adapt, abs=TOL)
+    for j, t in enumerate(r["types"]):
+        if records:
+            exported = json.loads((out / t["folder"] / "strategy.json").read_text())
+            assert t["v_commit"] == pytest.approx(ref.v_commit(j, exported), abs=TOL), t["name"]
+        assert t["v_commit"] <= r["v_adapt"] + TOL
+    assert r["v_adapt"] <= r["v_oracle"] + TOL
+    # the POMDP form: Storm's belief unfolding gives V_adapt wherever its exploration completes
+    pomdp = r["pomdp"]
+    if pomdp["completed_exploration"]:
+        assert pomdp["value"] == pytest.approx(v_adapt, abs=TOL)
+        assert pomdp["equals_v_adapt"] and pomdp["in_range"]
+    assert r["v_oracle"] == pytest.approx(
+        sum(t["weight"] * t["deceptive_value"] for t in r["types"]), abs=1e-12)
+    assert r["value_of_adaptivity"] >= -TOL and r["cost_of_not_knowing"] >= -TOL
+    return r
+
+
+@pytest.mark.parametrize("seed", GRID_SEEDS)
+def test_grid_worlds_against_reference(tmp_path, seed):
+    compare(tmp_path, typegen.typed_world(seed))
+
+
+@pytest.mark.parametrize("seed", ARENA_SEEDS)
+def test_arena_worlds_against_reference(tmp_path, seed):
+    compare(tmp_path, typegen.typed_world(seed, arena=True), records=False)
+
+
+def _types(text: str) -> list[str]:
+    return re.findall(r"\[\[type\]\]\n(?:[^\[]|\[type\.inference\])*", text)
+
+
+def test_one_type_with_all_the_weight(tmp_path):
+    """V_adapt is that type's deceptive value (the other type, of weight 0, is never drawn)."""
+    text = typegen.typed_world(3)
+    first = text.index("[[type]]")
+    types = _types(text)
+    zero = re.sub(r"weight = [0-9.]+", "weight = 0", types[1])
+    r = compare(tmp_path, text[:first] + types[0] + zero)
+    assert r["v_adapt"] == pytest.approx(r["types"][0]["deceptive_value"], abs=TOL)
+    assert r["cost_of_not_knowing"] == pytest.approx(0.0, abs=TOL)
+
+
+def test_two_identical_types(tmp_path):
+    """V_adapt is their common deceptive value."""
+    text = typegen.typed_world(5)
+    first = text.index("[[type]]")
+    one = _types(text)[0]
+    twin = one.replace('name = "t0"', 'name = "twin"').replace("weight = ", "weight = 1")
+    r = compare(tmp_path, text[:first] + one + twin)
+    v = r["types"][0]["deceptive_value"]
+    assert r["types"][1]["deceptive_value"] == pytest.approx(v, abs=TOL)
+    assert r["v_adapt"] == pytest.approx(v, abs=TOL)
+    assert r["value_of_adaptivity"] == pytest.approx(0.0, abs=TOL)
+
+
+@pytest.mark.parametrize("seed", [2, 7, 9])
+def test_python_successor_matches_the_engine(tmp_path, seed):
+    """analyses/adaptive.AdaptiveGame (the adaptive successor function in Python) explores the
+    same canonical adaptive hypergame the engine built: as many states and (state, action,
+    successor) triples, goal and failure merged."""
+    from hg2prism.analyses.adaptive import AdaptiveGame
+    from hg2prism.analyses.successor import Hypergame
+
+    _, result, _ = solve(tmp_path, typegen.typed_world(seed))
+    games = [Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games, c.analysis.inference)
+             for c in result.checks]
+    game = AdaptiveGame(games, [t["weight"] for t in result.results["types"]])
+    ts = result.checks[0].analysis.ts
+    start = game.initial()
+    seen, queue, triples, ended = {start}, [start], 0, set()
+    while queue:
+        state = queue.pop()
+        if not game.running(state):
+            continue
+        v = state[0]
+        for a1 in range(ts.n_actions):
+            if not ts.enabled[v, a1]:
+                continue
+            targets = set()
+            for successor, p in game.successors(state, a1):
+                assert p > 0
+                key = successor if game.running(successor) else game.status(successor)
+                targets.add(key)
+                if game.running(successor):
+                    if successor not in seen:
+                        seen.add(successor)
+                        queue.append(successor)
+                else:
+                    ended.add(key)
+            triples += len(targets)
+    running = sum(1 for s in seen if game.running(s))
+    assert (running + len(ended), triples + len(ended)) == (
+        result.results["states"], result.results["transitions"])
+
+
+def test_world4(tmp_path):
+    """models/world4.toml: adaptivity is worth at least 0.1 there, and every value agrees
+    with the reference (V_adapt, V_commit of both types, the adaptive strategy's value)."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+    r = compare(tmp_path, text)
+    assert r["value_of_adaptivity"] >= 0.1
+    jumpy, stubborn = r["types"]
+    assert jumpy["deceptive_value"] == pytest.approx(1.0, abs=TOL)
+    assert stubborn["deceptive_value"] == pytest.approx(0.75, abs=TOL)
+    # the feint that deceives jumpy gets P1 trapped by stubborn
+    assert jumpy["committed_against"]["stubborn"] == pytest.approx(0.0, abs=TOL)
+    # the model's commands grow with the types, not with the product: one robot command per
+    # action slot (and the absorbing one), each type's module as in its own hypergame
+    commands = r["model_commands"]
+    assert commands["robot"] == 5 and commands["task"] == 4
+    for k in range(2):
+        own = json.loads((tmp_path / "typed_out" / f"type{k}" / "results.json").read_text())
+        assert commands[f"p2_inference_t{k}"] == own["model_commands"]["p2_inference"]
+
+
+def test_prism_pomdp_engine(tmp_path):
+    """PRISM's POMDP engine on the POMDP form, where PRISM is installed: its bounds (from
+    value iterations to a relative 1e-6, not certified) hold V_adapt, to 1e-4; and PRISM's
+    value of the MDP form is V_adapt."""
+    import os
+    import shutil
+
+    from hg2prism.experiments.adaptive import prism_pomdp_bounds
+
+    prism = os.environ.get("PRISM") or shutil.which("prism")
+    if not prism:
+        pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
+    _, result, out = solve(tmp_path, typegen.typed_world(31))
+    bounds = prism_pomdp_bounds(prism, out / "adaptive_pomdp.prism", seconds=120)
+    assert "error" not in bounds, bounds
+    v = result.results["v_adapt"]
+    assert bounds["lower"] - 1e-4 <= v <= bounds["upper"] + 1e-4
+    # PRISM reads the MDP form too (it checks every state a guard allows, reachable or not)
+    import re
+    import subprocess
+
+    done = subprocess.run([prism, str(out / "adaptive.prism"), str(out / "adaptive.props")],
+                          capture_output=True, text=True, timeout=300)
+    found = re.search(r"^Result: ([0-9.eE-]+)", done.stdout, re.MULTILINE)
+    assert found, done.stdout[-2000:]
+    assert float(found[1]) == pytest.approx(v, abs=1e-6)
+
+
+@pytest.mark.parametrize("seed", [None, 7, 9])
+def test_simulation_agrees_with_exact(tmp_path, seed):
+    """The adaptive strategy simulated (P2's type drawn from the prior in each episode): the
+    completion rate and the share of episodes in which P1's belief singles out P2's type lie in
+    the 99.9 % Wilson intervals of the exact within-horizon probabilities."""
+    from pathlib import Path
+
+    from hg2prism.analyses.adaptive import (AdaptiveGame, adaptive_chain, adaptive_policy,
+                                            simulate_adaptive)
+    from hg2prism.analyses.simulation import wilson_interval
+    from hg2prism.analyses.successor import Hypergame
+
+    text = ((Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+            if seed is None else typegen.typed_world(seed))
+    path, result, out = solve(tmp_path, text)
+    games = [Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games, c.analysis.inference)
+             for c in result.checks]
+    weights = [t["weight"] for t in result.results["types"]]
+    game = AdaptiveGame(games, weights)
+    records = json.loads((out / "strategy.json").read_text())
+    policy = adaptive_policy(records, game, [t["name"] for t in result.results["types"]])
+    chain = adaptive_chain(game, policy)
+    horizon, episodes = 30, 3000
+    run = simulate_adaptive(game, policy, episodes, horizon, seed=1)
+    for count, exact in ((run.completed, chain.within(horizon)),
+                         (run.identified, chain.identified_within(horizon))):
+        low, high = wilson_interval(count, episodes, 0.999)
+        assert low <= exact <= high, (count, exact)
+    assert sum(n for n, _ in run.by_type) == episodes
+    # an identified episode is identified at some step within the horizon
+    assert all(0 <= step <= horizon for step in run.identification_steps)
+    # unbounded, the chain's completion is V_adapt
+    assert chain.within(100_000) == pytest.approx(result.results["v_adapt"], abs=1e-6)

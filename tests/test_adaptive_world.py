@@ -1,0 +1,197 @@
+"""Worlds with P2's types (docs/semantics.md §16): `[[type]]` read and validated with one line
+per problem, for grid and arena worlds; `world_of_type` is each type's ordinary world."""
+
+from __future__ import annotations
+
+import pytest
+
+from hg2prism.errors import InputError
+from hg2prism.worldfile.loader import world_from_toml
+from hg2prism.worldfile.types import weights, world_of_type
+
+HEAD = '''name = "typed"
+[grid]
+map = """
+#######
+#..#..#
+#At@tB#
+#t....#
+#######
+"""
+[robot]
+slip = 0.2
+[task]
+formula = "!obs U A"
+[adversary]
+traps = 1
+hypotheses = ["!obs U A", "!obs U B"]
+'''
+
+JUMPY = '''[[type]]
+name = "jumpy"
+weight = 1
+initial_hypothesis = 1
+[type.inference]
+window = 1
+threshold = 0.3
+rationality = 10.0
+'''
+
+STUBBORN = '''[[type]]
+name = "stubborn"
+weight = 3
+[type.inference]
+kind = "bayes"
+window = 2
+rationality = 5.0
+'''
+
+ARENA_HEAD = '''name = "typed-arena"
+[arena]
+states = ["s", "m", "g", "d"]
+initial = "s"
+propositions = ["goal", "decoy"]
+[arena.labels]
+g = ["goal"]
+d = ["decoy"]
+[[arena.transition]]
+state = "s"
+action = "go"
+to = { m = 1.0 }
+[[arena.transition]]
+state = "m"
+action = "left"
+to = { g = 1.0 }
+[[arena.transition]]
+state = "m"
+action = "right"
+to = { d = 1.0 }
+[task]
+formula = "F goal"
+[adversary]
+traps = 1
+trap_candidates = ["g", "d"]
+hypotheses = ["F goal", "F decoy"]
+'''
+
+
+def load(text: str):
+    return world_from_toml(text, "typed.toml")
+
+
+def error(text: str) -> str:
+    with pytest.raises(InputError) as caught:
+        load(text)
+    message = str(caught.value)
+    assert "\n" not in message
+    return message
+
+
+def test_types_read_and_normalised():
+    world = load(HEAD + JUMPY + STUBBORN)
+    assert [t.name for t in world.types] == ["jumpy", "stubborn"]
+    assert weights(world) == (0.25, 0.75)
+    jumpy, stubborn = world.types
+    assert (jumpy.inference, jumpy.window, jumpy.initial_hypothesis) == ("cusum", 1, 1)
+    assert dict(jumpy.settings) == {"threshold": 0.3}
+    assert (stubborn.inference, stubborn.rationality) == ("bayes", 5.0)
+    assert dict(stubborn.settings) == {"prior": (0.5, 0.5), "decision": "map"}
+    # the world's own observer is its first type's; each type's world is an ordinary one
+    assert (world.inference, world.window, world.initial_hypothesis) == ("cusum", 1, 1)
+    one = world_of_type(world, 1)
+    assert one.types == () and one.inference == "bayes" and one.window == 2
+    assert one.rationality == 5.0 and one.initial_hypothesis == 0
+    assert one.hypotheses == world.hypotheses and one.grid == world.grid
+
+
+def test_types_in_an_arena_world():
+    world = load(ARENA_HEAD + JUMPY + STUBBORN)
+    assert world.arena is not None and len(world.types) == 2
+    assert world_of_type(world, 0).threshold == 0.3
+
+
+def test_zero_weight_and_identical_types_are_allowed():
+    world = load(HEAD + JUMPY + JUMPY.replace("jumpy", "twin").replace("weight = 1", "weight = 0"))
+    assert weights(world) == (1.0, 0.0)
+
+
+@pytest.mark.parametrize("text, key, reason", [
+    (HEAD + "[inference]\nwindow = 1\nthreshold = 1.0\nrationality = 1.0\n" + JUMPY + STUBBORN,
+     "inference", "not both"),
+    (HEAD.replace("traps = 1\n", "traps = 1\ninitial_hypothesis = 0\n") + JUMPY + STUBBORN,
+     "adversary.initial_hypothesis", "each type sets"),
+    (HEAD + JUMPY, "type", "at least two types"),
+    (HEAD + JUMPY + STUBBORN.replace('kind = "bayes"', 'kind = "bayes"\ndecision = "sample"'),
+     "type[1].inference.decision", "not allowed for a type"),
+    (HEAD + JUMPY.replace("weight = 1", "weight = -1") + STUBBORN, "type[0].weight", ">= 0"),
+    (HEAD + JUMPY.replace("weight = 1", "weight = 0") + STUBBORN.replace("weight = 3",
+                                                                          "weight = 0"),
+     "type", "sum to 0"),
+    (HEAD + JUMPY.replace("weight = 1\n", "") + STUBBORN, "type[0].weight", "missing"),
+    (HEAD + JUMPY.replace("weight = 1", 'weight = "a"') + STUBBORN, "type[0].weight",
+     "must be a number"),
+    (HEAD + JUMPY.replace("threshold = 0.3\n", "") + STUBBORN, "type[0].inference.threshold",
+     "missing required key"),
+    (HEAD + JUMPY.replace("window = 1", "window = 0") + STUBBORN, "type[0].inference.window",
+     ">= 1"),
+    (HEAD + JUMPY.replace("rationality = 10.0", "rationality = -1.0") + STUBBORN,
+     "type[0].inference.rationality", "> 0"),
+    (HEAD + JUMPY + STUBBORN.replace("rationality = 5.0", "rationality = 5.0\nthreshold = 1.0"),
+     "type[1].inference.threshold", "belongs to the CUSUM"),
+    (HEAD + JUMPY.replace("initial_hypothesis = 1", "initial_hypothesis = 2") + STUBBORN,
+     "type[0].initial_hypothesis", "index into hypotheses"),
+    (HEAD + JUMPY + STUBBORN.replace("weight = 3", "weight = 3\ninitial_hypothesis = 1"),
+     "type[1].initial_hypothesis", "not allowed with kind"),
+    (HEAD + JUMPY + STUBBORN.replace("weight = 3", "weight = 3\ncolour = 1"), "type[1].colour",
+     "unknown key"),
+    (HEAD + JUMPY + STUBBORN.replace("[type.inference]\nkind", "[type.inferenc]\nkind"),
+     "type[1].inferenc", "unknown table"),
+    (HEAD + JUMPY + '[[type]]\nname = "bare"\nweight = 1\n', "type[1].inference", "missing"),
+    (HEAD + JUMPY + STUBBORN.replace("stubborn", "jumpy"), "type[1].name", "repeated"),
+    ("type = 3\n" + HEAD, "type", "array of tables"),
+    (ARENA_HEAD + JUMPY, "type", "at least two types"),
+])
+def test_bad_types(text, key, reason):
+    message = error(text)
+    assert f": {key}: " in message, message
+    assert reason in message, message
+
+
+def test_cli(tmp_path):
+    """`hg2prism check` of a world with types prints the adaptivity table; `sweep --param
+    weight` sweeps the prior; the commands that do not handle types refuse it with one line
+    (exit status 2, nothing written)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    hg2prism = [sys.executable, "-m", "hg2prism"]
+    done = subprocess.run(hg2prism + ["check", str(world), "--out", str(tmp_path / "c")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "V_adapt = 0.871241" in done.stdout and "value of adaptivity" in done.stdout
+    assert (tmp_path / "c" / "strategy.json").exists()
+    for command, key in ((["emit"], ": type: "), (["detect"], ": type: "),
+                         (["check", "--objective", "lexicographic"], ": type: "),
+                         (["sweep", "--param", "delay", "--values", "0"], ": --param: "),
+                         (["sweep", "--param", "weight", "--values", "1.5"], ": --values: ")):
+        refused = subprocess.run(hg2prism + [command[0], str(world), *command[1:], "--out",
+                                             str(tmp_path / "r")],
+                                 capture_output=True, text=True)
+        assert refused.returncode == 2, refused.stderr
+        assert refused.stderr.count("\n") == 1 and key in refused.stderr, refused.stderr
+        assert not (tmp_path / "r").exists()
+    # the prior swept: V_adapt, V_oracle and the committed values against the weight of jumpy
+    done = subprocess.run(hg2prism + ["sweep", str(world), "--param", "weight", "--values",
+                                      "0.5", "1", "--out", str(tmp_path / "s")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    import json
+
+    rows = json.loads((tmp_path / "s" / "sweep.json").read_text())["rows"]
+    assert [row["weight"] for row in rows] == [0.5, 1.0]
+    assert rows[0]["v_adapt"] == pytest.approx(0.871241, abs=1e-6)
+    assert rows[1]["v_adapt"] == pytest.approx(1.0, abs=1e-9)           # jumpy alone
+    assert rows[1]["v_commit"] == pytest.approx({"jumpy": 1.0, "stubborn": 0.75}, abs=1e-9)
+    assert (tmp_path / "s" / "sweep.png").exists()
