@@ -51,6 +51,7 @@ mazes: $(STAMP)
 # docs/data (docs-all runs them all afresh, about two minutes).
 docs: world1 world3 mir100
 	$(BIN)/python -m hg2prism.report.docs
+	cp models/world3/explorer.html docs/world3_explorer.html
 
 docs-all: world1 world2 world3 mir100
 	$(BIN)/hg2prism robust models/world1.toml --out models/world1_robust

@@ -96,6 +96,13 @@ def test_a_fresh_run_gives_the_committed_data(fresh: Path) -> None:
                 assert new == kept, f"{case}/{name}"
 
 
+def test_the_committed_explorer_is_a_fresh_runs(fresh: Path) -> None:
+    """docs/world3_explorer.html, which README links, is what `run` writes for world3 (`make
+    docs` copies it)."""
+    assert (ROOT / "docs" / "world3_explorer.html").read_bytes() == \
+        (fresh / "world3" / "explorer.html").read_bytes()
+
+
 def test_make_docs_after_a_fresh_run_changes_no_document(fresh: Path, tmp_path: Path) -> None:
     """`make docs`: the fresh outputs copied over docs/data, every document rendered again."""
     data = tmp_path / "data"
