@@ -46,7 +46,7 @@ def write_bytes(path: Path, data: bytes) -> None:
 # a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
 # The sweep's pattern is built from its parameter table: experiments.sweep.OWNED_PATTERN.
 _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
-          r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif"
+          r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif|explorer\.html"
           r"|task\.(hoa|dot)|hypothesis_\d+\.(hoa|dot)|induced\.(tra|sta|lab|drn)|goal\.props"
           r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
 OWNED = {
