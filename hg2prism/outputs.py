@@ -53,9 +53,11 @@ def write_chunks(path: Path, chunks: Iterable[bytes]) -> None:
 # a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
 # The sweep's pattern is built from its parameter table: experiments.sweep.OWNED_PATTERN.
 _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
-          r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif"
+          r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif|explorer\.html"
           r"|task\.(hoa|dot|svg)|hypothesis_\d+\.(hoa|dot|svg)|induced\.(tra|sta|lab|drn)|goal\.props"
-          r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)")
+          r"|symmetric\.(prism|props)|perceptual_\d+\.(prism|props)"
+          # a world with P2's types (adaptive deception, docs/semantics.md §16)
+          r"|adaptive(_pomdp)?\.(prism|props)|adaptive_belief\.(png|svg|pdf)|type\d+")
 OWNED = {
     "emit": _MODEL, "check": _MODEL, "run": _MODEL,
     "detect": r"detection\.(json|png|svg|pdf)",
