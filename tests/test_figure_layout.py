@@ -32,7 +32,7 @@ from hg2prism.report import plots, replay
 from hg2prism.strategy.records import Strategy
 from hg2prism.worldfile import load_world
 
-SHOWCASE = ("world1", "world2", "world3", "world3_bayes")
+SHOWCASE = ("world1", "world2", "world3", "world3_bayes", "mir100")
 GENERATED = range(20)
 TOLERANCE = 0.5        # pixels two boxes may share (anti-aliasing), each side
 
@@ -97,8 +97,10 @@ def texts_of(fig) -> list[tuple[str, object]]:
     when it has one: the white box that would hide what lies under it)."""
     renderer = fig.canvas.get_renderer()
     boxes = []
+    hidden = {id(label) for ax in fig.axes if not ax.axison      # an axes drawn without axes
+              for label in ax.get_xticklabels() + ax.get_yticklabels()}  # shows no tick text
     for text in fig.findobj(Text):
-        if not text.get_visible() or not text.get_text().strip():
+        if not text.get_visible() or not text.get_text().strip() or id(text) in hidden:
             continue
         patch = text.get_bbox_patch()
         boxes.append((text.get_text(), (patch or text).get_window_extent(renderer)))

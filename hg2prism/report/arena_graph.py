@@ -23,6 +23,7 @@ from collections import deque
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.patches import FancyArrowPatch
+from matplotlib.transforms import offset_copy
 
 from hg2prism.model.arena import Arena
 from hg2prism.model.world import World
@@ -324,6 +325,18 @@ class ArenaDrawer:
         groups: dict[tuple, list] = {}
         for step in self.steps:
             groups.setdefault(_group_key(step, self.general), []).append(step)
+        # the trap marks first, just outside their state box's top-left corner (over the box they
+        # would cover its name), so that no label is placed on them
+        traps: dict[int, int] = {}
+        for step in self.steps:
+            for s in step.traps:
+                traps[s] = traps.get(s, 0) + 1
+        beside = offset_copy(ax.transData, fig=ax.figure, x=-6, y=6, units="points")
+        for s in traps:
+            x0, _, _, y1 = self.boxes[s]
+            (mark,) = ax.plot(x0, y1, marker="X", ms=10, color=TRAP_COLOUR, zorder=7,
+                              transform=beside)
+            placer.taken.append(placer.box_of(mark, 1.0))
         on_pair: dict[tuple[int, int], int] = {}
         for members in groups.values():
             step = members[0]
@@ -333,13 +346,7 @@ class ArenaDrawer:
             spots = self._step_arrow(ax, step, k, colour)
             placer.place(spots, self._step_label(step, [m.n for m in members]),
                          fontsize=LABEL_FONT, color=colour)
-        traps: dict[int, int] = {}
-        for step in self.steps:
-            for s in step.traps:
-                traps[s] = traps.get(s, 0) + 1
         for s, count in traps.items():
-            x0, _, _, y1 = self.boxes[s]
-            ax.plot(x0, y1, marker="X", ms=10, color=TRAP_COLOUR, zorder=7)
             placer.place(_around(self.boxes[s]), f"trap {count}×", fontsize=LABEL_FONT,
                          color=TRAP_COLOUR, weight="bold")
         landing = {step.n: step.landing for step in self.steps}
