@@ -42,6 +42,7 @@ MIN_HEIGHT = 5.0
 BASE_RAD = 0.15           # curvature of an arrow u -> v (v -> u bends the other way)
 NODE_FONT = 7.5
 LABEL_FONT = 6.5
+MIN_PIXELS = 9        # no text of a picture is less high, in pixels
 # state kind -> (face colour, legend text)
 NODE_STYLE = {
     "state": ("white", "state (name, {its propositions})"),
@@ -271,11 +272,13 @@ class ArenaDrawer:
             self.boxes.append((x0, y0, x1, y1))
         placer = Placer(ax, list(self.boxes))
         self._draw_episode(ax, placer)
+        # at least MIN_PIXELS high at the figure's resolution (the replay's 72 dpi frames)
+        edge_font = max(LABEL_FONT - 0.5, MIN_PIXELS * 72 / figure.dpi)
         for (u, v), names in self.edges.items():
             p0, p2 = self._ends(u, v, BASE_RAD)
             self._curve(ax, p0, p2, BASE_RAD, "0.6", 1.0, zorder=1)
-            placer.place(_spots(p0, p2, BASE_RAD, (0, -0.1, 0.1, -0.2, 0.2, -0.3, 0.3)), ", ".join(names), fontsize=LABEL_FONT - 0.5, color="0.35",
-                         style="italic")
+            placer.place(_spots(p0, p2, BASE_RAD, (0, -0.1, 0.1, -0.2, 0.2, -0.3, 0.3)),
+                         ", ".join(names), fontsize=edge_font, color="0.35", style="italic")
 
     # ---- arrows ----
     def _ends(self, u: int, v: int, rad: float) -> tuple[np.ndarray, np.ndarray]:
