@@ -247,9 +247,30 @@ def test_explorer_in_chromium(name: str, runs: dict[str, Path], browser, tmp_pat
     shot = tmp_path / f"{name}.png"
     page.keyboard.press("End")
     page.screenshot(path=str(shot))
+    repeated = 0
+    for _ in range(12):                 # a dozen candidates, each to its end
+        repeated += _assert_steps_side_by_side(page.evaluate(READ_STEPS))
+        page.keyboard.press("ArrowDown")
+        page.keyboard.press("End")
+    assert repeated, "some episode crosses a segment twice (else the check above tests nothing)"
     page.close()
     assert errors == []
     _assert_not_blank(shot)
+
+
+READ_STEPS = """() => [...document.querySelectorAll('#dynamic .step')].map((e) => ({
+  step: Number(e.dataset.step), segment: e.dataset.segment, tag: e.tagName,
+  at: e.tagName === 'line' ? [e.x1, e.y1, e.x2, e.y2].map((a) => a.baseVal.value)
+                           : [e.cx.baseVal.value, e.cy.baseVal.value]}))"""
+
+
+def _assert_steps_side_by_side(steps: list[dict]) -> int:
+    """Every step up to the last is drawn, and steps over the same segment (or staying at the
+    same state) are not drawn over each other; returns how many steps repeat a segment."""
+    assert [s["step"] for s in steps] == list(range(1, len(steps) + 1))
+    drawn = [tuple(round(a, 1) for a in s["at"]) for s in steps]
+    assert len(set(drawn)) == len(drawn), "two steps drawn on top of each other"
+    return len(steps) - len({s["segment"] for s in steps})
 
 
 def _assert_not_blank(path: Path) -> None:
