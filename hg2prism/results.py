@@ -56,35 +56,36 @@ class Parameters:
     hypotheses: tuple[str, ...]     # P2's candidate tasks (§4)
     initial_hypothesis: int         # index into `hypotheses` of P2's first guess (§5)
     window: int                     # w: transitions in P2's sliding window (§5)
-    threshold: float | None         # c: P2's CUSUM change threshold (§5); None for "bayes"
     rationality: float              # β: P2's softmax model of P1 (§4)
-    inference: str = "cusum"        # P2's observer: "cusum" (§5) or "bayes" (§12)
-    prior: tuple[float, ...] = ()   # bayes: the normalised prior
-    decision: str = "map"           # bayes: "map" or "sample"
+    # P2's observer: its kind (opponent/registry.py) and its own settings in its kind's order
+    # (CUSUM's threshold, §5; the Bayesian prior and decision, §12)
+    inference: str = "cusum"
+    settings: tuple[tuple[str, object], ...] = ()
 
     @classmethod
     def of(cls, world: World) -> Parameters:
         from hg2prism.frontends import parameters
 
-        return cls(formula=world.formula, front_end=tuple(parameters(world).items()), traps=world.traps, delay=world.delay,
-                   hypotheses=tuple(world.hypotheses),
+        return cls(formula=world.formula, front_end=tuple(parameters(world).items()),
+                   traps=world.traps, delay=world.delay, hypotheses=tuple(world.hypotheses),
                    initial_hypothesis=world.initial_hypothesis, window=world.window,
-                   threshold=world.threshold, rationality=world.rationality,
-                   inference=world.inference, prior=tuple(world.prior), decision=world.decision)
+                   rationality=world.rationality, inference=world.inference,
+                   settings=world.settings)
 
     def to_json(self) -> dict:
-        return {
-            "formula": self.formula, **dict(self.front_end), "traps": self.traps,
-            "delay": self.delay,
-            "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
-            "window": self.window, "threshold": self.threshold, "rationality": self.rationality,
-        } if self.inference == "cusum" else {   # CUSUM's results.json stays as it was
-            "formula": self.formula, **dict(self.front_end), "traps": self.traps,
-            "delay": self.delay,
-            "hypotheses": list(self.hypotheses), "initial_hypothesis": self.initial_hypothesis,
-            "inference": self.inference, "window": self.window, "prior": list(self.prior),
-            "decision": self.decision, "rationality": self.rationality,
-        }
+        """The parameters in file order: the observer's kind is named unless it is the default
+        one (CUSUM's results.json has always omitted it), then the window, the kind's own
+        settings and P2's rationality."""
+        from hg2prism.model.world import World
+
+        default = next(f.default for f in fields(World) if f.name == "inference")
+        kind = {} if self.inference == default else {"inference": self.inference}
+        return {"formula": self.formula, **dict(self.front_end), "traps": self.traps,
+                "delay": self.delay, "hypotheses": list(self.hypotheses),
+                "initial_hypothesis": self.initial_hypothesis, **kind, "window": self.window,
+                **{key: list(value) if isinstance(value, tuple) else value
+                   for key, value in self.settings},
+                "rationality": self.rationality}
 
 
 @dataclass(frozen=True)

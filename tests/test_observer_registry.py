@@ -10,6 +10,7 @@ value the package computes independently of the hypergame as V_static
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,5 +129,9 @@ def test_never_revising_p2_runs_and_her_value_is_v_static(never, name: str, firs
     assert result.check.results.deceptive_value == pytest.approx(v_static, abs=TOL)
     assert result.results.v_static == pytest.approx(v_static, abs=TOL)
     assert (tmp_path / "run" / "strategy.json").exists()
+    # results.json echoes her kind and its own settings (none), not another kind's
+    parameters = json.loads((tmp_path / "run" / "results.json").read_text())["parameters"]
+    assert parameters["inference"] == "never" and parameters["window"] == world.window
+    assert not {"threshold", "prior", "decision"} & set(parameters)
     # the size guard bounds her hypergame through her kind's MemoryBound
     assert result.check.results.states <= sizeguard.estimate_states(world)
