@@ -195,3 +195,43 @@ def test_cli(tmp_path):
     assert rows[1]["v_adapt"] == pytest.approx(1.0, abs=1e-9)           # jumpy alone
     assert rows[1]["v_commit"] == pytest.approx({"jumpy": 1.0, "stubborn": 0.75}, abs=1e-9)
     assert (tmp_path / "s" / "sweep.png").exists()
+
+
+def test_the_size_guard_bounds_every_type_and_the_adaptive_hypergame():
+    """Every type's hypergame is bounded, not only the first's: a world whose second type
+    would not fit is refused up front, naming that type; and the adaptive hypergame itself
+    (key `type`) is bounded, its estimate at least the bound of each type's."""
+    from pathlib import Path
+
+    from hg2prism.model import sizeguard
+
+    text = (Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+    world = load(text)
+    own = [sizeguard.estimate_states(world_of_type(world, k)) for k in range(2)]
+    adaptive = sizeguard.estimate_adaptive(world)
+    assert adaptive >= max(own)
+    assert sizeguard.check_size(world) == adaptive
+    with pytest.raises(InputError) as caught:          # the second type blows up
+        sizeguard.check_size(load(text.replace("window = 3", "window = 60")))
+    assert caught.value.key == "type[1]" and "type 'stubborn'" in str(caught.value)
+    assert "\n" not in str(caught.value)
+    with pytest.raises(InputError) as caught:          # each type fits, the product does not
+        sizeguard.check_size(world, max(own))
+    assert caught.value.key == "type" and "adaptive hypergame" in str(caught.value)
+    assert sizeguard.check_size(world, adaptive) == adaptive      # at the limit: accepted
+
+
+def test_a_type_too_big_is_refused_before_any_work(tmp_path):
+    """`hg2prism run` refuses it with one line naming the type, writing nothing."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+    world = tmp_path / "big.toml"
+    world.write_text(text.replace("window = 3", "window = 60"))
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(world), "--out",
+                           str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and ": type[1]: " in done.stderr, done.stderr
+    assert not (tmp_path / "out").exists()
