@@ -162,32 +162,83 @@ def test_world4(tmp_path):
         assert commands[f"p2_inference_t{k}"] == own["model_commands"]["p2_inference"]
 
 
-def test_prism_pomdp_engine(tmp_path):
-    """PRISM's POMDP engine on the POMDP form, where PRISM is installed: its bounds (from
-    value iterations to a relative 1e-6, not certified) hold V_adapt, to 1e-4; and PRISM's
-    value of the MDP form is V_adapt."""
+def _prism():
     import os
     import shutil
 
-    from hg2prism.experiments.adaptive import prism_pomdp_bounds
+    return os.environ.get("PRISM") or shutil.which("prism")
 
-    prism = os.environ.get("PRISM") or shutil.which("prism")
+
+def test_run_reports_prism_pomdp_bounds(tmp_path):
+    """`hg2prism run --prism-pomdp` runs PRISM's POMDP engine (where installed: $PRISM or the
+    PATH) on the POMDP form of a small generated typed world and reports its bounds in
+    results.json and the printed table: they hold V_adapt within PRISM's precision (value
+    iterations stopped at a relative 1e-6: not certified); and PRISM's value of the MDP form
+    is V_adapt."""
+    import subprocess
+    import sys
+
+    prism = _prism()
     if not prism:
         pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
-    _, result, out = solve(tmp_path, typegen.typed_world(31))
-    bounds = prism_pomdp_bounds(prism, out / "adaptive_pomdp.prism", seconds=120)
-    assert "error" not in bounds, bounds
-    v = result.results["v_adapt"]
-    assert bounds["lower"] - 1e-4 <= v <= bounds["upper"] + 1e-4
+    path = tmp_path / "typed.toml"
+    path.write_text(typegen.typed_world(3))
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(path), "--prism-pomdp",
+                           "--episodes", "100", "--out", str(out)], capture_output=True,
+                          text=True, timeout=300, env={**__import__("os").environ,
+                                                       "PRISM": prism})
+    assert done.returncode == 0, done.stderr
+    r = json.loads((out / "results.json").read_text())
+    found = r["prism_pomdp"]
+    assert found["status"] == "run", found
+    v = r["v_adapt"]
+    assert found["lower"] <= found["upper"]
+    assert found["lower"] - 1e-6 * v <= v <= found["upper"] + 1e-6 * v
+    assert found["within_prism_precision"] and found["seconds"] > 0
+    assert found["outside_by"] == pytest.approx(max(found["lower"] - v, v - found["upper"], 0))
+    assert found["brackets_v_adapt"] == (found["outside_by"] == 0)
+    row = f"[{found['lower']:.6f}, {found['upper']:.6f}]"
+    assert row in done.stdout and row in (out / "table.md").read_text()
+    assert "PRISM's POMDP engine on adaptive_pomdp.prism" in done.stderr
     # PRISM reads the MDP form too (it checks every state a guard allows, reachable or not)
     import re
-    import subprocess
 
     done = subprocess.run([prism, str(out / "adaptive.prism"), str(out / "adaptive.props")],
                           capture_output=True, text=True, timeout=300)
-    found = re.search(r"^Result: ([0-9.eE-]+)", done.stdout, re.MULTILINE)
-    assert found, done.stdout[-2000:]
-    assert float(found[1]) == pytest.approx(v, abs=1e-6)
+    value = re.search(r"^Result: ([0-9.eE-]+)", done.stdout, re.MULTILINE)
+    assert value, done.stdout[-2000:]
+    assert float(value[1]) == pytest.approx(v, abs=1e-6)
+
+
+def test_prism_pomdp_not_asked_or_not_found(tmp_path, monkeypatch):
+    """Without --prism-pomdp, results.json and the table say PRISM was not asked; asked where
+    there is no PRISM, they say it was not found; either way the rest is computed. A world
+    without types refuses --prism-pomdp with one line."""
+    import subprocess
+    import sys
+
+    from hg2prism.experiments import adaptive
+
+    path = tmp_path / "typed.toml"
+    path.write_text(typegen.typed_world(3))
+    world = load_world(path)
+    r = check_adaptive(world, tmp_path / "a")
+    assert r.results["prism_pomdp"] == {"status": adaptive.NOT_ASKED}
+    assert adaptive.NOT_ASKED in r.table
+    monkeypatch.delenv("PRISM", raising=False)
+    monkeypatch.setenv("PATH", str(tmp_path / "nowhere"))
+    assert adaptive.find_prism() is None
+    r = check_adaptive(world, tmp_path / "b", prism=True)
+    assert r.results["prism_pomdp"] == {"status": adaptive.NOT_FOUND}
+    assert adaptive.NOT_FOUND in r.table and "v_adapt" in r.results
+    monkeypatch.undo()
+    plain = tmp_path / "plain.toml"
+    plain.write_text(typegen.worldgen.make_world(3, window=1, traps=1))
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(plain), "--prism-pomdp",
+                           "--out", str(tmp_path / "r")], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert ": --prism-pomdp: " in done.stderr and not (tmp_path / "r").exists()
 
 
 @pytest.mark.parametrize("seed", [None, 7, 9])
