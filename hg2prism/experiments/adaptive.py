@@ -22,7 +22,7 @@ from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
 from hg2prism.analyses.deception_value import NaiveStrategy, induced_chain, naive_answers
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
-from hg2prism.engines.engine import ModelChecker
+from hg2prism.engines.engine import BuiltModel, ModelChecker
 from hg2prism.errors import probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_json, write_text
@@ -30,7 +30,7 @@ from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
 from hg2prism.prism.hypergame import PROPERTY
 from hg2prism.progress import say, warn
 from hg2prism.results import CheckResult
-from hg2prism.strategy.adaptive import adaptive_strategy
+from hg2prism.strategy.adaptive import AdaptiveStrategy, adaptive_strategy
 from hg2prism.strategy.records import Strategy
 from hg2prism.worldfile.types import world_of_type
 
@@ -57,6 +57,8 @@ class AdaptiveResult:
     results: dict
     checks: tuple[CheckResult, ...]
     table: str
+    built: BuiltModel | None = None            # the engine's adaptive model
+    strategy: AdaptiveStrategy | None = None   # P1's adaptive strategy, the states decoded
 
 
 def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[float]]:
@@ -156,7 +158,7 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
     write_json(out / "results.json", results)
     write_text(out / "table.md", table + "\n")
     say(f"adaptive: V_adapt {v_adapt:.6f}, V_oracle {v_oracle:.6f}, max V_commit {best:.6f}")
-    return AdaptiveResult(results, tuple(checks), table)
+    return AdaptiveResult(results, tuple(checks), table, checked.alongside, strategy)
 
 
 def _simulation(checks: list[CheckResult], weights: list[float], world: World,
