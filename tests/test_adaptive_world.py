@@ -214,6 +214,7 @@ def test_the_size_guard_bounds_every_type_and_the_adaptive_hypergame():
     with pytest.raises(InputError) as caught:          # the second type blows up
         sizeguard.check_size(load(text.replace("window = 3", "window = 60")))
     assert caught.value.key == "type[1]" and "type 'stubborn'" in str(caught.value)
+    assert "Reduce type[1].inference.window" in str(caught.value)
     assert "\n" not in str(caught.value)
     with pytest.raises(InputError) as caught:          # each type fits, the product does not
         sizeguard.check_size(world, max(own))

@@ -200,8 +200,10 @@ def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: 
     """`estimate`, or InputError(world, key) when it exceeds `limit`."""
     if estimate > limit:
         size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
+        window = f"{key}.inference.window" if key.startswith("type[") else (
+            "the types' windows" if key == "type" else "inference.window")
         hint = (f"To build it anyway, pass --max-states {estimate}" if estimate < BEYOND
-                else "Reduce inference.window or the world")
+                else f"Reduce {window} or the world")
         raise InputError(
             str(world.path), key,
             f"the {what} may have {size} states (estimated from the arena, the "
