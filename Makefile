@@ -32,8 +32,9 @@ world3: $(STAMP)
 	$(BIN)/hg2prism run models/world3_bayes.toml
 
 # world4: adaptive deception (P2's type unknown to P1: jumpy or stubborn), the adaptivity table
+# (with PRISM's POMDP bounds where PRISM is installed: $PRISM or prism on the PATH)
 world4: $(STAMP)
-	$(BIN)/hg2prism run models/world4.toml
+	$(BIN)/hg2prism run models/world4.toml --prism-pomdp
 
 # MIR100, a robot's attack graph (an arena world): the run, then delay x honeypots
 mir100: $(STAMP)

@@ -4,7 +4,8 @@ The Python API (docs/api.md):
 
     load_world(path), world_from_toml(text, name="world")   -> World
     world_from_graph(G, entries=..., task=..., ...)          -> World (an attack graph's arena)
-    solve(world, *, out=None, storm_method="sound")          -> Solution
+    solve(world, *, out=None, storm_method="sound")          -> Solution (AdaptiveSolution
+                                                                with P2's types, [[type]])
     baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
     simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
     deception_values(solution)                               -> V_static, V_naive, value of deception
@@ -21,7 +22,7 @@ docs/semantics.md.
 
 __version__ = "0.1.0"
 
-from hg2prism.api import (Baselines, DeceptionValues, Episode, EpisodeStep,  # noqa: E402
+from hg2prism.api import (AdaptiveSolution, Baselines, DeceptionValues, Episode, EpisodeStep,  # noqa: E402
                           RobustValue, Simulation, Solution, Strategy, SweepRow, SweepTable,
                           baselines, deception_values, detection, draw_belief, draw_sweep,
                           draw_world, episode, load_world, robust, simulate, solve, sweep,
@@ -29,5 +30,5 @@ from hg2prism.api import (Baselines, DeceptionValues, Episode, EpisodeStep,  # n
 
 __all__ = ["__version__", "load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
            "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
-           "draw_belief", "draw_sweep", "Solution", "Strategy", "Baselines", "Simulation",
+           "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]

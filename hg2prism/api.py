@@ -27,7 +27,7 @@ from hg2prism.strategy.records import Strategy
 
 __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
            "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
-           "draw_belief", "draw_sweep", "Solution", "Strategy", "Baselines", "Simulation",
+           "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
 
 
@@ -197,7 +197,7 @@ class Solution:
 
 def solve(world: World | str | Path, *, out: str | Path | None = None,
           storm_method: str = "sound", objective: str = "pmax",
-          bound: int | None = None) -> Solution:
+          bound: int | None = None) -> Solution | AdaptiveSolution:
     """Build the hypergame of `world` (a World or the path of a world file), check it with
     Storm and extract P1's deceptive strategy. With `out`, what `hg2prism check` writes (the
     model, strategy.json, results.json, the automata and the induced DTMC) goes there
@@ -205,7 +205,8 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
     Storm reads, removed before returning). `objective` is what the strategy optimises among
     the moves that keep Pmax (docs/semantics.md §6): "pmax" (the default), "lexicographic"
     (then the fewest expected steps) or "bounded" (the probability of the goal within `bound`
-    steps, by default the world's simulation horizon; the moves then depend on the step)."""
+    steps, by default the world's simulation horizon; the moves then depend on the step).
+    A world with P2's types ([[type]]) gives an `AdaptiveSolution` (docs/api.md)."""
     from hg2prism import pipeline
     from hg2prism.model import sizeguard
     from hg2prism.outputs import staged
@@ -219,6 +220,8 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
     if not isinstance(world, World):
         world = load_world(world)
     sizeguard.check_size(world)
+    if world.types:           # P2's type unknown: adaptive deception (docs/semantics.md §16)
+        return _solve_adaptive(world, out, storm_method, objective)
     if out is not None:
         with staged(Path(out)) as stage:
             checked = pipeline.check(world, stage, storm_method, objective, bound)
@@ -229,6 +232,72 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
             records = tuple(checked.records)
     return Solution(world=world, strategy=Strategy.from_records(records, checked.analysis.ts),
                     check=checked)
+
+
+@dataclass(frozen=True, eq=False)
+class AdaptiveSolution:
+    """What `hg2prism check` computes for a world with P2's types (docs/semantics.md §16):
+    V_adapt and P1's adaptive strategy, what adaptivity is worth, and each type's own
+    Solution."""
+
+    world: World
+    v_adapt: float                      # Pmax of the adaptive hypergame
+    v_oracle: float                     # sum_k w_k V_k: P1 told the type
+    v_k: dict[str, float]               # per type, its deceptive value V_k
+    v_commit: dict[str, float]          # per type j, V_commit(j) against the prior
+    value_of_adaptivity: float          # V_adapt - max_j V_commit(j)
+    cost_of_not_knowing: float          # V_oracle - V_adapt
+    strategy: tuple[dict, ...] = field(repr=False)   # strategy.json's records (the adaptive strategy)
+    types: tuple[Solution, ...] = field(repr=False)  # each type's own Solution (V_k, its strategy)
+    results: dict = field(repr=False)   # results.json's content
+
+    def to_json(self) -> dict:
+        """The content of results.json."""
+        return self.results
+
+
+def _solve_adaptive(world: World, out, storm_method: str, objective: str) -> AdaptiveSolution:
+    from hg2prism.experiments.adaptive import check_adaptive
+    from hg2prism.outputs import staged
+
+    if objective != "pmax":
+        raise InputError(str(world.path), "type", "a world with P2's types ([[type]], adaptive "
+                         "deception) is solved for the pmax objective only, got "
+                         f"objective={objective!r}")
+    def solved(folder: Path) -> tuple:
+        found = check_adaptive(world, folder, storm_method)
+        return found, tuple(Solution(world=c.analysis.world, strategy=Strategy.from_records(
+            tuple(c.records), c.analysis.ts), check=c) for c in found.checks)
+
+    if out is not None:
+        with staged(Path(out)) as stage:
+            found, types = solved(stage)
+    else:
+        with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
+            found, types = solved(Path(scratch) / "adaptive")
+    r = found.results
+    return AdaptiveSolution(
+        world=world, v_adapt=r["v_adapt"], v_oracle=r["v_oracle"],
+        v_k={t["name"]: t["deceptive_value"] for t in r["types"]},
+        v_commit={t["name"]: t["v_commit"] for t in r["types"]},
+        value_of_adaptivity=r["value_of_adaptivity"],
+        cost_of_not_knowing=r["cost_of_not_knowing"], strategy=tuple(found.strategy.records),
+        types=types, results=r)
+
+
+def _one_type(solution, verb: str) -> None:
+    """InputError for a verb that plays one model of P2, given an AdaptiveSolution."""
+    if isinstance(solution, AdaptiveSolution):
+        raise InputError(str(solution.world.path), "type", f"{verb} plays P1's strategy against "
+                         "one model of P2; this world lists P2's types ([[type]]): give it one "
+                         "type's Solution, solution.types[k] (the adaptive strategy is simulated "
+                         "by hg2prism run)")
+
+
+def _typed_world(world: World, verb: str, instead: str) -> None:
+    if world.types:
+        raise InputError(str(world.path), "type", f"{verb} does not handle a world with P2's "
+                         f"types ([[type]], adaptive deception); {instead}")
 
 
 @dataclass(frozen=True)
@@ -293,6 +362,7 @@ def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | 
     What is not given comes from the world's `[simulation]` settings, as on the command line
     (by default 10,000 episodes, horizon 200, seed 0); the horizon of a step-bounded solution
     is by default its bound, whose rate then estimates its bounded value."""
+    _one_type(solution, "simulate")
     from hg2prism.analyses.simulation import simulate_deceptive
 
     settings = solution.world.simulation
@@ -324,6 +394,7 @@ class DeceptionValues:
 def deception_values(solution: Solution) -> DeceptionValues:
     """V_static, V_naive and the value of deception of a solution (what `run` adds to
     results.json)."""
+    _one_type(solution, "deception_values")
     from hg2prism.analyses import deception_value
 
     worth = deception_value.deception_values(solution.check.analysis, solution.deceptive_value)
@@ -346,6 +417,7 @@ class RobustValue:
 def robust(solution: Solution, deltas) -> list[RobustValue]:
     """The robust value of each budget in `deltas` (numbers in [0, 1)), as `hg2prism robust`
     computes it (without Storm's cross-check); writes nothing."""
+    _one_type(solution, "robust")
     from hg2prism.experiments.robust import parse_deltas, solve_budgets
 
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
@@ -418,6 +490,7 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
 
     if not isinstance(world, World):
         world = load_world(world)
+    _typed_world(world, "sweep", "sweep its prior with hg2prism sweep WORLD --param weight")
     if (grid is None) == (parameter is None):
         raise ValueError("give a parameter and its values, or a grid of (parameter, values)")
     grid = [(parameter, list(values))] if grid is None else [(p, list(v)) for p, v in grid]
@@ -441,6 +514,7 @@ def detection(solution: Solution, *, episodes: int | None = None, seed: int | No
     `compliant` and `mismatch` batches). `episodes` default to min(the world's, 2000), seed and
     horizon to the world's; `fallback` ("robust" with `fallback_delta`, or "leader") re-plans
     on detection. Writes nothing."""
+    _one_type(solution, "detection")
     from hg2prism import progress
     from hg2prism.experiments.detect import detection_experiment
 
@@ -493,6 +567,7 @@ def episode(solution: Solution, seed: int | None = None, *, horizon: int | None 
     """The episode of seed `seed` (by default the world's simulation seed) of the solution's
     strategy, cut after `horizon` steps (by default as `simulate`): what `hg2prism run --episode
     seed=N` draws, step by step."""
+    _one_type(solution, "episode")
     from hg2prism.analyses.episodes import belief_trace, choose_episode, episode_steps
 
     seed = solution.world.simulation.seed if seed is None else seed
@@ -523,6 +598,7 @@ def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
 
     from hg2prism.analyses.episodes import belief_trace
 
+    _one_type(solution, "draw_world")
     played = episode(solution) if played is None else played
     ts = solution.check.analysis.ts
     ax = ax if ax is not None else _new_axes(plots.world_figure_inches(solution.world, ts))
@@ -537,6 +613,7 @@ def draw_belief(solution: Solution, played: Episode | None = None, *, ax=None):
     from hg2prism.analyses.episodes import belief_trace
     from hg2prism.report import plots
 
+    _one_type(solution, "draw_belief")
     played = episode(solution) if played is None else played
     ax = ax if ax is not None else _new_axes(plots.BELIEF_INCHES)
     trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)

@@ -195,3 +195,102 @@ def test_cli(tmp_path):
     assert rows[1]["v_adapt"] == pytest.approx(1.0, abs=1e-9)           # jumpy alone
     assert rows[1]["v_commit"] == pytest.approx({"jumpy": 1.0, "stubborn": 0.75}, abs=1e-9)
     assert (tmp_path / "s" / "sweep.png").exists()
+
+
+def test_the_size_guard_bounds_every_type_and_the_adaptive_hypergame():
+    """Every type's hypergame is bounded, not only the first's: a world whose second type
+    would not fit is refused up front, naming that type; and the adaptive hypergame itself
+    (key `type`) is bounded, its estimate at least the bound of each type's."""
+    from pathlib import Path
+
+    from hg2prism.model import sizeguard
+
+    text = (Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+    world = load(text)
+    own = [sizeguard.estimate_states(world_of_type(world, k)) for k in range(2)]
+    adaptive = sizeguard.estimate_adaptive(world)
+    assert adaptive >= max(own)
+    assert sizeguard.check_size(world) == adaptive
+    with pytest.raises(InputError) as caught:          # the second type blows up
+        sizeguard.check_size(load(text.replace("window = 3", "window = 60")))
+    assert caught.value.key == "type[1]" and "type 'stubborn'" in str(caught.value)
+    assert "Reduce type[1].inference.window" in str(caught.value)
+    assert "\n" not in str(caught.value)
+    with pytest.raises(InputError) as caught:          # each type fits, the product does not
+        sizeguard.check_size(world, max(own))
+    assert caught.value.key == "type" and "adaptive hypergame" in str(caught.value)
+    assert sizeguard.check_size(world, adaptive) == adaptive      # at the limit: accepted
+
+
+def test_a_type_too_big_is_refused_before_any_work(tmp_path):
+    """`hg2prism run` refuses it with one line naming the type, writing nothing."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text()
+    world = tmp_path / "big.toml"
+    world.write_text(text.replace("window = 3", "window = 60"))
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(world), "--out",
+                           str(tmp_path / "out")], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and ": type[1]: " in done.stderr, done.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_every_api_verb_on_a_world_with_types(tmp_path):
+    """hg2prism.solve of a world with types gives the adaptive solution (the values and the
+    strategy `hg2prism check` writes, each type's own Solution); baselines handles it (V_NE
+    and V_lead do not depend on P2's inference); every other verb either takes one type's
+    Solution or refuses the world or the AdaptiveSolution with one line naming `type`: none
+    silently solves the first type only."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import hg2prism
+
+    path = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    adaptive = hg2prism.solve(path, out=tmp_path / "api")
+    assert isinstance(adaptive, hg2prism.AdaptiveSolution)
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "check", str(path), "--out",
+                           str(tmp_path / "cli")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    cli = json.loads((tmp_path / "cli" / "results.json").read_text())
+    for key in ("v_adapt", "v_oracle", "value_of_adaptivity", "cost_of_not_knowing"):
+        assert getattr(adaptive, key) == cli[key], key
+    assert adaptive.v_k == {t["name"]: t["deceptive_value"] for t in cli["types"]}
+    assert adaptive.v_commit == {t["name"]: t["v_commit"] for t in cli["types"]}
+    assert adaptive.v_adapt == pytest.approx(0.871241, abs=1e-6)
+    assert list(adaptive.strategy) == json.loads((tmp_path / "cli" / "strategy.json").read_text())
+    assert adaptive.to_json()["v_adapt"] == cli["v_adapt"]
+    assert (tmp_path / "api" / "adaptive.prism").exists()
+    assert (tmp_path / "api" / "type1" / "strategy.json").exists()
+    # each type's own Solution is that type's ordinary world solved
+    world = load(path.read_text())
+    for k, solution in enumerate(adaptive.types):
+        assert solution.world.types == () and solution.world.window == world.types[k].window
+        assert solution.deceptive_value == adaptive.v_k[world.types[k].name]
+    assert adaptive.types[1].deceptive_value == pytest.approx(0.75, abs=1e-9)
+    assert 0 <= hg2prism.simulate(adaptive.types[0], episodes=20).rate <= 1
+    # baselines do not depend on P2's inference: the same for every type
+    assert hg2prism.baselines(world) == hg2prism.baselines(world_of_type(world, 1))
+    refusals = {
+        "simulate": lambda: hg2prism.simulate(adaptive),
+        "deception_values": lambda: hg2prism.deception_values(adaptive),
+        "robust": lambda: hg2prism.robust(adaptive, [0.1]),
+        "detection": lambda: hg2prism.detection(adaptive),
+        "episode": lambda: hg2prism.episode(adaptive),
+        "draw_world": lambda: hg2prism.draw_world(adaptive),
+        "draw_belief": lambda: hg2prism.draw_belief(adaptive),
+        "sweep": lambda: hg2prism.sweep(world, "rationality", [1.0]),
+        "solve": lambda: hg2prism.solve(world, objective="lexicographic"),
+    }
+    for verb, call in refusals.items():
+        with pytest.raises(InputError) as caught:
+            call()
+        assert caught.value.key == "type", verb
+        message = str(caught.value)
+        assert "\n" not in message and "[[type]]" in message, (verb, message)
+        assert verb in message or verb == "solve", (verb, message)

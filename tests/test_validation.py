@@ -125,3 +125,106 @@ def test_a_name_that_is_no_setting_is_refused() -> None:
     with pytest.raises(InputError) as caught:
         ARENA.replace(slip=0.1)             # an arena's outcomes are its own: no slip
     assert caught.value.key == "slip"
+
+
+# ---------------------------------------------------------------------------------------------
+# A world with P2's types (docs/semantics.md §16): World.types is validated like the rest
+# ---------------------------------------------------------------------------------------------
+
+TYPED = hg2prism.load_world(MODELS / "world4.toml")
+JUMPY, STUBBORN = TYPED.types
+
+
+def _typed(*types):
+    return tuple(types)
+
+
+# (the types, the key named, a piece of the reason)
+INVALID_TYPES = [
+    (_typed(JUMPY), "type", "at least two types"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, weight=-0.5)), "type[1].weight", ">= 0"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, weight=float("inf"))), "type[1].weight",
+     "finite"),
+    (_typed(dataclasses.replace(JUMPY, weight=0.0), dataclasses.replace(STUBBORN, weight=0.0)),
+     "type", "sum to 0"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, weight=0.25)), "type", "sum to 0.75"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, name="jumpy")), "type[1].name", "repeated"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, name=" ")), "type[1].name", "not be empty"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, window=0)), "type[1].inference.window", ">= 1"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, rationality=0.0)),
+     "type[1].inference.rationality", "> 0"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, initial_hypothesis=2)),
+     "type[1].initial_hypothesis", "index into hypotheses"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, settings=(("threshold", -1.0),))),
+     "type[1].inference.threshold", "threshold"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, inference="oracle")), "type[1].inference.kind",
+     "unknown inference kind"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, inference="bayes",
+                                       settings=(("prior", (0.5, 0.5)), ("decision", "sample")))),
+     "type[1].inference.decision", "not allowed for a type"),
+    (_typed(JUMPY, dataclasses.replace(STUBBORN, weight=0.25), dataclasses.replace(
+        STUBBORN, name="third", weight=0.25, window=2, rationality=-3.0)),
+     "type[2].inference.rationality", "> 0"),
+    (_typed(JUMPY, "stubborn"), "type[1]", "PlayerType"),
+    ([JUMPY, STUBBORN], "type", "tuple"),
+    # the world's own observer is its first type's
+    (_typed(STUBBORN, JUMPY), "type[0]", "first type's"),
+]
+
+
+@pytest.mark.parametrize("types, key, reason", INVALID_TYPES,
+                         ids=[f"{k}-{r}" for _, k, r in INVALID_TYPES])
+def test_every_way_to_make_a_typed_variant_validates(types, key, reason) -> None:
+    makers = {"World.replace": lambda: TYPED.replace(types=types),
+              "dataclasses.replace": lambda: dataclasses.replace(TYPED, types=types),
+              "World(...)": lambda: World(**{**{f.name: getattr(TYPED, f.name)
+                                                for f in dataclasses.fields(TYPED)},
+                                             "types": types})}
+    for how, make in makers.items():
+        start = time.perf_counter()
+        with pytest.raises(InputError) as caught:
+            make()
+        assert time.perf_counter() - start < 1.0, how
+        assert caught.value.key == key, (how, str(caught.value))
+        assert reason in str(caught.value), (how, str(caught.value))
+        assert caught.value.file == str(TYPED.path)
+        assert "\n" not in str(caught.value)
+
+
+def test_a_typed_world_keeps_its_own_observer_its_first_types() -> None:
+    """A change of the world's own observer that its first type does not share is refused;
+    the same change through the type passes; the prior may move (weights summing to 1)."""
+    with pytest.raises(InputError) as caught:
+        TYPED.replace(window=2)
+    assert caught.value.key == "type[0]"
+    moved = TYPED.replace(window=2, types=(dataclasses.replace(JUMPY, window=2), STUBBORN))
+    assert moved.types[0].window == 2
+    weighted = TYPED.replace(types=(dataclasses.replace(JUMPY, weight=0.0),
+                                    dataclasses.replace(STUBBORN, weight=1.0)))
+    assert [t.weight for t in weighted.types] == [0.0, 1.0]
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ("window = 3", "window = 0", "type[1].inference.window"),
+    ("rationality = 10.0\n\n[[type]]", "rationality = -1.0\n\n[[type]]",
+     "type[0].inference.rationality"),
+    ('name = "stubborn"', 'name = "jumpy"', "type[1].name"),
+])
+def test_the_loader_and_a_typed_variant_share_one_rule(old, new, key) -> None:
+    """The same key and reason from a world file and from a variant of its World."""
+    text = (MODELS / "world4.toml").read_text()
+    assert old in text
+    with pytest.raises(InputError) as from_file:
+        hg2prism.world_from_toml(text.replace(old, new, 1), name=str(TYPED.path))
+    field = {"type[1].inference.window": (1, "window", 0),
+             "type[0].inference.rationality": (0, "rationality", -1.0),
+             "type[1].name": (1, "name", "jumpy")}[key]
+    types = list(TYPED.types)
+    types[field[0]] = dataclasses.replace(types[field[0]], **{field[1]: field[2]})
+    change = {"types": tuple(types)}
+    if field[0] == 0:
+        change[field[1]] = field[2]
+    with pytest.raises(InputError) as from_variant:
+        TYPED.replace(**change)
+    assert from_file.value.key == key
+    assert str(from_file.value) == str(from_variant.value)

@@ -22,7 +22,7 @@ from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
 from hg2prism.analyses.deception_value import NaiveStrategy, induced_chain, naive_answers
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
-from hg2prism.engines.engine import ModelChecker
+from hg2prism.engines.engine import BuiltModel, ModelChecker
 from hg2prism.errors import probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_json, write_text
@@ -30,11 +30,23 @@ from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
 from hg2prism.prism.hypergame import PROPERTY
 from hg2prism.progress import say, warn
 from hg2prism.results import CheckResult
-from hg2prism.strategy.adaptive import adaptive_strategy
+from hg2prism.strategy.adaptive import AdaptiveStrategy, adaptive_strategy
 from hg2prism.strategy.records import Strategy
 from hg2prism.worldfile.types import world_of_type
 
 __all__ = ["AdaptiveResult", "check_adaptive", "adaptivity_table"]
+
+
+# PRISM's POMDP engine (its fixed-resolution grid approximation, `-gridresolution`): on world4
+# resolution 2 gives the same lower bound as PRISM's default 10 and a tighter upper one, in
+# 10 s instead of 49 s (docs/adaptive.md); a coarser grid (1) is far looser.
+PRISM_RESOLUTION = 2
+PRISM_SECONDS = 600
+# PRISM's value iterations stop at a relative difference of 1e-6 (its default -epsilon; a
+# smaller one did not finish within 5 minutes on world4)
+PRISM_PRECISION = 1e-6
+NOT_ASKED = "not run: not asked (hg2prism run/check --prism-pomdp)"
+NOT_FOUND = ("not run: PRISM not found (set PRISM=/path/to/prism or put prism on the PATH)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +57,8 @@ class AdaptiveResult:
     results: dict
     checks: tuple[CheckResult, ...]
     table: str
+    built: BuiltModel | None = None            # the engine's adaptive model
+    strategy: AdaptiveStrategy | None = None   # P1's adaptive strategy, the states decoded
 
 
 def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[float]]:
@@ -71,10 +85,12 @@ def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[flo
 
 
 def check_adaptive(world: World, out: Path, storm_method: str = "sound",
-                   engine: ModelChecker | None = None, prism: str | None = None,
-                   simulation: tuple[int, int, int] | None = None) -> AdaptiveResult:
+                   engine: ModelChecker | None = None, prism: bool | str = False,
+                   simulation: tuple[int, int, int] | None = None,
+                   prism_resolution: int = PRISM_RESOLUTION) -> AdaptiveResult:
     """Every value of docs/semantics.md §16 for `world` (which lists P2's types); with `prism`
-    (the path of a PRISM executable) also PRISM's POMDP bounds on the POMDP form; with
+    (True: the PRISM that find_prism finds; or the path of a PRISM executable) also PRISM's
+    POMDP bounds on the POMDP form (grid resolution `prism_resolution`); with
     `simulation` (episodes, horizon, seed) the adaptive strategy's simulated episodes beside
     the exact within-horizon numbers."""
     from hg2prism import pipeline
@@ -133,8 +149,8 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
         "timings": {"total": time.perf_counter() - start, **checked.timings},
     }
     results["pomdp"] = _pomdp(engine, out / "adaptive_pomdp.prism", v_adapt)
-    if prism is not None:
-        results["prism_pomdp"] = prism_pomdp_bounds(prism, out / "adaptive_pomdp.prism")
+    results["prism_pomdp"] = prism_pomdp(prism, out / "adaptive_pomdp.prism", v_adapt,
+                                         prism_resolution)
     if simulation is not None:
         results["simulation"] = _simulation(checks, weights, world, strategy.records, out,
                                             *simulation)
@@ -142,7 +158,7 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
     write_json(out / "results.json", results)
     write_text(out / "table.md", table + "\n")
     say(f"adaptive: V_adapt {v_adapt:.6f}, V_oracle {v_oracle:.6f}, max V_commit {best:.6f}")
-    return AdaptiveResult(results, tuple(checks), table)
+    return AdaptiveResult(results, tuple(checks), table, checked.alongside, strategy)
 
 
 def _simulation(checks: list[CheckResult], weights: list[float], world: World,
@@ -215,22 +231,73 @@ def _pomdp(engine: ModelChecker, path: Path, v_adapt: float) -> dict | None:
             "observations": found.observations, "seconds": found.seconds}
 
 
-def prism_pomdp_bounds(prism: str, path: Path, seconds: int = 600) -> dict:
+def find_prism() -> str | None:
+    """The PRISM executable: $PRISM, else `prism` on the PATH; None when there is none."""
+    import os
+    import shutil
+
+    return os.environ.get("PRISM") or shutil.which("prism")
+
+
+def prism_pomdp(asked: bool | str, path: Path, v_adapt: float,
+                resolution: int = PRISM_RESOLUTION, seconds: int = PRISM_SECONDS) -> dict:
+    """results.json's `prism_pomdp`: PRISM's POMDP engine on the POMDP form when `asked` (True:
+    the PRISM find_prism finds; a string: that executable), its bounds and whether they
+    bracket V_adapt, or why it was not run."""
+    if not asked:
+        return {"status": NOT_ASKED}
+    prism = asked if isinstance(asked, str) else find_prism()
+    if prism is None:
+        warn("PRISM's POMDP engine: " + NOT_FOUND)
+        return {"status": NOT_FOUND}
+    found = prism_pomdp_bounds(prism, path, seconds, resolution)
+    if "error" in found:
+        warn(f"PRISM's POMDP engine: {found['error']}")
+        return {"status": f"error: {found['error']}", "resolution": resolution}
+    lower, upper = found["lower"], found["upper"]
+    outside = max(lower - v_adapt, v_adapt - upper, 0.0)
+    precise = outside <= PRISM_PRECISION * v_adapt
+    if not precise:
+        warn(f"PRISM's POMDP bounds [{lower:.9f}, {upper:.9f}] do not hold V_adapt "
+             f"{v_adapt:.9f} (outside by {outside:.2g}, beyond PRISM's relative "
+             f"{PRISM_PRECISION:g}: its bounds are not certified)")
+    return {"status": "run", "lower": lower, "upper": upper, "brackets_v_adapt": outside == 0,
+            "outside_by": outside, "within_prism_precision": precise,
+            "resolution": resolution, "seconds": found["seconds"]}
+
+
+def prism_pomdp_bounds(prism: str, path: Path, seconds: int = PRISM_SECONDS,
+                       resolution: int = PRISM_RESOLUTION) -> dict:
     """PRISM's POMDP engine (its fixed-resolution grid approximation) on the POMDP form: the
-    bounds it reports on Pmax ("Result bounds: [lower,upper]"), or the error it gave. PRISM's
-    bounds come from value iterations stopped at a relative 1e-6: not certified."""
+    bounds it reports on Pmax ("Result bounds: [lower,upper]") and its time, or the error it
+    gave. PRISM's bounds come from value iterations stopped at a relative 1e-6: not
+    certified. A progress line every 30 s while it runs."""
     import re
     import subprocess
 
     start = time.perf_counter()
+    say(f"adaptive: PRISM's POMDP engine on {path.name} (grid resolution {resolution}; "
+        f"at most {seconds} s)")
     try:
-        run = subprocess.run([prism, str(path), "-pf", PROPERTY], capture_output=True,
-                             text=True, timeout=seconds)
-    except (OSError, subprocess.TimeoutExpired) as err:
+        process = subprocess.Popen([prism, str(path), "-pf", PROPERTY, "-gridresolution",
+                                    str(resolution)], stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True)
+    except OSError as err:
         return {"error": str(err).splitlines()[0]}
-    found = re.search(r"Result bounds: \[([-0-9.eE]+),\s*([-0-9.eE]+)\]", run.stdout)
+    while True:
+        elapsed = time.perf_counter() - start
+        try:
+            stdout, stderr = process.communicate(timeout=max(0.1, min(30.0, seconds - elapsed)))
+            break
+        except subprocess.TimeoutExpired:
+            if time.perf_counter() - start >= seconds:
+                process.kill()
+                process.communicate()
+                return {"error": f"PRISM did not finish within {seconds} s"}
+            say(f"adaptive: PRISM's POMDP engine still running ({time.perf_counter() - start:.0f} s)")
+    found = re.search(r"Result bounds: \[([-0-9.eE]+),\s*([-0-9.eE]+)\]", stdout)
     if found is None:
-        lines = [ln for ln in run.stdout.splitlines() + run.stderr.splitlines()
+        lines = [ln for ln in stdout.splitlines() + stderr.splitlines()
                  if "rror" in ln] or ["no bounds in PRISM's output"]
         return {"error": lines[0].strip()}
     return {"lower": float(found[1]), "upper": float(found[2]),
@@ -257,12 +324,24 @@ def adaptivity_table(results: dict) -> str:
     return "\n".join(lines)
 
 
+def _prism_row(prism: dict | None) -> list[str]:
+    """PRISM's POMDP bounds as a row of the table, or why they are not there."""
+    if prism is None:
+        return []
+    if prism["status"] != "run":
+        return [f"| adaptive, POMDP form (PRISM, grid approximation) | the prior | "
+                f"{prism['status']} |"]
+    held = ("hold V_adapt" if prism["brackets_v_adapt"] else
+            f"V_adapt outside by {prism['outside_by']:.2g}, "
+            + ("within PRISM's precision" if prism["within_prism_precision"]
+               else "beyond PRISM's precision: not certified"))
+    return [f"| adaptive, POMDP form (PRISM, grid resolution {prism['resolution']}, "
+            f"{prism['seconds']:.1f} s) | the prior | [{prism['lower']:.6f}, "
+            f"{prism['upper']:.6f}] ({held}) |"]
+
+
 def _pomdp_rows(pomdp: dict | None, prism: dict | None = None) -> list[str]:
-    rows = []
-    if prism is not None:
-        rows.append("| adaptive, POMDP form (PRISM, grid approximation) | the prior | "
-                    + (f"[{prism['lower']:.6f}, {prism['upper']:.6f}]" if "lower" in prism
-                       else f"error: {prism['error']}") + " |")
+    rows = _prism_row(prism)
     if pomdp is None:
         return rows
     how = ("exploration complete" if pomdp["completed_exploration"]

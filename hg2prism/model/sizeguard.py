@@ -108,43 +108,105 @@ def trap_parts(world: World) -> int:
     return p2_action_count(world) * (world.delay + 1)
 
 
-def estimate_states(world: World) -> int:
-    """An upper bound of the hypergame's canonical size (see the module docstring)."""
+def _cells(world: World) -> tuple[Arena, np.ndarray, sp.csr_matrix]:
+    """The arena, Q(c) per arena state and the adjacency A of the walks."""
     arena = arena_of(world)
-    n = arena.n_states
     classes, label = arena.label_classes()
     label_names = tuple(class_name(c, arena.propositions) for c in classes)
     q_count = _dfa_states_per_label(world, label_names)[label]           # Q(s)
     q_count[arena.terminal] = 0            # the episode ends there: goal or failure
-    adjacency = _adjacency(arena)
-    walks = np.ones(n)                                                    # N_0
-    total = 0.0
+    return arena, q_count, _adjacency(arena)
+
+
+def _memories(world: World, adjacency: sp.csr_matrix, n: int) -> np.ndarray | None:
+    """Per arena state c, X * sum_L N_L(c): the memories P2's observer (the world's own) can
+    hold next to c (None: more than BEYOND)."""
     memory = observer_kind(world.inference).memory(world)    # CUSUM: X hypotheses, w-1 walks
-    factor = trap_parts(world) * memory.hypotheses
+    walks = np.ones(n)                                                    # N_0
+    total = np.zeros(n)
     for length in range(memory.observations + 1):                        # L = 0 .. w-1 (CUSUM)
         if length:
             walks = adjacency @ walks * memory.sets_per_observation
-        total += float(np.dot(q_count, walks))
-        if total * factor >= BEYOND:   # a huge window: stop before the floats overflow
-            return BEYOND
-    exact = total < 2 ** 52
-    total *= factor
-    if exact and total < 2 ** 52:
+        total += walks
+        if total.max(initial=0.0) * memory.hypotheses >= BEYOND:   # huge: stop before overflow
+            return None
+    return total * memory.hypotheses
+
+
+def _bounded(total: float) -> int:
+    """An estimate as an integer: exact below 2^52, rounded up above, at most BEYOND."""
+    if total >= BEYOND:
+        return BEYOND
+    if total < 2 ** 52:
         return int(total) + 2
     return min(math.ceil(total * (1 + 1e-9)) + 2, BEYOND)
 
 
+def estimate_states(world: World) -> int:
+    """An upper bound of the hypergame's canonical size (see the module docstring), of the
+    world's own observer (a world with types: its first type's)."""
+    arena, q_count, adjacency = _cells(world)
+    memories = _memories(world, adjacency, arena.n_states)
+    if memories is None:
+        return BEYOND
+    return _bounded(float(np.dot(q_count, memories)) * trap_parts(world))
+
+
+def estimate_adaptive(world: World) -> int:
+    """An upper bound of the adaptive hypergame's canonical size (docs/semantics.md §16:
+    states (v, q, C, memories of the types of C)), for a world with types.
+
+    At an arena state c the memory M_k of type k, with the trap part of the oldest observation
+    of its window, is one of P * m_k(c) (m_k(c) = X_k sum_L N_L^k(c), as for one type); the
+    current TS state's trap part is one of P. Summing over the non-empty sets C of types,
+    sum_C prod_{k in C} P m_k(c) = prod_k (1 + P m_k(c)) - 1, so
+
+        estimate = P * sum_c Q(c) * (prod_k (1 + P m_k(c)) - 1)  +  2.
+    """
+    from hg2prism.worldfile.types import world_of_type
+
+    arena, q_count, adjacency = _cells(world)
+    parts = trap_parts(world)
+    product = np.ones(arena.n_states)
+    for k in range(len(world.types)):
+        memories = _memories(world_of_type(world, k), adjacency, arena.n_states)
+        if memories is None:
+            return BEYOND
+        product = np.minimum(product * (1.0 + parts * memories), float(BEYOND))
+    return _bounded(min(float(np.dot(q_count, product - 1.0)) * parts, float(BEYOND)))
+
+
 def check_size(world: World, limit: int | None = None) -> int:
-    """The estimate, or InputError when it exceeds `limit` (default DEFAULT_LIMIT)."""
+    """The estimate, or InputError when it exceeds `limit` (default DEFAULT_LIMIT). A world
+    with P2's types: every type's hypergame (key ``type[<k>]``) and the adaptive hypergame
+    (key ``type``) are bounded; the adaptive estimate is returned."""
     limit = DEFAULT_LIMIT if limit is None else limit
-    estimate = estimate_states(world)
+    if not world.types:
+        return _refuse(world, "size", "hypergame", estimate_states(world), limit,
+                       f"{len(world.hypotheses)} hypotheses and window {world.window}")
+    from hg2prism.worldfile.types import world_of_type
+
+    for k, t in enumerate(world.types):
+        _refuse(world, f"type[{k}]", f"hypergame of type {t.name!r}",
+                estimate_states(world_of_type(world, k)), limit,
+                f"{len(world.hypotheses)} hypotheses and the type's window {t.window}")
+    return _refuse(world, "type", "adaptive hypergame (P2's type unknown)",
+                   estimate_adaptive(world), limit,
+                   f"{len(world.hypotheses)} hypotheses and the {len(world.types)} types' "
+                   "windows " + ", ".join(str(t.window) for t in world.types))
+
+
+def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str) -> int:
+    """`estimate`, or InputError(world, key) when it exceeds `limit`."""
     if estimate > limit:
         size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
+        window = f"{key}.inference.window" if key.startswith("type[") else (
+            "the types' windows" if key == "type" else "inference.window")
         hint = (f"To build it anyway, pass --max-states {estimate}" if estimate < BEYOND
-                else "Reduce inference.window or the world")
+                else f"Reduce {window} or the world")
         raise InputError(
-            str(world.path), "size",
-            f"the hypergame may have {size} states (estimated from the arena, the "
-            f"task's DFA, {len(world.hypotheses)} hypotheses and window {world.window}), more than "
+            str(world.path), key,
+            f"the {what} may have {size} states (estimated from the arena, the "
+            f"task's DFA, {made}), more than "
             f"the limit of {limit:,} that fits in memory; nothing was written. {hint}")
     return estimate

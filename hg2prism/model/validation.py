@@ -270,6 +270,133 @@ class Checks:
         return tuple(items)
 
 
+# -- P2's types (docs/semantics.md §16) ----------------------------------------------------------
+
+def renamed(checks: Checks, prefix: str) -> Checks:
+    """`checks` whose messages name the keys of type `prefix` (``type[<i>]``): ``inference.*``
+    becomes ``<prefix>.inference.*`` and ``adversary.initial_hypothesis``
+    ``<prefix>.initial_hypothesis`` (a type's `[type.inference]` is read by the rules of
+    `[inference]`)."""
+    import copy
+
+    sub = copy.copy(checks)
+
+    def fail(key: str, reason: str) -> InputError:
+        if key.startswith("inference"):
+            key = f"{prefix}.{key}"
+        elif key == "adversary.initial_hypothesis":
+            key = f"{prefix}.initial_hypothesis"
+        return checks.fail(key, reason)
+
+    sub.fail = fail
+    return sub
+
+
+class TypeChecks:
+    """The rules of P2's types, for the world loader (worldfile/types.py) and `validate`."""
+
+    @staticmethod
+    def count(checks: Checks, n: int) -> None:
+        if n < 2:
+            raise checks.fail("type", f"{n} type(s); P1 adapts among at least two types "
+                                      "(a world with one has [inference] instead)")
+
+    @staticmethod
+    def name(checks: Checks, value: object, i: int) -> str:
+        key = f"type[{i}].name"
+        if checks.string(value, key).strip() == "":
+            raise checks.fail(key, "name must not be empty")
+        return value
+
+    @staticmethod
+    def weight(checks: Checks, value: object, i: int) -> float:
+        key = f"type[{i}].weight"
+        weight = checks.number(value, key)
+        if weight < 0:
+            raise checks.fail(key, f"weight must be >= 0, got {weight}")
+        return weight
+
+    @staticmethod
+    def total(checks: Checks, weights: list[float]) -> float:
+        total = math.fsum(weights)
+        if total <= 0:
+            raise checks.fail("type", "the types' weights sum to 0; expected at least one "
+                                      "positive weight")
+        return total
+
+    @staticmethod
+    def distinct(checks: Checks, names: list[str]) -> None:
+        seen: dict[str, int] = {}
+        for i, name in enumerate(names):
+            if name in seen:
+                raise checks.fail(f"type[{i}].name", f"type name {name!r} is repeated (it is "
+                                                      f"type[{seen[name]}]'s); expected "
+                                                      "distinct names")
+            seen[name] = i
+
+    @staticmethod
+    def decision(checks: Checks, settings: dict, i: int) -> None:
+        if settings.get("decision") == "sample":
+            raise checks.fail(f"type[{i}].inference.decision", "decision \"sample\" is not "
+                                                              "allowed for a type: P1's belief "
+                                                              "over the types would not stay "
+                                                              "finite; use \"map\"")
+
+
+@dataclass(frozen=True)
+class _TypeObserver:
+    """A type's observer fields as the observer check reads a World's."""
+
+    inference: object
+    settings: object
+    hypotheses: tuple
+    initial_hypothesis: object
+
+
+# The World fields that are the world's own observer: its first type's
+OBSERVER_FIELDS = ("inference", "window", "rationality", "settings", "initial_hypothesis")
+
+
+def _types(checks: Checks, world: Any) -> None:
+    """`World.types`: at least two PlayerTypes with distinct non-empty names, weights >= 0
+    normalised to sum 1 (a World holds the prior; the loader normalises a file's weights),
+    each type's observer valid as an [inference] table (keys named ``type[<i>].inference.*``),
+    no "sample" decision; the world's own observer is its first type's."""
+    types = world.types
+    if not isinstance(types, tuple):
+        raise checks.fail("type", f"types must be a tuple of PlayerType, got "
+                                  f"{type(types).__name__}")
+    if not types:
+        return
+    TypeChecks.count(checks, len(types))
+    for i, t in enumerate(types):
+        if type(t).__name__ != "PlayerType":
+            raise checks.fail(f"type[{i}]", f"must be a PlayerType, got {type(t).__name__}")
+        TypeChecks.name(checks, t.name, i)
+        TypeChecks.weight(checks, t.weight, i)
+    total = TypeChecks.total(checks, [t.weight for t in types])
+    if abs(total - 1.0) > 1e-9:
+        raise checks.fail("type", f"the types' weights sum to {total!r}; a World holds the "
+                                  "normalised prior (weights summing to 1)")
+    TypeChecks.distinct(checks, [t.name for t in types])
+    for i, t in enumerate(types):
+        sub = renamed(checks, f"type[{i}]")
+        sub.window(t.window)
+        sub.rationality(t.rationality)
+        sub.initial_hypothesis(t.initial_hypothesis, len(world.hypotheses))
+        if _observer_check is not None:
+            _observer_check(sub, _TypeObserver(t.inference, t.settings, world.hypotheses,
+                                               t.initial_hypothesis))
+        TypeChecks.decision(checks, dict(t.settings), i)
+    first = types[0]
+    for name in OBSERVER_FIELDS:
+        if getattr(world, name) != getattr(first, name):
+            raise checks.fail("type[0]", f"the world's own {name} ({getattr(world, name)!r}) "
+                                         f"is not its first type's ({getattr(first, name)!r}): "
+                                         "a world with types observes as its first type; "
+                                         "change a type through types=(...)")
+
+
 # The observer registry's check of [inference] kind and the kind's settings (and of P2's first
 # guess when her kind sets it): (checks, world) -> None, raising checks.fail(...).
 _observer_check: Callable[[Checks, Any], None] | None = None
@@ -298,15 +425,19 @@ def validate(world: Any) -> None:
         raise checks.fail("adversary.hypotheses", "must be a tuple of formulas, got "
                                                   f"{type(world.hypotheses).__name__}")
     checks.hypotheses(list(world.hypotheses), vocabulary)
-    checks.initial_hypothesis(world.initial_hypothesis, len(world.hypotheses))
+    # a world with types observes as its first type: its own observer is named as type[0]'s
+    observer = (renamed(checks, "type[0]") if isinstance(world.types, tuple) and world.types
+                else checks)
+    observer.initial_hypothesis(world.initial_hypothesis, len(world.hypotheses))
     _adversary(checks, world)
-    checks.window(world.window)
-    checks.rationality(world.rationality)
+    observer.window(world.window)
+    observer.rationality(world.rationality)
     sim, det = world.simulation, world.detection
     checks.episodes(sim.episodes), checks.horizon(sim.horizon), checks.seed(sim.seed)
     checks.alpha(det.alpha), checks.epsilon(det.epsilon), checks.deviate_after(det.deviate_after)
     if _observer_check is not None:
-        _observer_check(checks, world)
+        _observer_check(observer, world)
+    _types(checks, world)
 
 
 def _adversary(checks: Checks, world: Any) -> None:

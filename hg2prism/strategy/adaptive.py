@@ -19,29 +19,58 @@ import numpy as np
 from hg2prism.engines.engine import BuiltModel
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.opponent.observer import Memory
 from hg2prism.prism.adaptive import AdaptiveModel, type_view
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states, row_keys
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import deceptive_actions, storm_choices
 from hg2prism.strategy.records import _start_first, strategy_records
 
-__all__ = ["AdaptiveStrategy", "adaptive_strategy"]
+__all__ = ["AdaptiveStrategy", "AdaptiveStates", "adaptive_strategy", "decode_adaptive"]
 
 
 @dataclass(frozen=True, eq=False)
 class AdaptiveStrategy:
     records: list[dict]          # strategy.json's content
     size: tuple[int, int]        # canonical states and transitions
+    states: AdaptiveStates | None = None   # the engine's states decoded
 
 
-def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveModel,
-                      ts: TransitionSystem, task: DFA, names: Sequence[str],
-                      weights: Sequence[float],
-                      window_hypotheses: Sequence[Callable | None]) -> AdaptiveStrategy:
-    """The adaptive strategy's records: per reachable non-absorbing canonical state, the
-    state, q, `types` (the consistent types, each with its belief share, hypothesis and
-    window) and the action (with `values`, each action's value)."""
-    n_types = len(names)
+@dataclass(frozen=True, eq=False)
+class AdaptiveStates:
+    """The engine's states as adaptive hypergame states (docs/semantics.md §16): each type's
+    decoded memory (`per_type`, prism/decoding.py on the model seen as that type's hypergame),
+    which types are still consistent (`alive` [n, types]), and `joint`, the decoded states of
+    the first type numbered canonically as (v, q, C, memories of C)."""
+
+    per_type: tuple[DecodedStates, ...]
+    alive: np.ndarray
+    joint: DecodedStates
+
+    def keys(self, ts: TransitionSystem) -> list:
+        """Per engine state its key as analyses/adaptive.AdaptiveGame writes it: (v, q, C,
+        memories of C) with each memory an observer's Memory, or "goal" / "fail"."""
+        base, n = self.joint, len(self.alive)
+        v = ts.state(base.place, base.traps, base.countdown).tolist()
+        q = base.q.tolist()
+        memories = [[Memory(h, tuple(tuple(e) for e in w if e[0] >= 0))
+                     for h, w in zip(d.hypothesis.tolist(), d.window.tolist())]
+                    for d in self.per_type]
+        keys = []
+        for s in range(n):
+            if base.goal[s] or base.fail[s]:
+                keys.append("goal" if base.goal[s] else "fail")
+                continue
+            types = tuple(np.flatnonzero(self.alive[s]).tolist())
+            keys.append((v[s], q[s], types, tuple(memories[k][s] for k in types)))
+        return keys
+
+
+def decode_adaptive(model: BuiltModel, adaptive: AdaptiveModel, ts: TransitionSystem,
+                    task: DFA, weights: Sequence[float],
+                    window_hypotheses: Sequence[Callable | None]) -> AdaptiveStates:
+    """The engine's states of the adaptive model read as adaptive hypergame states."""
+    n_types = len(weights)
     decoded = [decode_states(type_view(model, k, adaptive.layouts[k]), adaptive.layouts[k], ts,
                              task, window_hypotheses[k]) for k in range(n_types)]
     alive = np.stack([model.variable(f"alive_t{k}", int(weights[k] > 0))
@@ -57,6 +86,20 @@ def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveM
     canonical = row_keys(key)
     joint = dataclasses.replace(base, canonical=canonical,
                                 n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
+    return AdaptiveStates(tuple(decoded), alive, joint)
+
+
+def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveModel,
+                      ts: TransitionSystem, task: DFA, names: Sequence[str],
+                      weights: Sequence[float],
+                      window_hypotheses: Sequence[Callable | None]) -> AdaptiveStrategy:
+    """The adaptive strategy's records: per reachable non-absorbing canonical state, the
+    state, q, `types` (the consistent types, each with its belief share, hypothesis and
+    window) and the action (with `values`, each action's value)."""
+    n_types = len(names)
+    states_of = decode_adaptive(model, adaptive, ts, task, weights, window_hypotheses)
+    decoded, alive, joint = states_of.per_type, states_of.alive, states_of.joint
+    base, canonical = joint, joint.canonical
     moves = model.transitions
     mdp = canonical_mdp(joint, moves, ts.n_actions)
     state_values = canonical_values(joint, values)
@@ -82,7 +125,7 @@ def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveM
         merged["values"] = dict(zip(ts.action_names(v),
                                     move_values[canonical[s]].tolist()))
         records.append(merged)
-    return AdaptiveStrategy(records, canonical_size(joint, moves))
+    return AdaptiveStrategy(records, canonical_size(joint, moves), states_of)
 
 
 def _joint(decoded: DecodedStates, joint: DecodedStates) -> DecodedStates:

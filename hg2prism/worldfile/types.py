@@ -10,17 +10,18 @@ one `[inference]` table.
     ...
 
 Each type's `[inference]` keys are read by the world loader's own `[inference]` reader (and so
-by the observer registry), its messages naming `type[<i>].inference.<key>`. The world keeps its
+by the observer registry), its messages naming `type[<i>].inference.<key>`; the rules of the
+types themselves are model/validation.py's (`TypeChecks`), which `validate` applies to every
+World. The world keeps its
 types in `World.types` and, as its own observer, its first type's; `world_of_type` is the
 ordinary world of one type, which the rest of the pipeline solves (V_k).
 """
 
 from __future__ import annotations
 
-import copy
-import math
 from dataclasses import replace
 
+from hg2prism.model.validation import TypeChecks, renamed
 from hg2prism.model.world import PlayerType, World
 
 __all__ = ["TYPE_KEYS", "top_keys", "observer_fields", "world_of_type", "weights"]
@@ -38,21 +39,6 @@ def top_keys(root: dict, keys: dict[str, bool]) -> dict[str, bool]:
     return keys
 
 
-def _renamed(loader, prefix: str):
-    """The loader whose messages name the keys of type `prefix` (type[<i>])."""
-    sub = copy.copy(loader)
-
-    def fail(key: str, reason: str):
-        if key.startswith("inference"):
-            key = f"{prefix}.{key}"
-        elif key == "adversary.initial_hypothesis":
-            key = f"{prefix}.initial_hypothesis"
-        return loader.fail(key, reason)
-
-    sub.fail = fail
-    return sub
-
-
 def observer_fields(loader, root: dict, adv: dict, adversary: dict) -> dict:
     """The World fields of P2's observer: `[inference]` as the loader reads it, or, with
     `[[type]]`, the first type's and `types`."""
@@ -67,21 +53,10 @@ def observer_fields(loader, root: dict, adv: dict, adversary: dict) -> dict:
     tables = root["type"]
     if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
         raise loader.fail("type", "must be an array of tables [[type]]")
-    if len(tables) < 2:
-        raise loader.fail("type", f"{len(tables)} type(s); P1 adapts among at least two types "
-                                  "(a world with one has [inference] instead)")
+    TypeChecks.count(loader, len(tables))
     read = [_read_type(loader, table, i, adversary) for i, table in enumerate(tables)]
-    total = sum(t.weight for t in read)
-    if total <= 0:
-        raise loader.fail("type", "the types' weights sum to 0; expected at least one "
-                                  "positive weight")
-    seen: dict[str, int] = {}
-    for i, t in enumerate(read):
-        if t.name in seen:
-            raise loader.fail(f"type[{i}].name", f"type name {t.name!r} is repeated (it is "
-                                                  f"type[{seen[t.name]}]'s); expected distinct "
-                                                  "names")
-        seen[t.name] = i
+    total = TypeChecks.total(loader, [t.weight for t in read])
+    TypeChecks.distinct(loader, [t.name for t in read])
     types = tuple(replace(t, weight=t.weight / total) for t in read)
     first = types[0]
     return dict(inference=first.inference, window=first.window, settings=first.settings,
@@ -92,32 +67,20 @@ def observer_fields(loader, root: dict, adv: dict, adversary: dict) -> dict:
 def _read_type(loader, table: dict, i: int, adversary: dict) -> PlayerType:
     prefix = f"type[{i}]"
     loader.check_keys(table, TYPE_KEYS, prefix, {})
-    name = loader.string(table["name"], f"{prefix}.name") if "name" in table else f"type{i}"
-    if name.strip() == "":
-        raise loader.fail(f"{prefix}.name", "name must not be empty")
-    weight = loader.number(table["weight"], f"{prefix}.weight")
-    if weight < 0 or not math.isfinite(weight):
-        raise loader.fail(f"{prefix}.weight", f"weight must be >= 0, got {weight}")
+    name = TypeChecks.name(loader, table["name"], i) if "name" in table else f"type{i}"
+    weight = TypeChecks.weight(loader, table["weight"], i)
     inference = table["inference"]
     if not isinstance(inference, dict):
         raise loader.fail(f"{prefix}.inference", "must be a table [type.inference], got "
                                                  + type(inference).__name__)
-    sub = _renamed(loader, prefix)
+    sub = renamed(loader, prefix)
     adv = {k: table[k] for k in ("initial_hypothesis",) if k in table}
     fields = sub.inference({"inference": inference}, adv, adversary)
-    if dict(fields["settings"]).get("decision") == "sample":
-        raise loader.fail(f"{prefix}.inference.decision", "decision \"sample\" is not allowed "
-                                                         "for a type: P1's belief over the "
-                                                         "types would not stay finite; use "
-                                                         "\"map\"")
+    TypeChecks.decision(loader, dict(fields["settings"]), i)
     first = fields.get("initial_hypothesis")
     if first is None:
-        first = sub.integer(table.get("initial_hypothesis", 0), "adversary.initial_hypothesis")
-        n = len(adversary["hypotheses"])
-        if not 0 <= first < n:
-            raise sub.fail("adversary.initial_hypothesis",
-                           f"initial_hypothesis must be an index into hypotheses "
-                           f"(0..{n - 1}), got {first}")
+        first = sub.initial_hypothesis(table.get("initial_hypothesis", 0),
+                                       len(adversary["hypotheses"]))
     return PlayerType(name=name, weight=weight, initial_hypothesis=first,
                       inference=fields["inference"], window=fields["window"],
                       rationality=fields["rationality"], settings=fields["settings"])
