@@ -6,10 +6,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
 
-from hg2prism.report.plots import BELIEF_INCHES, _save
+from hg2prism.report.plots import BELIEF_INCHES, _save, new_figure
 from hg2prism.report.style import hypothesis_colour
 
 __all__ = ["adaptive_belief_figure"]
@@ -19,7 +18,7 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
                            true_type: int, seed: int, outcome: str, path: Path) -> list[Path]:
     """P1's belief in each type (the prior restricted to the consistent types) against the
     step of the episode, P2's true type drawn bold."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+    fig = new_figure(BELIEF_INCHES)
     ax = fig.add_subplot()
     values = np.asarray(beliefs, dtype=float)
     steps = np.arange(len(values))
@@ -48,7 +47,7 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
 def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[dict],
                         path: Path) -> list[Path]:
     """V_adapt, V_oracle and every V_commit(j) against the first type's prior weight."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
+    fig = new_figure(BELIEF_INCHES)
     ax = fig.add_subplot()
     weights = [row["weight"] for row in rows]
     ax.plot(weights, [row["v_oracle"] for row in rows], "k:", lw=1.2, label="V_oracle")
