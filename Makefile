@@ -22,6 +22,9 @@ world2: $(STAMP)
 	$(BIN)/hg2prism robust models/world2.toml --deltas 0 0.02 0.05 0.1 0.2
 	$(BIN)/hg2prism sweep models/world2.toml --param inference --values bayes \
 		--param decision --values map sample --out models/world2_bayes
+	$(BIN)/hg2prism detect models/world2.toml --fallback robust --fallback-delta 0.2 \
+		--out models/world2_replan_02
+	$(BIN)/hg2prism detect models/world2.toml --fallback leader --out models/world2_replan_leader
 
 # A 2-D sweep on Dask (a local cluster, one worker per core): world2 over delay x window.
 sweep-demo: $(STAMP)

@@ -42,11 +42,13 @@ SOURCES: dict[str, tuple[str, ...]] = {
     "world2": ("results.json", "table.md", "sweep.json", "detection.json", "robust.json"),
     "world3": ("results.json", "table.md", "explorer.html"),
     "world3_bayes": ("results.json",),
-    "mir100": ("results.json", "strategy.json"),
+    "mir100": ("results.json", "strategy.json", "explorer.html"),
     "mir100_sweep": ("sweep.json",),
     "world1_robust": ("robust.json",),      # make docs-all
     "world1_bayes": ("sweep.json",),        # world1 against the Bayesian observer (map, sample)
     "world2_bayes": ("sweep.json",),        # the same on world2 (make world2)
+    "world2_replan_02": ("detection.json",),        # make world2: re-planning, budget 0.2
+    "world2_replan_leader": ("detection.json",),    # and to the leader-game strategy
     "mir100_guess": ("sweep.json",),        # MIR100 over P2's first guess x delay, V_naive
     "world4": ("results.json", "table.md"),
     "world4_weight": ("sweep.json",),       # world4 over the prior weight of its first type
@@ -86,25 +88,27 @@ def data_name(name: str) -> str:
     return "explorer.json" if name == "explorer.html" else name
 
 
-def _cell(name: str) -> str:
-    """A grid state's name `x1_y4` as the documents write it, `(1,4)`; others as they are."""
-    match = re.fullmatch(r"x(\d+)_y(\d+)", name)
-    return f"({match.group(1)},{match.group(2)})" if match else name
+def _state_names(data: dict) -> list[str]:
+    """The explorer's states as the documents name them: on a map of cells (the grid's) by
+    the position the world's drawer gives them, as the documents write cells; else by name."""
+    if data["map"].get("kind") != "grid":
+        return list(data["states"])
+    return [f"({x:g},{y:g})" for x, y in data["positions"]]
 
 
 def _episode(data: dict, episode: dict, steps: bool) -> dict:
     """One episode of explorer.html's data: its path (states by name), and with `steps` each
     step with the record of its state (strategy.json's values), P2's traps and her belief."""
-    names, records = data["states"], data["records"]
+    names, records = _state_names(data), data["records"]
     kept = {"name": "drawn" if episode["drawn"] else f"seed{episode['seed']}",
             "seed": episode["seed"], "outcome": episode["outcome"],
-            "path": " ".join(_cell(names[s["place"]]) for s in episode["states"])}
+            "path": " ".join((names[s["place"]]) for s in episode["states"])}
     if steps:
         kept["steps"] = [{
-            "n": step["n"], "at": _cell(names[step["start"]]),
-            "landing": _cell(names[step["landing"]]) if not step["trapped"] else "trapped",
+            "n": step["n"], "at": (names[step["start"]]),
+            "landing": (names[step["landing"]]) if not step["trapped"] else "trapped",
             "believes": data["hypotheses"][state["belief"]["hypothesis"]],
-            "traps": [_cell(names[t]) for t in step["traps"]],
+            "traps": [(names[t]) for t in step["traps"]],
             "values": records[state["record"]]["values"] if state.get("record") is not None
             else None,
             "plays": step["action"], "realised": step["realised"],
@@ -357,17 +361,6 @@ def _episode_named(out: Outputs, case: str, name: str) -> dict:
     return next(e for e in out.read(f"{case}/explorer.json")["episodes"] if e["name"] == name)
 
 
-WORDS = {"N": "north", "E": "east", "S": "south", "W": "west"}
-
-
-def _played(step: dict) -> str:
-    """The move P1 chose, and where a slip took it instead (explorer's caption)."""
-    went = re.search(r"went (\w+) \((.*)\)", step["realised"])
-    if went and went.group(2) == "slipped":
-        return f"{step['plays']} (slips {WORDS.get(went.group(1), went.group(1))})"
-    return step["plays"]
-
-
 def _where(cell: str, regions: dict[str, list[str]]) -> str:
     return " ".join([cell, *(name for name, cells in regions.items() if cell in cells)])
 
@@ -383,13 +376,14 @@ def world3_steps(out: Outputs) -> str:
         values = ", ".join(f"**{v:.2f}**" if move == step["plays"] else f"{v:.2f}"
                            for move, v in step["values"].items())
         rows.append([str(step["n"]), _where(step["at"], explorer["regions"]),
-                     f"`{step['believes']}`", ", ".join(step["traps"]), values, _played(step),
+                     f"`{step['believes']}`", ", ".join(step["traps"]), values,
+                     step["realised"],
                      ", ".join(f"{z:.2f}" for z in step["belief_after"]),
                      _where(step["landing"], explorer["regions"])])
     moves = ", ".join(episode["steps"][0]["values"])
     zs = ", ".join(f"Z_{h.split()[-1]}" for h in explorer["hypotheses"])
-    return _table(["step", "robot", "P2 believes", "traps", f"value of {moves}", "P1 plays",
-                   f"{zs} after", "lands on"], rows)
+    return _table(["step", "robot", "P2 believes", "traps", f"value of {moves}",
+                   "P1's move (the world's caption)", f"{zs} after", "lands on"], rows)
 
 
 def world1_exits(out: Outputs) -> str:
