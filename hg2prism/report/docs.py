@@ -326,9 +326,13 @@ def world1_inference(out: Outputs) -> str:
 
 
 def world4_table(out: Outputs) -> str:
-    """The adaptivity table `make world4` prints (table.md without its title)."""
-    lines = out.read("world4/table.md").splitlines()
-    return "\n".join(lines[1:]).strip()
+    """The adaptivity table `make world4` prints (table.md without its title; a paragraph of
+    several lines, one number each, as a list)."""
+    paragraphs = "\n".join(out.read("world4/table.md").splitlines()[1:]).strip().split("\n\n")
+    return "\n\n".join(
+        "\n".join(f"- {line}" for line in text.splitlines())
+        if len(text.splitlines()) > 1 and not text.startswith("|") else text
+        for text in paragraphs)
 
 
 def world4_weight(out: Outputs) -> str:
