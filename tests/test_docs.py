@@ -23,9 +23,11 @@ import inspect
 import io
 import json
 import math
+import os
 import re
 import shlex
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -262,6 +264,75 @@ def test_every_block_and_value_is_rendered_from_the_data() -> None:
             else:
                 docs.value(out, spec)
     assert used == set(docs.BLOCKS)
+
+
+# ---- what PRISM, Storm and Spot print (docs/cli.md, re-checking) ----
+
+def _prism() -> str | None:
+    path = os.environ.get("PRISM") or shutil.which("prism")
+    return path if path and os.access(path, os.X_OK) else None
+
+
+def _recheck_rows(section: str) -> list[tuple[str, str, str]]:
+    """(with, command, prints) of the table in docs/cli.md's section `section`."""
+    text = (ROOT / "docs" / "cli.md").read_text().split(f"## {section}\n", 1)[1].split("\n## ", 1)[0]
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+            for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    return [(row[0], row[1], row[2]) for row in rows[1:]]
+
+
+def _number_after(text: str, prefix: str = "") -> float:
+    return float(re.search(re.escape(prefix) + r"([0-9]+\.[0-9]+)", text).group(1))
+
+
+def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
+    """Every PRISM command of docs/cli.md's re-checking tables, run on a fresh world1, prints
+    the result the table shows (to its last digit)."""
+    prism = _prism()
+    if prism is None:
+        pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
+    rows = [row for section in ("Re-checking a model", "Re-checking the strategy without hg2prism")
+            for row in _recheck_rows(section) if row[1].startswith("`prism ")]
+    assert len(rows) == 5
+    folder = fresh / "world1"
+    for _, command, prints in rows:
+        words = shlex.split(command.split("`")[1].replace("models/world1/", f"{folder}/"))
+        done = subprocess.run([prism, *words[1:]], cwd=folder, capture_output=True, text=True,
+                              timeout=300)
+        shown = prints.split("`")[1]
+        digits = len(shown.split(".")[1])
+        assert _number_after(done.stdout, "Result: ") == pytest.approx(
+            _number_after(shown, "Result: "), abs=10.0 ** -digits), (command, done.stdout[-500:])
+
+
+def test_stormpy_and_spot_print_what_the_recheck_tables_say(fresh: Path) -> None:
+    """The stormpy snippet of docs/cli.md, the induced chain's DRN checked the same way, and
+    Spot's reading of task.hoa, on a fresh world1."""
+    import spot
+    import stormpy
+    import stormpy.environments
+
+    folder = fresh / "world1"
+    snippet = next(block for info, block in _blocks(ROOT / "docs" / "cli.md")
+                   if info == "python" and "stormpy" in block)
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(snippet.replace("models/world1/", f"{folder}/"), {})
+    claimed = _number_after(snippet.split("#")[-1])
+    assert float(printed.getvalue()) == pytest.approx(claimed, abs=1e-15)
+    rows = {with_: prints for with_, _, prints in
+            _recheck_rows("Re-checking the strategy without hg2prism")}
+    model = stormpy.build_model_from_drn(str(folder / "induced.drn"))
+    properties = stormpy.parse_properties('P=? [F "goal"]')
+    env = stormpy.environments.sound()
+    env.solver().min_max().precision = stormpy.Rational("1e-10")
+    env.solver().native().precision = stormpy.Rational("1e-10")
+    result = stormpy.model_checking(model, properties[0], environment=env)
+    assert result.get_value(model.initial_states[0]) == pytest.approx(
+        _number_after(rows["stormpy"]), abs=1e-15)
+    automaton = spot.automaton(str(folder / "task.hoa"))
+    assert rows["Spot"] == (f"the task DFA: {automaton.num_states()} states, initial state "
+                            f"{automaton.get_init_state_number()}")
 
 
 # ---- code blocks ----
