@@ -1,8 +1,9 @@
 """Figures into a caller's matplotlib Axes, and hg2prism leaving matplotlib's backend alone
 (docs/api.md "Figures"):
 
-* every figure function of report/plots.py (world, belief, completion, sweep, detection,
-  scaling, robust) draws into the Axes a caller gives, on the caller's Figure: the artists land
+* every figure function (report/plots.py: world, belief, completion, sweep and sweep grid,
+  detection, scaling, robust; report/adaptive_plot.py: P1's belief over the types, the prior
+  sweep) draws into the Axes a caller gives, on the caller's Figure: the artists land
   there, no figure is made (neither through pyplot nor otherwise) and no file is written;
 * importing hg2prism and drawing keeps the backend a notebook set (matplotlib_inline's, or any
   other), and figures are still written headless: MPLBACKEND unset and no display.
@@ -27,7 +28,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 import hg2prism
 from conftest import MODELS, ROOT
 from hg2prism.analyses.simulation import FAIL, GOAL
-from hg2prism.report import plots
+from hg2prism.report import adaptive_plot, plots
 
 
 class Made:
@@ -82,7 +83,18 @@ def _figures(ax, path: Path) -> dict[str, object]:
                   ("naive", _summary([4, 6, 9, 1], [True, False, False, True]), None)]
     scaling = [{"states": n, "time_games": 0.01 * n ** 0.5, "time_total": 1e-4 * n}
                for n in (1000, 10000, 100000)]
+    grid = [{"delay": d, "window": w, "deceptive_value": 0.9, "v_lead": 0.7}
+            for d in (0, 1) for w in (1, 2)]
+    weights = [{"weight": w, "v_adapt": 0.8, "v_oracle": 0.9, "v_commit": {"a": w, "b": 0.7}}
+               for w in (0.0, 0.5, 1.0)]
     return {
+        "sweep grid": lambda: plots.sweep_grid_figure(["delay", "window"], grid, path, "worldG",
+                                                      ax=ax),
+        "adaptive belief": lambda: adaptive_plot.adaptive_belief_figure(
+            "worldA", ["a", "b"], [[0.5, 0.5], [0.5, 0.5], [0.0, 1.0]], 1, 0, "goal", path,
+            ax=ax),
+        "prior weight": lambda: adaptive_plot.weight_sweep_figure("worldA", ["a", "b"], weights,
+                                                                  path, ax=ax),
         "completion": lambda: plots.completion_figure("worldC", completion, path, ax=ax),
         "sweep": lambda: plots.sweep_figure("rationality", rows, path, "worldS", ax=ax),
         "scaling": lambda: plots.scaling_figure(scaling, ("games",), path, "bench", ax=ax),
@@ -92,7 +104,8 @@ def _figures(ax, path: Path) -> dict[str, object]:
     }
 
 
-@pytest.mark.parametrize("name", ["completion", "sweep", "scaling", "robust", "detection"])
+@pytest.mark.parametrize("name", ["completion", "sweep", "sweep grid", "scaling", "robust",
+                                  "detection", "adaptive belief", "prior weight"])
 def test_a_figure_draws_into_the_callers_axes(name: str, tmp_path: Path,
                                               monkeypatch: pytest.MonkeyPatch) -> None:
     fig, ax = _callers_axes()
@@ -112,7 +125,7 @@ def test_without_axes_a_figure_is_its_own_and_written(tmp_path: Path,
     before = plt.get_fignums()
     for name in _figures(None, tmp_path):
         made = Made(monkeypatch)
-        written = _figures(None, tmp_path / name / f"{name}.png")[name]()
+        written = _figures(None, tmp_path / name.replace(" ", "_") / "figure.png")[name]()
         assert made.count == 1, name
         assert sorted(p.suffix for p in written) == [".png", ".svg"], name
         assert all(p.is_file() for p in written)
