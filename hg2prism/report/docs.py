@@ -102,13 +102,13 @@ def _episode(data: dict, episode: dict, steps: bool) -> dict:
     names, records = _state_names(data), data["records"]
     kept = {"name": "drawn" if episode["drawn"] else f"seed{episode['seed']}",
             "seed": episode["seed"], "outcome": episode["outcome"],
-            "path": " ".join((names[s["place"]]) for s in episode["states"])}
+            "path": " ".join(names[s["place"]] for s in episode["states"])}
     if steps:
         kept["steps"] = [{
-            "n": step["n"], "at": (names[step["start"]]),
-            "landing": (names[step["landing"]]) if not step["trapped"] else "trapped",
+            "n": step["n"], "at": names[step["start"]],
+            "landing": names[step["landing"]] if not step["trapped"] else "trapped",
             "believes": data["hypotheses"][state["belief"]["hypothesis"]],
-            "traps": [(names[t]) for t in step["traps"]],
+            "traps": [names[t] for t in step["traps"]],
             "values": records[state["record"]]["values"] if state.get("record") is not None
             else None,
             "plays": step["action"], "realised": step["realised"],
@@ -126,8 +126,7 @@ def explorer_extract(text: str, seeds: tuple[int, ...] = ()) -> dict:
     every candidate episode's path (its states, space-separated), and step by step the drawn
     episode and those of `seeds`."""
     start = text.index('{"world":')
-    data, _ = json.JSONDecoder().raw_decode(
-        text[start:].replace("\\u003c", "<").replace("\\u003e", ">").replace("\\u0026", "&"))
+    data, _ = json.JSONDecoder().raw_decode(text[start:])     # its escapes are JSON's
     regions: dict[str, list[str]] = {}
     for cell in data["map"].get("cells", ()):
         if cell.get("kind") == "region":
