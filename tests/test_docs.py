@@ -303,6 +303,14 @@ def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
         digits = len(shown.split(".")[1])
         assert _number_after(done.stdout, "Result: ") == pytest.approx(
             _number_after(shown, "Result: "), abs=10.0 ** -digits), (command, done.stdout[-500:])
+    # "As with the model, PRISM's default stopping rule stops short (`0.9497436…` without
+    # `-epsilon`)": the chain's command without it
+    short = re.search(r"\(`([0-9.]+)…` without `-epsilon`\)",
+                      (ROOT / "docs" / "cli.md").read_text()).group(1)
+    words = shlex.split(rows[-1][1].split("`")[1])
+    done = subprocess.run([prism, *words[1:words.index("-epsilon")]], cwd=folder,
+                          capture_output=True, text=True, timeout=300)
+    assert f"Result: {short}" in done.stdout, done.stdout[-500:]
 
 
 def test_stormpy_and_spot_print_what_the_recheck_tables_say(fresh: Path) -> None:
