@@ -57,7 +57,7 @@ mazes: $(STAMP)
 
 # The numbers and tables of README.md and docs/ rendered from the showcase worlds' outputs
 # (docs/cli.md, "Documentation that cannot go stale"): the fast worlds afresh, the others from
-# docs/data (docs-all runs them all afresh, about two minutes; `make bench` renews
+# docs/data (docs-all runs them all afresh, about five minutes; `make bench` renews
 # docs/performance.md's data, bench/results.json, which make docs copies when present).
 docs: world1 world3 world4 mir100 world1-bayes
 	$(BIN)/python -m hg2prism.report.docs
