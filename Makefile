@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench clean docs docs-all
+.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench clean docs docs-all world1-bayes
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,11 @@ world2: $(STAMP)
 	$(BIN)/hg2prism sweep models/world2.toml --param delay --values 0 1 2 3
 	$(BIN)/hg2prism detect models/world2.toml --fallback robust --fallback-delta 0.1
 	$(BIN)/hg2prism robust models/world2.toml --deltas 0 0.02 0.05 0.1 0.2
+	$(BIN)/hg2prism sweep models/world2.toml --param inference --values bayes \
+		--param decision --values map sample --out models/world2_bayes
+	$(BIN)/hg2prism detect models/world2.toml --fallback robust --fallback-delta 0.2 \
+		--out models/world2_replan_02
+	$(BIN)/hg2prism detect models/world2.toml --fallback leader --out models/world2_replan_leader
 
 # A 2-D sweep on Dask (a local cluster, one worker per core): world2 over delay x window.
 sweep-demo: $(STAMP)
@@ -35,12 +40,16 @@ world3: $(STAMP)
 # (with PRISM's POMDP bounds where PRISM is installed: $PRISM or prism on the PATH)
 world4: $(STAMP)
 	$(BIN)/hg2prism run models/world4.toml --prism-pomdp
+	$(BIN)/hg2prism sweep models/world4.toml --param weight --values 0 0.25 0.5 0.75 1 \
+		--out models/world4_weight
 
 # MIR100, a robot's attack graph (an arena world): the run, then delay x honeypots
 mir100: $(STAMP)
 	$(BIN)/hg2prism run models/mir100.toml
 	$(BIN)/hg2prism sweep models/mir100.toml --param delay --values 0 1 2 --param traps --values 1 2 \
 		--out models/mir100_sweep
+	$(BIN)/hg2prism sweep models/mir100.toml --param initial_hypothesis --values 0 1 2 3 \
+		--param delay --values 0 1 --deception --out models/mir100_guess
 
 # All 200 random mazes of tests/test_mazes.py through `run` (make test runs every fifth; this
 # takes about 3 minutes on two cores).
@@ -49,14 +58,20 @@ mazes: $(STAMP)
 
 # The numbers and tables of README.md and docs/ rendered from the showcase worlds' outputs
 # (docs/cli.md, "Documentation that cannot go stale"): the fast worlds afresh, the others from
-# docs/data (docs-all runs them all afresh, about two minutes).
-docs: world1 world3 mir100
+# docs/data (docs-all runs them all afresh, about five minutes; `make bench` renews
+# docs/performance.md's data, bench/results.json, which make docs copies when present).
+docs: world1 world3 world4 mir100 world1-bayes
 	$(BIN)/python -m hg2prism.report.docs
 	cp models/world3/explorer.html docs/world3_explorer.html
 
-docs-all: world1 world2 world3 mir100
+docs-all: world1 world2 world3 world4 mir100 world1-bayes
 	$(BIN)/hg2prism robust models/world1.toml --out models/world1_robust
 	$(BIN)/python -m hg2prism.report.docs
+
+# world1 against the Bayesian observer, map and sample (docs/results.md)
+world1-bayes: $(STAMP)
+	$(BIN)/hg2prism sweep models/world1.toml --param inference --values bayes \
+		--param decision --values map sample --out models/world1_bayes
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

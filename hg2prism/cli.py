@@ -153,6 +153,9 @@ def _sweep_parser(sub: Subparsers) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the points on the Dask cluster whose scheduler is at ADDRESS "
                         "(e.g. tcp://host:8786) instead of a local one")
+    p.add_argument("--deception", action="store_true",
+                   help="also compute V_static and V_naive at each point (what the deception "
+                        "is worth, docs/semantics.md §11)")
     _solver_options(p)
 
 
@@ -335,7 +338,8 @@ def _sweep(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     workers = args.workers if args.workers is not None else sweep.default_workers()
     run = sweep.sweep_grid(world, list(zip(args.param, args.values)), stage,
                            storm_method=args.storm_method, workers=workers,
-                           scheduler=args.scheduler, max_states=args.max_states)
+                           scheduler=args.scheduler, max_states=args.max_states,
+                           deception=args.deception)
     return Outcome(table="\n".join(sweep.sweep_summary_lines(
         [name for name, _ in run.parameters], run.rows, world.name)), failed=run.failed)
 

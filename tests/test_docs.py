@@ -1,9 +1,11 @@
 """Documentation that cannot go stale (docs/cli.md, "Documentation that cannot go stale"):
 
-* every document (README.md, docs/*.md) is what `make docs` renders from docs/data, and a fresh
-  `run` of the fast showcase worlds (world1, world3, world3_bayes, mir100) gives the data
-  docs/data holds, so that `make docs` leaves the documents unchanged; world2's sweep,
-  detection and robustness experiments are compared from their committed outputs;
+* every document (README.md, docs/*.md) is what `make docs` renders from docs/data, and the
+  commands `make docs` runs (read from the Makefile: world1, world3 and world3_bayes, world4
+  and its prior sweep, mir100 and its two sweeps, world1 against the Bayesian observer), run
+  afresh, give the data docs/data holds, so that `make docs` leaves the documents unchanged;
+  world2's experiments, world1's robustness and the benchmark are compared from their
+  committed outputs (and the benchmark's summary numbers recomputed from its rows);
 * every Python block of README.md and docs/api.md runs (in order, in one namespace with
   `hg2prism` imported, from the repository's root) and prints what its comments say (when every
   `print(` line has a comment); a signature block — fenced ```` ```python signature ````, or
@@ -20,21 +22,58 @@ import contextlib
 import inspect
 import io
 import json
+import math
+import os
 import re
 import shlex
 import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
 
 import hg2prism
 from conftest import MODELS, ROOT
-from hg2prism import cli, pipeline
+from hg2prism import cli
+from hg2prism.errors import InputError
+from hg2prism.experiments import bench, sweep
 from hg2prism.report import docs
 from hg2prism.worldfile import load_world
 
 FENCE = re.compile(r"^```([^\n]*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
-FRESH = ("world1", "world3", "world3_bayes", "mir100")      # fast: run afresh here
+
+
+def make_commands(target: str) -> dict[str, list[str]]:
+    """The `hg2prism` commands the Makefile's `target` runs through its prerequisites (not
+    the set-up), by the case (models/CASE/) each writes: its --out, else its world file's
+    name."""
+    text = (ROOT / "Makefile").read_text().replace("\\\n", " ")
+    rules = {m.group(1): (m.group(2).split(), m.group(3)) for m in
+             re.finditer(r"^([\w.-]+):([^\n]*)\n((?:\t[^\n]*\n?)*)", text, re.MULTILINE)}
+    commands: dict[str, list[str]] = {}
+
+    def visit(name: str) -> None:
+        needs, recipe = rules.get(name, ([], ""))
+        for need in needs:
+            visit(need)
+        for line in recipe.splitlines():
+            words = shlex.split(line.strip())
+            if words and words[0] == "$(BIN)/hg2prism":
+                args = words[1:]
+                out = args[args.index("--out") + 1] if "--out" in args else args[1][:-5]
+                commands[Path(out).name] = args
+    visit(target)
+    return commands
+
+
+FRESH = make_commands("docs")       # fast: run afresh here
+
+
+def test_make_docs_runs_the_showcase_worlds() -> None:
+    assert set(FRESH) == {"world1", "world3", "world3_bayes", "world4", "world4_weight",
+                          "mir100", "mir100_sweep", "mir100_guess", "world1_bayes"}
+    assert FRESH["world1"] == ["run", "models/world1.toml"]
+    assert set(FRESH) <= set(docs.SOURCES)
 
 
 def test_every_document_is_its_render() -> None:
@@ -76,11 +115,19 @@ def _close(fresh: object, kept: object, where: str) -> None:
 
 @pytest.fixture(scope="module")
 def fresh(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """models/CASE/ as `make docs` writes them for the fast showcase worlds (`hg2prism run
-    models/CASE.toml`), in a temporary folder."""
+    """models/CASE/ as `make docs` writes them (the Makefile's commands, each into a
+    temporary folder; sweeps in this process), in a temporary folder."""
     root = tmp_path_factory.mktemp("showcase")
-    for case in FRESH:
-        pipeline.run(load_world(MODELS / f"{case}.toml"), root / case, show_progress=False)
+    for case, args in FRESH.items():
+        args = [str(ROOT / a) if a.startswith("models/") and a.endswith(".toml") else a
+                for a in args]
+        if "--out" in args:
+            at = args.index("--out")
+            args = args[:at] + args[at + 2:]
+        if args[0] == "sweep":
+            args += ["--workers", "1"]
+        with contextlib.redirect_stdout(io.StringIO()):
+            assert cli.main(args + ["--out", str(root / case)]) == 0, args
     return root
 
 
@@ -88,9 +135,9 @@ def test_a_fresh_run_gives_the_committed_data(fresh: Path) -> None:
     data = ROOT / "docs" / "data"
     for case in FRESH:
         for name in docs.SOURCES[case]:
-            new = docs.extract(name, (fresh / case / name).read_text())
-            kept = (data / case / name).read_text()
-            if name.endswith(".json"):
+            new = docs.extract(name, (fresh / case / name).read_text(), case)
+            kept = (data / case / docs.data_name(name)).read_text()
+            if docs.data_name(name).endswith(".json"):
                 _close(json.loads(new), json.loads(kept), f"{case}/{name}")
             else:
                 assert new == kept, f"{case}/{name}"
@@ -112,6 +159,99 @@ def test_make_docs_after_a_fresh_run_changes_no_document(fresh: Path, tmp_path: 
     assert [str(d.relative_to(ROOT)) for d in docs.stale(ROOT, data)] == []
 
 
+def test_the_benchmarks_summary_is_computed_from_its_rows() -> None:
+    """docs/data/bench/results.json (what `make bench` writes, docs/performance.md's data):
+    its slopes and its largest world are what bench computes from its rows."""
+    kept = json.loads((ROOT / "docs" / "data" / "bench" / "results.json").read_text())
+    rows = kept["rows"]
+    plain = bench.undelayed(rows)
+    assert kept["slope"] == pytest.approx(bench.loglog_slope(plain), abs=1e-9)
+    for stage, slope in kept["stage_slopes"].items():
+        assert slope == pytest.approx(bench.loglog_slope(plain, 1e5, math.inf, f"time_{stage}"),
+                                      abs=1e-9), stage
+    assert kept["largest"] == max(rows, key=lambda r: r["states"])["name"]
+    named = {r["name"] for r in rows}
+    assert set(kept["delay_costs"]) == {r["name"] for r in rows if r["delay"]} and \
+        set(kept["delay_costs"]) <= named
+    # the keys are those bench writes
+    complete = [{**r, "storm_states": r["states"]} for r in rows]
+    assert set(bench.bench_results(complete)) == set(kept)
+
+
+def test_the_sweep_parameters_the_docs_use_refuse_what_does_not_fit() -> None:
+    """`initial_hypothesis` (MIR100's first-guess table) and `decision` (the Bayesian rows)."""
+    world1 = load_world(MODELS / "world1.toml")
+    assert sweep.sweep_point(world1, {"initial_hypothesis": 2}).initial_hypothesis == 2
+    with pytest.raises(InputError, match="initial_hypothesis value 3 must be an index"):
+        sweep.sweep_point(world1, {"initial_hypothesis": 3})
+    with pytest.raises(InputError, match="has no decision"):
+        sweep.sweep_point(world1, {"decision": "map"})
+    bayes = sweep.sweep_point(world1, {"inference": "bayes", "decision": "sample"})
+    assert bayes.setting("decision") == "sample" and bayes.initial_hypothesis == 0
+    with pytest.raises(InputError, match="follows her prior"):
+        sweep.sweep_point(world1, {"inference": "bayes", "initial_hypothesis": 1})
+    with pytest.raises(InputError, match="decision"):
+        sweep.sweep_point(bayes, {"decision": "maybe"})
+    with pytest.raises(InputError, match="initial_hypothesis"):
+        sweep.parse_sweep_values("initial_hypothesis", ["-1"])
+
+
+def _explorer(case: str) -> dict:
+    return json.loads((ROOT / "docs" / "data" / case / "explorer.json").read_text())
+
+
+def _named(case: str, name: str) -> dict:
+    return next(e for e in _explorer(case)["episodes"] if e["name"] == name)
+
+
+def test_the_episodes_the_text_tells_are_those_of_the_data() -> None:
+    """docs/results.md tells world1's and world3's pictured episodes and world3's feint (seed
+    44) in words, with step numbers: they are those of the explorer's data (a fresh run's,
+    above); world3's 0.6 / 0.8 = 0.75 is V_static, V_naive and V_lead; world1's static row's
+    interval misses its exact value, as the text says."""
+    world1 = _explorer("world1")
+    drawn = _named("world1", "drawn")
+    path = drawn["path"].split()                 # path[n]: where step n landed
+    assert drawn["seed"] == 48 and len(path) - 1 == 62
+    assert set(path[:6]) == {"(2,4)", "(1,4)"} and path[6] == "(1,5)"     # steps 1-5, slip N
+    assert path[10] in world1["regions"]["A"] and not any(
+        c in world1["regions"]["A"] for c in path[:10])                     # A at step 10
+    steps = drawn["steps"]
+    at_a = steps[10:31]                          # steps 11-31: W into the wall at A 20 times,
+    assert [s["n"] for s in at_a if s["plays"] != "W"] == [28]      # back at step 28
+    assert sum("bumped" in s["realised"] for s in at_a) == 18       # 18 bumps,
+    assert "went N (slipped)" in steps[26]["realised"]              # a slip N at step 27
+    assert "went S (slipped)" in steps[30]["realised"]              # until a slip S at step 31
+    assert steps[36]["at"] == "(2,3)" and steps[36]["plays"] == "N"         # step 37
+    assert steps[60]["at"] == "(1,4)" and "went S (slipped)" in steps[60]["realised"]
+    assert path[61] == "(1,3)" and path[62] in world1["regions"]["C"]      # step 62: C
+    lengths = [len(e["path"].split()) - 1 for e in world1["episodes"]
+               if e["outcome"] == "task completed"]
+    assert (min(lengths), max(lengths)) == (15, 195)
+    world3 = _explorer("world3")
+    drawn = _named("world3", "drawn")
+    steps, path = drawn["steps"], drawn["path"].split()
+    assert drawn["seed"] == 33 and len(steps) == 33
+    changes = [s["n"] for s in steps if s["believes_after"] != s["believes"]]
+    assert changes == [2, 27] and path[2] in world3["regions"]["B"]         # feint: steps 1-2
+    assert "(2,2)" not in path[:25] and path[25] == "(3,2)"                 # until step 25
+    assert path[26] == "(2,2)" and path[27] == "(2,3)"                      # steps 26, 27
+    assert path[-1] in world3["regions"]["A"] and steps[-1]["plays"] == "S"
+    assert not any(c in world3["regions"]["A"] for c in path[:-1])
+    feint = _named("world3", "seed44")["steps"]
+    assert [s["plays"] for s in feint] == ["E", "E", "W", "N", "W", "N"]
+    after = [s["believes_after"] for s in feint]
+    assert after == ["!obs U A"] + ["!obs U B"] * 4 + ["!obs U A"]          # steps 2 and 6
+    assert feint[-1]["landing"] == "(1,2)" and feint[0]["at"] == "(3,2)"
+    results3 = json.loads((ROOT / "docs" / "data" / "world3" / "results.json").read_text())
+    for key in ("v_static", "v_naive", "v_lead"):
+        assert results3[key] == pytest.approx(0.6 / 0.8, abs=1e-9), key
+    static = json.loads((ROOT / "docs" / "data" / "world1" / "results.json").read_text())[
+        "simulation"]["static"]
+    low, high = static["ci95"]
+    assert not low <= static["exact_within_horizon"] <= high
+
+
 def test_every_block_and_value_is_rendered_from_the_data() -> None:
     """Each block name is known, each value's path exists, and every block is used."""
     out = docs.Outputs(ROOT / "docs" / "data")
@@ -124,6 +264,83 @@ def test_every_block_and_value_is_rendered_from_the_data() -> None:
             else:
                 docs.value(out, spec)
     assert used == set(docs.BLOCKS)
+
+
+# ---- what PRISM, Storm and Spot print (docs/cli.md, re-checking) ----
+
+def _prism() -> str | None:
+    path = os.environ.get("PRISM") or shutil.which("prism")
+    return path if path and os.access(path, os.X_OK) else None
+
+
+def _recheck_rows(section: str) -> list[tuple[str, str, str]]:
+    """(with, command, prints) of the table in docs/cli.md's section `section`."""
+    text = (ROOT / "docs" / "cli.md").read_text().split(f"## {section}\n", 1)[1].split("\n## ", 1)[0]
+    rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+            for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    return [(row[0], row[1], row[2]) for row in rows[1:]]
+
+
+def _number_after(text: str, prefix: str = "") -> float:
+    return float(re.search(re.escape(prefix) + r"([0-9]+\.[0-9]+)", text).group(1))
+
+
+def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
+    """Every PRISM command of docs/cli.md's re-checking tables, run on a fresh world1, prints
+    the result the table shows (to its last digit)."""
+    prism = _prism()
+    if prism is None:
+        pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
+    rows = [row for section in ("Re-checking a model", "Re-checking the strategy without hg2prism")
+            for row in _recheck_rows(section) if row[1].startswith("`prism ")]
+    assert len(rows) == 5
+    folder = fresh / "world1"
+    for _, command, prints in rows:
+        words = shlex.split(command.split("`")[1].replace("models/world1/", f"{folder}/"))
+        done = subprocess.run([prism, *words[1:]], cwd=folder, capture_output=True, text=True,
+                              timeout=300)
+        shown = prints.split("`")[1]
+        digits = len(shown.split(".")[1])
+        assert _number_after(done.stdout, "Result: ") == pytest.approx(
+            _number_after(shown, "Result: "), abs=10.0 ** -digits), (command, done.stdout[-500:])
+    # "As with the model, PRISM's default stopping rule stops short (`0.9497436…` without
+    # `-epsilon`)": the chain's command without it
+    short = re.search(r"\(`([0-9.]+)…` without `-epsilon`\)",
+                      (ROOT / "docs" / "cli.md").read_text()).group(1)
+    words = shlex.split(rows[-1][1].split("`")[1])
+    done = subprocess.run([prism, *words[1:words.index("-epsilon")]], cwd=folder,
+                          capture_output=True, text=True, timeout=300)
+    assert f"Result: {short}" in done.stdout, done.stdout[-500:]
+
+
+def test_stormpy_and_spot_print_what_the_recheck_tables_say(fresh: Path) -> None:
+    """The stormpy snippet of docs/cli.md, the induced chain's DRN checked the same way, and
+    Spot's reading of task.hoa, on a fresh world1."""
+    import spot
+    import stormpy
+    import stormpy.environments
+
+    folder = fresh / "world1"
+    snippet = next(block for info, block in _blocks(ROOT / "docs" / "cli.md")
+                   if info == "python" and "stormpy" in block)
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(snippet.replace("models/world1/", f"{folder}/"), {})
+    claimed = _number_after(snippet.split("#")[-1])
+    assert float(printed.getvalue()) == pytest.approx(claimed, abs=1e-15)
+    rows = {with_: prints for with_, _, prints in
+            _recheck_rows("Re-checking the strategy without hg2prism")}
+    model = stormpy.build_model_from_drn(str(folder / "induced.drn"))
+    properties = stormpy.parse_properties('P=? [F "goal"]')
+    env = stormpy.environments.sound()
+    env.solver().min_max().precision = stormpy.Rational("1e-10")
+    env.solver().native().precision = stormpy.Rational("1e-10")
+    result = stormpy.model_checking(model, properties[0], environment=env)
+    assert result.get_value(model.initial_states[0]) == pytest.approx(
+        _number_after(rows["stormpy"]), abs=1e-15)
+    automaton = spot.automaton(str(folder / "task.hoa"))
+    assert rows["Spot"] == (f"the task DFA: {automaton.num_states()} states, initial state "
+                            f"{automaton.get_init_state_number()}")
 
 
 # ---- code blocks ----

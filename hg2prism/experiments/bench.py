@@ -422,6 +422,21 @@ def missed_targets(rows: list[dict]) -> list[str]:
     return missed
 
 
+def bench_results(rows: list[dict]) -> dict:
+    """results.json (docs/performance.md is rendered from it): every row, and the summary's
+    numbers: the log-log slope of the total time (worlds without delay, SLOPE_RANGE), each
+    stage's from 1e5 states, each delayed world's Storm cost per state against its twin
+    without delay, and the largest grid world."""
+    good = [r for r in rows if not r.get("error")]
+    plain = undelayed(good)
+    top = max(grids(good) or good, key=lambda r: r["states"]) if good else None
+    return {"rows": rows, "slope": loglog_slope(plain),
+            "stage_slopes": {stage: loglog_slope(plain, 1e5, math.inf, f"time_{stage}")
+                             for stage in STAGES + ("total",)},
+            "delay_costs": dict(delay_costs(good)),
+            "largest": None if top is None else top["name"]}
+
+
 def summary(rows: list[dict]) -> str:
     """The closing lines: slope, the largest world, Python stages against Storm's build, the
     cost of delay."""
@@ -486,7 +501,8 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               arena_forms=(), random_arenas=()) -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
-    writes out_dir/results.csv and out_dir/scaling.{png,svg} and prints the summary.
+    writes out_dir/results.csv, results.json (`bench_results`) and out_dir/scaling.{png,svg}
+    and prints the summary.
 
     The world files stay in out_dir/worlds/; each world's outputs go to out_dir/runs/<name>/
     and, unless keep_outputs, its strategy.json (hundreds of MB for the largest) is removed.
@@ -494,7 +510,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
     Each size of `sizes` also in `arena_forms` is measured a second time right after, in its
     arena form (`hg2prism convert`); then each `random_arenas` (numbers of states) as
     `random_arena_world`. Only grid rows enter the slope and the figure."""
-    from hg2prism.outputs import write_text
+    from hg2prism.outputs import write_json, write_text
 
     out_dir = Path(out_dir)
     rows: list[dict] = []
@@ -532,6 +548,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         run(world_path, {"name": name, "form": "random arena", "window": 3, "hypotheses": 3,
                          "traps": 1, "delay": 0})
     write_csv(rows, out_dir / "results.csv")
+    write_json(out_dir / "results.json", bench_results(rows))
     good = [r for r in rows if not r.get("error")]
     if good:
         from hg2prism.report.plots import scaling_figure   # after the children: keeps them small
@@ -543,7 +560,8 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         scaling_figure(grids(good) or good, STAGES + ("write",), out_dir / "scaling.png", title)
     if show_progress:
         print(summary(rows), flush=True)
-        print(f"wrote {out_dir / 'results.csv'} and {out_dir / 'scaling.png'} (and .svg)", flush=True)
+        print(f"wrote {out_dir / 'results.csv'}, results.json and {out_dir / 'scaling.png'} "
+              "(and .svg)", flush=True)
     return rows
 
 

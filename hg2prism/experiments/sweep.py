@@ -2,8 +2,10 @@
 
 :func:`sweep_grid` re-solves the world at every point of the cartesian product of one or more
 parameters' values (the table :data:`SWEEP_PARAMETERS`: ``delay``, ``window``, ``threshold``,
-``rationality``, ``traps``, ``prior``, ``inference`` and each front end's own) and records the deceptive value, V_lead and V_NE at the
-initial state (docs/semantics.md §§6-7; the sweep itself: §7, Sweeps). :func:`sweep` is the
+``rationality``, ``traps``, ``prior``, ``decision``, ``initial_hypothesis``, ``inference`` and
+each front end's own) and records the deceptive value, V_lead and V_NE at the initial state
+(docs/semantics.md §§6-7; the sweep itself: §7, Sweeps), with ``deception`` also V_static and
+V_naive (§11). :func:`sweep` is the
 one-parameter case. Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.{png,svg}``; each
 point's model, strategy and results stay in ``OUT/<parameter>_<value>/`` (one parameter) or
 ``OUT/<p1>_<v1>__<p2>_<v2>/`` (several).
@@ -183,6 +185,27 @@ def _with_prior(world: World, prior: tuple[float, ...]) -> World:
     return _with_setting("prior")(world, prior)
 
 
+def _word(value: object) -> str:
+    """A setting's value that is a word (the Bayesian observer's decision); the observer reads
+    and checks it when it is applied."""
+    if not isinstance(value, str) or not value.strip():
+        raise ValueError("must be")
+    return value.strip()
+
+
+def _with_first_guess(world: World, first: int) -> World:
+    """P2's first guess (an index into the hypotheses), for an observer whose first guess is
+    the world's (a Bayesian one's follows her prior)."""
+    kind = observer_kind(world.inference)
+    if kind.first_guess is not None:
+        raise InputError(_CLI, "--param", f"the {kind.title} observer's first guess follows "
+                         f"her prior; sweep prior instead of initial_hypothesis")
+    if first >= len(world.hypotheses):
+        raise InputError(_CLI, "--values", f"initial_hypothesis value {first} must be an "
+                         f"index into the world's {len(world.hypotheses)} hypotheses")
+    return replace(world, initial_hypothesis=first)
+
+
 def _check_traps(world: World, traps: int) -> None:
     candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
@@ -213,6 +236,10 @@ SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
                    _number(int, 1, False), _with_traps, moves_traps=True),
     SweepParameter("prior", "comma-separated positive numbers, one per hypothesis", _prior,
                    _with_prior),
+    SweepParameter("decision", '"map" or "sample" (a Bayesian observer\'s)', _word,
+                   _with_setting("decision")),
+    SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
+                   _number(int, 0, False), _with_first_guess),
 )}
 
 # The per-point folders a sweep owns in its output folder (outputs.staged removes stale ones):
@@ -375,6 +402,7 @@ class PointTask:
     storm_method: str
     max_states: int | None
     estimate: int = 0                       # the size guard's estimate: bigger starts earlier
+    deception: bool = False                 # also V_static, V_naive (docs/semantics.md §11)
 
 
 @dataclass(frozen=True)
@@ -421,6 +449,7 @@ def solve_point(task: PointTask) -> PointOutcome:
                 folder = Path(tmp) / task.folder
                 checked = pipeline.check(world, folder, task.storm_method)
                 nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
+                worth = _deception(checked) if task.deception else {}
                 files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
                                      for p in folder.rglob("*") if p.is_file()))
             seconds = time.perf_counter() - start
@@ -446,11 +475,21 @@ def solve_point(task: PointTask) -> PointOutcome:
         "storm_states": results.storm_states,
         "storm_transitions": results.storm_transitions,
         "standing": _standing_name(world),
+        **worth,
         "seconds": round(seconds, 3),
     }
     note = (f"P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}" if nash.warn
             else None)
     return PointOutcome(task.index, row, files, None, tuple(warnings), note)
+
+
+def _deception(checked) -> dict:
+    """What the deception is worth at a point (docs/semantics.md §11), as `run` reports it."""
+    from hg2prism.analyses.deception_value import deception_values
+
+    worth = deception_values(checked.analysis, checked.results.deceptive_value)
+    return {"v_static": worth.v_static, "v_naive": worth.v_naive,
+            "value_of_deception": worth.value_of_deception}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -479,7 +518,7 @@ def _world_text(world: World) -> str | None:
 
 
 def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
-           max_states: int | None) -> list[PointTask]:
+           max_states: int | None, deception: bool = False) -> list[PointTask]:
     from hg2prism.model import sizeguard
 
     text = _world_text(world)
@@ -492,7 +531,7 @@ def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
         tasks.append(PointTask(index, tuple(assignment.items()), text,
                                None if text is not None else world, str(world.path), changes,
                                _folder(assignment), storm_method, max_states,
-                               min(sizeguard.estimate_states(point), 2**62)))
+                               min(sizeguard.estimate_states(point), 2**62), deception))
     return tasks
 
 
@@ -631,11 +670,13 @@ class SweepRun:
 
 def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: Path,
                show_progress: bool = True, storm_method: str = "sound", *, workers: int = 1,
-               scheduler: str | None = None, max_states: int | None = None) -> SweepRun:
+               scheduler: str | None = None, max_states: int | None = None,
+               deception: bool = False) -> SweepRun:
     """Solve the world at every point of the cartesian product of `grid`'s values (the first
     parameter varies slowest) and record the values at the initial state: per point
     ``{<parameter>: value, ..., deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, v_ne_bounds,
-    states, transitions, storm_states, storm_transitions, initial_traps, seconds}``.
+    states, transitions, storm_states, storm_transitions, initial_traps, seconds}``; with
+    `deception`, also ``v_static, v_naive, value_of_deception`` (docs/semantics.md §11).
 
     Points run serially here when ``workers == 1`` and no `scheduler` is given, otherwise on
     Dask (module docstring). Each point is checked into ``out/<folder>/`` (hypergame.prism,
@@ -649,7 +690,7 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     if workers < 1:
         raise InputError(_CLI, "--workers", f"must be at least 1, got {workers}")
     parsed, points = check_grid(world, grid, max_states)
-    tasks = _tasks(world, points, storm_method, max_states)
+    tasks = _tasks(world, points, storm_method, max_states, deception)
     out = Path(out)
     total_start = time.perf_counter()
     serial = workers == 1 and scheduler is None

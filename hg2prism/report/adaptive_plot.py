@@ -6,21 +6,22 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
 
-from hg2prism.report.plots import BELIEF_INCHES, _save
+from hg2prism.report.plots import BELIEF_INCHES, _axes, _done
 from hg2prism.report.style import hypothesis_colour
 
 __all__ = ["adaptive_belief_figure"]
 
 
 def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Sequence[Sequence[float]],
-                           true_type: int, seed: int, outcome: str, path: Path) -> list[Path]:
+                           true_type: int, seed: int, outcome: str, path: Path | None,
+                           ax=None) -> list[Path]:
     """P1's belief in each type (the prior restricted to the consistent types) against the
-    step of the episode, P2's true type drawn bold."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+    step of the episode, P2's true type drawn bold (into `ax` when given, then writing
+    nothing)."""
+    given = ax
+    fig, ax = _axes(ax, BELIEF_INCHES)
     values = np.asarray(beliefs, dtype=float)
     steps = np.arange(len(values))
     for k, name in enumerate(names):
@@ -42,14 +43,15 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world_name}: P1's belief over P2's types along the drawn episode "
                  f"(seed {seed}, {len(values) - 1} steps, {outcome})", fontsize=9)
-    return _save(fig, path)
+    return _done(fig, path, given)
 
 
 def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[dict],
-                        path: Path) -> list[Path]:
-    """V_adapt, V_oracle and every V_commit(j) against the first type's prior weight."""
-    fig = plt.figure(figsize=BELIEF_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+                        path: Path | None, ax=None) -> list[Path]:
+    """V_adapt, V_oracle and every V_commit(j) against the first type's prior weight (into
+    `ax` when given, then writing nothing)."""
+    given = ax
+    fig, ax = _axes(ax, BELIEF_INCHES)
     weights = [row["weight"] for row in rows]
     ax.plot(weights, [row["v_oracle"] for row in rows], "k:", lw=1.2, label="V_oracle")
     ax.plot(weights, [row["v_adapt"] for row in rows], "k-o", ms=3, lw=1.8, label="V_adapt")
@@ -63,4 +65,4 @@ def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[di
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world_name}: adaptive deception against the prior", fontsize=9)
-    return _save(fig, path)
+    return _done(fig, path, given)

@@ -7,14 +7,16 @@ A document marks what is generated:
   (a table rendered from the outputs);
 * a value inline, `<!-- value: SOURCE PATH FORMAT -->0.9498<!-- /value -->`: SOURCE is
   `CASE/FILE` (`world1/results.json`; `CASE` alone means its `results.json`), PATH the keys of
-  the value in that JSON file joined by dots (an integer indexes a list), FORMAT a Python format
-  specification (`.4f`, `.1%`, `d`).
+  the value in that JSON file joined by dots (an integer indexes a list, any other key picks
+  the list's row of that `name`), FORMAT a Python format specification (`.4f`, `.1%`, `d`).
 
 The outputs are read from `docs/data/CASE/FILE`: the showcase worlds' JSON outputs and tables
 (`SOURCES`), as `collect` copies them from `models/CASE/` after `make world1 world2 world3
-mir100`, without what varies between runs (timings, the version, the world file's path). The
-files are committed, so that `render` needs no run; tests/test_docs.py runs the fast showcase
-worlds afresh and compares their outputs with `docs/data`, and `docs/data` with the documents.
+world4 mir100`, without what varies between runs (timings, the version, the world file's
+path), and the benchmark's `bench/results.json` after `make bench` (its timings are what it
+measures: kept). The files are committed, so that `render` needs no run; tests/test_docs.py
+runs the fast showcase worlds afresh and compares their outputs with `docs/data`, and
+`docs/data` with the documents.
 
     python -m hg2prism.report.docs             # copy models/*/ outputs (where present), render
     python -m hg2prism.report.docs --check     # exit 1 when a document differs from its render
@@ -36,15 +38,28 @@ ROOT = Path(__file__).resolve().parent.parent.parent
 
 # case -> the files of models/CASE/ the documents are rendered from
 SOURCES: dict[str, tuple[str, ...]] = {
-    "world1": ("results.json", "table.md", "strategy.json"),
+    "world1": ("results.json", "table.md", "strategy.json", "explorer.html"),
     "world2": ("results.json", "table.md", "sweep.json", "detection.json", "robust.json"),
-    "world3": ("results.json", "table.md"),
+    "world3": ("results.json", "table.md", "explorer.html"),
     "world3_bayes": ("results.json",),
-    "mir100": ("results.json", "strategy.json"),
+    "mir100": ("results.json", "strategy.json", "explorer.html"),
     "mir100_sweep": ("sweep.json",),
     "world1_robust": ("robust.json",),      # make docs-all
+    "world1_bayes": ("sweep.json",),        # world1 against the Bayesian observer (map, sample)
+    "world2_bayes": ("sweep.json",),        # the same on world2 (make world2)
+    "world2_replan_02": ("detection.json",),        # make world2: re-planning, budget 0.2
+    "world2_replan_leader": ("detection.json",),    # and to the leader-game strategy
+    "mir100_guess": ("sweep.json",),        # MIR100 over P2's first guess x delay, V_naive
+    "world4": ("results.json", "table.md"),
+    "world4_weight": ("sweep.json",),       # world4 over the prior weight of its first type
+    "bench": ("results.json",),             # make bench (bench/results.json), slow: committed
 }
+# where a case's files are, under the repository's root, when not under models/
+ORIGIN = {"bench": "bench"}
 VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file"}
+# the explorer's candidate episodes docs/data keeps step by step, besides the drawn one (each
+# candidate's path is kept): hand-picked examples the documents describe
+EXPLORER_SEEDS = {"world3": (44,)}
 # a marker quoted in a code span (a backtick before it) is text, not a marker
 MARK = re.compile(r"(?<!`)<!-- (generated|value): (.*?) -->(.*?)<!-- /\1 -->", re.DOTALL)
 
@@ -68,9 +83,67 @@ def stable(value: object) -> object:
     return value
 
 
-def extract(name: str, text: str) -> str:
-    """What docs/data keeps of the output file `name`: JSON without its volatile keys (of
-    strategy.json only the initial state's record), other files as they are."""
+def data_name(name: str) -> str:
+    """The name docs/data keeps the output file `name` under (explorer.html's data as JSON)."""
+    return "explorer.json" if name == "explorer.html" else name
+
+
+def _state_names(data: dict) -> list[str]:
+    """The explorer's states as the documents name them: on a map of cells (the grid's) by
+    the position the world's drawer gives them, as the documents write cells; else by name."""
+    if data["map"].get("kind") != "grid":
+        return list(data["states"])
+    return [f"({x:g},{y:g})" for x, y in data["positions"]]
+
+
+def _episode(data: dict, episode: dict, steps: bool) -> dict:
+    """One episode of explorer.html's data: its path (states by name), and with `steps` each
+    step with the record of its state (strategy.json's values), P2's traps and her belief."""
+    names, records = _state_names(data), data["records"]
+    kept = {"name": "drawn" if episode["drawn"] else f"seed{episode['seed']}",
+            "seed": episode["seed"], "outcome": episode["outcome"],
+            "path": " ".join(names[s["place"]] for s in episode["states"])}
+    if steps:
+        kept["steps"] = [{
+            "n": step["n"], "at": names[step["start"]],
+            "landing": names[step["landing"]] if not step["trapped"] else "trapped",
+            "believes": data["hypotheses"][state["belief"]["hypothesis"]],
+            "traps": [names[t] for t in step["traps"]],
+            "values": records[state["record"]]["values"] if state.get("record") is not None
+            else None,
+            "plays": step["action"], "realised": step["realised"],
+            "belief_after": after["belief"]["belief"],
+            "believes_after": data["hypotheses"][after["belief"]["hypothesis"]]}
+            for step, state, after in zip(episode["steps"], episode["states"],
+                                          episode["states"][1:])]
+        beliefs = [s["belief_after"] for s in kept["steps"] if s["belief_after"] is not None]
+        kept["peak_belief"] = [max(column) for column in zip(*beliefs)] if beliefs else None
+    return kept
+
+
+def explorer_extract(text: str, seeds: tuple[int, ...] = ()) -> dict:
+    """What docs/data keeps of explorer.html: the hypotheses, a grid's regions (their cells),
+    every candidate episode's path (its states, space-separated), and step by step the drawn
+    episode and those of `seeds`."""
+    start = text.index('{"world":')
+    data, _ = json.JSONDecoder().raw_decode(text[start:])     # its escapes are JSON's
+    regions: dict[str, list[str]] = {}
+    for cell in data["map"].get("cells", ()):
+        if cell.get("kind") == "region":
+            regions.setdefault(cell["text"], []).append(f"({cell['x']},{cell['y']})")
+    return {"world": data["world"], "hypotheses": data["hypotheses"],
+            "chosen_as": data["chosen_as"], "regions": regions,
+            "episodes": [_episode(data, e, e["drawn"] or e["seed"] in seeds)
+                         for e in data["episodes"]]}
+
+
+def extract(name: str, text: str, case: str = "") -> str:
+    """What docs/data keeps of the output file `name` of `case`: JSON without its volatile
+    keys (of strategy.json only the initial state's record; of explorer.html its episodes,
+    `explorer_extract`), other files as they are."""
+    if name == "explorer.html":
+        data = stable(explorer_extract(text, EXPLORER_SEEDS.get(case, ())))
+        return json.dumps(data, indent=1, ensure_ascii=False) + "\n"
     if not name.endswith(".json"):
         return text
     data = stable(json.loads(text))
@@ -79,15 +152,20 @@ def extract(name: str, text: str) -> str:
     return json.dumps(data, indent=1, ensure_ascii=False) + "\n"
 
 
-def collect(models: Path, data: Path) -> list[str]:
-    """Copy the sources present under `models` (models/CASE/FILE) into `data`; the copied."""
+def collect(models: Path, data: Path, root: Path | None = None) -> list[str]:
+    """Copy the sources present under `models` (models/CASE/FILE; with `root`, a case of
+    ORIGIN from root/ORIGIN[case]/FILE) into `data`; the copied."""
     copied = []
     for case, names in SOURCES.items():
+        if case in ORIGIN and root is None:
+            continue
+        folder = root / ORIGIN[case] if case in ORIGIN else models / case
         for name in names:
-            source = models / case / name
+            source = folder / name
             if source.is_file():
-                write_text(data / case / name, extract(name, source.read_text()))
-                copied.append(f"{case}/{name}")
+                write_text(data / case / data_name(name),
+                           extract(name, source.read_text(), case))
+                copied.append(f"{case}/{data_name(name)}")
     return copied
 
 
@@ -108,7 +186,11 @@ class Outputs:
     def get(self, source: str, path: str) -> object:
         value = self.read(source)
         for key in path.split("."):
-            value = value[int(key)] if isinstance(value, list) else value[key]
+            if isinstance(value, list):     # an index, or the `name` of a row (bench's rows)
+                value = (value[int(key)] if key.isdigit()
+                         else next(row for row in value if row.get("name") == key))
+            else:
+                value = value[key]
         return value
 
 
@@ -208,6 +290,132 @@ def world1_headline(out: Outputs) -> str:
     return _table(["value", "world1", "meaning"], [[n, _f(v), m] for n, v, m in rows])
 
 
+def _asset(formula: str) -> str:
+    """A hypothesis `F target` by its target's name."""
+    return re.sub(r"^F\s+", "", formula)
+
+
+def mir100_guess(out: Outputs) -> str:
+    """MIR100 solved with each first guess of P2, delay 0 and 1 (`make mir100`'s sweep over
+    initial_hypothesis x delay with --deception)."""
+    parameters = out.read("mir100")["parameters"]
+    by = {(r["initial_hypothesis"], r["delay"]): r
+          for r in out.read("mir100_guess/sweep.json")["rows"]}
+    rows = []
+    for h, formula in enumerate(parameters["hypotheses"]):
+        now, later = by[(h, 0)], by[(h, 1)]
+        truth = " (the truth)" if formula == parameters["formula"] else ""
+        rows.append([_asset(formula) + truth, _f(now["deceptive_value"]), _f(now["v_naive"]),
+                     _f(now["value_of_deception"]), _f(later["deceptive_value"]),
+                     _f(later["v_naive"])])
+    return _table(["P2's first guess", "deceptive value", "V_naive", "value of deception",
+                   "deceptive value, delay 1", "V_naive, delay 1"], rows)
+
+
+def world1_inference(out: Outputs) -> str:
+    """world1 against CUSUM (its own run) and the Bayesian observer, `map` and `sample` (the
+    sweep `make docs` runs: inference bayes x decision)."""
+    r = out.read("world1")
+    rows = [[f"CUSUM, threshold {r['parameters']['threshold']:g}", _f(r["deceptive_value"]),
+             _f(r["v_lead"]), str(r["states"])]]
+    rows += [[f"Bayesian, uniform prior, `{p['decision']}`", _f(p["deceptive_value"]),
+              _f(p["v_lead"]), str(p["states"])]
+             for p in out.read("world1_bayes/sweep.json")["rows"]]
+    return _table(["P2's inference", "deceptive value", "V_lead", "canonical states"], rows)
+
+
+def world4_table(out: Outputs) -> str:
+    """The adaptivity table `make world4` prints (table.md without its title; a paragraph of
+    several lines, one number each, as a list)."""
+    paragraphs = "\n".join(out.read("world4/table.md").splitlines()[1:]).strip().split("\n\n")
+    return "\n\n".join(
+        "\n".join(f"- {line}" for line in text.splitlines())
+        if len(text.splitlines()) > 1 and not text.startswith("|") else text
+        for text in paragraphs)
+
+
+def world4_weight(out: Outputs) -> str:
+    """world4 against the prior weight of its first type (`hg2prism sweep --param weight`)."""
+    sweep = out.read("world4_weight/sweep.json")
+    names = list(sweep["rows"][0]["v_commit"])
+    rows = [[f"{r['weight']:g}", f"{r['v_adapt']:.6f}", f"{r['v_oracle']:.6f}",
+             *(f"{r['v_commit'][n]:.6f}" for n in names)] for r in sweep["rows"]]
+    return _table([f"weight of {sweep['type']}", "V_adapt", "V_oracle",
+                   *(f"V_commit({n})" for n in names)], rows)
+
+
+def _memory(mb: float) -> str:
+    return f"{mb:.0f} MB" if mb < 1000 else f"{mb / 1024:.1f} GB"
+
+
+def bench_table(out: Outputs) -> str:
+    """The benchmark's grid worlds (`make bench`'s bench/results.json): time per stage in
+    seconds, total and peak memory."""
+    stages = ("games", "generate", "parse", "build", "check", "export", "write")
+    rows = [[r["name"].removeprefix("bench_").replace("_", " "), f"{r['states']:,}",
+             *(f"{r[f'time_{s}']:.2f}" for s in stages), f"{r['time_total']:.1f}",
+             _memory(r["peak_mb"])]
+            for r in out.read("bench/results.json")["rows"]
+            if (r.get("form") or "grid") == "grid" and not r.get("error")]
+    return _table(["world", "canonical states", *stages, "total", "peak memory"], rows)
+
+
+def _episode_named(out: Outputs, case: str, name: str) -> dict:
+    return next(e for e in out.read(f"{case}/explorer.json")["episodes"] if e["name"] == name)
+
+
+def _where(cell: str, regions: dict[str, list[str]]) -> str:
+    return " ".join([cell, *(name for name, cells in regions.items() if cell in cells)])
+
+
+def world3_steps(out: Outputs) -> str:
+    """world3's feint step by step: the candidate episode of seed EXPLORER_SEEDS["world3"]
+    in world3's explorer data (strategy.json's values of each move, P2's traps and CUSUM
+    scores after each step)."""
+    explorer = out.read("world3/explorer.json")
+    episode = _episode_named(out, "world3", f"seed{EXPLORER_SEEDS['world3'][0]}")
+    rows = []
+    for step in episode["steps"]:
+        values = ", ".join(f"**{v:.2f}**" if move == step["plays"] else f"{v:.2f}"
+                           for move, v in step["values"].items())
+        rows.append([str(step["n"]), _where(step["at"], explorer["regions"]),
+                     f"`{step['believes']}`", ", ".join(step["traps"]), values,
+                     step["realised"],
+                     ", ".join(f"{z:.2f}" for z in step["belief_after"]),
+                     _where(step["landing"], explorer["regions"])])
+    moves = ", ".join(episode["steps"][0]["values"])
+    zs = ", ".join(f"Z_{h.split()[-1]}" for h in explorer["hypotheses"])
+    return _table(["step", "robot", "P2 believes", "traps", f"value of {moves}",
+                   "P1's move (the world's caption)", f"{zs} after", "lands on"], rows)
+
+
+def world1_exits(out: Outputs) -> str:
+    """How world1's candidate episodes (explorer.html: seeds 0-49) first left the pair of
+    cells the strategy bounces between, (2,4) and (1,4), and which region they reached
+    first."""
+    explorer = out.read("world1/explorer.json")
+    pair, regions = {"(2,4)", "(1,4)"}, explorer["regions"]
+    exits: dict[str, int] = {}
+    first: dict[str, int] = {}
+    for episode in explorer["episodes"]:
+        path = episode["path"].split()
+        out_at = next((i for i in range(len(path) - 1)
+                       if path[i] in pair and path[i + 1] not in pair), None)
+        if out_at is not None:
+            key = f"{path[out_at]} → {path[out_at + 1]}"
+            exits[key] = exits.get(key, 0) + 1
+        region = next((r for cell in path for r, cells in regions.items() if cell in cells),
+                      None)
+        if region is not None:
+            first[region] = first.get(region, 0) + 1
+    n = len(explorer["episodes"])
+    rows = [[f"left (2,4)–(1,4) by {key}", f"{k} of {n}"] for key, k in
+            sorted(exits.items(), key=lambda item: -item[1])]
+    rows += [[f"reached {region} first", f"{k} of {n}"] for region, k in
+             sorted(first.items(), key=lambda item: -item[1])]
+    return _table(["candidate episodes (seeds of the explorer)", ""], rows)
+
+
 BLOCKS: dict[str, Callable[[Outputs], str]] = {
     "world1-headline": world1_headline,
     "world1-table": completion_table("world1"),
@@ -219,6 +427,13 @@ BLOCKS: dict[str, Callable[[Outputs], str]] = {
     "world3-observers": world3_observers,
     "mir100-values": mir100_values,
     "mir100-sweep": mir100_sweep,
+    "mir100-guess": mir100_guess,
+    "world1-inference": world1_inference,
+    "world4-table": world4_table,
+    "world4-weight": world4_weight,
+    "bench-table": bench_table,
+    "world3-steps": world3_steps,
+    "world1-exits": world1_exits,
 }
 
 
@@ -264,7 +479,7 @@ def main(argv: list[str] | None = None) -> int:
         for doc in differ:
             print(f"{doc.relative_to(ROOT)} differs from what `make docs` writes", file=sys.stderr)
         return 1 if differ else 0
-    for name in collect(args.models, data):
+    for name in collect(args.models, data, ROOT):
         print(f"docs/data/{name}")
     out = Outputs(data)
     for doc in documents(ROOT):

@@ -12,22 +12,24 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
+# pyplot for its names only (Axes, Line2D, Rectangle): no backend is chosen here, and no figure
+# of this module is made through pyplot, so importing hg2prism keeps a notebook's backend
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.model.world import World
+from hg2prism.outputs import write_bytes
+from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour
 
-from hg2prism.model.dynamics import TransitionSystem  # noqa: E402
-from hg2prism.model.world import World  # noqa: E402
-from hg2prism.outputs import write_bytes  # noqa: E402
-from hg2prism.report.style import HYPOTHESIS_COLOURS, hypothesis_colour  # noqa: E402
-
-__all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "world_drawer", "world_figure_inches",
-           "world_picture", "world_figure", "belief_picture", "belief_figure",
-           "completion_picture", "completion_figure", "sweep_figure", "detection_figure",
-           "scaling_picture", "scaling_figure", "robust_figure", "SWEEP_INCHES",
-           "DETECTION_INCHES", "COMPLETION_INCHES", "BELIEF_INCHES", "SCALING_INCHES",
-           "HYPOTHESIS_COLOURS", "LOG_PARAMETERS"]
+__all__ = ["FIGURE_DPI", "FIGURE_FORMATS", "figure_paths", "new_figure", "world_drawer",
+           "world_figure_inches", "world_picture", "world_figure", "belief_picture",
+           "belief_figure", "completion_picture", "completion_figure", "sweep_figure",
+           "detection_figure", "scaling_picture", "scaling_figure", "robust_figure",
+           "SWEEP_INCHES", "DETECTION_INCHES", "COMPLETION_INCHES", "BELIEF_INCHES",
+           "SCALING_INCHES", "HYPOTHESIS_COLOURS", "LOG_PARAMETERS"]
 
 FIGURE_DPI = 150
 FIGURE_FORMATS = ("png", "svg")
@@ -38,9 +40,9 @@ ROBUST_INCHES = (6.4, 4.8)
 COMPLETION_INCHES = (6.4, 4.4)
 BELIEF_INCHES = (8.0, 3.8)
 
-# Deterministic SVG output (no random ids, no date) with searchable text.
-plt.rcParams["svg.hashsalt"] = "hg2prism"
-plt.rcParams["svg.fonttype"] = "none"
+# Deterministic SVG output (no random ids, no date) with searchable text: set while a figure is
+# written, not globally (the caller's rcParams stay theirs).
+SAVE_RC = {"svg.hashsalt": "hg2prism", "svg.fonttype": "none"}
 
 
 def figure_paths(path: Path) -> list[Path]:
@@ -48,33 +50,51 @@ def figure_paths(path: Path) -> list[Path]:
     return [Path(path).with_suffix(f".{fmt}") for fmt in FIGURE_FORMATS]
 
 
-def _save(fig: plt.Figure, path: Path) -> list[Path]:
+def new_figure(inches: tuple[float, float], dpi: float | None = None,
+               layout: str | None = "constrained") -> Figure:
+    """A figure of `inches` on matplotlib's Agg canvas, made without pyplot: it is written to
+    files headless, whatever backend is in use, and never shown nor kept by pyplot."""
+    fig = Figure(figsize=inches, dpi=dpi, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Figure, path: Path) -> list[Path]:
     written = []
-    for target in figure_paths(path):
-        buffer = io.BytesIO()
-        fmt = target.suffix[1:]
-        metadata = {"Date": None} if fmt == "svg" else None
-        fig.savefig(buffer, format=fmt, dpi=FIGURE_DPI, metadata=metadata)
-        fig.set_layout_engine("none")     # laid out once: the other formats reuse it
-        write_bytes(target, buffer.getvalue())
-        written.append(target)
-    plt.close(fig)
+    with matplotlib.rc_context(SAVE_RC):
+        for target in figure_paths(path):
+            buffer = io.BytesIO()
+            fmt = target.suffix[1:]
+            metadata = {"Date": None} if fmt == "svg" else None
+            fig.savefig(buffer, format=fmt, dpi=FIGURE_DPI, metadata=metadata)
+            fig.set_layout_engine("none")     # laid out once: the other formats reuse it
+            write_bytes(target, buffer.getvalue())
+            written.append(target)
     return written
 
 
 def _axes(ax: plt.Axes | None, inches: tuple[float, float], dpi: float | None = None
-          ) -> tuple[plt.Figure, plt.Axes]:
+          ) -> tuple[Figure, plt.Axes]:
     """The caller's axes (a figure function then draws into them and saves nothing), or a new
     figure of `inches` with constrained layout and its axes."""
     if ax is not None:
         return ax.figure, ax
-    fig = plt.figure(figsize=inches, dpi=dpi, layout="constrained")
+    fig = new_figure(inches, dpi)
     return fig, fig.add_subplot()
 
 
-def _done(fig: plt.Figure, path: Path | None, given: plt.Axes | None) -> list[Path]:
+def _done(fig: Figure, path: Path | None, given: object) -> list[Path]:
     """Save a figure function's own figure to `path`; nothing when it drew into given axes."""
     return [] if given is not None or path is None else _save(fig, path)
+
+
+def _legend(fig: Figure, ax: plt.Axes, given: object, **style) -> None:
+    """The legend below the axes on a figure function's own figure; in given axes, the
+    axes' own legend (the caller's figure is not ours to lay out)."""
+    if given is not None:
+        ax.legend(**style)
+    else:
+        fig.legend(loc="outside lower center", **style)
 
 
 def world_drawer(world: World, ts: TransitionSystem):
@@ -186,14 +206,15 @@ def belief_figure(world: World, trace, episode, path: Path | None,
 COMPLETION_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "P"), ((0, (6, 2, 1, 2)), "v"))
 
 
-def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float | None]]):
-    """The completion figure (not saved): a curve per row (tables.COMPLETION_ROWS's order), each
-    its colour, dash and marker (markers staggered, so that curves that coincide stay
-    visible)."""
+def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float | None]],
+                       ax: plt.Axes | None = None) -> Figure:
+    """The completion figure (not saved; into `ax` when given): a curve per row
+    (tables.COMPLETION_ROWS's order), each its colour, dash and marker (markers staggered, so
+    that curves that coincide stay visible)."""
     from hg2prism.analyses.simulation import GOAL, wilson_interval
 
-    fig = plt.figure(figsize=COMPLETION_INCHES, dpi=FIGURE_DPI, layout="constrained")
-    ax = fig.add_subplot()
+    given = ax
+    fig, ax = _axes(ax, COMPLETION_INCHES, FIGURE_DPI)
     horizon = 1
     episodes = sorted({summary.episodes for _, summary, _ in rows})
     for i, (label, summary, exact) in enumerate(rows):
@@ -221,20 +242,20 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
     ax.set_xlabel("step n")
     ax.set_ylabel("share completed within n steps")
     ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
+    _legend(fig, ax, given, ncol=2, fontsize=7, frameon=False)
     each = f", {episodes[0]} episodes each" if len(episodes) == 1 else ""
     ax.set_title(f"{world_name}: completion against time, simulated{each}", fontsize=9)
     return fig
 
 
 def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float | None]],
-                      path: Path) -> list[Path]:
+                      path: Path | None, ax: plt.Axes | None = None) -> list[Path]:
     """Completion by step n of each simulated strategy pair: `rows` holds (label,
     simulation.SimulationSummary, exact within-horizon probability or None), one per row of
     the completion table (tables.COMPLETION_ROWS). Each curve is the share of episodes
     completed within n steps with its 95 % Wilson band; the exact value at the horizon is
-    marked."""
-    return _save(completion_picture(world_name, rows), path)
+    marked (into `ax` when given, then writing nothing)."""
+    return _done(completion_picture(world_name, rows, ax), path, ax)
 
 
 def _value_text(value: object) -> str:
@@ -304,7 +325,7 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
     series: dict[tuple, list[dict]] = {}
     for row in rows:     # a prior is a list: keyed by its text
         series.setdefault(tuple(_value_text(row[p]) for p in others), []).append(row)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     x_of = _parameter_axis(ax, first, [row[first] for row in rows])
     for n, (key, members) in enumerate(series.items()):
         members = sorted(members, key=lambda r: x_of(r[first]))
@@ -326,62 +347,92 @@ def _finish_sweep(fig, ax, path: Path | None, against: str, world_name: str | No
     ax.set_ylabel("P1's completion probability")
     ax.set_ylim(0, 1.02)
     ax.grid(alpha=0.3)
-    if given is not None:
-        ax.legend(ncol=ncol, fontsize=fontsize, frameon=False)
-    else:
-        fig.legend(loc="outside lower center", ncol=ncol, fontsize=fontsize, frameon=False)
+    _legend(fig, ax, given, ncol=ncol, fontsize=fontsize, frameon=False)
     title = f"completion probability at the initial state against {against}"
     ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
     return _done(fig, path, given)
 
 
+def _detection_panels(ax, replanning: dict | None) -> tuple[Figure, list]:
+    """The detection figure's panels (the whole episode, the zoom, re-planning): a new
+    figure's, or the caller's, one Axes (the whole episode only) or a sequence of them (the
+    panels in that order, as many as given)."""
+    if ax is None:
+        fig = new_figure(DETECTION_INCHES if replanning is None else DETECTION_REPLANNING_INCHES)
+        if replanning is None:
+            return fig, list(fig.subplots(1, 2, width_ratios=(1.5, 1)))
+        return fig, list(fig.subplots(1, 3, width_ratios=(1.5, 1, 1.2)))
+    panels = [ax] if isinstance(ax, plt.Axes) else list(ax)
+    if not 1 <= len(panels) <= (2 if replanning is None else 3):
+        raise ValueError(f"the detection figure draws 1 to {2 if replanning is None else 3} "
+                         f"panels; {len(panels)} axes given")
+    return panels[0].figure, panels
+
+
 def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | None],
-                     deviate_after: int, detected_at: int | None, path: Path,
+                     deviate_after: int, detected_at: int | None, path: Path | None,
                      world_name: str | None = None, seed: int | None = None,
-                     replanning: dict | None = None) -> list[Path]:
+                     replanning: dict | None = None, ax=None) -> list[Path]:
     """The likelihood-ratio statistic G per step against the chi-square threshold: the whole
     episode on the left, and on the right the steps around the detection (DETECTION_ZOOM either
     side; around the deviation when nothing was detected). With `replanning` (detection.json's
     section, docs/semantics.md §14) a third panel: completion with and without re-planning in
-    the deviation and compliant batches, with their 95% Wilson intervals."""
-    if replanning is None:
-        fig = plt.figure(figsize=DETECTION_INCHES, layout="constrained")
-        full, zoom = fig.subplots(1, 2, width_ratios=(1.5, 1))
-    else:
-        fig = plt.figure(figsize=DETECTION_REPLANNING_INCHES, layout="constrained")
-        full, zoom, bars = fig.subplots(1, 3, width_ratios=(1.5, 1, 1.2))
-        _replanning_panel(bars, replanning)
+    the deviation and compliant batches, with their 95% Wilson intervals. `ax`: the caller's
+    Axes (the whole episode's panel) or a sequence of Axes (the panels in that order); then
+    nothing is written."""
+    fig, panels = _detection_panels(ax, replanning)
+    full, zoom = panels[0], (panels[1] if len(panels) > 1 else None)
+    if len(panels) > 2:
+        _replanning_panel(panels[2], replanning)
     steps = np.arange(1, len(statistics) + 1)
     limits = np.array([t if t is not None else np.nan for t in thresholds], dtype=float)
     centre = detected_at if detected_at is not None else deviate_after
     low, high = max(1, centre - DETECTION_ZOOM), min(len(statistics), centre + DETECTION_ZOOM)
-    for ax, zoomed in ((full, False), (zoom, True)):
-        ax.plot(steps, statistics, "o-", ms=3 if not zoomed else 5, label="G = 2 (ln L1 − ln L0)")
-        ax.plot(steps, limits, "s--", ms=3 if not zoomed else 5, label="χ² threshold (1 − α, df)")
-        ax.axvline(deviate_after + 0.5, color="grey", ls=":",
-                   label=f"P2 deviates after step {deviate_after}")
-        if detected_at is not None:
-            ax.axvline(detected_at, color="red", alpha=0.5,
-                       label=f"mismatch detected at step {detected_at}")
-        ax.set_xlabel("step n")
-        ax.grid(alpha=0.3)
-        ax.tick_params(labelsize=7)
-        if zoomed and len(statistics):
-            ax.set_xlim(low - 0.5, high + 0.5)
-            shown = slice(low - 1, high)
-            top = np.nanmax(np.r_[np.asarray(statistics, dtype=float)[shown], limits[shown], 1.0])
-            ax.set_ylim(0, top * 1.1)
-            ax.set_xticks(range(low, high + 1))
-            ax.set_title(f"steps {low}–{high}", fontsize=8)
-    if len(statistics):
+    for axes, zoomed in ((full, False), (zoom, True)):
+        if axes is None:
+            continue
+        _statistic_panel(axes, steps, statistics, limits, deviate_after, detected_at, zoomed,
+                         (low, high))
+    if len(statistics) and zoom is not None:
         full.axvspan(low - 0.5, high + 0.5, color="0.85", alpha=0.5, lw=0, zorder=0)
     full.set_ylabel("statistic")
-    full.set_title("the whole episode (grey: the steps shown on the right)", fontsize=8)
-    zoom.legend(fontsize=7, loc="upper left")
     where = f"{world_name}: " if world_name else ""
     which = f" (seed {seed})" if seed is not None else ""
-    fig.suptitle(f"{where}P1's test of its model of P2 along one episode{which}", fontsize=9)
-    return _save(fig, path)
+    title = f"{where}P1's test of its model of P2 along one episode{which}"
+    if zoom is not None:
+        full.set_title("the whole episode (grey: the steps shown on the right)", fontsize=8)
+        zoom.legend(fontsize=7, loc="upper left")
+    else:
+        full.legend(fontsize=7, loc="upper left")
+    if ax is None:
+        fig.suptitle(title, fontsize=9)
+    else:
+        full.set_title(title if zoom is None else f"{title}\n(grey: the steps shown beside)",
+                       fontsize=8)
+    return _done(fig, path, ax)
+
+
+def _statistic_panel(ax: plt.Axes, steps, statistics, limits, deviate_after: int,
+                     detected_at: int | None, zoomed: bool, shown: tuple[int, int]) -> None:
+    """One panel of the statistic against the threshold (zoomed: the steps `shown`)."""
+    low, high = shown
+    ax.plot(steps, statistics, "o-", ms=3 if not zoomed else 5, label="G = 2 (ln L1 − ln L0)")
+    ax.plot(steps, limits, "s--", ms=3 if not zoomed else 5, label="χ² threshold (1 − α, df)")
+    ax.axvline(deviate_after + 0.5, color="grey", ls=":",
+               label=f"P2 deviates after step {deviate_after}")
+    if detected_at is not None:
+        ax.axvline(detected_at, color="red", alpha=0.5,
+                   label=f"mismatch detected at step {detected_at}")
+    ax.set_xlabel("step n")
+    ax.grid(alpha=0.3)
+    ax.tick_params(labelsize=7)
+    if zoomed and len(statistics):
+        ax.set_xlim(low - 0.5, high + 0.5)
+        inside = slice(low - 1, high)
+        top = np.nanmax(np.r_[np.asarray(statistics, dtype=float)[inside], limits[inside], 1.0])
+        ax.set_ylim(0, top * 1.1)
+        ax.set_xticks(range(low, high + 1))
+        ax.set_title(f"steps {low}–{high}", fontsize=8)
 
 
 def _replanning_panel(bars: plt.Axes, replanning: dict) -> None:
@@ -412,13 +463,13 @@ SCALING_INCHES = (8.5, 4.8)
 DELAY_MARKERS = ("s", "D", "v", "P", "*", "X")
 
 
-def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | None = None):
-    """The scaling figure (not saved): time per stage against canonical states, log-log, of
-    the worlds without delay (a line each, ordered by states) with a slope-1 guide through the
-    largest one's total; each delay's worlds as a separate series of their total time (its
-    own marker, "delay d" in the legend)."""
-    fig = plt.figure(figsize=SCALING_INCHES, dpi=FIGURE_DPI, layout="constrained")
-    ax = fig.add_subplot()
+def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | None = None,
+                    ax: plt.Axes | None = None) -> Figure:
+    """The scaling figure (not saved; into `ax` when given): time per stage against canonical
+    states, log-log, of the worlds without delay (a line each, ordered by states) with a
+    slope-1 guide through the largest one's total; each delay's worlds as a separate series of
+    their total time (its own marker, "delay d" in the legend)."""
+    fig, ax = _axes(ax, SCALING_INCHES, FIGURE_DPI)
     by_delay: dict[int, list[dict]] = {}
     for row in rows:
         by_delay.setdefault(int(row.get("delay") or 0), []).append(row)
@@ -447,19 +498,21 @@ def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | No
     return fig
 
 
-def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path,
-                   title: str | None = None) -> list[Path]:
-    """`scaling_picture` written as PNG and SVG."""
-    return _save(scaling_picture(rows, stages, title), path)
+def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path | None,
+                   title: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
+    """`scaling_picture` written as PNG and SVG (into `ax` when given, then writing
+    nothing)."""
+    return _done(scaling_picture(rows, stages, title, ax), path, ax)
 
 
-def robust_figure(result: dict, path: Path) -> list[Path]:
+def robust_figure(result: dict, path: Path | None, ax: plt.Axes | None = None) -> list[Path]:
     """Robust deception (docs/semantics.md §13) against the deviation budget: R_delta, what the
-    deceptive strategy guarantees under the same budget, and the nominal references."""
+    deceptive strategy guarantees under the same budget, and the nominal references (into
+    `ax` when given, then writing nothing)."""
     rows = sorted(result["rows"], key=lambda row: row["delta"])
     deltas = [row["delta"] for row in rows]
-    fig = plt.figure(figsize=ROBUST_INCHES, layout="constrained")
-    ax = fig.add_subplot()
+    given = ax
+    fig, ax = _axes(ax, ROBUST_INCHES)
     ax.plot(deltas, [row["robust_value"] for row in rows], "o-",
             label="robust value $R_\\delta$ (robust strategy, worst case)")
     ax.plot(deltas, [row["nominal_worst_case"] for row in rows], "s--",
@@ -475,5 +528,5 @@ def robust_figure(result: dict, path: Path) -> list[Path]:
     ax.set_xticks(deltas)
     ax.set_title(f"{result['world']}: robust deception", fontsize=9)
     ax.grid(alpha=0.3)
-    fig.legend(loc="outside lower center", ncol=2, fontsize=7, frameon=False)
-    return _save(fig, path)
+    _legend(fig, ax, given, ncol=2, fontsize=7, frameon=False)
+    return _done(fig, path, given)

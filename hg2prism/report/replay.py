@@ -32,7 +32,6 @@ __all__ = ["REPLAY_MAX_FRAMES", "REPLAY_FRAME_MS", "REPLAY_DPI", "REPLAY_FONT", 
 REPLAY_MAX_FRAMES = 100
 REPLAY_FRAME_MS = 600        # each frame shows for this long
 REPLAY_DPI = 72
-_plt = plots.plt
 
 
 def replay_frames(n_steps: int) -> list[int]:
@@ -169,7 +168,7 @@ def replay_figure(world: World, ts: TransitionSystem, episode, trace) -> tuple[_
     # characters per line: a caption spans its panel (about 0.55 em a character)
     wrap_map = max(16, int(drawer.replay_map_width * 72 / (0.58 * REPLAY_FONT)))
     wrap_panel = max(16, int(min(panel, 3.6) * 72 / (0.58 * REPLAY_MIN_FONT)))
-    fig = _plt.figure(figsize=drawer.replay_inches(), dpi=REPLAY_DPI, layout="constrained")
+    fig = plots.new_figure(drawer.replay_inches(), REPLAY_DPI)
     map_ax, belief_ax = fig.subplots(1, 2, width_ratios=(drawer.replay_map_width, 3.2))
     drawer.draw_map(map_ax, REPLAY_MIN_FONT)
     trail, = map_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
@@ -268,6 +267,5 @@ def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -
             artist.remove()
         image, added = _frame(replay, world, positions, steps, trace, notes[state])
         images.append(image)
-    _plt.close(replay.fig)
     write_bytes(path, _gif(images))
     return len(images)
