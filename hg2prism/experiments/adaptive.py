@@ -335,8 +335,8 @@ def _prism_row(prism: dict | None) -> list[str]:
             f"V_adapt outside by {prism['outside_by']:.2g}, "
             + ("within PRISM's precision" if prism["within_prism_precision"]
                else "beyond PRISM's precision: not certified"))
-    return [f"| adaptive, POMDP form (PRISM, grid resolution {prism['resolution']}, "
-            f"{prism['seconds']:.1f} s) | the prior | [{prism['lower']:.6f}, "
+    return [f"| adaptive, POMDP form (PRISM, grid resolution {prism['resolution']}) "
+            f"| the prior | [{prism['lower']:.6f}, "
             f"{prism['upper']:.6f}] ({held}) |"]
 
 
