@@ -71,6 +71,25 @@ def test_attractor_ranks_match_the_level_by_level_search(games: list[TurnBasedGa
             assert (game.positive_attractor(actions) == level_by_level_attractor(game, actions)).all()
 
 
+def test_moves_index_the_tables_like_three_index_arrays(games: list[TurnBasedGame]) -> None:
+    """TurnBasedGame.moves (np.take on the flat tables, used by every strategy evaluation)
+    returns exactly next[g, a1, a2] and prob[g, a1, a2], for one move per state and for P1's
+    answers to every trap set."""
+    rng = np.random.default_rng(2)
+    for game in games:
+        _, n_a1, n_a2, _ = game.next.shape
+        g = np.arange(game.size)
+        a1, a2 = rng.integers(0, n_a1, game.size), rng.integers(0, n_a2, game.size)
+        nxt, prob = game.moves((g * n_a1 + a1) * n_a2 + a2)
+        assert nxt.shape == (game.size, game.next.shape[-1])
+        assert (nxt == game.next[g, a1, a2]).all() and (prob == game.prob[g, a1, a2]).all()
+        p1 = rng.integers(0, n_a1, (game.size, n_a2))
+        sets = np.arange(n_a2)[None, :]
+        nxt, prob = game.moves((g[:, None] * n_a1 + p1) * n_a2 + sets)
+        assert (nxt == game.next[g[:, None], p1, sets]).all()
+        assert (prob == game.prob[g[:, None], p1, sets]).all()
+
+
 def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[TurnBasedGame]) -> None:
     rng = np.random.default_rng(1)
     for game in games:

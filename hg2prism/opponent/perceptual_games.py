@@ -83,6 +83,14 @@ class TurnBasedGame:
         self.standing = None if standing is None else np.repeat(standing, n_q)
         self._allowed_moves: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
+    def moves(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The successors and probabilities [..., K] of the moves (g, a1, a2) numbered
+        flat = (g * A1 + a1) * A2 + a2 (np.take on the flat tables: several times faster than
+        indexing next[g, a1, a2] with three index arrays)."""
+        outcomes = self.next.shape[-1]
+        return (np.take(self.next.reshape(-1, outcomes), flat, axis=0),
+                np.take(self.prob.reshape(-1, outcomes), flat, axis=0))
+
     def q_values(self, v: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Q[g, a1, a2] (at the game states `rows` only, if given); for absorbing g every
         entry is V(g)."""
@@ -276,8 +284,8 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     rows = np.arange(game.size)
     solve = game.free & ~pinned
     # Only P1's answers matter here: the successors and probabilities of (g, p1[g, a2], a2).
-    nxt = np.take_along_axis(game.next, p1[:, None, :, None], axis=1)[:, 0]     # [G, A2, K]
-    prob = np.take_along_axis(game.prob, p1[:, None, :, None], axis=1)[:, 0]
+    n_a2 = game.next.shape[2]
+    nxt, prob = game.moves((rows[:, None] * game.next.shape[1] + p1) * n_a2 + np.arange(n_a2))
     for _ in range(MAX_ROUNDS):
         x = _evaluate_pair(game, p1, p2, pinned)
         answered = outcome_sum(prob, x, nxt)
@@ -335,8 +343,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
     """Exact reach probabilities when P2 plays p2[g] and P1 moves a1[g] (0 on `zero`)."""
     n = game.size
     rows = np.arange(n)
-    nxt = game.next[rows, a1, p2]                                     # [G, K]
-    prob = game.prob[rows, a1, p2]
+    nxt, prob = game.moves((rows * game.next.shape[1] + a1) * game.next.shape[2] + p2)  # [G, K]
     solve = game.free & ~zero
     # States that can reach the goal in this chain (the rest have value 0): a breadth-first
     # search from the goal along reversed edges, entering only states to solve.
