@@ -345,8 +345,10 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     # keeps hitting times short and the linear systems well conditioned. Only at P2's allowed
     # sets (-1 at P1's other answers; the rest are never read: answer 0).
     flat, nxt, prob, _, _ = game.allowed_pairs()                    # [pairs, A1(, K)]
-    from_state = np.take(lower, flat[:, 0] // optimal[0].size)
-    gain = np.where(lower[nxt] < from_state[:, None, None], prob, 0.0).sum(-1)
+    from_state = np.take(lower, flat[:, 0] // optimal[0].size)[:, None]
+    gain = np.where(lower[nxt[..., 0]] < from_state, prob[..., 0], 0.0)
+    for k in range(1, nxt.shape[-1]):       # outcome by outcome, as outcome_sum adds them
+        gain = gain + np.where(lower[nxt[..., k]] < from_state, prob[..., k], 0.0)
     closer = np.where(optimal.reshape(-1)[flat], gain, -1.0)
     p1 = np.zeros(p2.shape + (game.next.shape[2],), dtype=np.intp)
     p1.reshape(-1)[np.flatnonzero(game.allowed)] = closer.argmax(axis=1)
