@@ -133,12 +133,19 @@ class TurnBasedGame:
         return out
 
     def allowed_pairs(self) -> tuple[np.ndarray, ...]:
-        """The moves of P2's allowed sets, once: flat [pairs, A1] the move (g, a1, a2) of
-        every allowed pair (g, a2) (in order of g) and answer a1, their successors and
-        probabilities [pairs, A1, K], the states with an allowed set and where their pairs
-        start."""
+        """The moves of P2's allowed sets, once: flat [..., A1] the move (g, a1, a2) of every
+        allowed pair (g, a2) (in order of g, then a2) and answer a1, their successors and
+        probabilities [..., A1, K], the states with an allowed set and where their pairs
+        start. The leading dimension is the pairs' [pairs]; where every set is allowed (no
+        delay), [G, A2] and views of the tables (no copy of them)."""
         if self._pairs is None:
-            _, n_a1, n_a2, _ = self.next.shape
+            size, n_a1, n_a2, _ = self.next.shape
+            if self.allowed.all():
+                flat = np.arange(self.next[..., 0].size).reshape(size, n_a1, n_a2)
+                self._pairs = (flat.transpose(0, 2, 1), self.next.transpose(0, 2, 1, 3),
+                               self.prob.transpose(0, 2, 1, 3), np.arange(size),
+                               np.arange(size) * n_a2)
+                return self._pairs
             g, a2 = np.divmod(np.flatnonzero(self.allowed), n_a2)
             flat = (g[:, None] * n_a1 + np.arange(n_a1)) * n_a2 + a2[:, None]
             first = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
@@ -344,14 +351,14 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     # The chance of moving strictly closer: maximising it (not merely asking for a chance > 0)
     # keeps hitting times short and the linear systems well conditioned. Only at P2's allowed
     # sets (-1 at P1's other answers; the rest are never read: answer 0).
-    flat, nxt, prob, _, _ = game.allowed_pairs()                    # [pairs, A1(, K)]
-    from_state = np.take(lower, flat[:, 0] // optimal[0].size)[:, None]
+    flat, nxt, prob, _, _ = game.allowed_pairs()                    # [..., A1(, K)]
+    from_state = np.take(lower, flat[..., :1] // optimal[0].size)
     gain = np.where(lower[nxt[..., 0]] < from_state, prob[..., 0], 0.0)
     for k in range(1, nxt.shape[-1]):       # outcome by outcome, as outcome_sum adds them
         gain = gain + np.where(lower[nxt[..., k]] < from_state, prob[..., k], 0.0)
     closer = np.where(optimal.reshape(-1)[flat], gain, -1.0)
     p1 = np.zeros(p2.shape + (game.next.shape[2],), dtype=np.intp)
-    p1.reshape(-1)[np.flatnonzero(game.allowed)] = closer.argmax(axis=1)
+    p1.reshape(-1)[np.flatnonzero(game.allowed)] = closer.argmax(axis=-1).reshape(-1)
     return p1, p2
 
 
