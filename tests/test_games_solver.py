@@ -71,6 +71,80 @@ def test_attractor_ranks_match_the_level_by_level_search(games: list[TurnBasedGa
             assert (game.positive_attractor(actions) == level_by_level_attractor(game, actions)).all()
 
 
+def test_moves_index_the_tables_like_three_index_arrays(games: list[TurnBasedGame]) -> None:
+    """TurnBasedGame.moves (np.take on the flat tables, used by every strategy evaluation)
+    returns exactly next[g, a1, a2] and prob[g, a1, a2], for one move per state and for P1's
+    answers to every trap set."""
+    rng = np.random.default_rng(2)
+    for game in games:
+        _, n_a1, n_a2, _ = game.next.shape
+        g = np.arange(game.size)
+        a1, a2 = rng.integers(0, n_a1, game.size), rng.integers(0, n_a2, game.size)
+        nxt, prob = game.moves((g * n_a1 + a1) * n_a2 + a2)
+        assert nxt.shape == (game.size, game.next.shape[-1])
+        assert (nxt == game.next[g, a1, a2]).all() and (prob == game.prob[g, a1, a2]).all()
+        p1 = rng.integers(0, n_a1, (game.size, n_a2))
+        sets = np.arange(n_a2)[None, :]
+        nxt, prob = game.moves((g[:, None] * n_a1 + p1) * n_a2 + sets)
+        assert (nxt == game.next[g[:, None], p1, sets]).all()
+        assert (prob == game.prob[g[:, None], p1, sets]).all()
+
+
+def test_product_successors_follow_the_definition(games: list[TurnBasedGame]) -> None:
+    """next[s * n_q + q, a1, a2, k] = succ[s, a1, a2, k] * n_q + delta(q, L(succ[s, a1, a2, k]))
+    and prob, allowed repeat the TS's rows (model/product.py)."""
+    for game in games:
+        ts, dfa = game.ts, game.dfa
+        n_q = dfa.n_states
+        label = ts.state_label()
+        for q in range(n_q):
+            rows = np.arange(ts.n_states) * n_q + q
+            assert (game.next[rows] == ts.succ * n_q + dfa.delta[q, label[ts.succ]]).all()
+            assert (game.prob[rows] == ts.prob).all() and (game.allowed[rows] == ts.allowed).all()
+
+
+def test_bellman_is_the_operator_of_the_allowed_q_values(games: list[TurnBasedGame]) -> None:
+    """The sweep of value iteration (TurnBasedGame.bellman) gives operator(allowed_q(v)) bit
+    for bit, absorbing states and states without a set included."""
+    rng = np.random.default_rng(3)
+    for game in games:
+        for v in (game.goal.astype(float), rng.random(game.size)):
+            assert np.array_equal(game.bellman(v), game.operator(game.allowed_q(v)))
+            assert np.array_equal(game.operator(game.allowed_q(v)),
+                                  np.where(game.allowed, game.q_values(v).max(axis=1),
+                                           np.inf).min(axis=1))
+
+
+def greedy_by_definition(game: TurnBasedGame, q: np.ndarray, slack: float
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """_greedy's rule over the whole [G, A1, A2] table: P2 the first least best answer among
+    her allowed sets; P1, among answers within `slack` of the best, the first that maximises
+    the chance of entering a state of lower rank in the attractor of his optimal answers
+    (-1 for the other answers and at the sets P2 may not play)."""
+    best = q.max(axis=1)
+    p2 = np.where(game.allowed, best, np.inf).argmin(axis=1)
+    optimal = q >= best[:, None, :] - slack
+    rank = game.positive_attractor(optimal)
+    lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
+    nearer = lower[game.next] < lower[:, None, None, None]
+    gain = (game.prob * nearer).sum(-1)
+    closer = np.where(optimal & game.allowed[:, None, :], gain, -1.0)
+    return closer.argmax(axis=1), p2
+
+
+def test_greedy_strategies_follow_the_definition(games: list[TurnBasedGame]) -> None:
+    from hg2prism.opponent.perceptual_games import _greedy
+
+    rng = np.random.default_rng(4)
+    for game in games:
+        for v in (game.goal.astype(float), rng.random(game.size), rng.random(game.size).round(1)):
+            q = game.allowed_q(v)
+            for slack in (1e-12, 0.3):
+                p1, p2 = _greedy(game, q, slack)
+                want_p1, want_p2 = greedy_by_definition(game, q, slack)
+                assert (p2 == want_p2).all() and (p1 == want_p1).all()
+
+
 def test_certificate_zero_region_matches_the_greatest_fixed_point(games: list[TurnBasedGame]) -> None:
     rng = np.random.default_rng(1)
     for game in games:

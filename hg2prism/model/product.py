@@ -53,10 +53,15 @@ def product(ts: TransitionSystem, dfa: DFA) -> Product:
     """TS x DFA, built once for everything that plays on it."""
     n_q = dfa.n_states
     label = ts.state_label()
-    # The DFA reads the label of the state being entered: q' = delta(q, L(v')).
-    succ_q = dfa.delta[:, label[ts.succ]]                             # [n_q, S, 4, A2, K]
-    nxt = product_state(ts.succ[None], succ_q, n_q).transpose(1, 0, 2, 3, 4).reshape(
-        ts.n_states * n_q, *ts.succ.shape[1:])
+    # The DFA reads the label of the state being entered: q' = delta(q, L(v')). Written one
+    # DFA state at a time into [S, n_q, ...] (a transposed copy of the whole table was several
+    # times slower).
+    letter = label[ts.succ]                                           # [S, 4, A2, K]
+    nxt = np.empty((ts.n_states, n_q) + ts.succ.shape[1:],
+                   dtype=np.result_type(ts.succ, dfa.delta))
+    for q in range(n_q):
+        nxt[:, q] = product_state(ts.succ, dfa.delta[q][letter], n_q)
+    nxt = nxt.reshape(ts.n_states * n_q, *ts.succ.shape[1:])
     q_of = np.tile(np.arange(n_q), ts.n_states)
     s_of = np.repeat(np.arange(ts.n_states), n_q)
     trapped = s_of == ts.trapped                     # tried first: trapped is a failure
