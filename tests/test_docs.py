@@ -496,3 +496,27 @@ def test_the_tour_notebook_runs() -> None:
     assert len(images) == 3, "the world, P2's belief and the sweep"
     text = "".join(o.get("text", "") for o in outputs if o.output_type == "stream")
     assert "deceptive value 0.9498" in text
+
+
+def test_world4_start_table_is_the_strategy_at_the_start_by_what_p1_knows(tmp_path: Path
+                                                                          ) -> None:
+    """docs/adaptive.md's table of P1's moves at world4's start: one row per knowledge (the
+    consistent types and their guesses), each the strategy's values there; records P1 cannot
+    tell apart by that knowledge but that differ are refused, not shown as one row."""
+    records = json.loads((ROOT / "docs" / "data" / "world4" / "strategy.json").read_text())
+    assert records[0]["types"] == {"jumpy": 0, "stubborn": 0}       # the initial record first
+    table = docs.world4_start(docs.Outputs(ROOT / "docs" / "data"))
+    assert len(table.splitlines()) == 2 + len(records)
+    clash = [dict(records[0]), dict(records[0], action="W")]
+    (tmp_path / "world4").mkdir()
+    (tmp_path / "world4" / "strategy.json").write_text(json.dumps(clash))
+    with pytest.raises(ValueError, match="cannot tell apart"):
+        docs.world4_start(docs.Outputs(tmp_path))
+    kept = docs.start_records([
+        {"initial": True, "state": "s", "standing": None, "countdown": None, "q": 0,
+         "types": {"a": {"hypothesis": 1, "window": []}}, "action": "N", "values": {"N": 1.0}},
+        {"state": "s", "standing": None, "countdown": None, "q": 0,
+         "types": {"a": {"hypothesis": 1, "window": ["w"]}}, "action": "N", "values": {"N": 1.0}},
+        {"state": "t", "standing": None, "countdown": None, "q": 0,
+         "types": {"a": {"hypothesis": 0, "window": []}}, "action": "S", "values": {"N": 0.5}}])
+    assert kept == [{"types": {"a": 1}, "action": "N", "values": {"N": 1.0}}]

@@ -50,7 +50,7 @@ SOURCES: dict[str, tuple[str, ...]] = {
     "world2_replan_02": ("detection.json",),        # make world2: re-planning, budget 0.2
     "world2_replan_leader": ("detection.json",),    # and to the leader-game strategy
     "mir100_guess": ("sweep.json",),        # MIR100 over P2's first guess x delay, V_naive
-    "world4": ("results.json", "table.md"),
+    "world4": ("results.json", "table.md", "strategy.json"),
     "world4_weight": ("sweep.json",),       # world4 over the prior weight of its first type
     "bench": ("results.json",),             # make bench (bench/results.json), slow: committed
 }
@@ -148,8 +148,27 @@ def extract(name: str, text: str, case: str = "") -> str:
         return text
     data = stable(json.loads(text))
     if name == "strategy.json":
-        data = [record for record in data if record.get("initial")]
+        data = (start_records(data) if data and "types" in data[0] else
+                [record for record in data if record.get("initial")])
     return json.dumps(data, indent=1, ensure_ascii=False) + "\n"
+
+
+def start_records(records: list[dict]) -> list[dict]:
+    """Of an adaptive strategy.json (a world with P2's types), the records at the initial
+    state by what P1 knows there: the consistent types and each one's hypothesis (their
+    windows dropped), each once; a knowledge whose records differ in move or values is kept
+    once per difference, and `start_table` refuses it."""
+    first = next(record for record in records if record.get("initial"))
+    at = {key: first[key] for key in ("state", "standing", "countdown", "q")}
+    kept: list[dict] = []
+    for record in records:
+        if all(record[key] == value for key, value in at.items()):
+            known = {"types": {name: type_["hypothesis"]
+                               for name, type_ in record["types"].items()},
+                     "action": record["action"], "values": record["values"]}
+            if known not in kept:
+                kept.append(known)
+    return kept
 
 
 def collect(models: Path, data: Path, root: Path | None = None) -> list[str]:
@@ -334,6 +353,24 @@ def world4_table(out: Outputs) -> str:
         for text in paragraphs)
 
 
+def world4_start(out: Outputs) -> str:
+    """P1's adaptive strategy at world4's start state, by what P1 knows there (which types are
+    still consistent with P2's actions, and what each of them guesses): each move's value
+    and the move played (strategy.json)."""
+    records = out.read("world4/strategy.json")
+    known = [tuple(sorted(r["types"].items())) for r in records]
+    if len(set(known)) != len(known):
+        raise ValueError("world4's strategy differs at its start between records P1 cannot "
+                         "tell apart by the consistent types and their guesses")
+    moves = list(records[0]["values"])
+    order = sorted(range(len(records)), key=lambda i: (-len(known[i]), known[i]))
+    rows = [[", ".join(name for name, _ in known[i]),
+             ", ".join(f"{name}: x{x}" for name, x in known[i]),
+             *(_f(records[i]["values"][m]) if records[i]["values"][m] is not None else "–"
+               for m in moves), records[i]["action"]] for i in order]
+    return _table(["types still consistent", "their guesses", *moves, "P1 plays"], rows)
+
+
 def world4_weight(out: Outputs) -> str:
     """world4 against the prior weight of its first type (`hg2prism sweep --param weight`)."""
     sweep = out.read("world4_weight/sweep.json")
@@ -431,6 +468,7 @@ BLOCKS: dict[str, Callable[[Outputs], str]] = {
     "world1-inference": world1_inference,
     "world4-table": world4_table,
     "world4-weight": world4_weight,
+    "world4-start": world4_start,
     "bench-table": bench_table,
     "world3-steps": world3_steps,
     "world1-exits": world1_exits,
