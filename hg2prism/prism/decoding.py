@@ -103,21 +103,24 @@ def _dense_ids(keys: np.ndarray) -> np.ndarray:
     return ids
 
 
-def _count_distinct(keys: np.ndarray) -> int:
-    ordered = np.sort(keys)
-    return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
-
-
 def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int]:
     """docs/semantics.md §6: canonical states, and (state, action, successor) triples after merging."""
     absorbing = decoded.goal | decoded.fail
-    counts = np.diff(moves.row_start)
-    choice_of_entry = np.repeat(np.arange(len(moves.source)), counts)
-    src = moves.source[choice_of_entry]
-    keep = ~absorbing[src] & (moves.probability > 0)
     n = decoded.n_canonical   # one integer per (state, action, successor): n*n*5 < 2**63
-    key = ((decoded.canonical[src[keep]] * 5 + moves.action[choice_of_entry[keep]] + 1) * n
-           + decoded.canonical[moves.target[keep]])
-    n_triples = _count_distinct(key)
+    # the (state, action) part of each choice's key, repeated over its entries; the successor
+    # added in place, and the entries of absorbing states or of probability 0 dropped
+    counts = np.diff(moves.row_start)
+    key = np.repeat((decoded.canonical[moves.source] * 5 + moves.action + 1) * n, counts)
+    key += decoded.canonical[moves.target]
+    keep = np.repeat(~absorbing[moves.source], counts)
+    keep &= moves.probability > 0
+    key = key[keep]
+    n_triples = _count_distinct_in_place(key)
     loops = int(decoded.goal.any()) + int(decoded.fail.any())
     return decoded.n_canonical, n_triples + loops
+
+
+def _count_distinct_in_place(keys: np.ndarray) -> int:
+    """The number of distinct keys (sorts `keys`)."""
+    keys.sort()
+    return int(len(keys) > 0) + int(np.count_nonzero(keys[1:] != keys[:-1]))
