@@ -68,11 +68,12 @@ class InducedDTMC:
     @functools.cached_property
     def source(self) -> np.ndarray:
         """The transitions' sources, sorted (then by target: `target`, `probability`)."""
-        return np.repeat(np.arange(self.n), np.diff(self.chain.matrix.indptr))
+        return np.repeat(np.arange(self.n, dtype=self.chain.matrix.indices.dtype),
+                         np.diff(self.chain.matrix.indptr))
 
-    @functools.cached_property
+    @property
     def target(self) -> np.ndarray:
-        return self.chain.matrix.indices.astype(np.int64)
+        return self.chain.matrix.indices
 
     @property
     def probability(self) -> np.ndarray:
