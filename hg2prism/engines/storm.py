@@ -241,6 +241,8 @@ def _read_structure(model: object) -> Transitions:
 
             state_choices = array("state-to-choices.bin", np.uint64).view(np.int64)
             row_start = array("choice-to-branches.bin", np.uint64).view(np.int64)
+            if row_start[-1] < 2 ** 31:     # as scipy's matrices index them: no copy there
+                row_start = row_start.astype(np.int32)
             target = array("branch-to-target.bin", np.uint64).astype(index_type)
             probability = array("branch-to-probability.bin", np.float64)
             index = json.loads(tar.extractfile("index.json").read())

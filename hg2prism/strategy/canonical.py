@@ -96,8 +96,8 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions,
     counts = (moves.row_start[chosen + 1] - moves.row_start[chosen]).astype(index)
     return CanonicalMDP(
         n=n, representative=representative, goal=goal, fail=fail,
-        choice_state=canonical[moves.source[chosen]], choice_action=moves.action[chosen],
-        choice_storm=chosen, entry_choice=np.repeat(np.arange(len(chosen), dtype=index), counts),
+        choice_state=canonical[moves.source[chosen]].astype(index),
+        choice_action=moves.action[chosen], choice_storm=chosen.astype(index), entry_choice=np.repeat(np.arange(len(chosen), dtype=index), counts),
         entry_target=entry_target, entry_prob=entry_prob,
         n_actions=max(int(moves.action.max(initial=-1)) + 1, n_actions or 0))
 
