@@ -84,6 +84,7 @@ QUICK_BAYES: tuple[tuple, ...] = ((12, 2, 3, 1, "map"), (12, 2, 3, 1, "sample"))
 # `make bench-huge` (`hg2prism bench --huge`): one grid world of about 1e7 canonical states,
 # alone (about 14 GB at peak and ten minutes on this machine)
 HUGE_SIZES: tuple[tuple[int, ...], ...] = ((100, 3, 3, 1),)
+HUGE_TIMEOUT = 3600
 
 SLOPE_RANGE = (1e4, math.inf)     # from 1e4 states to the largest world, delay 0 (below)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
@@ -527,7 +528,8 @@ def summary(rows: list[dict], huge: list[dict] | None = None) -> str:
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               keep_outputs: bool = False, storm_method: str = "sound",
-              arena_forms=(), random_arenas=(), bayes=(), huge: list[dict] = ()) -> list[dict]:
+              arena_forms=(), random_arenas=(), bayes=(), huge: list[dict] = (),
+              timeout: float = WORLD_TIMEOUT) -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv and out_dir/scaling.{png,svg} and prints the summary.
@@ -552,7 +554,8 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               flush=True)
     def run(world_path: Path, row: dict) -> None:
         run_dir = out_dir / "runs" / row["name"]
-        row.update(storm_method=storm_method, **measure_world(world_path, run_dir, storm_method))
+        row.update(storm_method=storm_method,
+                   **measure_world(world_path, run_dir, storm_method, timeout))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
         rows.append(row)
@@ -624,7 +627,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     if args.huge:
         rows = run_bench(Path(args.out), HUGE_SIZES, keep_outputs=args.keep_outputs,
-                         storm_method=args.storm_method)
+                         storm_method=args.storm_method, timeout=HUGE_TIMEOUT)
         write_huge(rows, Path(args.out) / "huge.json")
         return 0
     sizes = DEFAULT_SIZES

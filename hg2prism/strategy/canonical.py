@@ -86,20 +86,28 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions,
     del is_rep, keep
     # in canonical state order (stable: each state's choices keep their move order)
     chosen = chosen[np.argsort(canonical[moves.source[chosen]], kind="stable")]
-    entries = _entries_of(moves.row_start, chosen)
-    entry_prob = moves.probability[entries]
-    targets = moves.target[entries]
-    del entries
     index = np.int32 if n_states < 2 ** 31 and len(chosen) < 2 ** 31 else np.int64
-    entry_target = canonical[targets].astype(index)
-    del targets
     counts = (moves.row_start[chosen + 1] - moves.row_start[chosen]).astype(index)
+    # the chosen choices' entries, gathered block by block into their arrays
+    entry_prob = np.empty(int(counts.sum()))
+    entry_target = np.empty(len(entry_prob), dtype=index)
+    canonical_index = canonical.astype(index)
+    filled = 0
+    for low in range(0, len(chosen), ENTRY_BLOCK):
+        entries = _entries_of(moves.row_start, chosen[low:low + ENTRY_BLOCK])
+        entry_prob[filled:filled + len(entries)] = moves.probability[entries]
+        entry_target[filled:filled + len(entries)] = canonical_index[moves.target[entries]]
+        filled += len(entries)
+    del canonical_index
     return CanonicalMDP(
         n=n, representative=representative, goal=goal, fail=fail,
         choice_state=canonical[moves.source[chosen]].astype(index),
         choice_action=moves.action[chosen], choice_storm=chosen.astype(index), entry_choice=np.repeat(np.arange(len(chosen), dtype=index), counts),
         entry_target=entry_target, entry_prob=entry_prob,
         n_actions=max(int(moves.action.max(initial=-1)) + 1, n_actions or 0))
+
+
+ENTRY_BLOCK = 1 << 20      # choices per block of canonical_mdp's entries
 
 
 def _entries_of(row_start: np.ndarray, chosen: np.ndarray) -> np.ndarray:
