@@ -612,8 +612,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
-                        help="only the worlds below 2e5 states without delay and two small "
-                             "arenas (about a minute)")
+                        help="only the worlds below 2e5 states without delay, two small "
+                             "arenas and two small Bayesian worlds (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
     parser.add_argument("--storm-method", choices=default().methods, default="sound",
