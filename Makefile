@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench clean docs docs-all world1-bayes
+.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench bench-huge clean docs docs-all world1-bayes
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -76,8 +76,13 @@ world1-bayes: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench
 
+# one world of about 1e7 canonical states (about 14 GB at peak): run it alone on the machine
+bench-huge: $(STAMP)
+	$(BIN)/hg2prism bench --huge --out bench-huge
+	mkdir -p docs/data && cp bench-huge/huge.json docs/data/bench_huge.json
+
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile   # two processes, one per core; each test file stays in one
 
 clean:
-	rm -rf $(VENV) models/*/ bench/
+	rm -rf $(VENV) models/*/ bench/ bench-huge/

@@ -347,3 +347,34 @@ def test_v_naive_is_the_naive_strategy_on_storms_model_and_at_most_the_deceptive
     fixed = storm_choices(decoded, moves, representative, action)
     assert result.engine.induced_probability(result.checked, fixed.choice) == pytest.approx(worth.v_naive,
                                                                               abs=TOL)
+
+
+def _first_within_reference(scores: list[float], tolerance: float) -> int:
+    """The first score within `tolerance` of the largest of all (the rule the "map" model had
+    written out before, lpn_x >= lpnmax - tolerance)."""
+    top = max(scores)
+    return next(k for k, score in enumerate(scores) if score >= top - tolerance)
+
+
+def test_first_within_is_the_first_score_near_the_maximum() -> None:
+    """observers.first_within compares each score with the largest of the later ones only: the
+    same index as against the largest of all, in floating point, on scores with exact ties,
+    ties within the tolerance and values at its edge (evaluated as PRISM reads the text)."""
+    from hg2prism.prism.observers import first_within
+
+    tolerance = 1e-9
+    rng = np.random.default_rng(27)
+    base = [-4.802618865011778, -1.3862943611198906, -2.4948141022067594]
+    for n in range(1, 6):
+        names = [f"lpn_x{x}_a0" for x in range(n)]
+        text = first_within(names, "0.000000001")
+        assert text.count("lpn_x") == (n + 2) * (n - 1) // 2
+        for _ in range(400):
+            pick = rng.choice(len(base), size=n)
+            scores = [base[p] + rng.choice([0.0, 1e-15, 5e-10, 1e-9, 2e-9, -1e-9, 3e-16, 1.0])
+                      for p in pick]
+            values = dict(zip(names, map(repr, scores)))
+            branches = re.sub(r"lpn_x\d+_a0", lambda m: values[m.group(0)], text).split(" : ")
+            got = next((int(b.split(" ? ")[1]) for b in branches[:-1]
+                        if eval(b.split(" ? ")[0])), int(branches[-1]))  # noqa: S307
+            assert got == _first_within_reference(scores, tolerance), (scores, text)

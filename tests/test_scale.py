@@ -206,3 +206,35 @@ def test_summary_flags_every_missed_target() -> None:
                     time_total=90.0))
     assert bench.missed_targets(met) == []
     assert "targets missed: none" in bench.summary(met)
+
+
+def test_bench_bayes_rows(tmp_path: Path) -> None:
+    """A Bayesian world on a CUSUM world's map (`bayes_world`: the same map and name stem, the
+    observer's table replaced) is measured after the grids and compared with its CUSUM twin."""
+    text = bench.bayes_world(12, 1, 2, 1, "sample")
+    assert text.startswith(bench.bench_world(12, 1, 2, 1).split("[inference]")[0].replace(
+        bench.world_name(12, 1, 2, 1), bench.bayes_name(12, 1, 2, 1, "sample")))
+    size = (12, 1, 2, 1)
+    rows = bench.run_bench(tmp_path, [size], show_progress=False, bayes=[size + ("map",)])
+    assert not any(r.get("error") for r in rows), [r.get("traceback") for r in rows]
+    cusum, bayes = rows
+    assert (bayes["form"], bayes["inference"], cusum["inference"]) == ("bayes map", "bayes", "cusum")
+    assert load_world(tmp_path / "worlds" / f"{bayes['name']}.toml").inference == "bayes"
+    assert bench.undelayed(rows) == [cusum]                  # not on the growth curve
+    assert [name for name, _ in bench.bayes_costs(rows)] == [bayes["name"]]
+    assert "the CUSUM world of the same map" in bench.summary(rows)
+
+
+def test_huge_record_counts_for_the_ten_million(tmp_path: Path) -> None:
+    """`make bench-huge`'s rows (written with the machine, read back) meet the 1e7 target."""
+    huge = {"name": "s100", "form": "grid", "side": 100, "states": 10_300_000,
+            "time_total": 500.0, "peak_mb": 14_000.0, "time_games": 6.0, "time_build": 250.0}
+    bench.write_huge([huge, {"name": "failed", "error": "killed", "traceback": "..."}],
+                     tmp_path / "huge.json")
+    rows = bench.read_huge(tmp_path / "huge.json")
+    assert rows[0] == huge and "traceback" not in rows[1]
+    assert bench.read_huge(tmp_path / "missing.json") == []
+    assert "no world of 1e+07 states (make bench-huge)" in bench.missed_targets([])
+    assert not any("1e+07" in line for line in bench.missed_targets([], rows))
+    # the 150 s target is the 4.2e6-state world's, not the ten-million one's
+    assert not any("target 150 s" in line for line in bench.missed_targets(rows[:1]))

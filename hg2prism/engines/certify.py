@@ -60,23 +60,18 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     good = q >= best[source] - slack
     # only the entries of good choices of non-target states matter below
     useful = good & ~target[source]
-    entries = np.flatnonzero(np.repeat(useful, np.diff(matrix.indptr)))
-    entry_choice = np.repeat(np.flatnonzero(useful), np.diff(matrix.indptr)[useful])
-    entry_source = source[entry_choice]
-    positive = matrix.data[entries] > 0
-    entries, entry_choice, entry_source = (entries[positive], entry_choice[positive],
-                                           entry_source[positive])
-    rows, columns = entry_source, matrix.indices[entries]
-    targets = np.flatnonzero(target)
-    # distances to the target: from an extra node n, linked to every target state, backwards
-    reverse = sp.csr_matrix(
-        (np.ones(rows.size + targets.size),
-         (np.concatenate([columns, np.full(targets.size, n)]), np.concatenate([rows, targets]))),
-        shape=(n + 1, n + 1))
-    distance = csgraph.dijkstra(reverse, directed=True, indices=n, unweighted=True)[:n]
-    closer = distance[columns] < distance[rows]
-    mass = np.bincount(entry_choice[closer], weights=matrix.data[entries[closer]],
-                       minlength=matrix.shape[0])
+    per_choice = np.diff(matrix.indptr)
+    kept = np.repeat(useful, per_choice)
+    kept &= matrix.data > 0
+    distance = _distance_to_target(matrix, source, np.flatnonzero(kept), target)
+    # the mass of each choice's entries that move strictly closer
+    closer = distance[matrix.indices] < np.repeat(distance[source], per_choice)
+    closer &= kept
+    del kept
+    moving = np.flatnonzero(closer)
+    del closer
+    mass = np.bincount(np.searchsorted(matrix.indptr, moving, side="right") - 1,
+                       weights=matrix.data[moving], minlength=matrix.shape[0])
     score = np.where(good, mass, -1.0)
     top = np.full(n, -np.inf)
     top[counts > 0] = np.maximum.reduceat(score, group_start[:-1][counts > 0])
@@ -84,6 +79,26 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     choice = np.full(n, -1, dtype=np.int64)
     choice[source[picked]] = picked          # reversed: the first of each state's ties wins
     return choice
+
+
+def _distance_to_target(matrix: sp.csr_matrix, source: np.ndarray, entries: np.ndarray,
+                        target: np.ndarray) -> np.ndarray:
+    """[states] the fewest steps to the target along `entries` (edges source -> successor of
+    the matrix's entries), inf where there is none: breadth first from an extra node n,
+    linked to every target state, over the reversed edges."""
+    n = len(target)
+    columns = matrix.indices[entries]
+    rows = source[np.searchsorted(matrix.indptr, entries, side="right") - 1]
+    targets = np.flatnonzero(target)
+    index = np.int32 if n < 2 ** 31 - 1 else np.int64
+    reverse = sp.coo_matrix(
+        (np.ones(rows.size + targets.size),
+         (np.concatenate([columns, np.full(targets.size, n)]).astype(index, copy=False),
+          np.concatenate([rows, targets]).astype(index, copy=False))),
+        shape=(n + 1, n + 1))
+    del columns, rows
+    reverse = reverse.tocsr()
+    return csgraph.dijkstra(reverse, directed=True, indices=n, unweighted=True)[:n]
 
 
 def certify_reachability(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.ndarray,

@@ -226,23 +226,31 @@ def _read_structure(model: object) -> Transitions:
         return _STRUCTURES[key][1]
     options = developer.storage.UmbExportOptions()
     options.compression = type(options.compression).NO_COMPRESSION
+    index_type = np.int32 if model.nr_states < 2 ** 31 else np.int64   # states, choices: one copy
     with tempfile.TemporaryDirectory(prefix="hg2prism-umb-") as folder:
         archive = Path(folder) / "model.umb"
         export_to_umb(model, str(archive), options=options)
         with tarfile.open(archive) as tar:
-            def array(name: str, dtype: type) -> np.ndarray:
-                return np.frombuffer(tar.extractfile(name).read(), dtype=dtype)
+            members = {member.name: member for member in tar.getmembers()}
 
-            state_choices = array("state-to-choices.bin", np.uint64).astype(np.int64)
-            row_start = array("choice-to-branches.bin", np.uint64).astype(np.int64)
-            target = array("branch-to-target.bin", np.uint64).astype(np.int64)
-            probability = array("branch-to-probability.bin", np.float64).copy()
+            def array(name: str, dtype: type) -> np.ndarray:
+                """A member's array, read straight from the (uncompressed) archive."""
+                member = members[name]
+                return np.fromfile(archive, dtype=dtype, offset=member.offset_data,
+                                   count=member.size // np.dtype(dtype).itemsize)
+
+            state_choices = array("state-to-choices.bin", np.uint64).view(np.int64)
+            row_start = array("choice-to-branches.bin", np.uint64).view(np.int64)
+            if row_start[-1] < 2 ** 31:     # as scipy's matrices index them: no copy there
+                row_start = row_start.astype(np.int32)
+            target = array("branch-to-target.bin", np.uint64).astype(index_type)
+            probability = array("branch-to-probability.bin", np.float64)
             index = json.loads(tar.extractfile("index.json").read())
             kind = index["transition-system"].get("branch-probability-type", {}).get("type")
             upper = None
             if kind == "double-interval":     # (lower, upper) pairs
                 probability, upper = probability[0::2].copy(), probability[1::2].copy()
-            action_ids = array("actions/choices/values.bin", np.uint32).astype(np.int64)
+            action_ids = array("actions/choices/values.bin", np.uint32)
             offsets = array("actions/choices/string-mapping.bin", np.uint64).astype(np.int64)
             text = tar.extractfile("actions/choices/strings.bin").read().decode()
             names = [text[offsets[i]:offsets[i + 1]] for i in range(len(offsets) - 1)]
@@ -252,9 +260,9 @@ def _read_structure(model: object) -> Transitions:
                 member = f"annotations/aps/{key_name}/states/values.bin"
                 bits = np.unpackbits(array(member, np.uint8), bitorder="little")
                 labels[label] = bits[:model.nr_states].astype(bool)
-    action_index = np.array([slot_of_label(n) for n in names] + [-1])
+    action_index = np.array([slot_of_label(n) for n in names] + [-1], dtype=index_type)
     structure = Transitions(
-        source=np.repeat(np.arange(model.nr_states), np.diff(state_choices)),
+        source=np.repeat(np.arange(model.nr_states, dtype=index_type), np.diff(state_choices)),
         action=action_index[action_ids], row_start=row_start, target=target,
         probability=probability, labels=labels, upper=upper)
     _STRUCTURES.clear()

@@ -74,11 +74,22 @@ DEFAULT_ARENA_FORMS: tuple[tuple[int, ...], ...] = ((31, 3, 3, 1),)
 DEFAULT_RANDOM_ARENAS: tuple[int, ...] = (16000,)    # about 1e6 canonical states
 QUICK_ARENA_FORMS: tuple[tuple[int, ...], ...] = ((12, 3, 3, 1),)
 QUICK_RANDOM_ARENAS: tuple[int, ...] = (1000,)
+# Bayesian worlds (docs/semantics.md §12) on the map of a CUSUM grid world of the list above,
+# (side, window, hypotheses, traps, decision): window 3 on the 16 x 16 map holds about 1.1e6
+# canonical states (the Bayesian window keeps w observations, CUSUM's w - 1), measured after
+# the grids; the summary compares their time per canonical state with the CUSUM world of the
+# same side (s16 w3: 265k states).
+DEFAULT_BAYES: tuple[tuple, ...] = ((16, 3, 3, 1, "map"), (16, 3, 3, 1, "sample"))
+QUICK_BAYES: tuple[tuple, ...] = ((12, 2, 3, 1, "map"), (12, 2, 3, 1, "sample"))
+# `make bench-huge` (`hg2prism bench --huge`): one grid world of about 1e7 canonical states,
+# alone (about 14 GB at peak and ten minutes on this machine)
+HUGE_SIZES: tuple[tuple[int, ...], ...] = ((100, 3, 3, 1),)
+HUGE_TIMEOUT = 3600
 
 SLOPE_RANGE = (1e4, math.inf)     # from 1e4 states to the largest world, delay 0 (below)
 WORLD_TIMEOUT = 900          # seconds one world may take before it is abandoned
 
-COLUMNS = ("name", "form", "side", "window", "hypotheses", "traps", "delay", "storm_method",
+COLUMNS = ("name", "form", "inference", "side", "window", "hypotheses", "traps", "delay", "storm_method",
            "cells", "estimate",
            "states",
            "transitions", "storm_states", "storm_transitions", "storm_choices",
@@ -158,6 +169,24 @@ window = {window}
 threshold = 1.5
 rationality = 5.0
 '''
+
+
+def bayes_name(side: int, window: int, hypotheses: int, traps: int, decision: str) -> str:
+    return f"{world_name(side, window, hypotheses, traps)}_bayes_{decision}"
+
+
+def bayes_world(side: int, window: int, hypotheses: int, traps: int, decision: str) -> str:
+    """The benchmark grid world of these parameters (`bench_world`, the same map) with P2's
+    Bayesian observer instead of CUSUM: window `window`, rationality 5 as the CUSUM worlds'
+    softmax, uniform prior, decision "map" or "sample"."""
+    text = bench_world(side, window, hypotheses, traps)
+    head, found, _ = text.partition("[inference]\n")     # the last table of the file
+    if not found:
+        raise ValueError("bench_world wrote no [inference] table")
+    name = world_name(side, window, hypotheses, traps)
+    renamed = bayes_name(side, window, hypotheses, traps, decision)
+    return (head.replace(f'name = "{name}"', f'name = "{renamed}"', 1) + f'[inference]\nkind = "bayes"\nwindow = {window}\nrationality = 5.0\n'
+            f'decision = "{decision}"\n')
 
 
 def _write_arena_form(grid_path: str, arena_path: str) -> None:
@@ -353,7 +382,20 @@ LARGEST = 1e6                   # "the largest worlds": this many canonical stat
 BAYES_STATES = 1e6              # the Bayesian worlds the benchmark must hold ...
 BAYES_PER_STATE = 1.5           # ... within this of the CUSUM world of the same map, per state
 HUGE_STATES = 1e7               # `make bench-huge`
-FOUR_MILLION = (4e6, 150.0)     # the world of about 4.2e6 states in at most 150 s (idle machine)
+FOUR_MILLION = (4e6, 150.0)     # the world of about 4.2e6 states in at most 150 s (idle machine;
+                                # not the ten-million one of make bench-huge)
+
+
+def cusum_twin(row: dict, rows: list[dict]) -> dict | None:
+    """A Bayesian world's twin: the first CUSUM grid world of the same side (the same map)."""
+    return next((r for r in rows if r.get("inference", "cusum") == "cusum"
+                 and r.get("side") == row.get("side") and r.get("form") == "grid"), None)
+
+
+def bayes_costs(rows: list[dict]) -> list[tuple[str, float]]:
+    """Per Bayesian world, its total time per canonical state against its CUSUM twin's."""
+    return [(r["name"], per_state(r) / per_state(cusum_twin(r, rows))) for r in rows
+            if r.get("inference") == "bayes" and cusum_twin(r, rows) is not None]
 
 
 def twin(row: dict, rows: list[dict]) -> dict | None:
@@ -387,8 +429,9 @@ def target_table(rows: list[dict]) -> list[str]:
     return lines
 
 
-def missed_targets(rows: list[dict]) -> list[str]:
-    """Issue 27's targets that these rows miss, one line each (none: every target met)."""
+def missed_targets(rows: list[dict], huge: list[dict] | None = None) -> list[str]:
+    """Issue 27's targets that these rows miss, one line each (none: every target met);
+    `huge`: the rows of `make bench-huge` (HUGE_RECORD), which count for the ten million."""
     good = [r for r in rows if not r.get("error")]
     missed = []
     slow_games = [f"{r['name']} ({r['time_games'] / max(r['time_build'], 1e-9):.1f}x)"
@@ -409,16 +452,16 @@ def missed_targets(rows: list[dict]) -> list[str]:
     if not bayes:
         missed.append(f"no Bayesian world of {BAYES_STATES:.0e} states or more")
     for row in bayes:
-        cusum = next((r for r in good if r.get("inference", "cusum") == "cusum"
-                      and r.get("side") == row.get("side") and r.get("form") == "grid"), None)
+        cusum = cusum_twin(row, good)
         if cusum and per_state(row) > BAYES_PER_STATE * per_state(cusum):
             missed.append(f"{row['name']}: {per_state(row) / per_state(cusum):.1f}x the CUSUM "
                           f"world's time per state (target {BAYES_PER_STATE}x)")
-    if not any(r["states"] >= HUGE_STATES for r in good):
+    if not any(r["states"] >= HUGE_STATES for r in good + [r for r in huge or []
+                                                           if not r.get("error")]):
         missed.append(f"no world of {HUGE_STATES:.0e} states (make bench-huge)")
     big, limit = FOUR_MILLION
     missed += [f"{r['name']}: {r['time_total']:.0f} s (target {limit:.0f} s on an idle machine)"
-               for r in good if r["states"] >= big and r["time_total"] > limit]
+               for r in good if big <= r["states"] < HUGE_STATES and r["time_total"] > limit]
     return missed
 
 
@@ -437,7 +480,7 @@ def bench_results(rows: list[dict]) -> dict:
             "largest": None if top is None else top["name"]}
 
 
-def summary(rows: list[dict]) -> str:
+def summary(rows: list[dict], huge: list[dict] | None = None) -> str:
     """The closing lines: slope, the largest world, Python stages against Storm's build, the
     cost of delay."""
     good = [r for r in rows if not r.get("error")]
@@ -460,6 +503,9 @@ def summary(rows: list[dict]) -> str:
         lines.append(f"{name}: time per canonical state against the grid form: total "
                      f"{total:.2f}x (Storm's parse + build {storm:.2f}x, Python stages "
                      f"{python:.2f}x)")
+    for name, ratio in bayes_costs(good):
+        lines.append(f"{name}: total time per canonical state {ratio:.2f}x the CUSUM world of "
+                     f"the same map (target {BAYES_PER_STATE}x)")
     for row in good:
         if row.get("form") == "random arena":
             lines.append(f"{row['name']}: {row['states']:,} states in {row['time_total']:.1f} s"
@@ -490,7 +536,7 @@ def summary(rows: list[dict]) -> str:
                   f"{GAMES_PER_BUILD}, delayed <= {DELAY_PER_STATE}x the no-delay twin per "
                   f"state, peak <= {PEAK_PER_STATE} B per state from {LARGEST:.0e} states):"]
         lines += ["  " + line for line in target_table(good)]
-        missed = missed_targets(good)
+        missed = missed_targets(good, huge)
         lines.append("targets missed: " + ("none" if not missed else ""))
         lines += ["  MISSED " + line for line in missed]
     return "\n".join(lines)
@@ -498,7 +544,8 @@ def summary(rows: list[dict]) -> str:
 
 def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               keep_outputs: bool = False, storm_method: str = "sound",
-              arena_forms=(), random_arenas=()) -> list[dict]:
+              arena_forms=(), random_arenas=(), bayes=(), huge: list[dict] = (),
+              timeout: float = WORLD_TIMEOUT) -> list[dict]:
     """Runs every world of `sizes` ((side, window, hypotheses, traps[, delay]) each) through
     `pipeline.check` in its own process; prints one line per world as it goes (stdout), then
     writes out_dir/results.csv, results.json (`bench_results`) and out_dir/scaling.{png,svg}
@@ -509,7 +556,9 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
     `storm_method` is check's --storm-method: "sound" (docs/semantics.md §10), "sound-ovi" or "fast".
     Each size of `sizes` also in `arena_forms` is measured a second time right after, in its
     arena form (`hg2prism convert`); then each `random_arenas` (numbers of states) as
-    `random_arena_world`. Only grid rows enter the slope and the figure."""
+    `random_arena_world`, then each of `bayes` ((side, window, hypotheses, traps, decision))
+    as `bayes_world`. Only grid rows enter the slope and the figure. `huge`: the rows of
+    `make bench-huge` (HUGE_RECORD), for the summary's ten-million-state target."""
     from hg2prism.outputs import write_json, write_text
 
     out_dir = Path(out_dir)
@@ -522,7 +571,8 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
               flush=True)
     def run(world_path: Path, row: dict) -> None:
         run_dir = out_dir / "runs" / row["name"]
-        row.update(storm_method=storm_method, **measure_world(world_path, run_dir, storm_method))
+        row.update(storm_method=storm_method,
+                   **measure_world(world_path, run_dir, storm_method, timeout))
         if not keep_outputs:
             (run_dir / "strategy.json").unlink(missing_ok=True)
         rows.append(row)
@@ -534,18 +584,26 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
         name = world_name(side, window, hypotheses, traps, delay)
         world_path = out_dir / "worlds" / f"{name}.toml"
         write_text(world_path, bench_world(side, window, hypotheses, traps, delay=delay))
-        row = {"name": name, "form": "grid", "side": side, "window": window,
+        row = {"name": name, "form": "grid", "inference": "cusum", "side": side, "window": window,
                "hypotheses": hypotheses, "traps": traps, "delay": delay}
         run(world_path, row)
         if (side, window, hypotheses, traps, *rest) in arena_forms:
             arena_path = out_dir / "worlds" / f"{name}_arena.toml"
             write_arena_form(world_path, arena_path)
             run(arena_path, dict(row, name=f"{name}_arena", form="arena form"))
+    for side, window, hypotheses, traps, decision in bayes:
+        name = bayes_name(side, window, hypotheses, traps, decision)
+        world_path = out_dir / "worlds" / f"{name}.toml"
+        write_text(world_path, bayes_world(side, window, hypotheses, traps, decision))
+        run(world_path, {"name": name, "form": f"bayes {decision}", "inference": "bayes",
+                         "side": side, "window": window, "hypotheses": hypotheses,
+                         "traps": traps, "delay": 0})
     for states in random_arenas:
         name = random_arena_name(states)
         world_path = out_dir / "worlds" / f"{name}.toml"
         write_text(world_path, random_arena_world(states))
-        run(world_path, {"name": name, "form": "random arena", "window": 3, "hypotheses": 3,
+        run(world_path, {"name": name, "form": "random arena", "inference": "cusum",
+                         "window": 3, "hypotheses": 3,
                          "traps": 1, "delay": 0})
     write_csv(rows, out_dir / "results.csv")
     write_json(out_dir / "results.json", bench_results(rows))
@@ -559,7 +617,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
                  f"states (no delay)")
         scaling_figure(grids(good) or good, STAGES + ("write",), out_dir / "scaling.png", title)
     if show_progress:
-        print(summary(rows), flush=True)
+        print(summary(rows, list(huge)), flush=True)
         print(f"wrote {out_dir / 'results.csv'}, results.json and {out_dir / 'scaling.png'} "
               "(and .svg)", flush=True)
     return rows
@@ -573,15 +631,24 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="hg2prism bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="bench", help="output folder (default: bench)")
     parser.add_argument("--quick", action="store_true",
-                        help="only the worlds below 2e5 states without delay and two small "
-                             "arenas (about a minute)")
+                        help="only the worlds below 2e5 states without delay, two small "
+                             "arenas and two small Bayesian worlds (about a minute)")
     parser.add_argument("--keep-outputs", action="store_true",
                         help="keep every world's strategy.json")
     parser.add_argument("--storm-method", choices=default().methods, default="sound",
                         help="how Storm solves Pmax, as for `hg2prism check` (default: sound)")
+    parser.add_argument("--huge", action="store_true",
+                        help="only the world of about 1e7 canonical states (`make bench-huge`: "
+                             "about 14 GB at peak, run it alone), its row also written to "
+                             "OUT/huge.json")
     args = parser.parse_args(argv)
     # SIGTERM unwinds like Ctrl-C, so that the running world's process is killed (measure_world).
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    if args.huge:
+        rows = run_bench(Path(args.out), HUGE_SIZES, keep_outputs=args.keep_outputs,
+                         storm_method=args.storm_method, timeout=HUGE_TIMEOUT)
+        write_huge(rows, Path(args.out) / "huge.json")
+        return 0
     sizes = DEFAULT_SIZES
     if args.quick:
         sizes = tuple(s for s in DEFAULT_SIZES
@@ -590,8 +657,34 @@ def main(argv: list[str] | None = None) -> int:
                                   else (DEFAULT_ARENA_FORMS, DEFAULT_RANDOM_ARENAS))
     run_bench(Path(args.out), sizes, show_progress=True, keep_outputs=args.keep_outputs,
               storm_method=args.storm_method, arena_forms=arena_forms,
-              random_arenas=random_arenas)
+              random_arenas=random_arenas, bayes=QUICK_BAYES if args.quick else DEFAULT_BAYES,
+              huge=read_huge(HUGE_RECORD))
     return 0
+
+
+# The record of the last `make bench-huge` (copied there from bench-huge/huge.json), which
+# `make bench` reads for the ten-million-state target and the docs for its numbers.
+HUGE_RECORD = Path("docs/data/bench_huge.json")
+
+
+def write_huge(rows: list[dict], path: Path) -> None:
+    """The rows of a `--huge` run with the machine they ran on, as JSON."""
+    from hg2prism.outputs import write_json
+
+    machine = {"cpus": os.cpu_count(),
+               "memory_gb": round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+                                  / 2 ** 30, 1)}
+    write_json(path, {"measured": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+                      "machine": machine,
+                      "rows": [{k: v for k, v in row.items() if k != "traceback"}
+                               for row in rows]})
+
+
+def read_huge(path: Path) -> list[dict]:
+    """The rows of HUGE_RECORD, none when it is missing."""
+    import json
+
+    return json.loads(path.read_text())["rows"] if path.is_file() else []
 
 
 if __name__ == "__main__":

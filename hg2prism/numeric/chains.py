@@ -72,13 +72,16 @@ def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray 
     reaches = backward_reach(rows, columns, np.flatnonzero(target), n)
     zero = ~target & ~reaches
     sure = free & ~backward_reach(rows, columns, np.flatnonzero(zero), n)
+    del rows, columns         # (large chains: one copy of anything large during the solve)
     values = (target | sure).astype(float)
     solve = np.flatnonzero(free & reaches & ~sure)
     if solve.size == 0:
         return ChainValue(values, 0.0)
     sub = chain[solve]
     rhs = sub @ values                                           # one step out, weighted
-    x, error = solve_m_matrix(sp.identity(solve.size, format="csr") - sub[:, solve], rhs)
+    system = sp.identity(solve.size, format="csr") - sub[:, solve]
+    del sub
+    x, error = solve_m_matrix(system, rhs)
     values[solve] = x
     return ChainValue(values, error)
 

@@ -43,11 +43,11 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
     When the layout has no `hyp` variable, P2's hypothesis is derived from each state's window
     by `window_hypotheses`."""
     def column(name: str) -> np.ndarray:
-        return model.variable(name, layout.initial_value(name))
+        return _narrow(model.variable(name, layout.initial_value(name)))
 
     place = column("place")
     label = np.append(ts.place_label, 0)[place]
-    q = task.delta[column("q"), label]
+    q = _narrow(task.delta[column("q"), label])
     width = 3 if layout.slot_sets else 2
     window = np.stack([np.stack([column(name) for name in names], axis=1)
                        for names in (layout.slot_variables(i) for i in range(1, layout.slots + 1))],
@@ -57,13 +57,13 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
     if layout.delay:
         traps, countdown = column("traps"), column("countdown")
     else:       # no standing traps without delay (docs/semantics.md §2): both are 0
-        traps, countdown = (np.zeros(model.n_states, dtype=np.int64) for _ in range(2))
+        traps, countdown = (np.zeros(model.n_states, dtype=np.int32) for _ in range(2))
     if layout.hypothesis_variable:
         hypothesis = column("hyp")
     else:
         if window_hypotheses is None:
             raise ValueError("decoding this model needs the observer's window_hypotheses")
-        hypothesis = np.asarray(window_hypotheses(window), dtype=np.int64)
+        hypothesis = _narrow(np.asarray(window_hypotheses(window), dtype=np.int64))
     key = np.column_stack([place, traps, countdown, q, hypothesis, window.reshape(model.n_states, -1)])
     key[goal] = -2
     key[fail] = -3
@@ -71,6 +71,15 @@ def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task:
     return DecodedStates(place=place, traps=traps, countdown=countdown, q=q, hypothesis=hypothesis,
                          window=window, goal=goal, fail=fail, canonical=canonical,
                          n_canonical=int(canonical.max()) + 1 if canonical.size else 0)
+
+
+def _narrow(values: np.ndarray) -> np.ndarray:
+    """Integer columns as int32 when they fit (a state's variables are small numbers: half
+    the memory of the decoded states of a large model)."""
+    values = np.asarray(values)
+    if values.size and (values.min() < -2 ** 31 or values.max() >= 2 ** 31):
+        return values
+    return values.astype(np.int32, copy=False)
 
 
 def row_keys(rows: np.ndarray) -> np.ndarray:
@@ -103,21 +112,36 @@ def _dense_ids(keys: np.ndarray) -> np.ndarray:
     return ids
 
 
-def _count_distinct(keys: np.ndarray) -> int:
-    ordered = np.sort(keys)
-    return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
-
-
 def canonical_size(decoded: DecodedStates, moves: Transitions) -> tuple[int, int]:
     """docs/semantics.md §6: canonical states, and (state, action, successor) triples after merging."""
     absorbing = decoded.goal | decoded.fail
-    counts = np.diff(moves.row_start)
-    choice_of_entry = np.repeat(np.arange(len(moves.source)), counts)
-    src = moves.source[choice_of_entry]
-    keep = ~absorbing[src] & (moves.probability > 0)
     n = decoded.n_canonical   # one integer per (state, action, successor): n*n*5 < 2**63
-    key = ((decoded.canonical[src[keep]] * 5 + moves.action[choice_of_entry[keep]] + 1) * n
-           + decoded.canonical[moves.target[keep]])
-    n_triples = _count_distinct(key)
+    # one key per entry of a non-absorbing state's choice with positive probability, written
+    # block of choices by block into one array (the blocks' temporaries stay small)
+    counts = np.diff(moves.row_start)
+    live = ~absorbing[moves.source]
+    key = np.empty(int(counts[live].sum()), dtype=np.int64)
+    filled = 0
+    for low in range(0, len(counts), SIZE_BLOCK):
+        high = min(len(counts), low + SIZE_BLOCK)
+        first, last = int(moves.row_start[low]), int(moves.row_start[high])
+        block = np.repeat((decoded.canonical[moves.source[low:high]] * 5
+                           + moves.action[low:high] + 1) * n, counts[low:high])
+        block += decoded.canonical[moves.target[first:last]]
+        keep = np.repeat(live[low:high], counts[low:high])
+        keep &= moves.probability[first:last] > 0
+        kept = np.count_nonzero(keep)
+        key[filled:filled + kept] = block[keep]
+        filled += kept
+    n_triples = _count_distinct_in_place(key[:filled])
     loops = int(decoded.goal.any()) + int(decoded.fail.any())
     return decoded.n_canonical, n_triples + loops
+
+
+SIZE_BLOCK = 1 << 20      # choices per block of canonical_size's keys
+
+
+def _count_distinct_in_place(keys: np.ndarray) -> int:
+    """The number of distinct keys (sorts `keys`)."""
+    keys.sort()
+    return int(len(keys) > 0) + int(np.count_nonzero(keys[1:] != keys[:-1]))

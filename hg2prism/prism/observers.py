@@ -324,10 +324,8 @@ class _BayesTables:
                 terms += [f"llnow_x{x}_{a}"]
                 scores.append({"x": x, "now": now, "sum": "+".join(terms)})
             names = [f"lpn_x{x}_{a}" for x in range(n_x)]
-            best = cases([(f"{name}>=lpnmax_{a}-{tolerance}", str(x))
-                          for x, name in enumerate(names[:-1])], str(n_x - 1))
             rules.append({"action": a, "slot": d, "label": label, "scores": scores,
-                          "max": maximum(names), "next": best})
+                          "next": first_within(names, tolerance)})
         return rules
 
     def posterior(self) -> list[tuple[str, str]]:
@@ -344,6 +342,19 @@ class _BayesTables:
                              for y in range(n_x))
             posterior.append((f"post_x{x}", f"1/({total})" if n_x > 1 else "1.0"))
         return posterior
+
+
+def first_within(names: list[str], tolerance: str) -> str:
+    """The index of the first of the scores `names` within `tolerance` of their maximum, as a
+    PRISM expression that reads each score as few times as it can: score k (reached when
+    every earlier one is below the maximum of those after it by more than the tolerance, so
+    that the maximum of all is that of k and the later ones) is compared with the maximum of
+    the later ones only. The same index, in floating point too, as comparing each with the
+    maximum of all (the last within the tolerance wins where none before is), with
+    (n + 2) (n - 1) / 2 reads of the scores instead of (n + 1) (n - 1): Storm and PRISM
+    substitute every formula where it is used, so each read repeats the score's tables."""
+    return cases([(f"{name}>={maximum(names[k + 1:])}-{tolerance}", str(k))
+                  for k, name in enumerate(names[:-1])], str(len(names) - 1))
 
 
 def _drawing_robot(observer: BayesObserver, ts: TransitionSystem, labels: dict[int, str],

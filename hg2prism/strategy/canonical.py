@@ -30,7 +30,8 @@ class CanonicalMDP:
     choice_state: np.ndarray     # [choices] canonical source (non-absorbing states only)
     choice_action: np.ndarray    # [choices] P1's action slot at the state
     choice_storm: np.ndarray     # [choices] Storm's global choice index
-    entry_choice: np.ndarray     # [entries] index into the choice arrays
+    entry_choice: np.ndarray     # [entries] index into the choice arrays (ascending: each
+                                 # choice's entries are contiguous, in choice order)
     entry_target: np.ndarray     # [entries] canonical successor
     entry_prob: np.ndarray       # [entries]
     n_actions: int = 0           # action slots per state (the TS's A1max)
@@ -82,19 +83,43 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions,
     is_rep = representative[canonical[moves.source]] == moves.source
     keep = is_rep & (moves.action >= 0) & ~absorbing[moves.source]
     chosen = np.flatnonzero(keep)                    # grouped by state, in move order
+    del is_rep, keep
     # in canonical state order (stable: each state's choices keep their move order)
     chosen = chosen[np.argsort(canonical[moves.source[chosen]], kind="stable")]
-    counts = np.diff(moves.row_start)[chosen]
-    starts = moves.row_start[chosen]
-    entry_choice = np.repeat(np.arange(len(chosen)), counts)
-    offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-    entries = np.repeat(starts, counts) + offsets
+    index = np.int32 if n_states < 2 ** 31 and len(chosen) < 2 ** 31 else np.int64
+    counts = (moves.row_start[chosen + 1] - moves.row_start[chosen]).astype(index)
+    # the chosen choices' entries, gathered block by block into their arrays
+    entry_prob = np.empty(int(counts.sum()))
+    entry_target = np.empty(len(entry_prob), dtype=index)
+    canonical_index = canonical.astype(index)
+    filled = 0
+    for low in range(0, len(chosen), ENTRY_BLOCK):
+        entries = _entries_of(moves.row_start, chosen[low:low + ENTRY_BLOCK])
+        entry_prob[filled:filled + len(entries)] = moves.probability[entries]
+        entry_target[filled:filled + len(entries)] = canonical_index[moves.target[entries]]
+        filled += len(entries)
+    del canonical_index
     return CanonicalMDP(
         n=n, representative=representative, goal=goal, fail=fail,
-        choice_state=canonical[moves.source[chosen]], choice_action=moves.action[chosen],
-        choice_storm=chosen, entry_choice=entry_choice,
-        entry_target=canonical[moves.target[entries]], entry_prob=moves.probability[entries],
+        choice_state=canonical[moves.source[chosen]].astype(index),
+        choice_action=moves.action[chosen], choice_storm=chosen.astype(index), entry_choice=np.repeat(np.arange(len(chosen), dtype=index), counts),
+        entry_target=entry_target, entry_prob=entry_prob,
         n_actions=max(int(moves.action.max(initial=-1)) + 1, n_actions or 0))
+
+
+ENTRY_BLOCK = 1 << 20      # choices per block of canonical_mdp's entries
+
+
+def _entries_of(row_start: np.ndarray, chosen: np.ndarray) -> np.ndarray:
+    """The entries of the choices `chosen`, choice after choice (choice c's entries are
+    row_start[c]..row_start[c + 1] - 1), as one array: steps of 1 within a choice, a jump
+    to the next choice's first entry, summed in place."""
+    counts = row_start[chosen + 1] - row_start[chosen]
+    some = counts > 0
+    first, last = row_start[chosen[some]], row_start[chosen[some] + 1] - 1
+    entries = np.ones(int(counts.sum()), dtype=np.int64)
+    entries[(np.cumsum(counts) - counts)[some]] = first - np.r_[0, last[:-1]]
+    return np.cumsum(entries, out=entries)
 
 
 def canonical_values(decoded: DecodedStates, storm_values: np.ndarray) -> np.ndarray:

@@ -79,6 +79,17 @@ class Field:
     vocabulary: Vocabulary
     codes: np.ndarray | int
 
+    def __post_init__(self) -> None:
+        # codes in the narrowest integer type that holds -1 .. the vocabulary's size: the
+        # fields of a file are held together while it is written (a byte or two per row for
+        # most columns, not eight)
+        if isinstance(self.codes, np.ndarray) and self.codes.dtype.kind in "iu":
+            size = len(self.vocabulary.table)
+            narrow = next(np.dtype(t) for t in (np.int8, np.int16, np.int32, np.int64)
+                          if np.iinfo(t).max >= size)
+            if narrow.itemsize < self.codes.dtype.itemsize:
+                object.__setattr__(self, "codes", self.codes.astype(narrow))
+
     @property
     def width(self) -> int:
         return self.vocabulary.width

@@ -49,64 +49,78 @@ def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
     # keeps a positive chance of reaching the goal: the strategy stays optimal.
     goal = mdp.goal
     opt_choices = np.flatnonzero(optimal)                            # sorted, grouped by state
-    keep = np.flatnonzero(optimal[mdp.entry_choice])
-    k_choice, k_target, k_prob = (mdp.entry_choice[keep], mdp.entry_target[keep],
-                                  mdp.entry_prob[keep])
-    # The optimal choices of each canonical state that has some form a column of a
-    # [width, states] table (padded with -1, below every score), so that a sweep is one sparse
-    # product and a maximum over the table's few contiguous rows.
+    # The states with an optimal choice are the groups 0..n_groups-1, in state order; the
+    # optimal choices of group g are opt_choices[bounds[g]:bounds[g + 1]].
     group_start = np.flatnonzero(np.diff(np.r_[-1, choice_state[opt_choices]]) != 0)
-    group_size = np.diff(np.r_[group_start, len(opt_choices)])
-    n_groups, width = len(group_start), int(group_size.max(initial=1))
+    n_groups = len(group_start)
+    bounds = np.r_[group_start, len(opt_choices)]
     group_of = np.full(mdp.n, -1, dtype=np.int64)
     group_of[choice_state[opt_choices[group_start]]] = np.arange(n_groups)
-    group_of_slot = np.repeat(np.arange(n_groups), group_size)
-    rank_in_group = np.arange(len(opt_choices)) - np.repeat(group_start, group_size)
-    cell_of_slot = rank_in_group * n_groups + group_of_slot
-    k_cell = cell_of_slot[(np.cumsum(optimal) - 1)[k_choice]]
-    n_cells = n_groups * width
-    reached = np.full(n_cells, -1.0)
-    reached[cell_of_slot] = 0.0
-    reached += np.bincount(k_cell, weights=k_prob * goal[k_target], minlength=n_cells)
-    # Onward entries lead to states that still have choices (goal counts in `reached`, and
+    # What each optimal choice reaches at once (the goal), and onward: a [optimal choices,
+    # groups] matrix to the states that still have choices (the goal counts in `reached`,
     # failure adds nothing).
-    onward = (group_of[k_target] >= 0) & ~goal[k_target]
-    onward_matrix = sp.csr_matrix(
-        (k_prob[onward] * DISCOUNT, (k_cell[onward], group_of[k_target[onward]])),
-        shape=(n_cells, n_groups))
+    reached = np.bincount(mdp.entry_choice, weights=mdp.entry_prob * goal[mdp.entry_target],
+                          minlength=len(choice_state))[opt_choices]
+    onward = _onward_matrix(mdp, optimal, opt_choices, group_of)
+    del optimal, group_of
     # Each sweep runs on two threads, each over half of the states (numpy and scipy release
     # the GIL): the same sums and maxima, row by row, as one thread would take.
-    table = np.empty((width, n_groups))
-    reached_rows = reached.reshape(width, n_groups)
-    halves = []
-    for low, high in ((0, n_groups // 2), (n_groups // 2, n_groups)):
-        rows = [onward_matrix[r * n_groups + low:r * n_groups + high] for r in range(width)]
-        halves.append((low, high, rows))
+    halves = [(low, high, _row_block(onward, bounds[low], bounds[high]),
+               reached[bounds[low]:bounds[high]], group_start[low:high] - bounds[low])
+              for low, high in ((0, n_groups // 2), (n_groups // 2, n_groups)) if high > low]
 
-    def sweep(half: tuple[int, int, list[sp.csr_matrix]], w: np.ndarray, new: np.ndarray
-              ) -> float:
-        low, high, rows = half
-        for r, block in enumerate(rows):
-            np.add(block @ w, reached_rows[r, low:high], out=table[r, low:high])
-        np.max(table[:, low:high], axis=0, out=new[low:high])
+    def sweep(half: tuple, w: np.ndarray, new: np.ndarray) -> float:
+        low, high, block, reach, starts = half
+        np.maximum.reduceat(block @ w + reach, starts, out=new[low:high])
         return float(np.abs(new[low:high] - w[low:high]).max(initial=0.0))
 
     w = np.zeros(n_groups)
     with ThreadPoolExecutor(max_workers=2) as pool:
         for _ in range(MAX_DISCOUNT_SWEEPS):
             new = np.empty(n_groups)
-            change = max(pool.map(lambda half: sweep(half, w, new), halves))  # noqa: B023
+            change = max(pool.map(lambda half: sweep(half, w, new), halves),  # noqa: B023
+                         default=0.0)
             w = new
             if change < 1e-9:      # enough to rank the moves
                 break
     score = np.full(len(choice_state), -1.0)
-    score[opt_choices] = (reached + onward_matrix @ w)[cell_of_slot]
+    score[opt_choices] = reached + onward @ w
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
     best = first_best(score, choice_state, relative_tie=1e-12)
     action = np.full(mdp.n, -1, dtype=np.int64)
     action[choice_state[best]] = mdp.choice_action[best]
     return action
+
+
+def _onward_matrix(mdp: CanonicalMDP, optimal: np.ndarray, opt_choices: np.ndarray,
+                   group_of: np.ndarray) -> sp.csr_matrix:
+    """[optimal choices, groups] DISCOUNT x the probability of each optimal choice's move to
+    each state that still has choices and is not the goal (its group), duplicates summed:
+    built in place from the MDP's entries (each choice's entries are contiguous), one copy."""
+    onward_state = (group_of >= 0) & ~mdp.goal
+    selected = optimal[mdp.entry_choice]
+    selected &= onward_state[mdp.entry_target]
+    selected = np.flatnonzero(selected)
+    counts = np.bincount(mdp.entry_choice[selected], minlength=len(optimal))[opt_choices]
+    data = mdp.entry_prob[selected]
+    data *= DISCOUNT
+    columns = group_of[mdp.entry_target[selected]]
+    del selected
+    index = np.int32 if max(len(opt_choices), len(data)) < 2 ** 31 - 1 else np.int64
+    row_start = np.r_[0, np.cumsum(counts)].astype(index)
+    matrix = sp.csr_matrix((data, columns.astype(index), row_start),
+                           shape=(len(opt_choices), int(group_of.max(initial=-1)) + 1))
+    matrix.sum_duplicates()
+    return matrix
+
+
+def _row_block(matrix: sp.csr_matrix, low: int, high: int) -> sp.csr_matrix:
+    """Rows low..high-1 of `matrix`, sharing its data and indices (a slice would copy them)."""
+    start, end = matrix.indptr[low], matrix.indptr[high]
+    return sp.csr_matrix((matrix.data[start:end], matrix.indices[start:end],
+                          matrix.indptr[low:high + 1] - start),
+                         shape=(high - low, matrix.shape[1]))
 
 
 def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np.ndarray,

@@ -68,11 +68,12 @@ class InducedDTMC:
     @functools.cached_property
     def source(self) -> np.ndarray:
         """The transitions' sources, sorted (then by target: `target`, `probability`)."""
-        return np.repeat(np.arange(self.n), np.diff(self.chain.matrix.indptr))
+        return np.repeat(np.arange(self.n, dtype=self.chain.matrix.indices.dtype),
+                         np.diff(self.chain.matrix.indptr))
 
-    @functools.cached_property
+    @property
     def target(self) -> np.ndarray:
-        return self.chain.matrix.indices.astype(np.int64)
+        return self.chain.matrix.indices
 
     @property
     def probability(self) -> np.ndarray:
@@ -151,17 +152,18 @@ def stationary_dtmc(mdp: CanonicalMDP, action: np.ndarray, decoded: DecodedState
     live = np.r_[live[live == initial], live[live != initial]]   # ... the initial state first
     n_live = len(live)
     goal_id, fail_id = n_live, n_live + 1
-    index = np.full(mdp.n, -1, dtype=np.int64)
+    index = np.full(mdp.n, -1, dtype=np.int32 if n_live + 2 < 2 ** 31 else np.int64)
     index[live] = np.arange(n_live)
     index[mdp.goal] = goal_id
     index[mdp.fail] = fail_id
     chosen = mdp.choice_action == action[mdp.choice_state]
-    taken = chosen[mdp.entry_choice]
-    source = index[mdp.choice_state[mdp.entry_choice[taken]]]
-    target = index[mdp.entry_target[taken]]
-    source = np.r_[source, goal_id, fail_id]
-    target = np.r_[target, goal_id, fail_id]
+    taken = np.flatnonzero(chosen[mdp.entry_choice])
+    del chosen
+    loops = np.array([goal_id, fail_id], dtype=index.dtype)
+    source = np.concatenate([index[mdp.choice_state[mdp.entry_choice[taken]]], loops])
+    target = np.concatenate([index[mdp.entry_target[taken]], loops])
     probability = np.r_[mdp.entry_prob[taken], 1.0, 1.0]
+    del taken
     names, values = _valuations(mdp, decoded, ts, live)
     values = np.vstack([values, np.full((1, len(names)), GOAL_VALUE, dtype=np.int64),
                         np.full((1, len(names)), FAIL_VALUE, dtype=np.int64)])

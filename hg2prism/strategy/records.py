@@ -199,7 +199,7 @@ def strategy_json_chunks(decoded: DecodedStates, choices: StormChoices, moves: T
     with_sets = window.shape[-1] > 2
     n_sets = ts.n_sets if with_sets else 1
     n_a1 = ts.n_actions
-    code = window[..., 0] * n_a1 + window[..., 1]
+    code = window[..., 0].astype(np.int64) * n_a1 + window[..., 1]
     if with_sets:
         code = code * n_sets + window[..., 2]
     present = window[..., 0] >= 0
