@@ -195,7 +195,7 @@ class Outputs:
     cache: dict[str, object] = field(default_factory=dict)
 
     def read(self, source: str) -> object:
-        if "/" not in source:
+        if "/" not in source and not source.endswith(".json"):
             source += "/results.json"
         if source not in self.cache:
             text = (self.data / source).read_text()
@@ -397,6 +397,23 @@ def bench_table(out: Outputs) -> str:
     return _table(["world", "canonical states", *stages, "total", "peak memory"], rows)
 
 
+def bench_huge(out: Outputs) -> str:
+    """`make bench-huge`'s world (docs/data/bench_huge.json, written by it): its sizes, time
+    per stage, peak memory per canonical state, and when and where it was measured."""
+    huge = out.read("bench_huge.json")
+    stages = ("games", "parse", "build", "check", "export")
+    rows = [[r["name"].removeprefix("bench_").replace("_", " "), f"{r['states']:,}",
+             f"{r['storm_states']:,}", f"{r['storm_transitions']:,}",
+             *(f"{r[f'time_{s}']:.1f}" for s in stages), f"{r['time_total']:.1f}",
+             _memory(r["peak_mb"]), f"{r['peak_mb'] * 2 ** 20 / r['states']:,.0f}"]
+            for r in huge["rows"] if not r.get("error")]
+    table = _table(["world", "canonical states", "Storm states", "Storm transitions", *stages,
+                    "total (s)", "peak memory", "bytes per state"], rows)
+    machine = huge["machine"]
+    return (f"{table}\n\nMeasured {huge['measured']} on {machine['cpus']} cores and "
+            f"{machine['memory_gb']:g} GB.")
+
+
 def _episode_named(out: Outputs, case: str, name: str) -> dict:
     return next(e for e in out.read(f"{case}/explorer.json")["episodes"] if e["name"] == name)
 
@@ -470,6 +487,7 @@ BLOCKS: dict[str, Callable[[Outputs], str]] = {
     "world4-weight": world4_weight,
     "world4-start": world4_start,
     "bench-table": bench_table,
+    "bench-huge": bench_huge,
     "world3-steps": world3_steps,
     "world1-exits": world1_exits,
 }
