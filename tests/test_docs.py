@@ -193,9 +193,13 @@ def test_the_benchmarks_summary_is_computed_from_its_rows() -> None:
     named = {r["name"] for r in rows}
     assert set(kept["delay_costs"]) == {r["name"] for r in rows if r["delay"]} and \
         set(kept["delay_costs"]) <= named
+    good = [r for r in rows if not r.get("error")]
+    assert kept["bayes_costs"] == pytest.approx(dict(bench.bayes_costs(good)), abs=1e-9)
+    huge = bench.read_huge(ROOT / "docs" / "data" / "bench_huge.json")
+    assert kept["missed_targets"] == bench.missed_targets(rows, huge)
     # the keys are those bench writes
     complete = [{**r, "storm_states": r["states"]} for r in rows]
-    assert set(bench.bench_results(complete)) == set(kept)
+    assert set(bench.bench_results(complete, huge)) == set(kept)
 
 
 def test_the_sweep_parameters_the_docs_use_refuse_what_does_not_fit() -> None:

@@ -465,11 +465,12 @@ def missed_targets(rows: list[dict], huge: list[dict] | None = None) -> list[str
     return missed
 
 
-def bench_results(rows: list[dict]) -> dict:
+def bench_results(rows: list[dict], huge: list[dict] | None = None) -> dict:
     """results.json (docs/performance.md is rendered from it): every row, and the summary's
     numbers: the log-log slope of the total time (worlds without delay, SLOPE_RANGE), each
     stage's from 1e5 states, each delayed world's Storm cost per state against its twin
-    without delay, and the largest grid world."""
+    without delay, each Bayesian world's time per state against its CUSUM twin's, the largest
+    grid world, and the targets missed (`missed_targets`, with `huge`: make bench-huge's rows)."""
     good = [r for r in rows if not r.get("error")]
     plain = undelayed(good)
     top = max(grids(good) or good, key=lambda r: r["states"]) if good else None
@@ -477,7 +478,9 @@ def bench_results(rows: list[dict]) -> dict:
             "stage_slopes": {stage: loglog_slope(plain, 1e5, math.inf, f"time_{stage}")
                              for stage in STAGES + ("total",)},
             "delay_costs": dict(delay_costs(good)),
-            "largest": None if top is None else top["name"]}
+            "bayes_costs": dict(bayes_costs(good)),
+            "largest": None if top is None else top["name"],
+            "missed_targets": missed_targets(rows, huge)}
 
 
 def summary(rows: list[dict], huge: list[dict] | None = None) -> str:
@@ -606,7 +609,7 @@ def run_bench(out_dir: Path, sizes=DEFAULT_SIZES, show_progress: bool = True,
                          "window": 3, "hypotheses": 3,
                          "traps": 1, "delay": 0})
     write_csv(rows, out_dir / "results.csv")
-    write_json(out_dir / "results.json", bench_results(rows))
+    write_json(out_dir / "results.json", bench_results(rows, list(huge)))
     good = [r for r in rows if not r.get("error")]
     if good:
         from hg2prism.report.plots import scaling_figure   # after the children: keeps them small

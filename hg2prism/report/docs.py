@@ -391,10 +391,19 @@ def bench_table(out: Outputs) -> str:
     stages = ("games", "generate", "parse", "build", "check", "export", "write")
     rows = [[r["name"].removeprefix("bench_").replace("_", " "), f"{r['states']:,}",
              *(f"{r[f'time_{s}']:.2f}" for s in stages), f"{r['time_total']:.1f}",
-             _memory(r["peak_mb"])]
+             _memory(r["peak_mb"]), f"{r['peak_mb'] * 2 ** 20 / r['states']:,.0f}"]
             for r in out.read("bench/results.json")["rows"]
             if (r.get("form") or "grid") == "grid" and not r.get("error")]
-    return _table(["world", "canonical states", *stages, "total", "peak memory"], rows)
+    return _table(["world", "canonical states", *stages, "total", "peak memory",
+                   "bytes per state"], rows)
+
+
+def bench_targets(out: Outputs) -> str:
+    """The scaling targets the last `make bench` missed (bench/results.json's
+    `missed_targets`, with make bench-huge's row for the ten million states), or that it met
+    them all."""
+    missed = out.read("bench/results.json")["missed_targets"]
+    return "\n".join(f"- {line}" for line in missed) if missed else "- none: every target met"
 
 
 def bench_huge(out: Outputs) -> str:
@@ -488,6 +497,7 @@ BLOCKS: dict[str, Callable[[Outputs], str]] = {
     "world4-start": world4_start,
     "bench-table": bench_table,
     "bench-huge": bench_huge,
+    "bench-targets": bench_targets,
     "world3-steps": world3_steps,
     "world1-exits": world1_exits,
 }
