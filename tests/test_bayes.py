@@ -16,6 +16,7 @@ import pytest
 
 import reference_bayes
 import worldgen
+from hg2prism.model import sizeguard
 from hg2prism import pipeline, progress
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.errors import InputError
@@ -160,6 +161,8 @@ def test_value_and_size_match_the_reference(case) -> None:
     ref = reference_world(path).solve()
     assert result.results.deceptive_value == pytest.approx(ref.value, abs=TOL)
     assert (result.results.states, result.results.transitions) == (ref.states, ref.transitions)
+    # the size guard's estimate bounds the Bayesian hypergame (model/sizeguard.py)
+    assert ref.states <= sizeguard.estimate_states(result.analysis.world)
     if result.analysis.world.decision == "map":
         # P1 moves knowing a2 only when P2 is deterministic; a drawn trap set can beat V_lead
         assert result.results.v_lead <= result.results.deceptive_value + TOL

@@ -29,7 +29,8 @@ The bound (rigorous; every factor over-approximates one component of a canonical
 That is the CUSUM observer's memory (§5); each kind of observer says how its memory enters the
 bound (`ObserverKind.memory`, opponent/registry.py): the Bayesian one (§12) remembers no
 hypothesis beside its window (X is 1), w observations (L = 0 .. w), each with the trap set in
-force (|A2| walks per observation step).
+force (|A2| walks per observation step; without delay at most as many as the hypotheses, the
+set being pi2_x(v) of the observation's state v for the hypothesis x she acted on).
 
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap

@@ -205,9 +205,14 @@ def _build(world: World, games: list[PerceptualGame]) -> BayesObserver:
 
 
 def _memory(world: World) -> MemoryBound:
-    """The memory is the window alone (no hypothesis): w observations, each with P2's action."""
+    """The memory is the window alone (no hypothesis): w observations, each with P2's action.
+    Without delay the action an observation records is P2's choice at its state,
+    pi2_x(v) for the hypothesis x she acted on (drawn or not), so one of at most as many
+    actions as hypotheses; with delay it may be a standing action chosen earlier."""
+    actions = p2_action_count(world)
     return MemoryBound(hypotheses=1, observations=world.window,
-                       sets_per_observation=p2_action_count(world))
+                       sets_per_observation=min(actions, len(world.hypotheses))
+                       if world.delay == 0 else actions)
 
 
 def _mismatches(world: World, max_score: float, vary: Callable[..., World]
