@@ -140,6 +140,37 @@ def test_attractor_ranks_and_choices() -> None:
                                                              False]
 
 
+@pytest.mark.parametrize("seed", range(40))
+def test_downstream_first_orders_the_strongly_connected_sets(seed: int) -> None:
+    """numeric.downstream_first on random small graphs (self-loops, cycles, isolated nodes)
+    against the definition, with reachability found by a depth-first search here: the sets
+    partition the nodes, two nodes share a set exactly when each reaches the other, and a set
+    comes after every other set it reaches."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 9))
+    successor = rng.integers(0, n, size=(n, int(rng.integers(1, 4))))
+    sinks = rng.random(n) < 0.3                         # nodes with a self-loop only
+    successor[sinks] = np.arange(n)[sinks][:, None]
+    reaches = []
+    for i in range(n):
+        seen, stack = {i}, [i]
+        while stack:
+            for j in successor[stack.pop()]:
+                if int(j) not in seen:
+                    seen.add(int(j))
+                    stack.append(int(j))
+        reaches.append(seen)
+    order = numeric.downstream_first(successor)
+    assert sorted(i for part in order for i in part) == list(range(n))
+    position = {i: k for k, part in enumerate(order) for i in part}
+    for i in range(n):
+        for j in range(n):
+            mutual = j in reaches[i] and i in reaches[j]
+            assert (position[i] == position[j]) == mutual, (i, j)
+            if j in reaches[i] and not mutual:
+                assert position[j] < position[i], (i, j)
+
+
 def test_optimal_values_of_a_hand_mdp() -> None:
     """Maximiser: 0 -> 1 and 1 -> goal: x1 = 0.5 + 0.5 x0, x0 = 0.5 x1 give x0 = 1/3, x1 = 2/3;
     2 takes 0. Minimiser: everyone stays (or fails) and nothing reaches the goal."""

@@ -115,6 +115,28 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     return progress
 
 
+def downstream_first(successor: np.ndarray) -> list[list[int]]:
+    """The strongly connected sets of a small graph (successor[i] the nodes i has an edge to),
+    each listed after every set it can reach: the order in which values that flow backwards
+    along the edges (reachability) can be computed one set at a time."""
+    n = successor.shape[0]
+    reach = np.eye(n, dtype=bool)
+    reach[np.repeat(np.arange(n), successor.shape[1]), successor.reshape(-1)] = True
+    for k in range(n):                                                # transitive closure
+        reach |= reach[:, k:k + 1] & reach[k:k + 1, :]
+    done = np.zeros(n, dtype=bool)
+    order: list[list[int]] = []
+    while not done.all():
+        for i in np.flatnonzero(~done):
+            if done[i]:
+                continue
+            same = reach[i] & reach[:, i]
+            if not (reach[i] & ~same & ~done).any():                  # all it reaches is done
+                order.append([int(j) for j in np.flatnonzero(same)])
+                done |= same
+    return order
+
+
 def move_predecessors(successor: np.ndarray, probability: np.ndarray,
                       only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(moves, start) of a game given as outcome tables successor/probability [G, A1, A2, K]:

@@ -1,12 +1,18 @@
 """P2's perceptual games G(x) (docs/semantics.md §4), solved in numpy.
 
 G(x) is played on TS x DFA(x): at every step P2 commits to a trap set a2, then P1 answers with a1.
-Values are solved to within 1e-10 (docs/semantics.md §10): a few sweeps of value iteration from below seed
-the strategies; the pair greedy for the values is evaluated exactly (a sparse linear solve) and
-re-greedied for a few rounds; where that cycles (on delay worlds P2 changed about a third of her
-trap sets every round), Hoffman-Karp strategy iteration — P1 improves his answers, P2
-best-responds exactly — finds the values (the games stage of the benchmark's delay worlds fell
-from 9-151 s to 3-30 s, docs/performance.md). The result is certified:
+Values are solved to within 1e-10 (docs/semantics.md §10), one part of the game at a time where
+the DFA has several strongly connected parts (downstream first, each with the values of what it
+can enter fixed: on delay worlds a part is a third to a fifth of the game, and its linear solves
+several times cheaper): a few sweeps of value iteration from below seed the strategies; the pair
+greedy for the values is evaluated exactly (a sparse linear solve) and re-greedied for a few
+rounds; where that cycles (on delay worlds P2 changed about a third of her trap sets every
+round), Hoffman-Karp strategy iteration — P1 improves his answers, P2 best-responds exactly —
+finds the values. Both players' strategy iterations look ahead (modified strategy iteration:
+the strategy greedy for a few sweeps of value iteration from the exact values, kept only when
+its exact values improve on them), which halves their rounds on delay worlds. (The games stage
+of the benchmark's delay worlds fell from 9-151 s to 3-30 s with strategy iteration, and by a
+further 1.2-2.8x of CPU with the parts and the look-ahead, docs/performance.md.) The result is certified:
   * the pair's value x is a fixed point of the game operator, so P1's best answer to P2's
     greedy strategy is at most x (the least fixed point lies below every fixed point), and
   * x is 0 wherever P2 can keep P1 away from the target forever against P1's strategy; then
@@ -22,8 +28,8 @@ import scipy.sparse as sp
 
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
-from hg2prism.numeric import (alternating_attractor, backward_reach, move_predecessors,
-                              solve_plain)
+from hg2prism.numeric import (alternating_attractor, backward_reach, downstream_first,
+                              move_predecessors, solve_plain)
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -40,6 +46,12 @@ POLISH_ROUNDS = 12
 IMPROVEMENT = 1e-12
 DROP = 1e-9             # a fall of P1's values by more than this is not float noise of a solve
 MAX_ROUNDS = 10_000
+# Sweeps of value iteration each look-ahead of P2's best response (of her operator against P1's
+# answers) and of P1's improvement (of the game operator) takes before its greedy strategy is
+# evaluated exactly; 0 turns the look-ahead off. 30 was fastest of 3, 10, 30, 100 and 300 on the
+# benchmark's one-trap delay worlds (the solves fell from 98-114 to 56-62 on their leader game).
+LOOKAHEAD = 30
+P1_LOOKAHEAD = 30
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,11 +89,56 @@ class TurnBasedGame:
         self.next, self.prob, self.allowed = arena.next, arena.prob, arena.allowed
         self.goal, self.zero_fixed = arena.goal, arena.fail
         self.free = arena.free
+        self.terminal = arena.goal.astype(float)      # the value of each absorbing state
         self.size = arena.size
         self._reverse: tuple[np.ndarray, np.ndarray] | None = None
         standing = _standing_sets(ts)
         self.standing = None if standing is None else np.repeat(standing, n_q)
         self._pairs: tuple[np.ndarray, ...] | None = None
+
+    def restricted(self, states: np.ndarray, values: np.ndarray) -> TurnBasedGame:
+        """The game on `states` (free states, increasing) alone, in local numbers: those
+        states first, then every state they can enter outside them, absorbing with its value
+        in `values` (the goal among them, and every exit of positive value, is the new goal).
+        Its values on `states` are the game's when `values` are exact on the exits."""
+        sub = object.__new__(TurnBasedGame)
+        sub.ts, sub.dfa = self.ts, self.dfa
+        inside = np.zeros(self.size, dtype=bool)
+        inside[states] = True
+        entered = np.zeros(self.size, dtype=bool)
+        entered[self.next[states].reshape(-1)] = True
+        exits = np.flatnonzero(entered & ~inside)
+        local = np.full(self.size, -1, dtype=self.next.dtype)
+        local[states] = np.arange(states.size)
+        local[exits] = states.size + np.arange(exits.size)
+        n, shape = states.size + exits.size, self.next.shape[1:]
+        sub.next = np.empty((n,) + shape, dtype=self.next.dtype)
+        sub.next[:states.size] = local[self.next[states]]
+        sub.next[states.size:] = (states.size + np.arange(exits.size))[:, None, None, None]
+        sub.prob = np.zeros((n,) + shape)
+        sub.prob[:states.size] = self.prob[states]
+        sub.prob[states.size:, ..., 0] = 1.0
+        every = np.r_[states, exits]
+        sub.allowed = self.allowed[every]
+        sub.terminal = np.r_[np.zeros(states.size), values[exits]]
+        sub.goal = sub.terminal > 0
+        sub.free = np.r_[np.ones(states.size, dtype=bool), np.zeros(exits.size, dtype=bool)]
+        sub.zero_fixed = ~sub.free & ~sub.goal
+        sub.size = n
+        sub.standing = None if self.standing is None else self.standing[every]
+        sub._reverse, sub._pairs = None, None
+        return sub
+
+    def parts(self) -> list[np.ndarray]:
+        """The free states by strongly connected set C of DFA states (those of TS x C), in
+        numeric.downstream_first's order of the sets: a part's moves enter only itself, the
+        parts before it and absorbing states, so each part can be solved once the values of
+        the parts before it are known."""
+        n_q = self.dfa.n_states
+        order = downstream_first(self.dfa.delta)
+        q_of = np.arange(self.size) % n_q
+        parts = [np.flatnonzero(self.free & np.isin(q_of, part)) for part in order]
+        return [part for part in parts if part.size]
 
     def moves(self, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The successors and probabilities [..., K] of the moves (g, a1, a2) numbered
@@ -205,20 +262,43 @@ def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
 
 
 def _solve(game: TurnBasedGame) -> GameSolution:
-    ts, dfa = game.ts, game.dfa
+    """The game's values and strategies. Where the DFA has several strongly connected parts
+    (`TurnBasedGame.parts`), each is solved on its own, downstream first, with the values of
+    what it can enter fixed (on delay worlds each part is a third to a fifth of the game, and
+    its linear solves several times cheaper); the composed values are then certified on the
+    whole game (module docstring), which falls back to solving it whole should that fail."""
+    parts = game.parts()
+    certified = None
+    if len(parts) > 1:
+        x, sweeps = game.terminal.copy(), 0
+        for states in parts:
+            values, _, _, used = _solve_whole(game.restricted(states, x))
+            x[states] = values[:states.size]
+            sweeps += used
+        certified = _finish(game, x, game.allowed_q(x))
+    if certified is None:
+        certified = _solve_whole(game)
+        sweeps = certified[3]
+    values, p1, p2 = certified[:3]
+    return GameSolution(values=values.reshape(game.ts.n_states, game.dfa.n_states),
+                        p2_strategy=p2, p1_strategy=p1, sweeps=sweeps)
+
+
+def _solve_whole(game: TurnBasedGame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Values (certified), P1's answers, P2's trap sets and the sweeps of value iteration used:
+    value iteration seeds strategy iteration (`_certify`), with a tolerance 100 times smaller
+    each time certification fails."""
     rank = game.positive_attractor()
     zero = ~game.goal & (rank < 0)
     fixed = ~game.free | zero
-    lower = game.goal.astype(float)
+    lower = game.terminal.copy()
     tolerance, sweeps = VI_TOLERANCE, 0
     while True:
         lower, used = _value_iteration(game, lower, fixed, tolerance)
         sweeps += used
         certified = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11))
         if certified is not None:
-            values, p1, p2 = certified
-            return GameSolution(values=values.reshape(ts.n_states, dfa.n_states),
-                                p2_strategy=p2, p1_strategy=p1, sweeps=sweeps)
+            return (*certified, sweeps)
         if tolerance < 1e-15:
             raise SolverError("could not certify the game values to 1e-10 (docs/semantics.md §10)")
         tolerance /= 100
@@ -257,8 +337,15 @@ def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack
     else:
         x = _strategy_iteration(game, p1, p2, zero)
         q = game.allowed_q(x)
-        if _residual(game, x, q) > 1e-11:
-            return None
+    return _finish(game, x, q)
+
+
+def _finish(game: TurnBasedGame, x: np.ndarray, q: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """(x, P1's answers greedy for x, P2's trap sets by `trap_rule`) if the values x of a pair
+    of strategies (q = allowed_q(x)) are certified (module docstring), else None."""
+    if _residual(game, x, q) > 1e-11:
+        return None
     # From exact values of a pair, only float noise separates truly optimal moves.
     p1_x, _ = _greedy(game, q, 1e-12)
     if not is_certified(game, p1_x, x):
@@ -287,7 +374,10 @@ def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zer
     waits a long time (delay worlds) float noise in the values can exceed IMPROVEMENT, and a
     switch that only looks better can let P2 trap him: the values then drop, and the switches
     at the states that dropped are undone (all of them, ending the iteration, if values still
-    drop). The caller certifies the result."""
+    drop). Each round first tries a look-ahead (P1_LOOKAHEAD): the answers greedy for that
+    many sweeps of the game operator from x, kept when P2's best response to them leaves the
+    values nowhere below x and above it somewhere by more than IMPROVEMENT, a rise too. The
+    caller certifies the result."""
     solve = game.free & ~zero
     p1 = p1.copy()
     p2, x = _trap_response(game, p1, p2, zero)
@@ -298,6 +388,20 @@ def _strategy_iteration(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zer
         if not better.any():
             return x
         switched = np.where(better, q.argmax(axis=1), p1)
+        if P1_LOOKAHEAD:
+            w = x.copy()
+            keep = ~solve
+            for _ in range(P1_LOOKAHEAD):
+                w = np.where(keep, w, game.bellman(w))
+            qw = game.allowed_q(w)
+            now = np.take_along_axis(qw, switched[:, None, :], axis=1)[:, 0, :]
+            ahead = (solve[:, None] & game.allowed) & (best_answer(qw) > now + IMPROVEMENT)
+            if ahead.any():
+                jump = np.where(ahead, qw.argmax(axis=1), switched)
+                p2_jump, new = _trap_response(game, jump, p2, zero)
+                if (new >= x - IMPROVEMENT).all() and (new > x + IMPROVEMENT).any():
+                    p1, p2, x = jump, p2_jump, new
+                    continue
         p2_new, new = _trap_response(game, switched, p2, zero)
         dropped = new < x - DROP
         if dropped.any():
@@ -327,14 +431,33 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     # Only P1's answers matter here: the successors and probabilities of (g, p1[g, a2], a2).
     n_a2 = game.next.shape[2]
     nxt, prob = game.moves((rows[:, None] * game.next.shape[1] + p1) * n_a2 + np.arange(n_a2))
+    pair_g, pair_a2 = np.nonzero(solve[:, None] & game.allowed)      # her choices, by state
+    pair_next, pair_prob = nxt[pair_g, pair_a2], prob[pair_g, pair_a2]
+    starts = np.flatnonzero(np.r_[True, pair_g[1:] != pair_g[:-1]])
+    states = pair_g[starts]
+    x = _evaluate_pair(game, p1, p2, pinned)
     for _ in range(MAX_ROUNDS):
-        x = _evaluate_pair(game, p1, p2, pinned)
-        answered = outcome_sum(prob, x, nxt)
-        worst = np.where(game.allowed, answered, np.inf)
+        worst = np.where(game.allowed, outcome_sum(prob, x, nxt), np.inf)
         better = solve & (worst.min(axis=1) < worst[rows, p2] - IMPROVEMENT)
         if not better.any():
             return p2, x
-        p2 = np.where(better, worst.argmin(axis=1), p2)
+        step = np.where(better, worst.argmin(axis=1), p2)
+        # Look ahead (modified strategy iteration): the sets greedy for LOOKAHEAD sweeps of
+        # her operator from x, kept only if their exact values are nowhere above x and below
+        # it somewhere by more than IMPROVEMENT (else the plain step): every round lowers the
+        # values, so no strategy comes back.
+        w = x.copy()
+        for _ in range(LOOKAHEAD):
+            w[states] = np.minimum.reduceat(outcome_sum(pair_prob, w, pair_next), starts)
+        ahead = np.where(game.allowed, outcome_sum(prob, w, nxt), np.inf)
+        jump = np.where(solve & (ahead.min(axis=1) < ahead[rows, step] - IMPROVEMENT),
+                        ahead.argmin(axis=1), step)
+        if (jump != step).any():
+            new = _evaluate_pair(game, p1, jump, pinned)
+            if (new <= x + IMPROVEMENT).all() and (new < x - IMPROVEMENT).any():
+                p2, x = jump, new
+                continue
+        p2, x = step, _evaluate_pair(game, p1, step, pinned)
     raise SolverError(f"P2's strategy iteration did not end in {MAX_ROUNDS} rounds")
 
 
@@ -391,7 +514,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
     edge = solve[:, None] & (prob > 0)
     solve &= backward_reach(np.broadcast_to(rows[:, None], nxt.shape)[edge], nxt[edge],
                             np.flatnonzero(game.goal), n)
-    x = game.goal.astype(float)
+    x = game.terminal.copy()
     idx = np.flatnonzero(solve)
     if idx.size:
         pos = np.full(n, -1)
@@ -402,7 +525,7 @@ def _evaluate_moves(game: TurnBasedGame, a1: np.ndarray, p2: np.ndarray, zero: n
         c = pos[sub_next[inner]]
         matrix = sp.identity(idx.size, format="csr") - sp.csr_matrix(
             (sub_prob[inner], (r, c)), shape=(idx.size, idx.size))
-        rhs = (sub_prob * game.goal[sub_next]).sum(axis=1)
+        rhs = (sub_prob * game.terminal[sub_next]).sum(axis=1)
         x[idx] = solve_plain(matrix, rhs)
     return x
 
