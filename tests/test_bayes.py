@@ -252,7 +252,55 @@ def test_commands_do_not_grow_with_the_window(world_dir: Path) -> None:
         with progress.quiet():
             model = pipeline.emit(load_world(path), world_dir / path.stem)
         counts.append(model.commands)
-    assert counts[0] == counts[1] == {"robot": 5, "task": 4, "p2_inference": 4}
+    # "sample": per action slot one command where the hypotheses' actions agree and one that
+    # draws where they differ, and the absorbing one
+    assert counts[0] == counts[1] == {"robot": 9, "task": 4, "p2_inference": 4}
+
+
+@pytest.mark.parametrize("name", ["b11_fam09_d0_l2_w1_x3_uniform_sample",
+                                  "b02_fam01_d1_l1_w1_x3_uniform_sample",
+                                  "b05_fam02_d2_l1_w1_x4_uniform_sample",
+                                  "b30_fam40_tx_d0_l1_w2_uniform_sample"])
+def test_where_the_hypotheses_agree_the_draw_is_not_modelled(name: str, world_dir: Path) -> None:
+    """"sample": where every hypothesis plays the same action the draw changes nothing, and
+    Storm's distribution is the move's alone, P(v' | v, a1, a2) as Storm reads the arena's
+    numbers: the same bits at every window (sum_x p(x | W) P(v' | v, a1, a2), computed,
+    would vary with W in its last digits). Where the actions differ, P2 draws."""
+    result = run(name, str(world_dir))
+    decoded, observer, ts = result.decoded, result.analysis.inference, result.analysis.ts
+    moves = result.engine.explicit(result.checked.model).transitions
+    rows: dict[tuple[int, int], set] = {}
+    met: dict[tuple[int, int], int] = {}
+    drawn = 0
+    for choice in range(len(moves.source)):
+        s = int(moves.source[choice])
+        if decoded.goal[s] or decoded.fail[s] or moves.action[choice] < 0:
+            continue
+        a1 = int(moves.action[choice])
+        v = ts.state(int(decoded.place[s]), int(decoded.traps[s]), int(decoded.countdown[s]))
+        sets = {int(observer.trap_choice[x][v]) for x in range(observer.n_hypotheses)}
+        if len(sets) > 1:
+            drawn += 1
+            continue
+        a2 = sets.pop()
+        expected: dict[int, float] = {}
+        for k in range(ts.succ.shape[-1]):
+            if ts.prob[v, a1, a2, k] > 0:
+                w = int(ts.succ[v, a1, a2, k])
+                expected[w] = expected.get(w, 0.0) + float(ts.prob[v, a1, a2, k])
+        built = {}
+        for e in range(moves.row_start[choice], moves.row_start[choice + 1]):
+            t = int(moves.target[e])
+            cell = int(decoded.place[t])
+            w = ts.trapped if cell == ts.n_places else ts.state(cell, int(decoded.traps[t]),
+                                                                int(decoded.countdown[t]))
+            built[w] = float(moves.probability[e])
+        assert built.keys() == expected.keys()
+        assert all(built[w] == pytest.approx(p, rel=1e-15) for w, p in expected.items())
+        rows.setdefault((v, a1), set()).add(tuple(sorted(built.items())))
+        met[v, a1] = met.get((v, a1), 0) + 1
+    assert drawn > 0 and max(met.values()) > 1           # a move met at several windows
+    assert all(len(found) == 1 for found in rows.values())
 
 
 @pytest.mark.parametrize("name", ["b02_fam01_d1_l1_w1_x3_uniform_sample",
