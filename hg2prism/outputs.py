@@ -96,7 +96,14 @@ def _join_pool_workers(timeout: float = 10.0) -> None:
     for thread in threading.enumerate():
         if thread is not threading.current_thread() and \
                 thread.name.startswith("ThreadPoolExecutor"):
-            thread.join(max(0.0, deadline - time.monotonic()))
+            while True:     # the signal may have come while the pool was starting this one
+                try:
+                    thread.join(max(0.0, deadline - time.monotonic()))
+                    break
+                except RuntimeError:        # not started yet: it will be in a moment
+                    if time.monotonic() >= deadline:
+                        break
+                    time.sleep(0.001)
 
 
 @contextmanager

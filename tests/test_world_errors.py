@@ -646,3 +646,28 @@ def test_arena_base_worlds_validate(tmp_path: Path) -> None:
         proc = run_cli(["validate", str(path)], tmp_path)
         assert proc.returncode == 0 and proc.stderr == "", proc.stderr
         assert proc.stdout.startswith(f"{path}: ok (lateral: arena of 5 states, ")
+
+
+def test_a_stop_while_a_pool_starts_a_worker_waits_for_it() -> None:
+    """A signal can stop a command while a thread pool is starting a worker: the worker is then
+    listed but not started, and joining it raised "cannot join thread before it is started"
+    (a traceback instead of the stop's exit status; seen once in the suite). It is waited for
+    instead, and joined once it runs."""
+    import threading
+    import time
+
+    from hg2prism.outputs import _join_pool_workers
+
+    worker = threading.Thread(target=lambda: time.sleep(0.02), name="ThreadPoolExecutor-test")
+    run = worker._bootstrap_inner
+
+    def late() -> None:             # the worker starts running only after a while
+        time.sleep(0.05)
+        run()
+
+    worker._bootstrap_inner = late
+    threading.Thread(target=worker.start).start()
+    time.sleep(0.01)
+    assert not worker._started.is_set()     # listed, not started: the case
+    _join_pool_workers()
+    assert worker._started.is_set() and not worker.is_alive()
