@@ -119,7 +119,11 @@ class TurnBasedGame:
         sub.prob[:states.size] = self.prob[states]
         sub.prob[states.size:, ..., 0] = 1.0
         every = np.r_[states, exits]
+        # An exit is absorbing: one allowed set (its first) keeps its moves out of the searches.
         sub.allowed = self.allowed[every]
+        first = sub.allowed[states.size:].argmax(axis=1)
+        sub.allowed[states.size:] = False
+        sub.allowed[states.size + np.arange(exits.size), first] = True
         sub.terminal = np.r_[np.zeros(states.size), values[exits]]
         sub.goal = sub.terminal > 0
         sub.free = np.r_[np.ones(states.size, dtype=bool), np.zeros(exits.size, dtype=bool)]
