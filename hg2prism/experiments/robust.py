@@ -270,7 +270,7 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     return robust.json's content. `check_result` (pipeline.check of the world) is computed in a
     scratch folder when not given."""
     from hg2prism import pipeline
-    from hg2prism.prism.robust_model import CHECK_EPS, delta_text
+    from hg2prism.prism.robust_model import CHECK_EPS, delta_text, refuse_drawing
     from hg2prism.report import plots
 
     parsed = parse_deltas(deltas)
@@ -284,8 +284,13 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     if check_result is None:
         with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch, progress.quiet():
             check_result = pipeline.check(world, Path(scratch))
+    refuse_drawing(world, check_result.analysis.inference)
+    say(f"robust: {world.name}'s hypergame checked (deceptive value "
+        f"{check_result.results.deceptive_value:.6f}, {time.perf_counter() - start_all:.1f} s)")
     rows = []
     for delta in parsed:
+        say(f"robust: delta {delta:g}: building the interval model and solving it "
+            "(P1's strategy iteration against the adversary's best resolution)")
         ((solved, seconds),) = solve_budgets(world, check_result, [delta], out)
         write_bytes(out / f"robust_{delta_text(delta)}" / "strategy.json", solved.records_json)
         rows.append({

@@ -57,6 +57,16 @@ def delta_text(delta: float) -> str:
     return text[:-2] if text.endswith(".0") else text
 
 
+def refuse_drawing(world: World, inference: Observer) -> None:
+    """InputError when P2 draws her hypothesis: the interval model is defined for an observer
+    that plays one (docs/semantics.md §13)."""
+    if inference.draws:
+        raise InputError(str(world.path), "inference.decision",
+                         'robust deception (docs/semantics.md §13) is defined here for a '
+                         'Bayesian observer that plays her MAP hypothesis ("map"), not one that '
+                         'draws it ("sample")')
+
+
 def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
                        games: list[PerceptualGame], inference: Observer, delta: float,
                        eps: float = 0.0) -> RobustModel:
@@ -67,11 +77,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
         raise ValueError(f"delta must lie in [0, 1), got {delta}")
     if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
         raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
-    if inference.draws:
-        raise InputError(str(world.path), "inference.decision",
-                         'robust deception (docs/semantics.md §13) is defined here for a '
-                         'Bayesian observer that plays her MAP hypothesis ("map"), not one that '
-                         'draws it ("sample")')
+    refuse_drawing(world, inference)
     context = template_context(world, ts, task, games, inference, played=PLAYED_VARIABLE,
                                observer_prefix=STEP_PREFIX)
     if ts.n_sets == 1:
