@@ -63,12 +63,13 @@ from hg2prism.opponent.observer import p2_action_count
 from hg2prism.opponent.registry import observer_kind
 
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
-# the benchmark family (bench/results.csv, `peak_mb`): 2.3-2.5 KB per canonical state from 4e5
-# to 1e6 states (2,269 MB for 982,387 states: Storm's model with state valuations and choice
-# labels, the arrays read back from Storm, the strategy export), 2.3 KB at 4.2e6 (9,671 MB for
-# 4,202,302 states, estimate 5,006,240). The default limit keeps a model within 24 GiB at 4 KiB
-# per *estimated* state, a margin of 1.6x over the most measured per canonical state, on top
-# of the estimate's own (1.0-4.6x on that family).
+# the benchmark family (`make bench`'s `peak_mb`, docs/data/bench/results.json): 1.4-1.6 KB per
+# canonical state from 5e5 states on (Storm's model with state valuations and choice labels, the
+# arrays read back from Storm, the strategy export; 1,440 bytes at 4.2e6 states, 1,427 at 1.0e7
+# in `make bench-huge`). It was 2.3-2.5 KB when this limit was set: the default keeps a model
+# within 24 GiB at 4 KiB per *estimated* state, now a margin of 2.5x over the most measured per
+# canonical state, on top of the estimate's own (1.0-4.6x on that family; about 30x on the
+# Bayesian benchmark worlds).
 MEMORY_BUDGET = 24 * 2 ** 30
 BYTES_PER_STATE = 4 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
