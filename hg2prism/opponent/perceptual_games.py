@@ -430,22 +430,20 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
     IMPROVEMENT lowers the values until it is reached."""
     answers = p1[:, None, :] == np.arange(game.next.shape[1])[None, :, None]   # [G, A1, A2]
     pinned = zero | (game.positive_attractor(answers) < 0)
-    rows = np.arange(game.size)
     solve = game.free & ~pinned
-    # Only P1's answers matter here: the successors and probabilities of (g, p1[g, a2], a2).
-    n_a2 = game.next.shape[2]
-    nxt, prob = game.moves((rows[:, None] * game.next.shape[1] + p1) * n_a2 + np.arange(n_a2))
-    pair_g, pair_a2 = np.nonzero(solve[:, None] & game.allowed)      # her choices, by state
-    pair_next, pair_prob = nxt[pair_g, pair_a2], prob[pair_g, pair_a2]
+    # Her choices, by state: the allowed sets at the states to solve, and the successors and
+    # probabilities of P1's answer to each (only these: with delay most states allow one set).
+    n_a1, n_a2 = game.next.shape[1:3]
+    pair_g, pair_a2 = np.nonzero(solve[:, None] & game.allowed)
+    pair_next, pair_prob = game.moves((pair_g * n_a1 + p1[pair_g, pair_a2]) * n_a2 + pair_a2)
     starts = np.flatnonzero(np.r_[True, pair_g[1:] != pair_g[:-1]])
     states = pair_g[starts]
+    first = _SegmentArgmin(pair_g, pair_a2, starts, game.size, n_a2)
     x = _evaluate_pair(game, p1, p2, pinned)
     for _ in range(MAX_ROUNDS):
-        worst = np.where(game.allowed, outcome_sum(prob, x, nxt), np.inf)
-        better = solve & (worst.min(axis=1) < worst[rows, p2] - IMPROVEMENT)
-        if not better.any():
+        best, step = first(outcome_sum(pair_prob, x, pair_next), p2)
+        if best is None:
             return p2, x
-        step = np.where(better, worst.argmin(axis=1), p2)
         # Look ahead (modified strategy iteration): the sets greedy for LOOKAHEAD sweeps of
         # her operator from x, kept only if their exact values are nowhere above x and below
         # it somewhere by more than IMPROVEMENT (else the plain step): every round lowers the
@@ -453,9 +451,7 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
         w = x.copy()
         for _ in range(LOOKAHEAD):
             w[states] = np.minimum.reduceat(outcome_sum(pair_prob, w, pair_next), starts)
-        ahead = np.where(game.allowed, outcome_sum(prob, w, nxt), np.inf)
-        jump = np.where(solve & (ahead.min(axis=1) < ahead[rows, step] - IMPROVEMENT),
-                        ahead.argmin(axis=1), step)
+        _, jump = first(outcome_sum(pair_prob, w, pair_next), step)
         if (jump != step).any():
             new = _evaluate_pair(game, p1, jump, pinned)
             if (new <= x + IMPROVEMENT).all() and (new < x - IMPROVEMENT).any():
@@ -463,6 +459,38 @@ def _trap_response(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np
                 continue
         p2, x = step, _evaluate_pair(game, p1, step, pinned)
     raise SolverError(f"P2's strategy iteration did not end in {MAX_ROUNDS} rounds")
+
+
+class _SegmentArgmin:
+    """P2's switches over her choices listed pair by pair (state pair_g, set pair_a2, grouped
+    by state from `starts`): called with each pair's value and her sets `p2` [G], it returns
+    (True, p2 switched to the first set of least value wherever that is below the value of
+    p2's set by more than IMPROVEMENT) or (None, p2) where she switches nowhere. The same
+    choices as the argmin over a [G, A2] table with inf at the sets not listed, without one."""
+
+    def __init__(self, pair_g: np.ndarray, pair_a2: np.ndarray, starts: np.ndarray,
+                 size: int, n_a2: int) -> None:
+        self.pair_a2, self.starts = pair_a2, starts
+        self.states = pair_g[starts]
+        self.lengths = np.diff(np.r_[starts, pair_g.size])
+        self.index = np.full((size, n_a2), -1)
+        self.index[pair_g, pair_a2] = np.arange(pair_g.size)
+        self.position = np.arange(pair_g.size)
+
+    def __call__(self, values: np.ndarray, p2: np.ndarray) -> tuple[bool | None, np.ndarray]:
+        if not self.states.size:
+            return None, p2
+        least = np.minimum.reduceat(values, self.starts)
+        at = self.index[self.states, p2[self.states]]
+        current = np.where(at >= 0, values[at], np.inf)    # (p2 unlisted: any listed set is better)
+        better = least < current - IMPROVEMENT
+        if not better.any():
+            return None, p2
+        at_least = values == np.repeat(least, self.lengths)
+        first = np.minimum.reduceat(np.where(at_least, self.position, values.size), self.starts)
+        switched = p2.copy()
+        switched[self.states[better]] = self.pair_a2[first[better]]
+        return True, switched
 
 
 def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
