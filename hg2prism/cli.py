@@ -468,7 +468,7 @@ def _command(args: argparse.Namespace) -> int:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
     except SolverError as err:
-        print(f"hg2prism: error: {args.world}: games: {err}", file=sys.stderr)
+        print(f"hg2prism: error: {args.world}: solver: {err}", file=sys.stderr)
         return 1
     except StormError as err:
         print(f"hg2prism: error: {args.world}: storm: {str(err).strip().splitlines()[0]}",

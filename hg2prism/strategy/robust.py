@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
-from hg2prism.errors import SolverError
+from hg2prism.errors import PROBABILITY_SLACK, SolverError
 from hg2prism.numeric import ExplicitModel, solve_m_matrix
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
@@ -132,15 +132,17 @@ class IntervalGame:
             np.arange(self.n_choices), np.diff(self.row_start)))
 
     @property
-    def uncertain(self) -> tuple[np.ndarray, np.ndarray]:
-        """The branches of the choices that leave the adversary some mass (in order), and for
-        each the position of its choice's first branch among them."""
+    def uncertain(self) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The branches of the choices that leave the adversary some mass (in order, grouped by
+        choice), and by rank: ranks[j - 1] the positions among them of every choice's j-th
+        branch (j >= 1; the first branches have nothing before them)."""
         def make():
             choices = self.slack > 0
             branches = np.flatnonzero(choices[self.branch_choice])
             choice = self.branch_choice[branches]
             first = np.flatnonzero(np.r_[True, choice[1:] != choice[:-1]])
-            return branches, np.repeat(first, np.diff(np.r_[first, branches.size]))
+            rank = np.arange(branches.size) - np.repeat(first, np.diff(np.r_[first, branches.size]))
+            return branches, [np.flatnonzero(rank == j) for j in range(1, int(rank.max(initial=0)) + 1)]
         return self._cached("uncertain", make)
 
     @property
@@ -156,14 +158,18 @@ def worst_case(game: IntervalGame, values: np.ndarray) -> tuple[np.ndarray, np.n
     branches of smallest value (ties in branch order), each up to its upper bound."""
     branch_value = values[game.target]
     probability = game.lower.copy()
-    branches, group_start = game.uncertain
+    branches, ranks = game.uncertain
     if branches.size:
         choice = game.branch_choice[branches]
         order = np.lexsort((branches, branch_value[branches], choice))   # stays grouped by choice
         ordered = branches[order]
         room = game.upper[ordered] - game.lower[ordered]
-        total = np.r_[0.0, np.cumsum(room)]
-        before = total[:-1] - total[group_start]      # room of the cheaper branches of the choice
+        # the room of the cheaper branches of the same choice, added branch by branch within
+        # the choice (a running sum over all choices would cancel catastrophically: 1e-11 off
+        # on a model of 4e5 states, which put rows above 1 and values above 1)
+        before = np.zeros(branches.size)
+        for at in ranks:
+            before[at] = before[at - 1] + room[at - 1]
         probability[ordered] += np.clip(game.slack[choice] - before, 0.0, room)
     expected = np.bincount(game.branch_choice, weights=probability * branch_value,
                            minlength=game.n_choices)
@@ -318,6 +324,9 @@ def solve_robust(game: IntervalGame) -> RobustSolution:
         raise SolverError(f"robust values are not a fixed point: residual {residual:.2e}")
     if (values[~positive] != 0.0).any():
         raise SolverError("robust values are positive where the adversary avoids the goal")
+    outside = np.abs(values - np.clip(values, 0.0, 1.0)).max(initial=0.0)
+    if outside > PROBABILITY_SLACK:
+        raise SolverError(f"robust values are not probabilities: {outside:.2e} outside [0, 1]")
     return RobustSolution(values=values, strategy=strategy, q_values=q_values, rounds=rounds,
                           residual=residual)
 
