@@ -38,6 +38,7 @@ import scipy.sparse as sp
 from hg2prism.engines.engine import Transitions
 from hg2prism.errors import PROBABILITY_SLACK, SolverError
 from hg2prism.numeric import ExplicitModel, solve_m_matrix
+from hg2prism.numeric.graph import stable_order
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
 P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
@@ -48,6 +49,19 @@ OPTIMAL_SLACK = 1e-8    # as the deceptive strategy: choices this close to the v
 DISCOUNT = 0.9          # as the deceptive strategy: among optimal moves, the fastest
 DISCOUNT_STOP = 1e-9
 MAX_DISCOUNT_SWEEPS = 1000
+
+
+@dataclass(frozen=True, eq=False)
+class _Uncertain:
+    """The choices that leave the adversary some mass, one row each (in choice order), and
+    their branches in branch order, padded to the widest: branch[g, j] the j-th branch of the
+    g-th such choice where valid[g, j] (0 in the padding), room[g, j] its upper minus lower
+    bound (0 in the padding), slack[g] the choice's mass to place."""
+
+    branch: np.ndarray
+    valid: np.ndarray
+    room: np.ndarray
+    slack: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,6 +128,20 @@ class IntervalGame:
                    stop=np.asarray(goal, dtype=bool) | np.asarray(fail, dtype=bool),
                    initial=int(initial), chance=chance)
 
+    def keeping(self, choices: np.ndarray) -> "IntervalGame":
+        """The game with only the choices `choices` (increasing indices; a state may be left
+        with none), their branches in the same order: worst_case gives each of them the same
+        numbers as on the whole game."""
+        first = self.row_start[choices]
+        counts = self.row_start[choices + 1] - first
+        branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+        per_state = np.bincount(self.choice_state[choices], minlength=self.n_states)
+        return IntervalGame.build(choice_start=np.r_[0, np.cumsum(per_state)],
+                                  row_start=np.r_[0, np.cumsum(counts)],
+                                  target=self.target[branches], lower=self.lower[branches],
+                                  upper=self.upper[branches], goal=self.goal, stop=self.stop,
+                                  initial=self.initial)
+
     # -- derived arrays, computed once -----------------------------------------------------
     def _cached(self, name: str, make) -> np.ndarray:
         cache = self.__dict__.setdefault("_cache", {})
@@ -132,18 +160,36 @@ class IntervalGame:
             np.arange(self.n_choices), np.diff(self.row_start)))
 
     @property
-    def uncertain(self) -> tuple[np.ndarray, list[np.ndarray]]:
-        """The branches of the choices that leave the adversary some mass (in order, grouped by
-        choice), and by rank: ranks[j - 1] the positions among them of every choice's j-th
-        branch (j >= 1; the first branches have nothing before them)."""
+    def uncertain(self) -> _Uncertain:
+        """The branches of the choices that leave the adversary some mass (`_Uncertain`)."""
         def make():
             choices = self.slack > 0
             branches = np.flatnonzero(choices[self.branch_choice])
+            if not branches.size:
+                return _Uncertain(branch=np.zeros((0, 0), dtype=np.int64),
+                                  valid=np.zeros((0, 0), dtype=bool), room=np.zeros((0, 0)),
+                                  slack=np.zeros(0))
             choice = self.branch_choice[branches]
             first = np.flatnonzero(np.r_[True, choice[1:] != choice[:-1]])
-            rank = np.arange(branches.size) - np.repeat(first, np.diff(np.r_[first, branches.size]))
-            return branches, [np.flatnonzero(rank == j) for j in range(1, int(rank.max(initial=0)) + 1)]
+            sizes = np.diff(np.r_[first, branches.size])
+            width = int(sizes.max(initial=0))
+            index = np.int32 if self.target.size < 2**31 else np.int64
+            valid = np.arange(width) < sizes[:, None]
+            branch = np.where(valid, branches[np.minimum(first[:, None] + np.arange(width),
+                                                         max(branches.size - 1, 0))], 0)
+            room = np.where(valid, self.upper[branch] - self.lower[branch], 0.0)
+            return _Uncertain(branch=branch.astype(index), valid=valid, room=room,
+                              slack=self.slack[choice[first]])
         return self._cached("uncertain", make)
+
+    @property
+    def entering(self) -> tuple[np.ndarray, np.ndarray]:
+        """The branches into each state: entering[start[t]:start[t + 1]] enter state t, in
+        branch order."""
+        def make():
+            order = stable_order(self.target, self.n_states)
+            return order, np.r_[0, np.cumsum(np.bincount(self.target, minlength=self.n_states))]
+        return self._cached("entering", make)
 
     @property
     def slack(self) -> np.ndarray:
@@ -158,19 +204,22 @@ def worst_case(game: IntervalGame, values: np.ndarray) -> tuple[np.ndarray, np.n
     branches of smallest value (ties in branch order), each up to its upper bound."""
     branch_value = values[game.target]
     probability = game.lower.copy()
-    branches, ranks = game.uncertain
-    if branches.size:
-        choice = game.branch_choice[branches]
-        order = np.lexsort((branches, branch_value[branches], choice))   # stays grouped by choice
-        ordered = branches[order]
-        room = game.upper[ordered] - game.lower[ordered]
+    uncertain = game.uncertain
+    if uncertain.branch.size:
+        # each choice's branches by value, ties in branch order (a stable sort of each choice's
+        # few branches: several times faster than one lexsort of all of them, the same order);
+        # padding sorts last
+        keys = np.where(uncertain.valid, branch_value[uncertain.branch], np.inf)
+        within = np.argsort(keys, axis=1, kind="stable")
+        ordered = np.take_along_axis(uncertain.branch, within, axis=1)
+        room = np.take_along_axis(uncertain.room, within, axis=1)
         # the room of the cheaper branches of the same choice, added branch by branch within
         # the choice (a running sum over all choices would cancel catastrophically: 1e-11 off
         # on a model of 4e5 states, which put rows above 1 and values above 1)
-        before = np.zeros(branches.size)
-        for at in ranks:
-            before[at] = before[at - 1] + room[at - 1]
-        probability[ordered] += np.clip(game.slack[choice] - before, 0.0, room)
+        before = np.zeros_like(room)
+        np.cumsum(room[:, :-1], axis=1, out=before[:, 1:])
+        give = np.clip(uncertain.slack[:, None] - before, 0.0, room)
+        probability[ordered[uncertain.valid]] += give[uncertain.valid]
     expected = np.bincount(game.branch_choice, weights=probability * branch_value,
                            minlength=game.n_choices)
     return expected, probability
@@ -191,21 +240,38 @@ def positive_states(game: IntervalGame, fixed: np.ndarray | None = None
     else:
         allowed[fixed[~game.stop]] = True
     allowed &= ~game.stop[game.choice_state]
-    choice = game.branch_choice
+    # Breadth-first: the first round looks at every allowed choice, each later one only at the
+    # choices with a branch into the states the round before added (no other choice's test
+    # changed), with the same sums in the same order, so the same sets and progress choices
+    # as testing every choice every round.
+    entering, start = game.entering
+    candidates = np.flatnonzero(allowed)
     while True:
-        inside = positive[game.target]
-        forced = np.bincount(choice, weights=(inside & (game.lower > 0)).astype(float),
-                             minlength=game.n_choices) > 0
-        outside = np.bincount(choice, weights=np.where(inside, 0.0, game.upper),
-                              minlength=game.n_choices)
-        moves = allowed & (forced | (outside < 1.0 - 1e-12)) & ~positive[game.choice_state]
-        if not moves.any():
+        candidates = candidates[~positive[game.choice_state[candidates]]]
+        first_branch = game.row_start[candidates]
+        counts = game.row_start[candidates + 1] - first_branch
+        owner = np.repeat(np.arange(candidates.size), counts)
+        branches = np.arange(counts.sum()) + np.repeat(first_branch - (np.cumsum(counts) - counts),
+                                                       counts)
+        inside = positive[game.target[branches]]
+        forced = np.bincount(owner, weights=(inside & (game.lower[branches] > 0)).astype(float),
+                             minlength=candidates.size) > 0
+        outside = np.bincount(owner, weights=np.where(inside, 0.0, game.upper[branches]),
+                              minlength=candidates.size)
+        chosen = candidates[forced | (outside < 1.0 - 1e-12)]
+        if not chosen.size:
             return positive, progress
-        chosen = np.flatnonzero(moves)
         states = game.choice_state[chosen]
         first = np.r_[True, states[1:] != states[:-1]]
         progress[states[first]] = chosen[first]
         positive[states] = True
+        added = states[first]
+        lengths = start[added + 1] - start[added]
+        into = entering[np.arange(lengths.sum()) + np.repeat(start[added] - (np.cumsum(lengths)
+                                                                              - lengths), lengths)]
+        touched = np.zeros(game.n_choices, dtype=bool)
+        touched[game.branch_choice[into]] = True
+        candidates = np.flatnonzero(touched & allowed)
 
 
 def adversary_response(game: IntervalGame, strategy: np.ndarray,
@@ -369,22 +435,30 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
 
     optimal = (solution.q_values >= solution.values[game.choice_state] - OPTIMAL_SLACK)
     optimal &= (action >= 0) | ~decides[game.choice_state]
+    # Only the optimal choices are ever read (_best and the score mask the others), so the
+    # adversary's worst case is computed on them alone (the same numbers there).
+    kept = np.flatnonzero(optimal)
+    among = game.keeping(kept)
+
+    def worst(values: np.ndarray) -> np.ndarray:
+        expected = np.zeros(game.n_choices)
+        expected[kept] = worst_case(among, values)[0]
+        return expected
+
     intermediate = ~decides & ~game.stop
     speed = np.zeros(game.n_states)
     for _ in range(MAX_DISCOUNT_SWEEPS):
         onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
-        expected, _ = worst_case(game, onward)
-        later = np.where(intermediate, _best(game, expected, optimal), 0.0)
-        expected, _ = worst_case(game, np.where(game.goal, 1.0, later))
-        new = np.where(decides & ~game.stop, _best(game, expected, optimal), 0.0)
+        later = np.where(intermediate, _best(game, worst(onward), optimal), 0.0)
+        new = np.where(decides & ~game.stop, _best(game, worst(np.where(game.goal, 1.0, later)),
+                                                   optimal), 0.0)
         done = np.abs(new - speed).max(initial=0.0) < DISCOUNT_STOP
         speed = new
         if done:
             break
     onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
-    expected, _ = worst_case(game, onward)
-    later = np.where(intermediate, _best(game, expected, optimal), 0.0)
-    score, _ = worst_case(game, np.where(game.goal, 1.0, later))
+    later = np.where(intermediate, _best(game, worst(onward), optimal), 0.0)
+    score = worst(np.where(game.goal, 1.0, later))
     score = np.where(optimal, score, -1.0)
     score[action < 0] = np.where(decides[game.choice_state], -2.0, score)[action < 0]
     return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=1e-12)
