@@ -435,30 +435,33 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
 
     optimal = (solution.q_values >= solution.values[game.choice_state] - OPTIMAL_SLACK)
     optimal &= (action >= 0) | ~decides[game.choice_state]
-    # Only the optimal choices are ever read (_best and the score mask the others), so the
-    # adversary's worst case is computed on them alone (the same numbers there).
-    kept = np.flatnonzero(optimal)
-    among = game.keeping(kept)
+    # Only the optimal choices are ever read (_best and the score mask the others), and each
+    # stage reads those of one kind of state (intermediate, then deciding), so the adversary's
+    # worst case is computed on those alone (the same numbers there).
+    intermediate = ~decides & ~game.stop
+    stages = [np.flatnonzero(optimal & intermediate[game.choice_state]),
+              np.flatnonzero(optimal & ~intermediate[game.choice_state])]
+    among = [game.keeping(kept) for kept in stages]
 
-    def worst(values: np.ndarray) -> np.ndarray:
+    def worst(values: np.ndarray, *which: int) -> np.ndarray:
         expected = np.zeros(game.n_choices)
-        expected[kept] = worst_case(among, values)[0]
+        for stage in which:
+            expected[stages[stage]] = worst_case(among[stage], values)[0]
         return expected
 
-    intermediate = ~decides & ~game.stop
     speed = np.zeros(game.n_states)
     for _ in range(MAX_DISCOUNT_SWEEPS):
         onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
-        later = np.where(intermediate, _best(game, worst(onward), optimal), 0.0)
-        new = np.where(decides & ~game.stop, _best(game, worst(np.where(game.goal, 1.0, later)),
-                                                   optimal), 0.0)
+        later = np.where(intermediate, _best(game, worst(onward, 0), optimal), 0.0)
+        new = np.where(decides & ~game.stop,
+                       _best(game, worst(np.where(game.goal, 1.0, later), 1), optimal), 0.0)
         done = np.abs(new - speed).max(initial=0.0) < DISCOUNT_STOP
         speed = new
         if done:
             break
     onward = np.where(game.goal, 1.0, np.where(decides & ~game.stop, DISCOUNT * speed, 0.0))
-    later = np.where(intermediate, _best(game, worst(onward), optimal), 0.0)
-    score = worst(np.where(game.goal, 1.0, later))
+    later = np.where(intermediate, _best(game, worst(onward, 0), optimal), 0.0)
+    score = worst(np.where(game.goal, 1.0, later), 0, 1)
     score = np.where(optimal, score, -1.0)
     score[action < 0] = np.where(decides[game.choice_state], -2.0, score)[action < 0]
     return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=1e-12)
