@@ -161,8 +161,11 @@ def test_value_and_size_match_the_reference(case) -> None:
     ref = reference_world(path).solve()
     assert result.results.deceptive_value == pytest.approx(ref.value, abs=TOL)
     assert (result.results.states, result.results.transitions) == (ref.states, ref.transitions)
-    # the size guard's estimate bounds the Bayesian hypergame (model/sizeguard.py)
-    assert ref.states <= sizeguard.estimate_states(result.analysis.world)
+    # the size guard's estimates bound the Bayesian hypergame (model/sizeguard.py), the one
+    # given P2's games no more loosely than the one from the world alone
+    world = result.analysis.world
+    solved = sizeguard.estimate_states(world, result.analysis.games)
+    assert ref.states <= solved <= sizeguard.estimate_states(world)
     if result.analysis.world.decision == "map":
         # P1 moves knowing a2 only when P2 is deterministic; a drawn trap set can beat V_lead
         assert result.results.v_lead <= result.results.deceptive_value + TOL

@@ -74,6 +74,24 @@ def test_default_limit_admits_the_benchmark(tmp_path: Path) -> None:
     assert sizeguard.check_size(world) == sizeguard.estimate_states(world)
 
 
+def test_a_bayesian_world_is_bounded_again_with_p2s_games(tmp_path: Path) -> None:
+    """The benchmark's Bayesian world of 1.1e6 canonical states is admitted by default: from
+    the world alone its bound exceeds the limit (every observation step counts every
+    hypothesis's trap set), with P2's games it does not (it counts the distinct sets at each
+    state). At a limit of exactly the second bound it is admitted; one below, refused with it."""
+    path = tmp_path / "bayes.toml"
+    path.write_text(bench.bayes_world(16, 3, 3, 1, "map"))
+    world = load_world(path)
+    alone = sizeguard.estimate_states(world)
+    solved = sizeguard.estimate_states(world, sizeguard.solved_games(world))
+    assert solved < sizeguard.DEFAULT_LIMIT < alone
+    assert sizeguard.check_size(world) == solved
+    assert sizeguard.check_size(world, solved) == solved
+    with pytest.raises(InputError) as caught:
+        sizeguard.check_size(world, solved - 1)
+    assert f"{solved:,}" in caught.value.reason and f"--max-states {solved}" in caught.value.reason
+
+
 def test_check_size_refuses_with_the_estimate_and_the_override() -> None:
     world = load_world(MODELS / "world1.toml")
     estimate = sizeguard.estimate_states(world)

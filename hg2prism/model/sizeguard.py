@@ -32,6 +32,12 @@ hypothesis beside its window (X is 1), w observations (L = 0 .. w), each with th
 force (|A2| walks per observation step; without delay at most as many as the hypotheses, the
 set being pi2_x(v) of the observation's state v for the hypothesis x she acted on).
 
+From the world alone the Bayesian bound is about 30 times the canonical size on the benchmark's
+Bayesian worlds. `check_size` then solves P2's perceptual games (`solved_games`) and bounds
+again with the observer's `solved_memory`: an observation at state v records pi2_x(v) for one
+of the hypotheses x, so each walk step counts the distinct sets of the hypotheses at its state
+(`MemoryBound.sets_at`), one wherever they agree (1.37e6 against 1.06e6 canonical states there).
+
 Why P appears once, not once per observation: P2's window is emptied whenever she changes her
 hypothesis, so every observation in it was made under the current hypothesis x, and the trap
 set in force at each of those steps is a function of the TS state and x (the standing set while
@@ -51,6 +57,7 @@ end most runs within a few steps; 1.76 on world1. tests/test_scale.py checks
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -62,6 +69,9 @@ from hg2prism.model.world import World
 from hg2prism.opponent.observer import p2_action_count
 from hg2prism.opponent.registry import observer_kind
 
+if TYPE_CHECKING:
+    from hg2prism.opponent.perceptual_games import PerceptualGame
+
 # Memory of a whole `hg2prism check`, measured as the peak resident memory of its process on
 # the benchmark family (`make bench`'s `peak_mb`, docs/data/bench/results.json): 1.4-1.6 KB per
 # canonical state from 5e5 states on (Storm's model with state valuations and choice labels, the
@@ -69,7 +79,8 @@ from hg2prism.opponent.registry import observer_kind
 # in `make bench-huge`). It was 2.3-2.5 KB when this limit was set: the default keeps a model
 # within 24 GiB at 4 KiB per *estimated* state, now a margin of 2.5x over the most measured per
 # canonical state, on top of the estimate's own (1.0-4.6x on that family; about 30x on the
-# Bayesian benchmark worlds).
+# Bayesian benchmark worlds from the world alone, 1.3x once P2's games are solved, which
+# check_size does for a world the first bound refuses).
 MEMORY_BUDGET = 24 * 2 ** 30
 BYTES_PER_STATE = 4 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
@@ -120,15 +131,22 @@ def _cells(world: World) -> tuple[Arena, np.ndarray, sp.csr_matrix]:
     return arena, q_count, _adjacency(arena)
 
 
-def _memories(world: World, adjacency: sp.csr_matrix, n: int) -> np.ndarray | None:
+def _memories(world: World, adjacency: sp.csr_matrix, n: int,
+              games: list[PerceptualGame] | None = None) -> np.ndarray | None:
     """Per arena state c, X * sum_L N_L(c): the memories P2's observer (the world's own) can
-    hold next to c (None: more than BEYOND)."""
-    memory = observer_kind(world.inference).memory(world)    # CUSUM: X hypotheses, w-1 walks
+    hold next to c (None: more than BEYOND). With P2's solved `games`, the observer's bound
+    given them (`ObserverKind.solved_memory`), where it has one: each observation step of a
+    walk then counts the sets an observation at its state may record."""
+    kind = observer_kind(world.inference)
+    memory = (kind.solved_memory(world, games) if games is not None and kind.solved_memory
+              else kind.memory(world))                  # CUSUM: X hypotheses, w-1 walks
+    sets = (memory.sets_per_observation if memory.sets_at is None
+            else memory.sets_at[:n].astype(float))      # (arena state c = TS state c, no delay)
     walks = np.ones(n)                                                    # N_0
     total = np.zeros(n)
     for length in range(memory.observations + 1):                        # L = 0 .. w-1 (CUSUM)
         if length:
-            walks = adjacency @ walks * memory.sets_per_observation
+            walks = adjacency @ (walks * sets)
         total += walks
         if total.max(initial=0.0) * memory.hypotheses >= BEYOND:   # huge: stop before overflow
             return None
@@ -144,11 +162,12 @@ def _bounded(total: float) -> int:
     return min(math.ceil(total * (1 + 1e-9)) + 2, BEYOND)
 
 
-def estimate_states(world: World) -> int:
+def estimate_states(world: World, games: list[PerceptualGame] | None = None) -> int:
     """An upper bound of the hypergame's canonical size (see the module docstring), of the
-    world's own observer (a world with types: its first type's)."""
+    world's own observer (a world with types: its first type's); tighter for some observers
+    given P2's solved perceptual `games` (`solved_games`)."""
     arena, q_count, adjacency = _cells(world)
-    memories = _memories(world, adjacency, arena.n_states)
+    memories = _memories(world, adjacency, arena.n_states, games)
     if memories is None:
         return BEYOND
     return _bounded(float(np.dot(q_count, memories)) * trap_parts(world))
@@ -184,7 +203,10 @@ def check_size(world: World, limit: int | None = None) -> int:
     (key ``type``) are bounded; the adaptive estimate is returned."""
     limit = DEFAULT_LIMIT if limit is None else limit
     if not world.types:
-        return _refuse(world, "size", "hypergame", estimate_states(world), limit,
+        estimate = estimate_states(world)
+        if estimate > limit and observer_kind(world.inference).solved_memory:
+            estimate = estimate_states(world, solved_games(world))
+        return _refuse(world, "size", "hypergame", estimate, limit,
                        f"{len(world.hypotheses)} hypotheses and window {world.window}")
     from hg2prism.worldfile.types import world_of_type
 
@@ -196,6 +218,19 @@ def check_size(world: World, limit: int | None = None) -> int:
                    estimate_adaptive(world), limit,
                    f"{len(world.hypotheses)} hypotheses and the {len(world.types)} types' "
                    "windows " + ", ".join(str(t.window) for t in world.types))
+
+
+def solved_games(world: World) -> list[PerceptualGame]:
+    """P2's perceptual games of the world (the first stage of every command), for a bound an
+    observer tightens with them: solved only where the bound from the world alone exceeds the
+    limit (the games are small; without delay they take well under a second)."""
+    from hg2prism.frontends import transition_system
+    from hg2prism.model.automata import translate
+    from hg2prism.opponent.perceptual_games import perceptual_game
+
+    ts = transition_system(world)
+    return [perceptual_game(ts, translate(h, ts.label_names, ts.letters), world.rationality)
+            for h in world.hypotheses]
 
 
 def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str) -> int:

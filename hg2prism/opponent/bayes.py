@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -215,6 +215,18 @@ def _memory(world: World) -> MemoryBound:
                        if world.delay == 0 else actions)
 
 
+def _solved_memory(world: World, games: list[PerceptualGame]) -> MemoryBound:
+    """`_memory` once P2's games are solved: without delay an observation made at state v
+    records pi2_x(v) for some hypothesis x, one of the distinct sets her hypotheses choose
+    at v (one set at most states: wherever they agree)."""
+    bound = _memory(world)
+    if world.delay or len(games) < 2:
+        return bound
+    choices = np.sort(np.stack([game.trap_choice for game in games]), axis=0)
+    distinct = 1 + (choices[1:] != choices[:-1]).sum(axis=0)
+    return replace(bound, sets_at=distinct)
+
+
 def _mismatches(world: World, max_score: float, vary: Callable[..., World]
                 ) -> list[Mismatch]:
     """Window +- 1 and the other decision."""
@@ -231,7 +243,7 @@ KIND = ObserverKind(
     settings=(Setting("prior", "an array of positive numbers, one per hypothesis", _read_prior,
                       uniform_prior),
               Setting("decision", '"map" or "sample"', _read_decision, lambda n: "map")),
-    build=_build, memory=_memory, mismatches=_mismatches,
+    build=_build, memory=_memory, solved_memory=_solved_memory, mismatches=_mismatches,
     report=lambda world: {"inference": "bayes", "window": world.window, "threshold": None,
                           "decision": world.setting("decision"),
                           "prior": list(world.setting("prior"))},

@@ -19,6 +19,8 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from hg2prism.model.world import World
     from hg2prism.opponent.perceptual_games import PerceptualGame
 
@@ -128,6 +130,9 @@ class MemoryBound:
     hypotheses: int
     observations: int
     sets_per_observation: int = 1
+    # where known (from P2's solved games): per TS state, how many sets an observation made
+    # there may record; replaces sets_per_observation
+    sets_at: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -169,6 +174,8 @@ class ObserverKind:
     # (registry.configure: the opponent layer does not import the registry above it)
     mismatches: Callable[[World, float, Callable[..., World]], list[Mismatch]]
     report: Callable[[World], dict]            # P1's model of P2 in detection.json
+    # the bound once P2's games are solved, when they make it tighter (None: `memory` only)
+    solved_memory: Callable[[World, list[PerceptualGame]], MemoryBound] | None = None
     # P2's first hypothesis from the settings, and the rule in words ("the prior's most
     # probable hypothesis"); None: [adversary] initial_hypothesis
     first_guess: Callable[[dict], int] | None = None
