@@ -161,9 +161,14 @@ class IntervalGame:
 
     @property
     def uncertain(self) -> _Uncertain:
-        """The branches of the choices that leave the adversary some mass (`_Uncertain`)."""
+        """The branches of the choices that leave the adversary some mass and room to place it
+        (`_Uncertain`). (Most choices of the robust model are P1's moves with point intervals:
+        their lower bounds sum to 1 up to rounding, a slack of 1e-16 with no room, where the
+        adversary places nothing.)"""
         def make():
-            choices = self.slack > 0
+            room = np.bincount(self.branch_choice, weights=self.upper - self.lower,
+                               minlength=self.n_choices)
+            choices = (self.slack > 0) & (room > 0)
             branches = np.flatnonzero(choices[self.branch_choice])
             if not branches.size:
                 return _Uncertain(branch=np.zeros((0, 0), dtype=np.int64),
@@ -206,23 +211,38 @@ def worst_case(game: IntervalGame, values: np.ndarray) -> tuple[np.ndarray, np.n
     probability = game.lower.copy()
     uncertain = game.uncertain
     if uncertain.branch.size:
-        # each choice's branches by value, ties in branch order (a stable sort of each choice's
-        # few branches: several times faster than one lexsort of all of them, the same order);
-        # padding sorts last
-        keys = np.where(uncertain.valid, branch_value[uncertain.branch], np.inf)
-        within = np.argsort(keys, axis=1, kind="stable")
-        ordered = np.take_along_axis(uncertain.branch, within, axis=1)
-        room = np.take_along_axis(uncertain.room, within, axis=1)
-        # the room of the cheaper branches of the same choice, added branch by branch within
-        # the choice (a running sum over all choices would cancel catastrophically: 1e-11 off
-        # on a model of 4e5 states, which put rows above 1 and values above 1)
-        before = np.zeros_like(room)
-        np.cumsum(room[:, :-1], axis=1, out=before[:, 1:])
-        give = np.clip(uncertain.slack[:, None] - before, 0.0, room)
-        probability[ordered[uncertain.valid]] += give[uncertain.valid]
+        keys = np.where(uncertain.valid, branch_value[uncertain.branch], np.inf)   # padding last
+        # Where the cheapest branch (the first of least value) has room for all the mass, it
+        # takes it all and the order of the others does not matter (their share is 0).
+        rows = np.arange(keys.shape[0])
+        cheapest = keys.argmin(axis=1)
+        whole = uncertain.room[rows, cheapest] >= uncertain.slack
+        probability[uncertain.branch[rows[whole], cheapest[whole]]] += uncertain.slack[whole]
+        rest = np.flatnonzero(~whole)
+        if rest.size:
+            _place_in_order(probability, keys[rest], uncertain.branch[rest], uncertain.room[rest],
+                            uncertain.valid[rest], uncertain.slack[rest])
     expected = np.bincount(game.branch_choice, weights=probability * branch_value,
                            minlength=game.n_choices)
     return expected, probability
+
+
+def _place_in_order(probability: np.ndarray, keys: np.ndarray, branch: np.ndarray,
+                    room: np.ndarray, valid: np.ndarray, slack: np.ndarray) -> None:
+    """Each row's mass `slack` to its branches by increasing key (ties in branch order), each
+    up to its room: the rows are choices, padded to the widest (`_Uncertain`)."""
+    # a stable sort of each choice's few branches: several times faster than one lexsort of
+    # all of them, the same order
+    within = np.argsort(keys, axis=1, kind="stable")
+    ordered = np.take_along_axis(branch, within, axis=1)
+    room = np.take_along_axis(room, within, axis=1)
+    # the room of the cheaper branches of the same choice, added branch by branch within the
+    # choice (a running sum over all choices would cancel catastrophically: 1e-11 off on a
+    # model of 4e5 states, which put rows above 1 and values above 1)
+    before = np.zeros_like(room)
+    np.cumsum(room[:, :-1], axis=1, out=before[:, 1:])
+    give = np.clip(slack[:, None] - before, 0.0, room)
+    probability[ordered[valid]] += give[valid]
 
 
 def positive_states(game: IntervalGame, fixed: np.ndarray | None = None
