@@ -53,10 +53,10 @@ MAX_DISCOUNT_SWEEPS = 1000
 
 @dataclass(frozen=True, eq=False)
 class _Uncertain:
-    """The choices that leave the adversary some mass, one row each (in choice order), and
-    their branches in branch order, padded to the widest: branch[g, j] the j-th branch of the
-    g-th such choice where valid[g, j] (0 in the padding), room[g, j] its upper minus lower
-    bound (0 in the padding), slack[g] the choice's mass to place."""
+    """The choices that leave the adversary some mass and room to place it, one row each (in
+    choice order), and their branches in branch order, padded to the widest: branch[g, j] the
+    j-th branch of the g-th such choice where valid[g, j] (0 in the padding), room[g, j] its
+    upper minus lower bound (0 in the padding), slack[g] the choice's mass to place."""
 
     branch: np.ndarray
     valid: np.ndarray
