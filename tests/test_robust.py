@@ -342,3 +342,60 @@ def test_the_adversary_places_exactly_the_mass_left_on_a_large_model() -> None:
             expected[b] += min(max(left, 0.0), upper[i, b] - lower[i, b])
             left -= upper[i, b] - lower[i, b]
         assert np.abs(probability[i] - expected).max() <= 2 * np.finfo(float).eps, i
+
+
+def _positive_by_levels(game, fixed=None):
+    """positive_states by its definition, every choice tested every round (the least fixed
+    point, the first progress choice of each state at the round it joins)."""
+    import numpy as np
+
+    positive = game.goal.copy()
+    progress = np.full(game.n_states, -1)
+    for _ in range(game.n_states + 1):
+        joining = {}
+        for s in range(game.n_states):
+            if positive[s] or game.stop[s]:
+                continue
+            choices = range(game.choice_start[s], game.choice_start[s + 1])
+            for c in choices if fixed is None else [fixed[s]]:
+                branches = range(game.row_start[c], game.row_start[c + 1])
+                forced = any(positive[game.target[b]] and game.lower[b] > 0 for b in branches)
+                outside = sum(game.upper[b] for b in branches if not positive[game.target[b]])
+                if forced or outside < 1.0 - 1e-12:
+                    joining[s] = c
+                    break
+        if not joining:
+            break
+        for s, c in joining.items():
+            positive[s], progress[s] = True, c
+    return positive, progress
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_positive_states_is_the_least_fixed_point(seed: int) -> None:
+    """positive_states (breadth-first over the choices the last round could change) against
+    its definition on random interval games, with P1's choices free and fixed."""
+    import numpy as np
+    from hg2prism.strategy.robust import IntervalGame, positive_states
+
+    rng = np.random.default_rng(seed)
+    n = 60
+    counts = rng.integers(1, 4, size=n)
+    counts[:3] = 0                                   # absorbing: the goal and two failures
+    widths = rng.integers(1, 4, size=counts.sum())
+    target = rng.integers(0, n, size=widths.sum())
+    lower = np.where(rng.random(widths.sum()) < 0.5, 0.0, rng.random(widths.sum()) / 4)
+    upper = np.minimum(lower + np.where(rng.random(widths.sum()) < 0.3, 0.0, 0.6), 1.0)
+    goal = np.zeros(n, dtype=bool)
+    goal[0] = True
+    stop = goal.copy()
+    stop[1:3] = True
+    game = IntervalGame.build(choice_start=np.r_[0, np.cumsum(counts)],
+                              row_start=np.r_[0, np.cumsum(widths)], target=target,
+                              lower=lower, upper=upper, goal=goal, stop=stop, initial=5)
+    fixed = game.choice_start[:-1] + rng.integers(0, 3, size=n) % np.maximum(counts, 1)
+    for choice in (None, fixed):
+        positive, progress = positive_states(game, choice)
+        expected, first = _positive_by_levels(game, choice)
+        assert (positive == expected).all() and (progress == first).all()
+        assert 0 < positive.sum() < n
