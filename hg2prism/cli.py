@@ -236,15 +236,18 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
 def _guard_robust(args: argparse.Namespace, world: object) -> None:
     from hg2prism.experiments import robust
 
-    _guard_size(args, world)
+    sizeguard.check_robust_size(world, args.max_states)
     robust.parse_deltas(args.deltas)
 
 
 def _guard_detect(args: argparse.Namespace, world: object) -> None:
     from hg2prism.experiments import detect
 
-    _guard_size(args, world)
     detect.parse_fallback(args.fallback, args.fallback_delta)
+    if args.fallback == "robust":
+        sizeguard.check_robust_size(world, args.max_states)
+    else:
+        _guard_size(args, world)
 
 
 def _simulation_options(args: argparse.Namespace, world: object) -> None:

@@ -99,6 +99,32 @@ def test_robust_values_match_the_reference_and_are_ordered(case) -> None:
     expected = reference.robust_values([row.delta for row in rows[1:]])
     for row, value in zip(rows[1:], expected):
         assert row.robust_value == pytest.approx(value, abs=TOL)
+    # the size guard's estimate of the interval model is near it (model/sizeguard.py: 0.22 to
+    # 1.05 times its Storm states on these worlds, which keep each goal and failure state apart)
+    from hg2prism.model import sizeguard
+    bound = sizeguard.check_robust_size(load_world(world_path(name, folder)))
+    assert max(row.storm_states for row in rows) <= 1.1 * bound
+
+
+def test_the_size_guard_bounds_the_interval_model(tmp_path: Path, capsys) -> None:
+    """`robust` refuses a world whose interval model (the hypergame's estimate times 1 + P1's
+    actions x P2's actions played) exceeds --max-states, though its hypergame does not, in
+    one line and writing nothing; at exactly that estimate it is accepted."""
+    from hg2prism.model import sizeguard
+
+    world = load_world(MODELS / "world1.toml")
+    hypergame = sizeguard.estimate_states(world)
+    interval = sizeguard.check_robust_size(world)
+    assert interval > hypergame
+    assert sizeguard.check_robust_size(world, interval) == interval
+    out = tmp_path / "out"
+    status = main(["robust", str(MODELS / "world1.toml"), "--out", str(out),
+                   "--max-states", str(interval - 1)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1
+    assert ": size: the interval model of robust deception" in lines[0]
+    assert f"--max-states {interval}" in lines[0]
+    assert not out.exists()
 
 
 def test_robust_strategy_guarantees_the_robust_value(case) -> None:
