@@ -29,6 +29,7 @@ from hg2prism.numeric import ExplicitModel
 from hg2prism.errors import StormError, probability
 
 PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
+ROBUST_MAX_ITERATIONS = 100_000   # Storm's robust value iteration (the cross-check of §13)
 
 
 def sound_environment() -> developer.Environment:
@@ -346,13 +347,16 @@ def check_robust(prism_path: Path, prop: str) -> float:
     """Storm's robust mode on an interval model: the property's value at the initial state, P1
     optimising as `prop` says and the intervals resolved against it. Storm needs every lower
     bound positive, and its robust value iteration is not sound: it stops when an iteration
-    changes the values by less than 1e-10 (absolute). A cross-check, not a certified value."""
+    changes the values by less than 1e-10 (absolute), or after ROBUST_MAX_ITERATIONS
+    iterations, its value then as far as it got. A cross-check, not a certified value."""
     try:
         model, _ = build_interval_model(prism_path)
         formula = stormpy.parse_properties(prop)[0]
         env = developer.Environment()
         env.solver().min_max().precision = stormpy.Rational(PRECISION)
         env.solver().min_max().relative_termination_criterion = False
+        # capped: on a delay-3 world it was seen iterating for more than ten minutes
+        env.solver().min_max().maximal_number_of_iterations = ROBUST_MAX_ITERATIONS
         # Storm warns that it falls back to robust value iteration, its only method here
         level = developer.get_log_level()
         developer.set_log_level(developer.LogLevel.ERR)

@@ -132,9 +132,11 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
 def _cross_check(engine: ModelChecker, check_path: Path, layout: Layout, value: float) -> dict:
     """The interval model at `check_path` (eps > 0, laid out as `layout`) checked by the
     engine's robust mode and by numpy, beside the exact value R_delta."""
-    from hg2prism.prism.robust_model import MOVE_VARIABLE, STORM_PROPERTY
+    from hg2prism.prism.robust_model import CHECK_EPS, MOVE_VARIABLE, STORM_PROPERTY
     from hg2prism.strategy.robust import IntervalGame, solve_robust
 
+    progress.say("robust: cross-checking with the model checker's robust mode on the model "
+                 f"with eps = {CHECK_EPS:g} (a value iteration, not sound, with a cap)")
     storm_value = engine.check_robust(check_path, STORM_PROPERTY)
     eps_model = engine.explicit(engine.build_interval(check_path)[0])
     eps_moves = eps_model.transitions
