@@ -387,8 +387,10 @@ def _nothing(args: argparse.Namespace, world: object) -> None:
 def _validate(args: argparse.Namespace, world: object) -> int:
     from hg2prism import frontends
 
+    types = (f", P2's types {', '.join(t.name for t in world.types)} (adaptive deception)"
+             if world.types else "")
     print(f"{args.world}: ok ({world.name}: {frontends.describe(world)}, "
-          f"{len(world.hypotheses)} hypotheses)")
+          f"{len(world.hypotheses)} hypotheses{types})")
     return 0
 
 
@@ -501,7 +503,7 @@ def _perform(args: argparse.Namespace) -> int:
 
     world = load_world(args.world)
     command = COMMANDS[args.command]
-    if world.types and (args.command not in ("check", "run", "sweep")
+    if world.types and (args.command not in ("validate", "check", "run", "sweep")
                         or getattr(args, "objective", "pmax") != "pmax"):
         raise InputError(args.world, "type", f"a world with P2's types (adaptive deception, "
                          f"docs/semantics.md §16) is handled by check and run with the pmax "

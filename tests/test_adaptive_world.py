@@ -172,6 +172,8 @@ def test_cli(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "V_adapt = 0.871241" in done.stdout and "value of adaptivity" in done.stdout
     assert (tmp_path / "c" / "strategy.json").exists()
+    valid = subprocess.run(hg2prism + ["validate", str(world)], capture_output=True, text=True)
+    assert valid.returncode == 0 and "P2's types jumpy, stubborn" in valid.stdout, valid.stderr
     for command, key in ((["emit"], ": type: "), (["detect"], ": type: "),
                          (["check", "--objective", "lexicographic"], ": type: "),
                          (["sweep", "--param", "delay", "--values", "0"], ": --param: "),
