@@ -223,3 +223,26 @@ def test_world1_values_agree_with_direct_lp(world1) -> None:
         cols = game.allowed[g]
         assert (sol.p1[g] @ m[g])[cols].min() >= value - 1e-9
         assert (m[g] @ sol.p2[g]).max() <= value + 1e-9
+
+
+def test_a_bracket_inverted_by_rounding_is_a_point(world1, monkeypatch) -> None:
+    """Where P1's guaranteed value computes above his best response to P2's strategy by
+    rounding (1.85e-11 was seen on a two-trap world), the bracket is that point and V_NE with
+    it; by more than 1e-9, the bracket is empty and an error."""
+    from hg2prism.analyses import baselines
+    from hg2prism.errors import SolverError
+
+    ts, dfa, baseline, _, _ = world1
+    lower, upper = baseline.v_ne_bounds
+    for above, fails in ((1.85e-11, False), (2e-9, True)):
+        shifted = baseline.guaranteed.reshape(-1) + (upper - lower + above)
+        monkeypatch.setattr(baselines, "guaranteed_value", lambda game, p1: shifted)
+        if fails:
+            with pytest.raises(SolverError, match="bracket is empty"):
+                nash_baseline(ts, dfa)
+            continue
+        again = nash_baseline(ts, dfa)
+        point = again.v_ne_p1_guaranteed
+        assert again.v_ne_bounds == (point, point) and again.v_ne == point
+        assert point == pytest.approx(upper + above, abs=1e-15)
+

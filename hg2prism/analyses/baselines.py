@@ -403,6 +403,9 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
     if v_guaranteed > upper + 1e-9:
         raise SolverError(f"the Nash bracket is empty: [{v_guaranteed!r}, {upper!r}]")
+    # Each end is an exact solve within its rounding (about 1e-11 on ill-conditioned chains):
+    # where the lower end computes above the upper one (by at most 1e-9), V_NE is both.
+    upper = max(upper, v_guaranteed)
     # Value iteration approaches V_NE from below, and the lower end of the bracket is also
     # below V_NE: the larger of the two is the better estimate, kept inside the bracket.
     v_ne = min(max(probability(solution.values[g0], "V_NE"), v_guaranteed), upper)
