@@ -109,3 +109,25 @@ def test_hand_made_mdp_with_an_end_component() -> None:
     assert done.certified
     np.testing.assert_allclose(done.values, [0.9, 0.9, 1.0, 0.0], atol=1e-15)
     assert list(done.choice[:2]) == [1, 4]
+
+
+def test_an_ill_conditioned_chain_is_certified_in_extended_precision() -> None:
+    """A ring of 50 states left only from state 0, with probability 1e-6 to the goal and to
+    failure each (value 1/2 everywhere): the double solve's error bound (8e-9) is above
+    LINEAR_ERROR, so the certificate re-solves the strategy with its residuals in extended
+    precision (bound 4e-12) rather than failing (world1 with a drawing Bayesian observer fell
+    back to Storm's sound solver so, its bound 8.8e-10)."""
+    from hg2prism.numeric import chain_reach
+
+    n, leak = 50, 1e-6
+    rows = [[(1, 1 - 2 * leak), (n, leak), (n + 1, leak)]]
+    rows += [[((s + 1) % n, 0.5), (s, 0.5)] for s in range(1, n)]
+    rows += [[(n, 1.0)], [(n + 1, 1.0)]]
+    matrix, group_start = _mdp(rows, [1] * (n + 2))
+    goal = np.zeros(n + 2, dtype=bool)
+    goal[n] = True
+    assert chain_reach(matrix, goal).error > certify.LINEAR_ERROR
+    done = certify.certify_reachability(matrix, group_start, goal, np.arange(n + 2))
+    assert done.certified, done.reason
+    assert done.linear_error <= certify.LINEAR_ERROR
+    np.testing.assert_allclose(done.values[:n], 0.5, atol=1e-11)

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 
-from hg2prism.numeric import ExplicitModel, optimal_reach
+from hg2prism.numeric import ExplicitModel, chain_reach, optimal_reach
 
 BELLMAN_RESIDUAL = 1e-11   # max_a Q(s, a) - x(s) on every state: x is a fixed point of T
 LINEAR_ERROR = 1e-11       # bound on the error of the chain's solve: x is the strategy's value
@@ -113,6 +113,13 @@ def certify_reachability(matrix: sp.csr_matrix, group_start: np.ndarray, target:
     found = optimal_reach(model, target, choice, floor=IMPROVEMENT, tolerance=BELLMAN_RESIDUAL,
                           max_rounds=max_rounds)
     values, choice, linear, bellman = found.values, found.choice, found.error, found.residual
+    if bellman <= BELLMAN_RESIDUAL and linear > LINEAR_ERROR:
+        # an ill-conditioned chain (world1 with a drawing Bayesian observer: a bound of 8.8e-10):
+        # the same strategy again, its solve refined in extended precision
+        precise = chain_reach(model.chain(choice), target, precise=True)
+        gain = model.best(matrix @ precise.values, 1.0) - precise.values
+        values, linear = precise.values, precise.error
+        bellman = float(np.where(model.counts > 0, gain, 0.0)[~target].max(initial=0.0))
     if bellman > BELLMAN_RESIDUAL:
         return Certificate(False, values, choice, bellman, linear, found.rounds,
                            f"not a fixed point after {found.rounds} strategy evaluations "

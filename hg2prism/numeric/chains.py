@@ -36,13 +36,18 @@ def solve_plain(system: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     return np.atleast_1d(spla.spsolve(sp.csc_matrix(system), rhs))
 
 
-def solve_m_matrix(system: sp.spmatrix, rhs: np.ndarray) -> tuple[np.ndarray, float]:
+def solve_m_matrix(system: sp.spmatrix, rhs: np.ndarray, precise: bool = False
+                   ) -> tuple[np.ndarray, float]:
     """x with system @ x = rhs for system = I - A (A >= 0, I - A regular), by a sparse LU
     factorisation and one step of iterative refinement, and the bound on the error of x
-    (module docstring)."""
+    (module docstring). `precise`: two steps of refinement with the residuals in extended
+    precision (np.longdouble: a 64-bit mantissa on x86), for a chain left with probability
+    1e-10 from some states, where the double solve's bound is 1e-9 or more."""
     system = sp.csc_matrix(system)
     factor = spla.splu(system)
     x = factor.solve(rhs)
+    if precise:
+        return _refined(system, rhs, x, factor)
     x += factor.solve(rhs - system @ x)                          # one step of refinement
     # (I - A)^-1 is nonnegative, so the error is at most (I - A)^-1 |residual| state by state;
     # the computed residual itself is off by at most gamma (|I - A| |x| + |b|) in each row,
@@ -56,8 +61,24 @@ def solve_m_matrix(system: sp.spmatrix, rhs: np.ndarray) -> tuple[np.ndarray, fl
     return x, float(np.abs(error).max(initial=0.0))
 
 
-def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray | None = None
-                ) -> ChainValue:
+def _refined(system: sp.csc_matrix, rhs: np.ndarray, x: np.ndarray, factor
+             ) -> tuple[np.ndarray, float]:
+    """solve_m_matrix's refinement and bound, the residuals in extended precision."""
+    wide = sp.csr_matrix(system, dtype=np.longdouble)
+    b = rhs.astype(np.longdouble)
+    refined = x.astype(np.longdouble)
+    for _ in range(2):
+        refined += factor.solve((b - wide @ refined).astype(float))
+    gamma = (np.diff(wide.indptr) + 1) * (np.finfo(np.longdouble).eps / 2)
+    residual = np.abs(b - wide @ refined) + gamma * (abs(wide) @ np.abs(refined) + np.abs(b))
+    x = refined.astype(float)
+    # the bound of the extended solution, and its rounding to double (half an ulp)
+    error = factor.solve(residual.astype(float)) + np.abs(x) * (np.finfo(float).eps / 2)
+    return x, float(np.abs(error).max(initial=0.0))
+
+
+def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray | None = None,
+                precise: bool = False) -> ChainValue:
     """The exact probability of reaching `target` (a mask) from every state of the Markov
     chain `chain` [n x n] (the rows of the target and of the `absorbing` states are ignored:
     those states stay where they are), and a bound on its floating-point error.
@@ -65,7 +86,7 @@ def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray 
     Graph analysis first: 0 where the chain cannot reach the target, 1 where it cannot reach
     those states without passing the target (so the linear system has a unique solution, the
     chain's least one, and no state of value 1 sits in it, where long cycles would make it
-    ill-conditioned). The rest by `solve_m_matrix`."""
+    ill-conditioned). The rest by `solve_m_matrix` (`precise`: in extended precision)."""
     n = len(target)
     free = ~target if absorbing is None else ~(target | absorbing)
     rows, columns = edges(chain, free)
@@ -81,7 +102,7 @@ def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray 
     rhs = sub @ values                                           # one step out, weighted
     system = sp.identity(solve.size, format="csr") - sub[:, solve]
     del sub
-    x, error = solve_m_matrix(system, rhs)
+    x, error = solve_m_matrix(system, rhs, precise)
     values[solve] = x
     return ChainValue(values, error)
 
