@@ -198,6 +198,88 @@ def test_a_chain_left_with_probability_1e9() -> None:
     assert got.error < 1e-5
 
 
+def naive_end_components(rows_of: list[list[dict]], inside: set[int]
+                         ) -> tuple[set[frozenset], set[tuple[int, int]]]:
+    """The maximal end components by their definition, with sets: keep the choices that stay
+    inside (a choice whose weights are all 0 goes nowhere: it leaves), group the states that
+    reach each other along them, drop the choices that leave their group, until nothing
+    changes. Returns (the components, their (state, choice) pairs)."""
+    kept = {(s, c) for s in inside for c, succ in enumerate(rows_of[s])
+            if all(t in inside for t, p in succ.items() if p > 0)
+            and any(p > 0 for p in succ.values())}
+    while True:
+        reach = {s: {s} for s in inside}
+        changed = True
+        while changed:
+            changed = False
+            for s, c in kept:
+                for t, p in rows_of[s][c].items():
+                    if p > 0 and not reach[t] <= reach[s]:
+                        reach[s] |= reach[t]
+                        changed = True
+        group = {s: frozenset(t for t in reach[s] if s in reach[t]) for s in inside}
+        narrower = {(s, c) for s, c in kept
+                    if all(t in group[s] for t, p in rows_of[s][c].items() if p > 0)}
+        if narrower == kept:
+            return {group[s] for s, _ in kept}, kept
+        kept = narrower
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_end_components_against_their_definition(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 14))
+    targets = list(range(n)) + ["goal", "fail"]
+    rows_of = []
+    for _ in range(n):
+        choices = []
+        for _ in range(int(rng.integers(1, 4))):
+            picked = rng.choice(len(targets), size=int(rng.integers(1, 3)), replace=False)
+            weight = rng.random(len(picked)) * (rng.random() > 0.1)  # now and then all 0
+            choices.append({targets[i]: float(w) for i, w in zip(picked, weight)})
+        rows_of.append(choices)
+    model, goal, fail = model_of(rows_of)
+    inside = ~(goal | fail) & (rng.random(n + 2) > 0.15)
+    component, internal = numeric.end_components(model, inside)
+    expected, pairs = naive_end_components(rows_of, set(np.flatnonzero(inside).tolist()))
+    got = {frozenset(np.flatnonzero(component == label).tolist())
+           for label in set(component.tolist()) - {-1}}
+    assert got == expected
+    assert set(np.flatnonzero(internal).tolist()) == {
+        int(model.group_start[s]) + c for s, c in pairs}
+
+
+def test_a_walk_that_leaves_slowly() -> None:
+    """A ring of 6 states, each moving on (or on, except with probability 1e-9 to state 6),
+    and state 6, which exits (goal 0.8, fail 0.2) or goes back to the ring: one end component
+    whose only exit is 6's, worth 0.8 everywhere. From the leaking walk, plain policy iteration
+    never switches (every gain is within its error bound) and ends with the walk's
+    ill-conditioned chain; the quotient's node has one choice and its value is exact."""
+    eps = 1e-9
+    ring = [[{(i + 1) % 6: 1 - eps, 6: eps}, {(i + 1) % 6: 1.0}] for i in range(6)]
+    model, goal, fail = model_of(ring + [[{0: 1.0}, {"goal": 0.8, "fail": 0.2}]])
+    start = np.r_[model.group_start[:6], model.group_start[6] + 1, 0, 0]
+    plain = numeric.optimal_reach(model, goal, start, stop=fail, floor=1e-12)
+    assert plain.converged and plain.error > numeric.policy.ILL_CONDITIONED
+    found = numeric.optimal_reach(model, goal, start, stop=fail, floor=1e-12, collapse=True)
+    assert found.converged and found.error < 1e-14 and found.residual < 1e-14
+    np.testing.assert_allclose(found.values[:7], 0.8, rtol=0, atol=1e-15)
+    assert found.choice[6] == model.group_start[6] + 1            # state 6 exits
+    # the others walk to 6 along the component's own choices: the first with a chance of
+    # getting there is the leaking move, whose values the quotient's are
+    assert found.choice[:6].tolist() == model.group_start[:6].tolist()
+
+
+def test_quotient_of_a_component_without_exit() -> None:
+    """hand_mdp's state 3 only stays: an end component without exit, worth 0 in the quotient;
+    0 and 1 each stay in their own component and exit by their other choice."""
+    model, goal, fail = hand_mdp()
+    start = model.group_start[:-1].copy()
+    found = numeric.policy._on_quotient(model, goal, start, fail, 1e-14, 0.0, 100)
+    assert found.converged
+    np.testing.assert_allclose(found.values, [1 / 3, 2 / 3, 1 / 3, 0, 1, 0], atol=1e-15)
+
+
 # ---------------------------------------------------------------------------------------------
 # The generated worlds, against the reference
 # ---------------------------------------------------------------------------------------------
@@ -275,6 +357,11 @@ def test_family_against_reference(name: str, folder: str) -> None:
         best = numeric.optimal_reach(model, goal, first, stop=fail)
         assert best.converged and best.error < 1e-10
         np.testing.assert_allclose(best.values[:-2], exact, atol=TOL)
+        # the same maximum on the quotient of the end components (numeric/policy.py)
+        quotient = numeric.policy._on_quotient(model, goal, first, fail, numeric.policy.FLOOR,
+                                               0.0, 10_000)
+        assert quotient.converged and quotient.error < 1e-10
+        np.testing.assert_allclose(quotient.values[:-2], exact, atol=TOL)
     if succs is None:
         return
     model, goal, fail = chain_of(succs)

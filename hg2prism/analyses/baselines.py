@@ -366,13 +366,16 @@ def best_response_value(game: ConcurrentGame, p2: np.ndarray,
     0 is reached with probability 1) and switches a move only on a strict improvement: by more
     than `improvement` plus twice the bound on the evaluation's rounding error, so that a move
     that stalls never looks better by rounding where values are within rounding of 1
-    (numeric/policy.py proves that it terminates). V_static (docs/semantics.md §11) asks for an
-    improvement of 1e-12."""
+    (numeric/policy.py proves that it terminates). Where the last policy's chain is
+    ill-conditioned (a walk left only by unlikely outcomes), it is solved again on the quotient
+    of the end components (`collapse`, numeric/policy.py). V_static (docs/semantics.md §11)
+    asks for an improvement of 1e-12."""
     model = _mixed_model(game, p2, player=1)
     rank = numeric.attractor(model, game.goal, stop=game.zero)
     progress = numeric.progress_choices(model, rank)
     first = np.where(progress >= 0, progress, model.group_start[:-1])
-    found = numeric.optimal_reach(model, game.goal, first, stop=game.zero, floor=improvement)
+    found = numeric.optimal_reach(model, game.goal, first, stop=game.zero, floor=improvement,
+                                  collapse=True)
     if not found.converged:
         raise SolverError("policy iteration for P1's best response did not converge")
     return found.values

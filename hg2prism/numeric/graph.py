@@ -1,4 +1,5 @@
-"""Graph analysis of explicit models: which states have a path into a set, and attractors."""
+"""Graph analysis of explicit models: which states have a path into a set, attractors, and end
+components."""
 
 from __future__ import annotations
 
@@ -113,6 +114,37 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     progress = np.full(model.n_states, -1, dtype=np.int64)
     progress[model.choice_state[first]] = first      # reversed: each state's first choice wins
     return progress
+
+
+def end_components(model: ExplicitModel, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The maximal end components of `model` within the states `inside`: sets of states with
+    choices that never leave the set and that let every state of it reach every other (Baier
+    and Katoen, Principles of Model Checking, algorithm 47). Returns (component [states]: the
+    component's label, -1 for a state in none; internal [choices]: the choice stays in its
+    state's component). Strongly connected sets of the choices that stay inside, then the
+    choices that leave their set are dropped, until nothing changes."""
+    matrix = model.matrix
+    owner = model.choice_state
+    entry = np.repeat(np.arange(model.n_choices), np.diff(matrix.indptr))
+    positive = matrix.data > 0
+    entry, column = entry[positive], matrix.indices[positive]
+    leaves = np.bincount(entry[~inside[column]], minlength=model.n_choices)
+    internal = inside[owner] & (leaves == 0) & (np.bincount(entry, minlength=model.n_choices) > 0)
+    n = model.n_states
+    while True:
+        kept = internal[entry]
+        graph = sp.csr_matrix((np.ones(int(kept.sum()), dtype=np.int8),
+                               (owner[entry[kept]], column[kept])), shape=(n, n))
+        _, label = csgraph.connected_components(graph, directed=True, connection="strong")
+        apart = np.bincount(entry[label[column] != label[owner[entry]]],
+                            minlength=model.n_choices)
+        narrower = internal & (apart == 0)
+        if (narrower == internal).all():
+            break
+        internal = narrower
+    member = np.zeros(n, dtype=bool)
+    member[owner[internal]] = True
+    return np.where(member, label, -1), internal
 
 
 def downstream_first(successor: np.ndarray) -> list[list[int]]:
