@@ -38,6 +38,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 from scipy.optimize import linprog
 
 from hg2prism import numeric
@@ -298,6 +299,15 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
 # The concurrent game
 
 
+def _entered(entering: sp.csr_matrix, states: np.ndarray) -> np.ndarray:
+    """The sorted columns of `entering`'s rows `states`: the free states with a move that may
+    enter one of them."""
+    start, stop = entering.indptr[states], entering.indptr[states + 1]
+    lengths = stop - start
+    gather = np.arange(lengths.sum()) + np.repeat(start - np.cumsum(lengths) + lengths, lengths)
+    return np.unique(entering.indices[gather])
+
+
 def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSolution:
     """V_NE by value iteration from 0 until the largest change is below `tolerance`, and
     stationary locally optimal strategies read off the final matrix games.
@@ -307,16 +317,30 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     v = game.goal.astype(float)
     # Only free states change: restrict the tables to them once.
     nxt, prob, allowed = game.next[free], game.prob[free], game.allowed[free]
+    # A state's matrix game, hence its solution (saddle point, cached kernel or LP: each a
+    # function of the matrix and the state's cached kernel, which only an LP sets), changes
+    # only when a successor's value did: each sweep solves those states alone, with the same
+    # numbers as a sweep over every state.
+    entering = sp.csr_matrix(
+        (np.ones(nxt[0].size * len(free), dtype=np.int8),
+         (nxt.reshape(-1), np.repeat(np.arange(len(free)), nxt[0].size))),
+        shape=(game.size, len(free)))
+    entering.sum_duplicates()
+    m = np.zeros(nxt.shape[:3])
+    dirty = np.arange(len(free))
     for sweeps in range(1, MAX_SWEEPS + 1):
-        m = (prob * v[nxt]).sum(axis=-1)
-        solved = _solve_matrix_games(m, allowed, free, kernels)
+        m[dirty] = (prob[dirty] * v[nxt[dirty]]).sum(axis=-1)
+        solved = _solve_matrix_games(m[dirty], allowed[dirty], free[dirty], kernels)
         # Certified lower ends are <= val(M), so the iterates stay below the fixed point;
         # the maximum keeps them monotone despite rounding.
-        new = np.maximum(v[free], solved.value)
-        change = np.abs(new - v[free]).max(initial=0.0)
-        v[free] = new
+        old = v[free[dirty]]
+        new = np.maximum(old, solved.value)
+        change = np.abs(new - old).max(initial=0.0)
+        changed = free[dirty[new != old]]
+        v[free[dirty]] = new
         if change < tolerance:
             break
+        dirty = _entered(entering, changed)
     else:
         raise SolverError(f"Nash value iteration did not converge in {MAX_SWEEPS} sweeps")
 
