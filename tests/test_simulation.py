@@ -120,6 +120,21 @@ def test_wilson_interval_hand_values() -> None:
     assert wilson_interval(50, 100, 0.999) == pytest.approx(closed_form(50, 100, z999), abs=1e-12)
 
 
+@pytest.mark.parametrize("n", [1, 2, 7, 100])
+def test_wilson_band_is_the_interval_of_every_count(n: int) -> None:
+    """The completion figure's band (one interval per step) against the closed form, count by
+    count, boundaries 0 and n included."""
+    from hg2prism.analyses.simulation import wilson_band
+
+    z = 1.959963984540054
+    low, high = wilson_band(np.arange(n + 1), n)
+    for k in range(n + 1):
+        exp_low, exp_high = closed_form(k, n, z)
+        assert low[k] == pytest.approx(0.0 if k == 0 else max(exp_low, 0.0), abs=1e-12)
+        assert high[k] == pytest.approx(1.0 if k == n else min(exp_high, 1.0), abs=1e-12)
+        assert (low[k], high[k]) == wilson_interval(k, n)
+
+
 def test_wilson_interval_rejects_bad_input() -> None:
     for args in [(1, 0), (-1, 10), (11, 10), (5, 10, 1.0), (5, 10, 0.0)]:
         with pytest.raises(ValueError):

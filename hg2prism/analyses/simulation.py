@@ -25,7 +25,6 @@ Runs are reproducible: every random number comes from ``numpy.random.default_rng
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -90,21 +89,26 @@ def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[f
         raise ValueError(f"n must be >= 1, got {n}")
     if not 0 <= successes <= n:
         raise ValueError(f"successes must lie in 0..{n}, got {successes}")
+    low, high = wilson_band(np.array([successes]), n, confidence)
+    return float(low[0]), float(high[0])
+
+
+def wilson_band(successes: np.ndarray, n: int, confidence: float = 0.95
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """`wilson_interval` of every count in `successes` (integers in 0..n) at once: the
+    completion figure's band has one per step of the horizon, up to 100,000."""
     if not 0.0 < confidence < 1.0:
         raise ValueError(f"confidence must lie in (0, 1), got {confidence}")
     z = float(norm.ppf(1.0 - (1.0 - confidence) / 2.0))
-    p = successes / n
+    p = np.asarray(successes) / n
     z2 = z * z
     denominator = 1.0 + z2 / n
     centre = (p + z2 / (2.0 * n)) / denominator
-    half = z * math.sqrt(p * (1.0 - p) / n + z2 / (4.0 * n * n)) / denominator
-    low, high = centre - half, centre + half
+    half = z * np.sqrt(p * (1.0 - p) / n + z2 / (4.0 * n * n)) / denominator
     # The closed form gives exactly 0 (1) for 0 (n) successes up to rounding.
-    if successes == 0:
-        low = 0.0
-    if successes == n:
-        high = 1.0
-    return max(0.0, low), min(1.0, high)
+    low = np.where(successes == 0, 0.0, np.maximum(0.0, centre - half))
+    high = np.where(successes == n, 1.0, np.minimum(1.0, centre + half))
+    return low, high
 
 
 @dataclass(frozen=True, eq=False)

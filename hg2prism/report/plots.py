@@ -211,7 +211,7 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
     """The completion figure (not saved; into `ax` when given): a curve per row
     (tables.COMPLETION_ROWS's order), each its colour, dash and marker (markers staggered, so
     that curves that coincide stay visible)."""
-    from hg2prism.analyses.simulation import GOAL, wilson_interval
+    from hg2prism.analyses.simulation import GOAL, wilson_band
 
     given = ax
     fig, ax = _axes(ax, COMPLETION_INCHES, FIGURE_DPI)
@@ -223,11 +223,11 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
         steps = np.arange(0, summary.horizon + 1)
         counts = np.searchsorted(done, steps, side="right")
         rate = counts / summary.episodes
-        band = np.array([wilson_interval(int(k), summary.episodes) for k in counts])
+        low, high = wilson_band(counts, summary.episodes)
         colour = f"C{i}"
         dash, marker = COMPLETION_STYLES[i % len(COMPLETION_STYLES)]
         every = max(1, summary.horizon // 8)
-        ax.fill_between(steps, band[:, 0], band[:, 1], color=colour, alpha=0.18, lw=0)
+        ax.fill_between(steps, low, high, color=colour, alpha=0.18, lw=0)
         ax.plot(steps, rate, ls=dash, marker=marker, ms=4, markevery=(i * every // len(rows),
                                                                       every),
                 color=colour, lw=1.4, label=label if len(episodes) == 1
