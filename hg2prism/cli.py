@@ -336,8 +336,9 @@ def _sweep(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     if world.types:
         from hg2prism.experiments.adaptive import parse_weights, sweep_weights
 
-        return Outcome(table="\n".join(sweep_weights(
-            world, parse_weights(args.values[0]), stage, args.storm_method)))
+        table, failed = sweep_weights(world, parse_weights(args.values[0]), stage,
+                                      args.storm_method)
+        return Outcome(table="\n".join(table), failed=failed)
     workers = args.workers if args.workers is not None else sweep.default_workers()
     run = sweep.sweep_grid(world, list(zip(args.param, args.values)), stage,
                            storm_method=args.storm_method, workers=workers,

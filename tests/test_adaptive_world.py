@@ -296,3 +296,38 @@ def test_every_api_verb_on_a_world_with_types(tmp_path):
         message = str(caught.value)
         assert "\n" not in message and "[[type]]" in message, (verb, message)
         assert verb in message or verb == "solve", (verb, message)
+
+
+def test_a_weight_that_fails_is_recorded_and_the_others_go_on(tmp_path, monkeypatch, capsys):
+    """As `hg2prism sweep` records a point: the weight whose solve fails is listed under
+    `failed` with its one-line error and printed as one line (exit status 1); the other
+    weights are solved and written."""
+    import json
+    from pathlib import Path
+
+    from hg2prism import cli
+    from hg2prism.errors import SolverError
+    from hg2prism.experiments import adaptive
+
+    solve = adaptive.check_adaptive
+
+    def failing_at_half(world, out, storm_method="sound", **kwargs):
+        if weights(world)[0] == 0.5:
+            raise SolverError("the adaptive model did not converge\nsecond line")
+        return solve(world, out, storm_method, **kwargs)
+
+    monkeypatch.setattr(adaptive, "check_adaptive", failing_at_half)
+    world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    status = cli.main(["sweep", str(world), "--param", "weight", "--values", "0.5", "1",
+                       "--out", str(tmp_path / "s")])
+    assert status == 1
+    err = capsys.readouterr().err.splitlines()
+    assert [line for line in err if "error" in line] == [
+        f"hg2prism: error: {world}: sweep point weight=0.5: solver: the adaptive model did not "
+        "converge"]
+    summary = json.loads((tmp_path / "s" / "sweep.json").read_text())
+    assert summary["failed"] == [{"weight": 0.5,
+                                  "error": "solver: the adaptive model did not converge"}]
+    assert [row["weight"] for row in summary["rows"]] == [1.0]
+    assert summary["values"] == [0.5, 1.0] and summary["parameters"] == ["weight"]
+    assert (tmp_path / "s" / "sweep.png").exists()

@@ -404,36 +404,49 @@ def parse_weights(values: list[str]) -> list[float]:
 
 
 def sweep_weights(world: World, weights: list[float], out: Path,
-                  storm_method: str = "sound") -> list[str]:
+                  storm_method: str = "sound") -> tuple[list[str], tuple[dict, ...]]:
     """V_adapt, V_oracle and every V_commit against the first type's prior weight: sweep.json,
-    sweep.csv, sweep.{png,svg}; returns the summary table's lines."""
+    sweep.csv, sweep.{png,svg}. A weight whose solve fails is recorded under `failed` (its
+    weight and the one-line error, as `hg2prism sweep` records a point) and the others go on.
+    Returns the summary table's lines and the failed points."""
     import tempfile
 
+    from hg2prism.experiments.sweep import point_error, results_sound
     from hg2prism.report.adaptive_plot import weight_sweep_figure
 
     names = [t.name for t in world.types]
-    rows = []
+    rows, failed = [], []
+    start = time.perf_counter()
     for weight in weights:
         say(f"sweep: weight of {names[0]} = {weight:g}")
-        with tempfile.TemporaryDirectory(prefix="hg2prism-weight-") as scratch:
-            r = check_adaptive(with_first_weight(world, weight), Path(scratch) / "point",
-                               storm_method).results
+        try:
+            with tempfile.TemporaryDirectory(prefix="hg2prism-weight-") as scratch:
+                r = check_adaptive(with_first_weight(world, weight), Path(scratch) / "point",
+                                   storm_method).results
+        except Exception as err:     # as `hg2prism sweep`: one point's failure loses no other
+            failed.append({"weight": weight, "error": point_error(err)})
+            say(f"sweep: weight of {names[0]} = {weight:g}: failed: {failed[-1]['error']}")
+            continue
         rows.append({"weight": weight, "v_adapt": r["v_adapt"], "v_oracle": r["v_oracle"],
                      "v_commit": {t["name"]: t["v_commit"] for t in r["types"]},
                      "value_of_adaptivity": r["value_of_adaptivity"],
                      "cost_of_not_knowing": r["cost_of_not_knowing"]})
-    write_json(out / "sweep.json", {"world": world.name, "parameter": "weight",
-                                    "type": names[0], "rows": rows})
+    write_json(out / "sweep.json", {
+        "world": world.name, "world_file": str(world.path), "parameter": "weight",
+        "values": weights, "parameters": ["weight"], "type": names[0],
+        "storm_method": storm_method, "sound": results_sound(storm_method), "rows": rows,
+        "failed": failed, "seconds": round(time.perf_counter() - start, 3)})
     header = ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names]
     lines = [",".join(header)] + [",".join(repr(x) for x in [
         row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()])
         for row in rows]
     write_text(out / "sweep.csv", "\n".join(lines) + "\n")
-    weight_sweep_figure(world.name, names, rows, out / "sweep")
+    if rows:
+        weight_sweep_figure(world.name, names, rows, out / "sweep")
     table = [f"{world.name}: adaptive deception against the prior weight of {names[0]}", "",
              "| weight | V_adapt | V_oracle | " + " | ".join(f"V_commit({n})" for n in names)
              + " |", "|---" * (3 + len(names)) + "|"]
     for row in rows:
         table.append(f"| {row['weight']:g} | {row['v_adapt']:.6f} | {row['v_oracle']:.6f} | "
                      + " | ".join(f"{v:.6f}" for v in row["v_commit"].values()) + " |")
-    return table
+    return table, tuple(failed)

@@ -430,13 +430,25 @@ def _world_of(task: PointTask) -> World:
     return replace(base, **dict(task.changes))
 
 
+def point_error(err: Exception) -> str:
+    """The one line a sweep records for a point that failed with `err`: the input's key and
+    reason, the solver's or Storm's first line, else the exception's type and text."""
+    from hg2prism.errors import SolverError, StormError
+
+    if isinstance(err, InputError):
+        return f"{err.key}: {err.reason}"
+    if isinstance(err, (SolverError, StormError)):
+        stage = "solver" if isinstance(err, SolverError) else "storm"
+        return f"{stage}: {(str(err).strip().splitlines() or [type(err).__name__])[0]}"
+    return f"{type(err).__name__}: {err}"
+
+
 def solve_point(task: PointTask) -> PointOutcome:
     """Solve one point (docs/semantics.md §7, Sweeps): the size guard, `check` into a private
     temporary folder, the Nash baseline; the row and the folder's files come back. Every error
     becomes the outcome's one-line `error`, so that one point's failure loses no other."""
     from hg2prism import pipeline
     from hg2prism.analyses import baselines
-    from hg2prism.errors import SolverError, StormError
     from hg2prism.model import sizeguard
 
     assignment = dict(task.assignment)
@@ -453,15 +465,8 @@ def solve_point(task: PointTask) -> PointOutcome:
                 files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
                                      for p in folder.rglob("*") if p.is_file()))
             seconds = time.perf_counter() - start
-        except InputError as err:
-            return PointOutcome(task.index, None, (), f"{err.key}: {err.reason}", tuple(warnings))
-        except (SolverError, StormError) as err:
-            stage = "games" if isinstance(err, SolverError) else "storm"
-            first = (str(err).strip().splitlines() or [type(err).__name__])[0]
-            return PointOutcome(task.index, None, (), f"{stage}: {first}", tuple(warnings))
-        except Exception as err:     # a bug or the machine (MemoryError): still one point
-            return PointOutcome(task.index, None, (), f"{type(err).__name__}: {err}",
-                                tuple(warnings))
+        except Exception as err:     # a bug or the machine (MemoryError) too: still one point
+            return PointOutcome(task.index, None, (), point_error(err), tuple(warnings))
     results = checked.results
     row = {
         **{name: _json_value(value) for name, value in assignment.items()},
