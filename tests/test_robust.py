@@ -127,6 +127,22 @@ def test_the_size_guard_bounds_the_interval_model(tmp_path: Path, capsys) -> Non
     assert not out.exists()
 
 
+def test_without_the_cross_check(world_dir: Path, tmp_path: Path, capsys) -> None:
+    """`robust --no-cross-check`: the same values and strategy as the solve (world1, delta
+    0.1), robust.json's storm_check null in every row, and no cross-check line printed."""
+    out = tmp_path / "out"
+    assert main(["robust", str(MODELS / "world1.toml"), "--deltas", "0.1", "--no-cross-check",
+                 "--out", str(out)]) == 0
+    assert "cross-checking" not in capsys.readouterr().err
+    result = json.loads((out / "robust.json").read_text())
+    rows, _ = solved("world1", str(world_dir))
+    (row,) = [r for r in rows if r.delta == 0.1]
+    assert result["storm_check_eps"] is None
+    assert [r["storm_check"] for r in result["rows"]] == [None]
+    assert result["rows"][0]["robust_value"] == row.robust_value
+    assert (out / "robust_0.1" / "strategy.json").read_bytes() == row.records_json
+
+
 def test_robust_strategy_guarantees_the_robust_value(case) -> None:
     """The exported records' worst case, with P1's moves fixed and the reference's adversary
     minimising, is R_delta."""
