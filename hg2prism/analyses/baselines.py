@@ -235,6 +235,15 @@ def _lp_solve(m: np.ndarray, allowed: np.ndarray) -> tuple[float, np.ndarray, np
     return -res.fun, res.x[:n1], y
 
 
+def _fold(ufunc: np.ufunc, array: np.ndarray, axis: int) -> np.ndarray:
+    """ufunc.reduce(array, axis) for np.minimum or np.maximum, one slice at a time."""
+    slices = np.moveaxis(array, axis, 0)
+    total = slices[0].copy()
+    for part in slices[1:]:
+        ufunc(total, part, out=total)
+    return total
+
+
 def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
                         kernels: _Kernels) -> _Solved:
     """Certified values and optimal strategies of the games m[i] (state states[i])."""
@@ -244,8 +253,10 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
     y = np.zeros((n, n2))
 
     # 1. Pure saddle points, all states at once.
-    masked_min = np.where(allowed[:, None, :], m, np.inf).min(axis=2)   # row minima
-    col_max = np.where(allowed, m.max(axis=1), np.inf)                  # column maxima
+    # (minima and maxima are exact in any order: folded slice by slice, as numpy's reduction
+    # over an axis of 4 or 8 is several times slower)
+    masked_min = _fold(np.minimum, np.where(allowed[:, None, :], m, np.inf), 2)   # row minima
+    col_max = np.where(allowed, _fold(np.maximum, m, 1), np.inf)                  # column maxima
     row, col = masked_min.argmax(axis=1), col_max.argmin(axis=1)
     lower, upper = masked_min[np.arange(n), row], col_max[np.arange(n), col]
     done = upper - lower <= GAP
@@ -299,13 +310,27 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
 # The concurrent game
 
 
+def _outcome_sum(weighted: np.ndarray) -> np.ndarray:
+    """weighted.sum(axis=-1), the same numbers: numpy adds fewer than 8 terms left to right
+    (more pairwise), and so does this, one slice at a time, 15 times faster than numpy's
+    reduction over a last axis of 3 (the Nash iteration's hot spot)."""
+    if weighted.shape[-1] >= 8:
+        return weighted.sum(axis=-1)
+    total = weighted[..., 0].copy()
+    for k in range(1, weighted.shape[-1]):
+        total += weighted[..., k]
+    return total
+
+
 def _entered(entering: sp.csr_matrix, states: np.ndarray) -> np.ndarray:
     """The sorted columns of `entering`'s rows `states`: the free states with a move that may
     enter one of them."""
     start, stop = entering.indptr[states], entering.indptr[states + 1]
     lengths = stop - start
     gather = np.arange(lengths.sum()) + np.repeat(start - np.cumsum(lengths) + lengths, lengths)
-    return np.unique(entering.indices[gather])
+    hit = np.zeros(entering.shape[1], dtype=bool)
+    hit[entering.indices[gather]] = True
+    return np.flatnonzero(hit)
 
 
 def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSolution:
@@ -326,11 +351,12 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
          (nxt.reshape(-1), np.repeat(np.arange(len(free)), nxt[0].size))),
         shape=(game.size, len(free)))
     entering.sum_duplicates()
-    m = np.zeros(nxt.shape[:3])
     dirty = np.arange(len(free))
     for sweeps in range(1, MAX_SWEEPS + 1):
-        m[dirty] = (prob[dirty] * v[nxt[dirty]]).sum(axis=-1)
-        solved = _solve_matrix_games(m[dirty], allowed[dirty], free[dirty], kernels)
+        block = _outcome_sum(np.take(prob, dirty, axis=0)
+                             * np.take(v, np.take(nxt, dirty, axis=0)))
+        solved = _solve_matrix_games(block, np.take(allowed, dirty, axis=0), free[dirty],
+                                     kernels)
         # Certified lower ends are <= val(M), so the iterates stay below the fixed point;
         # the maximum keeps them monotone despite rounding.
         old = v[free[dirty]]
@@ -348,7 +374,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     n1, n2 = game.next.shape[1:3]
     p1 = np.full((game.size, n1), 1.0 / n1)
     p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
-    final = _solve_matrix_games((prob * v[nxt]).sum(axis=-1), allowed, free, kernels)
+    final = _solve_matrix_games(_outcome_sum(prob * v[nxt]), allowed, free, kernels)
     p1[free], p2[free] = final.x, final.y
     return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
 
