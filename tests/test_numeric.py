@@ -380,3 +380,33 @@ def test_family_against_reference(name: str, folder: str) -> None:
         assert steps.to_end == pytest.approx(to_end, rel=1e-9)
     else:
         assert steps.to_end is None
+
+
+@pytest.mark.parametrize("slots", [1, 2, 3, 7, 8, 11])
+def test_outcome_sum_adds_left_to_right(slots: int) -> None:
+    """numeric.tables.outcome_sum: left to right, slot by slot, hence numpy's own sum below 8
+    slots bit for bit (pairwise beyond, where only the left fold is promised)."""
+    from hg2prism.numeric.tables import outcome_sum
+
+    rng = np.random.default_rng(slots)
+    prob = rng.random((400, 4, 5, slots))
+    v = rng.random(50)
+    nxt = rng.integers(0, 50, size=prob.shape)
+    got = outcome_sum(prob, v, nxt)
+    left = prob[..., 0] * v[nxt[..., 0]]
+    for k in range(1, slots):
+        left = left + prob[..., k] * v[nxt[..., k]]
+    assert np.array_equal(got, left)
+    if slots < 8:
+        assert np.array_equal(got, (prob * v[nxt]).sum(axis=-1))
+    np.testing.assert_allclose(got, (prob * v[nxt]).sum(axis=-1), rtol=1e-14)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_fold_is_the_reduction(axis: int) -> None:
+    from hg2prism.numeric.tables import fold
+
+    table = np.random.default_rng(axis).random((30, 4, 8))
+    table[3, 2, 5] = np.inf
+    for ufunc in (np.minimum, np.maximum):
+        assert np.array_equal(fold(ufunc, table, axis), ufunc.reduce(table, axis=axis))

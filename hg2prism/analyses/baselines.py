@@ -47,6 +47,7 @@ from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
 from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric.tables import fold, outcome_sum
 
 VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
@@ -235,15 +236,6 @@ def _lp_solve(m: np.ndarray, allowed: np.ndarray) -> tuple[float, np.ndarray, np
     return -res.fun, res.x[:n1], y
 
 
-def _fold(ufunc: np.ufunc, array: np.ndarray, axis: int) -> np.ndarray:
-    """ufunc.reduce(array, axis) for np.minimum or np.maximum, one slice at a time."""
-    slices = np.moveaxis(array, axis, 0)
-    total = slices[0].copy()
-    for part in slices[1:]:
-        ufunc(total, part, out=total)
-    return total
-
-
 def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
                         kernels: _Kernels) -> _Solved:
     """Certified values and optimal strategies of the games m[i] (state states[i])."""
@@ -255,8 +247,8 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
     # 1. Pure saddle points, all states at once.
     # (minima and maxima are exact in any order: folded slice by slice, as numpy's reduction
     # over an axis of 4 or 8 is several times slower)
-    masked_min = _fold(np.minimum, np.where(allowed[:, None, :], m, np.inf), 2)   # row minima
-    col_max = np.where(allowed, _fold(np.maximum, m, 1), np.inf)                  # column maxima
+    masked_min = fold(np.minimum, np.where(allowed[:, None, :], m, np.inf), 2)   # row minima
+    col_max = np.where(allowed, fold(np.maximum, m, 1), np.inf)                  # column maxima
     row, col = masked_min.argmax(axis=1), col_max.argmin(axis=1)
     lower, upper = masked_min[np.arange(n), row], col_max[np.arange(n), col]
     done = upper - lower <= GAP
@@ -310,18 +302,6 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
 # The concurrent game
 
 
-def _outcome_sum(weighted: np.ndarray) -> np.ndarray:
-    """weighted.sum(axis=-1), the same numbers: numpy adds fewer than 8 terms left to right
-    (more pairwise), and so does this, one slice at a time, 15 times faster than numpy's
-    reduction over a last axis of 3 (the Nash iteration's hot spot)."""
-    if weighted.shape[-1] >= 8:
-        return weighted.sum(axis=-1)
-    total = weighted[..., 0].copy()
-    for k in range(1, weighted.shape[-1]):
-        total += weighted[..., k]
-    return total
-
-
 def _entered(entering: sp.csr_matrix, states: np.ndarray) -> np.ndarray:
     """The sorted columns of `entering`'s rows `states`: the free states with a move that may
     enter one of them."""
@@ -353,8 +333,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     entering.sum_duplicates()
     dirty = np.arange(len(free))
     for sweeps in range(1, MAX_SWEEPS + 1):
-        block = _outcome_sum(np.take(prob, dirty, axis=0)
-                             * np.take(v, np.take(nxt, dirty, axis=0)))
+        block = outcome_sum(np.take(prob, dirty, axis=0), v, np.take(nxt, dirty, axis=0))
         solved = _solve_matrix_games(block, np.take(allowed, dirty, axis=0), free[dirty],
                                      kernels)
         # Certified lower ends are <= val(M), so the iterates stay below the fixed point;
@@ -374,7 +353,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     n1, n2 = game.next.shape[1:3]
     p1 = np.full((game.size, n1), 1.0 / n1)
     p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
-    final = _solve_matrix_games(_outcome_sum(prob * v[nxt]), allowed, free, kernels)
+    final = _solve_matrix_games(outcome_sum(prob, v, nxt), allowed, free, kernels)
     p1[free], p2[free] = final.x, final.y
     return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
 

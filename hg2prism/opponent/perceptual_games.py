@@ -30,6 +30,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.numeric import (alternating_attractor, backward_reach, downstream_first,
                               move_predecessors, solve_plain)
+from hg2prism.numeric.tables import fold, outcome_sum
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
 
@@ -235,23 +236,10 @@ class TurnBasedGame:
                                      self.free, self.allowed, actions)
 
 
-def outcome_sum(prob: np.ndarray, v: np.ndarray, nxt: np.ndarray) -> np.ndarray:
-    """sum_k prob[..., k] * v[nxt[..., k]], added left to right one outcome slot at a time:
-    bit-identical to .sum(-1) over the slots, ~3x faster."""
-    total = prob[..., 0] * v[nxt[..., 0]]
-    for k in range(1, nxt.shape[-1]):
-        total = total + prob[..., k] * v[nxt[..., k]]
-    return total
-
-
 def best_answer(q: np.ndarray) -> np.ndarray:
-    """q.max(axis=1): P1's best one-step value against each trap set, [G, A1, A2] -> [G, A2];
-    the maximum of the A1 slices, about 2.5x faster than numpy's reduction over the middle
-    axis (a maximum is exact, so the same numbers)."""
-    best = q[:, 0].copy()
-    for a1 in range(1, q.shape[1]):
-        np.maximum(best, q[:, a1], out=best)
-    return best
+    """q.max(axis=1): P1's best one-step value against each trap set, [G, A1, A2] -> [G, A2],
+    as the maximum of the A1 slices (numeric.fold), about 2.5x faster than numpy's reduction."""
+    return fold(np.maximum, q, 1)
 
 
 def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
