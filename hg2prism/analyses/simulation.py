@@ -397,7 +397,7 @@ class _DeceptiveRun:
     def episode(self, episode: int, horizon: int, rng: np.random.Generator,
                 uniforms: _Uniforms) -> tuple[int, int]:
         """Play episode number `episode`: (its outcome code, its number of transitions)."""
-        from hg2prism.analyses.detection import MismatchDetector
+        from hg2prism.analyses.detection import MismatchDetector, Mixture
 
         chain, plan = self.chain, self.replanning
         node, steps, switches, switched = self.root, 0, 0, False
@@ -415,7 +415,11 @@ class _DeceptiveRun:
             if chain.p2_hypothesis[nxt] != chain.p2_hypothesis[node]:
                 switches += 1
             if detector is not None and not switched:
-                if detector.observe((v, q, m1), predicted, a2, self.n_allowed[v]).rejected:
+                # as the detection experiment predicts her: by the posterior mixture when
+                # she draws her hypothesis (docs/semantics.md §12)
+                expected = (Mixture(self._prediction(node)) if self.model.observer.draws
+                            else predicted)
+                if detector.observe((v, q, m1), expected, a2, self.n_allowed[v]).rejected:
                     switched = True
                     self.replanned += 1
             node = nxt
@@ -485,13 +489,19 @@ class _DeceptiveRun:
         """Pass the step to the observer, with P1's model's prediction as a mixture."""
         v, q, (m1, m2) = self.chain.nodes[node]
         w, q2, _ = self.chain.nodes[nxt]
-        mixture: dict[int, float] = {}
-        for a, p in self.model.trap_sets(v, m1):
-            mixture[a] = mixture.get(a, 0.0) + p
         self.observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1, a1=a1,
                                  a2=a2, predicted_a2=predicted, n_a2=self.n_allowed[v],
                                  p2_memory=m2, next_state=w, next_q=q2,
-                                 prediction=tuple(sorted(mixture.items()))))
+                                 prediction=self._prediction(node)))
+
+    def _prediction(self, node: int) -> tuple[tuple[int, float], ...]:
+        """The trap sets P1's model predicts at `node` with their probabilities (one pair
+        unless P2 draws her hypothesis), sorted by set."""
+        v, _, (m1, _) = self.chain.nodes[node]
+        mixture: dict[int, float] = {}
+        for a, p in self.model.trap_sets(v, m1):
+            mixture[a] = mixture.get(a, 0.0) + p
+        return tuple(sorted(mixture.items()))
 
 
 def simulate_deceptive(analysis: Analysis, strategy: Policy, episodes: int, horizon: int, seed: int,
