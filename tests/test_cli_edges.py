@@ -258,3 +258,14 @@ def test_an_internal_strategy_error_is_one_line(tmp_path: Path, monkeypatch, cap
     assert err.splitlines() == [f"hg2prism: error: {WORLD1}: strategy: episode 3, step 2: "
                                 "no record for state x1_y1"]
     assert not out.exists()
+
+
+def test_bench_refuses_an_unwritable_folder_first(tmp_path: Path) -> None:
+    """`bench` checks --out before solving any world, as every command does: one line, no
+    traceback (it wrote the first world's row, then failed with a FileNotFoundError)."""
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    for out in ("/proc/x", str(blocker)):
+        proc = run_cli(["bench", "--quick", "--out", out], tmp_path, timeout=60)
+        assert proc.returncode == 2
+        assert_one_line_error(proc, "--out")

@@ -645,6 +645,14 @@ def main(argv: list[str] | None = None) -> int:
                              "about 14 GB at peak, run it alone), its row also written to "
                              "OUT/huge.json")
     args = parser.parse_args(argv)
+    from hg2prism.errors import InputError
+    from hg2prism.outputs import check_writable
+
+    try:    # before any world is solved, as every command checks its folder
+        check_writable(Path(args.out))
+    except InputError as err:
+        print(f"hg2prism: error: {err}", file=sys.stderr)
+        return 2
     # SIGTERM unwinds like Ctrl-C, so that the running world's process is killed (measure_world).
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     if args.huge:
