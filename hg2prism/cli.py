@@ -395,7 +395,8 @@ def _validate(args: argparse.Namespace, world: object) -> int:
     types = (f", P2's types {', '.join(t.name for t in world.types)} (adaptive deception)"
              if world.types else "")
     print(f"{args.world}: ok ({world.name}: {frontends.describe(world)}, "
-          f"{len(world.hypotheses)} hypotheses{types})")
+          f"{len(world.hypotheses)} hypothes{'is' if len(world.hypotheses) == 1 else 'es'}"
+          f"{types})")
     return 0
 
 

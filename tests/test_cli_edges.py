@@ -269,3 +269,22 @@ def test_bench_refuses_an_unwritable_folder_first(tmp_path: Path) -> None:
         proc = run_cli(["bench", "--quick", "--out", out], tmp_path, timeout=60)
         assert proc.returncode == 2
         assert_one_line_error(proc, "--out")
+
+
+@pytest.mark.parametrize("hypotheses,said", [('["!obs U A"]', "1 hypothesis)"),
+                                             ('["!obs U A", "!obs U B"]', "2 hypotheses)")])
+def test_validate_counts_the_hypotheses(tmp_path: Path, hypotheses: str, said: str) -> None:
+    world = small_world(tmp_path, {'hypotheses = ["!obs U A", "!obs U B", "!obs U C"]':
+                                   f"hypotheses = {hypotheses}"})
+    proc = run_cli(["validate", str(world)], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.rstrip().endswith(said), proc.stdout
+
+
+def test_a_rounding_level_difference_is_printed_as_zero() -> None:
+    """The adaptivity table's differences (V_adapt 0.7999999999999999 against a V_commit of
+    0.8 printed -0.000000)."""
+    from hg2prism.experiments.adaptive import _difference
+
+    assert [_difference(x) for x in (-1.1e-16, 0.0, 4e-7, -4e-7, -6e-7, 0.1234565)] == [
+        "0.000000", "0.000000", "0.000000", "0.000000", "-0.000001", "0.123456"]

@@ -319,9 +319,17 @@ def adaptivity_table(results: dict) -> str:
               *_pomdp_rows(results.get("pomdp"), results.get("prism_pomdp")),
               *_simulation_rows(results.get("simulation")),
               "", f"value of adaptivity (V_adapt - max V_commit): "
-                  f"{results['value_of_adaptivity']:.6f}",
-              f"cost of not knowing (V_oracle - V_adapt): {results['cost_of_not_knowing']:.6f}"]
+                  f"{_difference(results['value_of_adaptivity'])}",
+              f"cost of not knowing (V_oracle - V_adapt): "
+              f"{_difference(results['cost_of_not_knowing'])}"]
     return "\n".join(lines)
+
+
+def _difference(value: float) -> str:
+    """A difference of two values to 6 decimals; one that rounds to zero is 0.000000, not the
+    -0.000000 of a rounding-level negative (V_adapt 0.7999999999999999 against 0.8)."""
+    text = f"{value:.6f}"
+    return "0.000000" if float(text) == 0.0 else text
 
 
 def _prism_row(prism: dict | None) -> list[str]:
