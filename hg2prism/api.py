@@ -14,10 +14,13 @@ and docs/semantics.md the meaning of every number.
 
 from __future__ import annotations
 
+import contextlib
+import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, Checks
 from hg2prism.model.world import World
 
 from hg2prism.errors import InputError
@@ -29,6 +32,64 @@ __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baseli
            "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
            "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
+
+
+# ---------------------------------------------------------------------------------------------
+# The verbs' arguments, checked before any work: InputError("<verb>()", argument, reason)
+# ---------------------------------------------------------------------------------------------
+
+def _integer(verb: str, value: object, key: str, minimum: int,
+             maximum: int | None = None) -> int:
+    """An integer argument (numpy's too) in [minimum, maximum], by model/validation.py's rule."""
+    import numbers
+
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        value = int(value)
+    return Checks(f"{verb}()").integer(value, key, minimum, maximum)
+
+
+def _option(verb: str, value: object, key: str, what: str, options) -> str:
+    return Checks(f"{verb}()").choice(value, key, what, tuple(options))
+
+
+def _storm_method(verb: str, method: object) -> str:
+    from hg2prism.engines import default as default_engine
+
+    return _option(verb, method, "storm_method", "Storm method", default_engine().methods)
+
+
+def _sequence(verb: str, value: object, key: str, expected: str) -> list:
+    """A list of the values of a sequence argument (not a string)."""
+    from collections.abc import Iterable
+
+    if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
+        raise InputError(f"{verb}()", key, f"expected {expected}, got {type(value).__name__}")
+    return list(value)
+
+
+def _world(verb: str, world: object) -> World:
+    """The World of a `world` argument: a World, or the path of a world file (loaded)."""
+    if isinstance(world, World):
+        return world
+    if isinstance(world, (str, os.PathLike)):
+        return load_world(world)
+    raise InputError(f"{verb}()", "world", "expected a World or the path of a world file, got "
+                     f"{type(world).__name__}")
+
+
+@contextlib.contextmanager
+def _as_arguments(verb: str, renamed: dict[str, str] | None = None):
+    """The stages' InputErrors about the command line's options (file "command line", key
+    "--deltas") as errors in the verb's arguments (file "<verb>()", key "deltas"): the option's
+    name without dashes, or as `renamed` says."""
+    try:
+        yield
+    except InputError as err:
+        if err.file != "command line":
+            raise
+        option, _, rest = err.key.partition(" ")
+        key = (renamed or {}).get(option, option.lstrip("-").replace("-", "_"))
+        raise InputError(f"{verb}()", f"{key} {rest}".strip(), err.reason) from None
 
 
 def _node_name(node: object, file: str) -> str:
@@ -69,6 +130,9 @@ def _edge_probability(graph, u: object, v: object, key: str, file: str) -> float
 def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict]:
     """The nodes in state order (sorted when they sort, else the graph's order) and their
     state names; every node given as an argument checked."""
+    if not all(hasattr(graph, name) for name in ("is_directed", "is_multigraph", "edges")):
+        raise InputError(file, "graph", "expected a directed graph without parallel edges "
+                         f"(networkx.DiGraph), got {type(graph).__name__}")
     if not graph.is_directed() or graph.is_multigraph():
         raise InputError(file, "graph", "expected a directed graph without parallel edges "
                          "(networkx.DiGraph)")
@@ -213,25 +277,55 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
 
     from hg2prism.strategy.objectives import OBJECTIVES
 
-    if objective not in OBJECTIVES:
-        raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
-    if bound is not None and (objective != "bounded" or bound < 1):
-        raise ValueError(f"bound (got {bound}) is a number of steps >= 1, for objective='bounded'")
-    if not isinstance(world, World):
-        world = load_world(world)
+    _option("solve", objective, "objective", "objective", OBJECTIVES)
+    storm_method = _storm_method("solve", storm_method)
+    if bound is not None:
+        bound = _integer("solve", bound, "bound", 1, MAX_HORIZON)
+        if objective != "bounded":
+            raise InputError("solve()", "bound", "a number of steps for objective='bounded', "
+                             f"got objective={objective!r}")
+    if out is not None:
+        out = _out_folder("solve", out)
+    world = _world("solve", world)
     sizeguard.check_size(world)
     if world.types:           # P2's type unknown: adaptive deception (docs/semantics.md §16)
-        return _solve_adaptive(world, out, storm_method, objective)
-    if out is not None:
-        with staged(Path(out)) as stage:
-            checked = pipeline.check(world, stage, storm_method, objective, bound)
-            records = tuple(checked.records)
-    else:
-        with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
-            checked = pipeline.check(world, Path(scratch), storm_method, objective, bound)
-            records = tuple(checked.records)
+        with _as_arguments("solve"):
+            return _solve_adaptive(world, out, storm_method, objective)
+    with _as_arguments("solve"), contextlib.ExitStack() as stack:
+        folder = (stack.enter_context(staged(out)) if out is not None else
+                  Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="hg2prism-"))))
+        checked = pipeline.check(world, folder, storm_method, objective, bound)
+        records = tuple(checked.records)
     return Solution(world=world, strategy=Strategy.from_records(records, checked.analysis.ts),
                     check=checked)
+
+
+def _out_folder(verb: str, out: object) -> Path:
+    """`out` as a folder this process can write (or create), checked before any work as the
+    command line checks --out (outputs.check_writable)."""
+    from hg2prism.outputs import check_writable
+
+    if not isinstance(out, (str, os.PathLike)):
+        raise InputError(f"{verb}()", "out", "expected the path of a folder (a str or a "
+                         f"pathlib.Path), got {type(out).__name__}")
+    with _as_arguments(verb):
+        check_writable(Path(out), "out")
+    return Path(out)
+
+
+def _out_file(verb: str, path: object) -> Path:
+    """`path` as a file this process can write, checked as the command line checks a file's
+    --out."""
+    from hg2prism.outputs import check_writable
+
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"{verb}()", "path", "expected the path of a file (a str or a "
+                         f"pathlib.Path), got {type(path).__name__}")
+    if Path(path).is_dir():
+        raise InputError(f"{verb}()", "path", f"{path} is a folder; expected a file name")
+    with _as_arguments(verb, {"out": "path"}):
+        check_writable(Path(path).parent, "out")
+    return Path(path)
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,12 +380,16 @@ def _solve_adaptive(world: World, out, storm_method: str, objective: str) -> Ada
 
 
 def _one_type(solution, verb: str) -> None:
-    """InputError for a verb that plays one model of P2, given an AdaptiveSolution."""
+    """InputError for a verb that plays one model of P2, given an AdaptiveSolution or anything
+    but a Solution."""
     if isinstance(solution, AdaptiveSolution):
         raise InputError(str(solution.world.path), "type", f"{verb} plays P1's strategy against "
                          "one model of P2; this world lists P2's types ([[type]]): give it one "
                          "type's Solution, solution.types[k] (the adaptive strategy is simulated "
                          "by hg2prism run)")
+    if not isinstance(solution, Solution):
+        raise InputError(f"{verb}()", "solution", "expected a Solution (what hg2prism.solve "
+                         f"returns), got {type(solution).__name__}")
 
 
 def _typed_world(world: World, verb: str, instead: str) -> None:
@@ -315,8 +413,7 @@ def baselines(world: World | str | Path) -> Baselines:
     from hg2prism.analyses import baselines as nash
     from hg2prism import pipeline
 
-    if not isinstance(world, World):
-        world = load_world(world)
+    world = _world("baselines", world)
     analysis = pipeline.analyse(world)
     solved = nash.nash_baseline(analysis.ts, analysis.task)
     return Baselines(v_ne=solved.v_ne, v_ne_bounds=solved.v_ne_bounds,
@@ -356,6 +453,14 @@ def _played(solution: Solution, horizon: int | None):
     return analysis, strategy, horizon
 
 
+def _simulation_arguments(verb: str, episodes: object, horizon: object, seed: object) -> tuple:
+    """episodes, horizon and seed as the world's [simulation] allows them (None: not given)."""
+    return tuple(None if value is None else _integer(verb, value, key, minimum, most)
+                 for key, value, minimum, most in (("episodes", episodes, 1, MAX_EPISODES),
+                                                   ("horizon", horizon, 1, MAX_HORIZON),
+                                                   ("seed", seed, 0, None)))
+
+
 def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | None = None,
              seed: int | None = None) -> Simulation:
     """Play `episodes` episodes of the solution's strategy, each cut after `horizon` steps.
@@ -365,6 +470,7 @@ def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | 
     _one_type(solution, "simulate")
     from hg2prism.analyses.simulation import simulate_deceptive
 
+    episodes, horizon, seed = _simulation_arguments("simulate", episodes, horizon, seed)
     settings = solution.world.simulation
     episodes = settings.episodes if episodes is None else episodes
     seed = settings.seed if seed is None else seed
@@ -420,9 +526,12 @@ def robust(solution: Solution, deltas) -> list[RobustValue]:
     _one_type(solution, "robust")
     from hg2prism.experiments.robust import parse_deltas, solve_budgets
 
+    deltas = _sequence("robust", deltas, "deltas", "a list of deviation budgets in [0, 1)")
+    with _as_arguments("robust"):
+        budgets = parse_deltas(deltas)
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
-        solved = solve_budgets(solution.world, solution.check, parse_deltas(list(deltas)),
-                               Path(scratch), storm_check=False)
+        solved = solve_budgets(solution.world, solution.check, budgets, Path(scratch),
+                               storm_check=False)
     return [RobustValue(delta=r.delta, robust_value=r.robust_value,
                         nominal_worst_case=r.nominal_worst_case,
                         robust_strategy_nominal_value=r.robust_strategy_nominal_value,
@@ -474,9 +583,11 @@ class SweepTable:
         from hg2prism.experiments.sweep import sweep_csv
         from hg2prism.outputs import write_text
 
+        if path is not None:
+            path = _out_file("to_csv", path)
         text = sweep_csv(self.parameters, [row.row for row in self.rows])
         if path is not None:
-            write_text(Path(path), text)
+            write_text(path, text)
         return text
 
 
@@ -488,13 +599,24 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
     and a front end's own, such as a grid's robot settings). Writes nothing; a bad parameter or value raises InputError."""
     from hg2prism.experiments.sweep import sweep_grid
 
-    if not isinstance(world, World):
-        world = load_world(world)
+    storm_method = _storm_method("sweep", storm_method)
+    workers = _integer("sweep", workers, "workers", 1)
+    world = _world("sweep", world)
     _typed_world(world, "sweep", "sweep its prior with hg2prism sweep WORLD --param weight")
     if (grid is None) == (parameter is None):
-        raise ValueError("give a parameter and its values, or a grid of (parameter, values)")
-    grid = [(parameter, list(values))] if grid is None else [(p, list(v)) for p, v in grid]
-    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
+        raise InputError("sweep()", "grid" if grid is not None else "parameter", "give a "
+                         "parameter and its values, or a grid of (parameter, values) pairs")
+    if grid is None:
+        grid = [(parameter, _sequence("sweep", values, "values", f"a list of {parameter} values"))]
+        renamed = {"--param": "parameter", "--values": "values"}
+    else:
+        pairs = _sequence("sweep", grid, "grid", "a list of (parameter, values) pairs")
+        if not all(isinstance(pair, (tuple, list)) and len(pair) == 2 for pair in pairs):
+            raise InputError("sweep()", "grid", "expected a list of (parameter, values) pairs")
+        grid = [(p, _sequence("sweep", v, "grid", f"a list of {p} values")) for p, v in pairs]
+        renamed = {"--param": "grid", "--values": "grid"}
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, \
+            _as_arguments("sweep", renamed):
         run = sweep_grid(world, grid, Path(scratch), show_progress=False,
                          storm_method=storm_method, workers=workers)
     names = tuple(name for name, _ in run.parameters)
@@ -516,9 +638,13 @@ def detection(solution: Solution, *, episodes: int | None = None, seed: int | No
     on detection. Writes nothing."""
     _one_type(solution, "detection")
     from hg2prism import progress
-    from hg2prism.experiments.detect import detection_experiment
+    from hg2prism.experiments.detect import detection_experiment, parse_fallback
 
-    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, progress.quiet():
+    episodes, horizon, seed = _simulation_arguments("detection", episodes, horizon, seed)
+    with _as_arguments("detection"):
+        parse_fallback(fallback, fallback_delta)
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, progress.quiet(), \
+            _as_arguments("detection"):
         return detection_experiment(solution.world, solution.check, Path(scratch), episodes,
                                     seed, False, horizon, fallback, fallback_delta)
 
@@ -570,6 +696,7 @@ def episode(solution: Solution, seed: int | None = None, *, horizon: int | None 
     _one_type(solution, "episode")
     from hg2prism.analyses.episodes import belief_trace, choose_episode, episode_steps
 
+    _, horizon, seed = _simulation_arguments("episode", None, horizon, seed)
     seed = solution.world.simulation.seed if seed is None else seed
     analysis, strategy, horizon = _played(solution, horizon)
     drawn = choose_episode(analysis, strategy, horizon, seed, f"seed={seed}")
@@ -592,6 +719,16 @@ def episode(solution: Solution, seed: int | None = None, *, horizon: int | None 
 # Figures: each draws into the matplotlib Axes given (or a new figure's) and returns them
 # ---------------------------------------------------------------------------------------------
 
+def _played_episode(solution: Solution, played: object, verb: str) -> Episode:
+    """The episode a figure draws: `played`, or by default the world's seed's."""
+    if played is None:
+        return episode(solution)
+    if not isinstance(played, Episode):
+        raise InputError(f"{verb}()", "played", "expected an Episode (what hg2prism.episode "
+                         f"returns), got {type(played).__name__}")
+    return played
+
+
 def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
     """The world and one episode (by default the world's seed's), as `run`'s world figure."""
     from hg2prism.report import plots
@@ -599,7 +736,7 @@ def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
     from hg2prism.analyses.episodes import belief_trace
 
     _one_type(solution, "draw_world")
-    played = episode(solution) if played is None else played
+    played = _played_episode(solution, played, "draw_world")
     ts = solution.check.analysis.ts
     ax = ax if ax is not None else _new_axes(plots.world_figure_inches(solution.world, ts))
     trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
@@ -614,7 +751,7 @@ def draw_belief(solution: Solution, played: Episode | None = None, *, ax=None):
     from hg2prism.report import plots
 
     _one_type(solution, "draw_belief")
-    played = episode(solution) if played is None else played
+    played = _played_episode(solution, played, "draw_belief")
     ax = ax if ax is not None else _new_axes(plots.BELIEF_INCHES)
     trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
     plots.belief_figure(solution.world, trace, played.drawn, None, ax=ax)

@@ -121,9 +121,9 @@ def test_solve_for_another_objective(tmp_path: Path) -> None:
     assert played.horizon == 30
     low, high = simulation.wilson_interval(played.completed, played.episodes, 0.999)
     assert low <= bounded.objective.value <= high
-    with pytest.raises(ValueError, match="objective"):
+    with pytest.raises(InputError, match="objective"):
         hg2prism.solve(world, objective="fastest")
-    with pytest.raises(ValueError, match="bound"):
+    with pytest.raises(InputError, match="bound"):
         hg2prism.solve(world, bound=30)
 
 
@@ -256,6 +256,9 @@ def test_sweep_table_is_sweep_csv(tmp_path: Path) -> None:
     assert timeless(table.to_csv()) == timeless((tmp_path / "sweep.csv").read_text())
     table.to_csv(tmp_path / "mine.csv")
     assert (tmp_path / "mine.csv").read_text() == table.to_csv()
+    (tmp_path / "afile").write_text("x")
+    for path in (tmp_path, tmp_path / "afile" / "sweep.csv", 7):     # checked before writing
+        _refused(lambda: table.to_csv(path), "to_csv()", "path")
     grid = hg2prism.sweep(world, grid=[("window", [1, 2]), ("rationality", [1.0])])
     assert [row.point for row in grid] == [(("window", 1), ("rationality", 1.0)),
                                            (("window", 2), ("rationality", 1.0))]
@@ -369,3 +372,163 @@ def test_docs_api_examples_run_and_print_what_they_say(monkeypatch) -> None:
         expected = _expected_output(block)
         if expected is not None:
             assert out.getvalue().splitlines() == expected, block
+
+
+# ---------------------------------------------------------------------------------------------
+# Bad arguments: one InputError naming the verb and the argument, before any work
+# ---------------------------------------------------------------------------------------------
+
+def _refused(call, file: str, key: str) -> InputError:
+    with pytest.raises(InputError) as caught:
+        call()
+    err = caught.value
+    assert (err.file, err.key) == (file, key), str(err)
+    assert "\n" not in str(err) and err.reason
+    return err
+
+
+def _no_solving(monkeypatch) -> None:
+    from hg2prism import pipeline
+
+    def solved(*args, **kwargs):
+        raise AssertionError("the world was solved before its arguments were checked")
+
+    monkeypatch.setattr(pipeline, "check", solved)
+    monkeypatch.setattr(pipeline, "analyse", solved)
+
+
+def test_solve_refuses_an_out_it_cannot_write_before_any_work(tmp_path: Path,
+                                                                monkeypatch) -> None:
+    """out = a file, a folder under a file, a folder where nothing can be written: one
+    InputError (key out) from outputs.check_writable, before the world is solved, nothing
+    written (the old code raised FileExistsError after the solve, FileNotFoundError from
+    tempfile)."""
+    _no_solving(monkeypatch)
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    bad = [afile, afile / "sub", str(afile)]
+    if Path("/proc").is_dir():
+        bad.append("/proc/hg2prism-out")
+    for out in bad:
+        _refused(lambda: hg2prism.solve(world, out=out), "solve()", "out")
+        _refused(lambda: hg2prism.solve(MODELS / "world1.toml", out=out), "solve()", "out")
+    _refused(lambda: hg2prism.solve(world, out=3), "solve()", "out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"] and afile.read_text() == "x"
+    assert not Path("/proc/hg2prism-out").exists()
+
+
+def test_solve_checks_its_options_before_any_work(monkeypatch) -> None:
+    _no_solving(monkeypatch)
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    for kwargs, key in [(dict(objective="bounded", bound=1.5), "bound"),
+                        (dict(objective="bounded", bound="5"), "bound"),
+                        (dict(objective="bounded", bound=0), "bound"),
+                        (dict(objective="bounded", bound=10**9), "bound"),
+                        (dict(bound=30), "bound"),
+                        (dict(storm_method="bogus"), "storm_method"),
+                        (dict(objective="fastest"), "objective")]:
+        _refused(lambda: hg2prism.solve(world, **kwargs), "solve()", key)
+
+
+def test_the_verbs_check_their_arguments(lateral_solution, monkeypatch) -> None:
+    """Every numeric or option argument of the verbs that play a solution: InputError with the
+    argument's name as the key (not the command line's --flag), before any work."""
+    sol = lateral_solution
+    bad = {
+        "simulate": [(dict(episodes=0), "episodes"), (dict(episodes=-1), "episodes"),
+                     (dict(episodes=1.5), "episodes"), (dict(episodes="10"), "episodes"),
+                     (dict(episodes=10**9), "episodes"), (dict(horizon=0), "horizon"),
+                     (dict(horizon=True), "horizon"), (dict(seed=-1), "seed"),
+                     (dict(seed="a"), "seed"), (dict(seed=1.5), "seed")],
+        "detection": [(dict(episodes=-1), "episodes"), (dict(episodes=1.5), "episodes"),
+                      (dict(horizon=0), "horizon"), (dict(seed=-2), "seed"),
+                      (dict(fallback="bogus"), "fallback"),
+                      (dict(fallback_delta=0.1), "fallback_delta"),
+                      (dict(fallback="robust", fallback_delta=2), "fallback_delta")],
+        "episode": [(dict(seed=-1), "seed"), (dict(seed="a"), "seed"),
+                    (dict(horizon=0), "horizon")],
+        "robust": [(dict(deltas=None), "deltas"), (dict(deltas="0.1"), "deltas"),
+                   (dict(deltas=[2]), "deltas"), (dict(deltas=[]), "deltas")],
+    }
+    for verb, cases in bad.items():
+        for kwargs, key in cases:
+            _refused(lambda: getattr(hg2prism, verb)(sol, **kwargs), f"{verb}()", key)
+    import numpy as np
+
+    played = hg2prism.simulate(sol, episodes=np.int64(20), horizon=np.int32(50), seed=np.int64(3))
+    assert (played.episodes, played.horizon, played.seed) == (20, 50, 3)
+    assert all(type(v) is int for v in (played.episodes, played.horizon, played.seed))
+
+
+def test_sweep_checks_its_arguments(monkeypatch) -> None:
+    import arenas
+
+    _no_solving(monkeypatch)
+    world = arenas.lateral()
+    for args, kwargs, key in [(("window", [1]), dict(workers=0), "workers"),
+                              (("window", [1]), dict(workers=1.5), "workers"),
+                              (("window", [1]), dict(storm_method="bogus"), "storm_method"),
+                              (("bogus", [1]), {}, "parameter"),
+                              (("window", "2"), {}, "values"),
+                              (("window", None), {}, "values"),
+                              (("window", []), {}, "values"),
+                              (("rationality", [-1]), {}, "values"),
+                              ((), {}, "parameter"),
+                              ((), dict(grid=[("window", [0])]), "grid"),
+                              ((), dict(grid=["window"]), "grid"),
+                              ((), dict(grid=5), "grid")]:
+        _refused(lambda: hg2prism.sweep(world, *args, **kwargs), "sweep()", key)
+
+
+def test_a_wrong_kind_of_argument_says_what_was_expected(lateral_solution, monkeypatch) -> None:
+    import networkx as nx
+
+    _no_solving(monkeypatch)
+    world = lateral_solution.world
+    cases = [
+        (lambda: hg2prism.load_world(123), "load_world()", "path", "path of a world file"),
+        (lambda: hg2prism.load_world(None), "load_world()", "path", "path of a world file"),
+        (lambda: hg2prism.world_from_toml(b"name = 'x'"), "world_from_toml()", "text", "str"),
+        (lambda: hg2prism.world_from_toml("", name=3), "world_from_toml()", "name", "str"),
+        (lambda: hg2prism.solve(42), "solve()", "world", "a World or the path"),
+        (lambda: hg2prism.baselines(3), "baselines()", "world", "a World or the path"),
+        (lambda: hg2prism.sweep(None, "window", [1]), "sweep()", "world", "a World"),
+        (lambda: hg2prism.simulate(world), "simulate()", "solution", "a Solution"),
+        (lambda: hg2prism.simulate(None), "simulate()", "solution", "a Solution"),
+        (lambda: hg2prism.deception_values(None), "deception_values()", "solution",
+         "a Solution"),
+        (lambda: hg2prism.robust(world, [0.1]), "robust()", "solution", "a Solution"),
+        (lambda: hg2prism.detection("x"), "detection()", "solution", "a Solution"),
+        (lambda: hg2prism.episode(world), "episode()", "solution", "a Solution"),
+        (lambda: hg2prism.draw_world(lateral_solution, "x"), "draw_world()", "played",
+         "an Episode"),
+        (lambda: hg2prism.draw_belief(lateral_solution, 1), "draw_belief()", "played",
+         "an Episode"),
+        (lambda: hg2prism.world_from_graph([(1, 2)], entries=[1], task="F asset2"), "graph",
+         "graph", "networkx.DiGraph"),
+    ]
+    assert nx.DiGraph     # world_from_graph's own graphs are tested above
+    for call, file, key, expected in cases:
+        assert expected in _refused(call, file, key).reason
+
+
+def test_replace_with_a_settings_table_names_the_key() -> None:
+    """World.replace(simulation=...) and (detection=...) take the settings dataclasses: a dict
+    or None is one InputError naming the key (was an AttributeError in validation.py); the
+    standing traps of a positive delay are initial_standing (docs/api.md)."""
+    import dataclasses
+
+    from hg2prism.frontends.grid import initial_trap_cells
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    for key, value in [("simulation", {"episodes": 5}), ("simulation", None),
+                       ("detection", {"alpha": 0.1})]:
+        err = _refused(lambda: world.replace(**{key: value}), str(world.path), key)
+        assert "dataclasses.replace" in err.reason
+    fewer = world.replace(simulation=dataclasses.replace(world.simulation, episodes=5))
+    assert fewer.simulation.episodes == 5
+    later = world.replace(delay=2, initial_standing=1)
+    assert initial_trap_cells(later) == (world.grid.trap_candidates[1],)
+    _refused(lambda: world.replace(delay=2, initial_traps=[[3, 4]]), str(world.path),
+             "initial_traps")

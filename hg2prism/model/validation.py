@@ -31,6 +31,8 @@ LIMIT_REASON = {
     "simulation.horizon": "an episode that never ends is simulated to the horizon",
     "--episodes": "episodes are simulated side by side in memory",
     "--horizon": "an episode that never ends is simulated to the horizon",
+    "episodes": "episodes are simulated side by side in memory",         # the API's arguments
+    "horizon": "an episode that never ends is simulated to the horizon",
 }
 
 
@@ -138,8 +140,8 @@ class Checks:
         if minimum is not None and value < minimum:
             raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
         if maximum is not None and value > maximum:
-            raise self.fail(key, f"{name} must be <= {maximum:,} ({LIMIT_REASON[key]}), "
-                                 f"got {value:,}")
+            reason = f" ({LIMIT_REASON[key]})" if key in LIMIT_REASON else ""
+            raise self.fail(key, f"{name} must be <= {maximum:,}{reason}, got {value:,}")
         return value
 
     def array(self, value: object, key: str, expected: str) -> list:
@@ -433,6 +435,12 @@ def validate(world: Any) -> None:
     observer.window(world.window)
     observer.rationality(world.rationality)
     sim, det = world.simulation, world.detection
+    for key, value, kind in (("simulation", sim, "SimulationSettings"),
+                             ("detection", det, "DetectionSettings")):
+        if type(value).__name__ != kind:     # the model's dataclass (world.py imports this)
+            raise checks.fail(key, f"must be a {kind} (hg2prism.model.world), such as "
+                                   f"dataclasses.replace(world.{key}, ...), got "
+                                   f"{type(value).__name__}")
     checks.episodes(sim.episodes), checks.horizon(sim.horizon), checks.seed(sim.seed)
     checks.alpha(det.alpha), checks.epsilon(det.epsilon), checks.deviate_after(det.deviate_after)
     if _observer_check is not None:

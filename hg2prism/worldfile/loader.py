@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hg2prism.errors import InputError
 from hg2prism.model.validation import Checks, Vocabulary, arena_vocabulary, grid_vocabulary
 from hg2prism.model.validation import key_part as _key_part
 from hg2prism.model.validation import toml_repr as _toml_repr
@@ -248,6 +249,11 @@ class _Loader(Checks):
 
 def load_world(path: str | Path) -> World:
     """Read and validate a world file; raise InputError(file, key, reason) on any problem."""
+    import os
+
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError("load_world()", "path", "expected the path of a world file (a str or "
+                         f"a pathlib.Path), got {type(path).__name__}")
     return _Loader(Path(path)).load()
 
 
@@ -261,4 +267,10 @@ def world_from_toml(text: str, name: str = "world") -> World:
     """Validate the text of a world file (docs/semantics.md §1). `name` stands for the file in
     error messages and is the world's name when the text has none; raise InputError(name, key,
     reason) on any problem."""
+    for key, value in (("text", text), ("name", name)):
+        if not isinstance(value, str):
+            raise InputError("world_from_toml()", key, "expected a str (" + (
+                "the world file's text; bytes: decode them, or give the file to load_world"
+                if key == "text" else "what stands for the file in messages")
+                + f"), got {type(value).__name__}")
     return _Loader(Path(name), text).load()
