@@ -246,3 +246,37 @@ def test_a_bracket_inverted_by_rounding_is_a_point(world1, monkeypatch) -> None:
         assert again.v_ne_bounds == (point, point) and again.v_ne == point
         assert point == pytest.approx(upper + above, abs=1e-15)
 
+
+
+def test_a_wide_bracket_is_refined(tmp_path: Path) -> None:
+    """Generated world fam08 (delay 2, window 3): the strategies read off the values at the
+    default stop (a change below 1e-10) bracket V_NE by [0.6214, 0.9991], P2's extraction
+    breaking ties the unconverged values do not resolve. Value iteration goes on (1e-12, 1e-14)
+    and each end keeps its best strategy: the bracket is then within 1e-6 and holds the
+    independent reference's V_NE (tests/reference_nash.py)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import reference_nash
+    import worldgen
+    from hg2prism.analyses.baselines import best_response_value
+    from hg2prism.model.product import product_state
+
+    path = tmp_path / "fam08.toml"
+    path.write_text(dict(worldgen.world_family())["fam08_d2_l1_w3_x3"])
+    world = load_world(path)
+    ts = build_transition_system(world)
+    task = translate(world.formula, ts.label_names, ts.letters)
+    game = concurrent_game(ts, task)
+    g0 = product_state(ts.start_state, int(task.delta[task.initial,
+                                                      ts.state_label()[ts.start_state]]),
+                       task.n_states)
+    first = solve_nash(game)
+    assert best_response_value(game, first.p2)[g0] - guaranteed_value(game, first.p1)[g0] > 0.3
+    nash = nash_baseline(ts, task)
+    low, high = nash.v_ne_bounds
+    assert high - low <= 1e-6 and not nash.bracket_warn
+    assert low <= nash.v_ne <= high
+    ref = reference_nash.v_ne(path)
+    assert ref.contains(nash.v_ne, 1e-6), (nash.v_ne, ref)
+    assert ref.lower - 1e-6 <= high and low <= ref.upper + 1e-6

@@ -55,6 +55,10 @@ GAP = 1e-12                 # accepted width of a matrix game's certified value 
 LP_GAP = 1e-9               # an unpolished LP solution must still be this tight, or we fail
 LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
 SHORTFALL_WARNING = 1e-6    # docs/semantics.md §7: warn when P1's extracted strategy guarantees less
+REFINED_TOLERANCE = 1e-14    # a bracket wider than SHORTFALL_WARNING: iterate on to this
+REFINING_SWEEPS = 2          # ... within this many times the first iteration's sweeps in all
+REFINING_LPS = 2000          # ... and this many LPs per tolerance (about 1 ms each; on a delay-2
+                             # world one LP per state at every sweep near 1e-12)
 SUPPORT = 1e-9              # a probability above this is in a strategy's support
 TIE = 1e-9                  # a pure move this close to the value counts as optimal for P1
 
@@ -313,13 +317,18 @@ def _entered(entering: sp.csr_matrix, states: np.ndarray) -> np.ndarray:
     return np.flatnonzero(hit)
 
 
-def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSolution:
-    """V_NE by value iteration from 0 until the largest change is below `tolerance`, and
+def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE,
+               start: NashSolution | None = None, budget: int | None = None,
+               lp_budget: int | None = None) -> NashSolution:
+    """V_NE by value iteration from 0 (or on from an earlier solution `start`, whose values are
+    below the least fixed point too) until the largest change is below `tolerance`, and
     stationary locally optimal strategies read off the final matrix games.
-    Raises SolverError past MAX_SWEEPS sweeps."""
+    Raises SolverError past MAX_SWEEPS sweeps; with a `budget` (`lp_budget`), stops after that
+    many sweeps (once that many LPs were solved) instead, at the iterate reached (still below
+    the least fixed point)."""
     free = np.flatnonzero(game.free)
     kernels = _Kernels(rows=[None] * game.size, cols=[None] * game.size)
-    v = game.goal.astype(float)
+    v = game.goal.astype(float) if start is None else start.values.copy()
     # Only free states change: restrict the tables to them once.
     nxt, prob, allowed = game.next[free], game.prob[free], game.allowed[free]
     # A state's matrix game, hence its solution (saddle point, cached kernel or LP: each a
@@ -343,7 +352,8 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
         change = np.abs(new - old).max(initial=0.0)
         changed = free[dirty[new != old]]
         v[free[dirty]] = new
-        if change < tolerance:
+        if (change < tolerance or sweeps == budget
+                or (lp_budget is not None and kernels.lp_calls >= lp_budget)):
             break
         dirty = _entered(entering, changed)
     else:
@@ -355,7 +365,9 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE) -> NashSol
     p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
     final = _solve_matrix_games(outcome_sum(prob, v, nxt), allowed, free, kernels)
     p1[free], p2[free] = final.x, final.y
-    return NashSolution(values=v, p1=p1, p2=p2, sweeps=sweeps, lp_calls=kernels.lp_calls)
+    return NashSolution(values=v, p1=p1, p2=p2,
+                        sweeps=sweeps + (0 if start is None else start.sweeps),
+                        lp_calls=kernels.lp_calls)
 
 
 def _mixed_model(game: ConcurrentGame, mix: np.ndarray, player: int) -> ExplicitModel:
@@ -425,14 +437,36 @@ def _enabled_only(ts: TransitionSystem, p1: np.ndarray, n_q: int) -> np.ndarray:
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     """The Nash baseline of docs/semantics.md §7 for the task DFA, read at every (s, q) and at the start."""
     game = concurrent_game(ts, dfa)
-    solution = solve_nash(game)
-    guaranteed = guaranteed_value(game, solution.p1)
-    best_response = best_response_value(game, solution.p2)
     n_q = dfa.n_states
     q0 = int(dfa.delta[dfa.initial, ts.state_label()[ts.start_state]])
     g0 = product_state(ts.start_state, q0, n_q)
+    solution = solve_nash(game)
+    guaranteed = guaranteed_value(game, solution.p1)
+    best_response = best_response_value(game, solution.p2)
     v_guaranteed = probability(guaranteed[g0], "P1's guaranteed Nash value")
     upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
+    p1, p2 = solution.p1, solution.p2
+    # A wide bracket: strategies read off values that have not converged enough (ties between
+    # trap sets that the exact values would break). Value iteration goes on, 100 times
+    # tighter each time down to 1e-14, and each end keeps the best strategy found: each end
+    # is sound whichever iterate its strategy comes from (docs/semantics.md §7).
+    tolerance = VI_TOLERANCE
+    sweeps = solution.sweeps
+    while upper - v_guaranteed > SHORTFALL_WARNING and tolerance > REFINED_TOLERANCE:
+        tolerance /= 100.0
+        left = REFINING_SWEEPS * sweeps - solution.sweeps
+        if left <= 0:
+            break
+        solution = solve_nash(game, tolerance, start=solution, budget=left,
+                              lp_budget=REFINING_LPS)
+        lower_now = guaranteed_value(game, solution.p1)
+        if lower_now[g0] > v_guaranteed:
+            guaranteed, p1 = lower_now, solution.p1
+            v_guaranteed = probability(lower_now[g0], "P1's guaranteed Nash value")
+        upper_now = best_response_value(game, solution.p2)
+        if upper_now[g0] < upper:
+            upper, p2 = probability(upper_now[g0], "P1's best response to P2's Nash strategy"), \
+                solution.p2
     if v_guaranteed > upper + 1e-9:
         raise SolverError(f"the Nash bracket is empty: [{v_guaranteed!r}, {upper!r}]")
     # Each end is an exact solve within its rounding (about 1e-11 on ill-conditioned chains):
@@ -445,8 +479,8 @@ def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
         game=game, solution=solution,
         values=solution.values.reshape(ts.n_states, n_q),
         guaranteed=guaranteed.reshape(ts.n_states, n_q),
-        p1=_enabled_only(ts, solution.p1, n_q).reshape(ts.n_states, n_q, -1),
-        p2=solution.p2.reshape(ts.n_states, n_q, -1),
+        p1=_enabled_only(ts, p1, n_q).reshape(ts.n_states, n_q, -1),
+        p2=p2.reshape(ts.n_states, n_q, -1),
         initial=(ts.start_state, q0), v_ne=v_ne, v_ne_p1_guaranteed=v_guaranteed,
         v_ne_bounds=(v_guaranteed, upper), shortfall=v_ne - v_guaranteed,
     )
