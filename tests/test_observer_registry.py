@@ -135,3 +135,21 @@ def test_never_revising_p2_runs_and_her_value_is_v_static(never, name: str, firs
     assert not {"threshold", "prior", "decision"} & set(parameters)
     # the size guard bounds her hypergame through her kind's MemoryBound
     assert result.check.results.states <= sizeguard.estimate_states(world)
+
+
+def test_configure_refuses_what_the_observer_does_not_have() -> None:
+    """registry.configure (the sweeps' and the API's way to change P2's observer): a setting
+    her kind does not have, or a kind nobody registered, is one InputError naming it (both
+    were accepted silently, the setting ignored)."""
+    from hg2prism.opponent.registry import configure
+
+    world = world_from_toml((MODELS / "world3.toml").read_text(), "world3.toml")
+    assert world.inference == "cusum"
+    for settings, key in (({"prior": [1, 2, 3]}, "inference.prior"),
+                          ({"bogus": 3}, "inference.bogus")):
+        with pytest.raises(InputError) as refused:
+            configure(world, **settings)
+        assert refused.value.key == key and "threshold" in refused.value.reason
+    with pytest.raises(InputError, match="no observer of kind 'psychic'"):
+        configure(world, "psychic")
+    assert dict(configure(world, threshold=2.0).settings)["threshold"] == 2.0

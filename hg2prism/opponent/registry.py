@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
+from hg2prism.errors import InputError
 from hg2prism.model import validation
 from hg2prism.model.world import World
 from hg2prism.opponent import bayes, inference
@@ -103,8 +104,18 @@ def configure(world: World, name: str | None = None, **settings: object) -> Worl
     """The world with P2's observer of kind `name` (default: the world's) and the given
     settings, the others kept when the kind stays and defaulted when it changes; P2's first
     guess follows when her kind sets it. ValueError names a required setting not given;
-    InputError a bad value, as in a world file."""
+    InputError a bad value, as in a world file, an unknown kind or a setting the kind does not
+    have."""
+    if (name or world.inference) not in KINDS:
+        raise InputError(str(world.path), "inference.kind", f"no observer of kind {name!r} "
+                         f"(registered: {', '.join(sorted(KINDS))})")
     kind = KINDS[name or world.inference]
+    keys = [setting.key for setting in kind.settings]
+    for key in settings:
+        if key not in keys:
+            raise InputError(str(world.path), f"inference.{key}",
+                             f"not a setting of the {kind.name} observer (its settings: "
+                             f"{', '.join(keys) or 'none'})")
     n = len(world.hypotheses)
     values = dict(world.settings) if kind.name == world.inference else {}
     checks = validation.Checks(str(world.path))
