@@ -19,7 +19,8 @@ from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
 from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.opponent.perceptual_games import PerceptualGame, perceptual_game, solve_game
+from hg2prism.opponent.perceptual_games import (PerceptualGame, SharedParts, perceptual_game,
+                                                solve_game)
 from hg2prism.errors import InputError, probability
 from hg2prism.progress import say, warn
 from hg2prism.strategy.canonical import CanonicalMDP, canonical_mdp, canonical_values
@@ -72,8 +73,9 @@ def analyse(world: World) -> Analysis:
         try:
             jobs = sorted([(task, -1)] + [(dfa, i) for i, dfa in enumerate(hypotheses)],
                           key=lambda job: -job[0].n_states)
-            futures = {i: (pool.submit(solve_game, ts, dfa) if i < 0 else
-                           pool.submit(perceptual_game, ts, dfa, world.rationality))
+            shared = SharedParts()      # a part two games have in common is solved once
+            futures = {i: (pool.submit(solve_game, ts, dfa, shared) if i < 0 else
+                           pool.submit(perceptual_game, ts, dfa, world.rationality, shared))
                        for dfa, i in jobs}
             games = [futures[i].result() for i in range(len(hypotheses))]
             leader = futures[-1].result()

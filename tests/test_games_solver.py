@@ -13,6 +13,7 @@ import worldgen
 from conftest import MODELS
 from hg2prism.model.automata import translate
 from hg2prism.frontends import transition_system as build_transition_system
+from hg2prism.errors import SolverError
 from hg2prism.opponent.perceptual_games import is_certified, TurnBasedGame
 from hg2prism.worldfile import load_world, world_from_toml
 
@@ -273,6 +274,58 @@ def test_parts_are_solved_downstream_first_and_like_the_whole_game() -> None:
             whole = perceptual_games._solve_whole(game)[0]
             assert np.abs(composed - whole).max() <= 1e-10, (name, formula)
     assert several >= 10
+
+
+def test_shared_parts_are_solved_once_and_change_nothing(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The games of one world share their common parts (SharedParts: on these worlds the
+    task's last obligation is often a hypothesis): solved with one SharedParts, on two threads
+    as the pipeline does, every game has the values and strategies, bit for bit, of the game
+    solved alone; each distinct part is solved once (fewer part solves than parts asked for,
+    else this compares nothing); and a part whose solve fails fails every game that asks."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from hg2prism.opponent import perceptual_games
+
+    solved: list[int] = []
+    whole = perceptual_games._solve_whole
+
+    def counted(game: TurnBasedGame):
+        solved.append(int(game.free.sum()))
+        return whole(game)
+
+    asked = 0
+    for name, text in sorted(FAMILY.items()):
+        world = world_from_toml(text, name)
+        ts = build_transition_system(world)
+        dfas = [translate(f, ts.label_names, ts.letters) for f in (world.formula,) + world.hypotheses]
+        alone = [perceptual_games.solve_game(ts, dfa) for dfa in dfas]
+        asked += sum(len(TurnBasedGame(ts, dfa).parts()) for dfa in dfas)
+        shared = perceptual_games.SharedParts()
+        with monkeypatch.context() as patch:
+            patch.setattr(perceptual_games, "_solve_whole", counted)
+            with ThreadPoolExecutor(max_workers=2) as pool:
+                together = list(pool.map(lambda dfa: perceptual_games.solve_game(ts, dfa, shared),
+                                         dfas))
+        for a, b in zip(alone, together):
+            assert np.array_equal(a.values, b.values), name
+            assert np.array_equal(a.p1_strategy, b.p1_strategy), name
+            assert np.array_equal(a.p2_strategy, b.p2_strategy), name
+    shared_solves = len(solved)
+    assert shared_solves < asked, (shared_solves, asked)
+
+    world = world_from_toml(next(iter(sorted(FAMILY.items())))[1], "failing")
+    ts = build_transition_system(world)
+    dfa = translate(world.formula, ts.label_names, ts.letters)
+
+    def failing(game: TurnBasedGame):
+        raise SolverError("no")
+
+    shared = perceptual_games.SharedParts()
+    with monkeypatch.context() as patch:
+        patch.setattr(perceptual_games, "_solve_whole", failing)
+        for _ in range(2):
+            with pytest.raises(SolverError, match="no"):
+                perceptual_games.solve_game(ts, dfa, shared)
 
 
 def test_look_ahead_keeps_the_values(monkeypatch: pytest.MonkeyPatch) -> None:

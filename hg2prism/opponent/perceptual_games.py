@@ -1,10 +1,11 @@
 """P2's perceptual games G(x) (docs/semantics.md §4), solved in numpy.
 
 G(x) is played on TS x DFA(x): at every step P2 commits to a trap set a2, then P1 answers with a1.
-Values are solved to within 1e-10 (docs/semantics.md §10), one part of the game at a time where
-the DFA has several strongly connected parts (downstream first, each with the values of what it
-can enter fixed: on delay worlds a part is a third to a fifth of the game, and its linear solves
-several times cheaper): a few sweeps of value iteration from below seed the strategies; the pair
+Values are solved to within 1e-10 (docs/semantics.md §10), one part of the game at a time, a part
+per strongly connected set of DFA states (downstream first, each with the values of what it can
+enter fixed: on delay worlds a part is a third to a fifth of the game, and its linear solves
+several times cheaper; a part the world's games have in common is solved once, `SharedParts`):
+a few sweeps of value iteration from below seed the strategies; the pair
 greedy for the values is evaluated exactly (a sparse linear solve) and re-greedied for a few
 rounds; where that cycles (on delay worlds P2 changed about a third of her trap sets every
 round), Hoffman-Karp strategy iteration — P1 improves his answers, P2 best-responds exactly —
@@ -21,6 +22,9 @@ further 1.2-2.8x of CPU with the parts and the look-ahead, docs/performance.md.)
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from concurrent.futures import Future
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,9 +103,11 @@ class TurnBasedGame:
 
     def restricted(self, states: np.ndarray, values: np.ndarray) -> TurnBasedGame:
         """The game on `states` (free states, increasing) alone, in local numbers: those
-        states first, then every state they can enter outside them, absorbing with its value
-        in `values` (the goal among them, and every exit of positive value, is the new goal).
-        Its values on `states` are the game's when `values` are exact on the exits."""
+        states first, then one absorbing state per distinct value in `values` of the states
+        they can enter outside them (the exits; each of positive value is a goal). Its values
+        on `states` are the game's when `values` are exact on the exits. The exits' own
+        numbers never matter to those values, so exits of equal value are one state: games
+        that differ only in which outside states hold a value solve the same part."""
         sub = object.__new__(TurnBasedGame)
         sub.ts, sub.dfa = self.ts, self.dfa
         inside = np.zeros(self.size, dtype=bool)
@@ -109,30 +115,42 @@ class TurnBasedGame:
         entered = np.zeros(self.size, dtype=bool)
         entered[self.next[states].reshape(-1)] = True
         exits = np.flatnonzero(entered & ~inside)
+        exit_values, exit_of = np.unique(values[exits], return_inverse=True)
+        m = exit_values.size
         local = np.full(self.size, -1, dtype=self.next.dtype)
         local[states] = np.arange(states.size)
-        local[exits] = states.size + np.arange(exits.size)
-        n, shape = states.size + exits.size, self.next.shape[1:]
+        local[exits] = states.size + exit_of
+        n, shape = states.size + m, self.next.shape[1:]
         sub.next = np.empty((n,) + shape, dtype=self.next.dtype)
         sub.next[:states.size] = local[self.next[states]]
-        sub.next[states.size:] = (states.size + np.arange(exits.size))[:, None, None, None]
+        sub.next[states.size:] = (states.size + np.arange(m))[:, None, None, None]
         sub.prob = np.zeros((n,) + shape)
         sub.prob[:states.size] = self.prob[states]
         sub.prob[states.size:, ..., 0] = 1.0
-        every = np.r_[states, exits]
-        # An exit is absorbing: one allowed set (its first) keeps its moves out of the searches.
-        sub.allowed = self.allowed[every]
-        first = sub.allowed[states.size:].argmax(axis=1)
-        sub.allowed[states.size:] = False
-        sub.allowed[states.size + np.arange(exits.size), first] = True
-        sub.terminal = np.r_[np.zeros(states.size), values[exits]]
+        # An exit is absorbing: one allowed set (the first) keeps its moves out of the searches.
+        sub.allowed = np.zeros((n, self.allowed.shape[1]), dtype=bool)
+        sub.allowed[:states.size] = self.allowed[states]
+        sub.allowed[states.size:, 0] = True
+        sub.terminal = np.r_[np.zeros(states.size), exit_values]
         sub.goal = sub.terminal > 0
-        sub.free = np.r_[np.ones(states.size, dtype=bool), np.zeros(exits.size, dtype=bool)]
+        sub.free = np.r_[np.ones(states.size, dtype=bool), np.zeros(m, dtype=bool)]
         sub.zero_fixed = ~sub.free & ~sub.goal
         sub.size = n
-        sub.standing = None if self.standing is None else self.standing[every]
+        sub.standing = (None if self.standing is None
+                        else np.r_[self.standing[states], np.full(m, -1)])
         sub._reverse, sub._pairs = None, None
         return sub
+
+    def signature(self) -> bytes:
+        """A digest of what a `restricted` game's values on its free states (numbered first)
+        depend on: their moves, P2's sets there and the exits' values. Two games of equal
+        signature have the same values there, computed the same way."""
+        digest = hashlib.blake2b(digest_size=32)
+        k = int(self.free.sum())
+        for table in (self.next[:k], self.prob[:k], self.allowed[:k], self.terminal[k:]):
+            digest.update(repr((table.dtype.str, table.shape)).encode())
+            digest.update(np.ascontiguousarray(table).data)
+        return digest.digest()
 
     def parts(self) -> list[np.ndarray]:
         """The free states by strongly connected set C of DFA states (those of TS x C), in
@@ -221,11 +239,14 @@ class TurnBasedGame:
     def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
         """The moves (g, a1, a2) entering each game state (numeric.move_predecessors), once."""
         if self._reverse is None:
-            # The attractor reads only P2's allowed sets (where she has one in every state),
-            # so the moves of the others are left out (most of them on delay worlds).
-            only = (np.broadcast_to(self.allowed[:, None, :], self.next.shape[:3])
-                    if self.allowed.any(axis=1).all() and not self.allowed.all() else None)
-            self._reverse = move_predecessors(self.next, self.prob, only)
+            # The attractor enters only free states and reads only P2's allowed sets there
+            # (where she has one in every state), so the moves of the others are left out:
+            # most of them on delay worlds, and the absorbing states' on every game.
+            only = self.free[:, None]
+            if self.allowed.any(axis=1).all():
+                only = only & self.allowed
+            self._reverse = move_predecessors(
+                self.next, self.prob, np.broadcast_to(only[:, None, :], self.next.shape[:3]))
         return self._reverse
 
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
@@ -246,25 +267,60 @@ def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
     """The trap set standing in each TS state (-1 when trapped); None when delay is 0."""
     if not ts.delay:
         return None
-    return np.array([ts.decode(s)[1] if s != ts.trapped else -1 for s in range(ts.n_states)])
+    return np.r_[np.arange(ts.n_states - 1) // ts.phases % ts.n_sets, -1]   # `trapped` last
 
 
-def solve_game(ts: TransitionSystem, dfa: DFA) -> GameSolution:
-    return _solve(TurnBasedGame(ts, dfa))
+class SharedParts:
+    """The parts of games already solved for one world, by `TurnBasedGame.signature`, for the
+    games of that world to share: the task's DFA and the hypotheses' often have a part that is
+    the same game (on the benchmark's worlds, "!obs U A" is a hypothesis and what is left of
+    the task once C is reached). Thread-safe: a game that needs a part another thread is
+    solving waits for it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._parts: dict[bytes, Future] = {}
+
+    def solved(self, part: TurnBasedGame) -> tuple[np.ndarray, int]:
+        """(values, sweeps) of `_solve_whole(part)`, solved once."""
+        key = part.signature()
+        with self._lock:
+            future = self._parts.get(key)
+            mine = future is None
+            if mine:
+                future = self._parts[key] = Future()
+        if mine:
+            try:
+                values, _, _, sweeps = _solve_whole(part)
+            except BaseException as error:
+                future.set_exception(error)
+                raise
+            future.set_result((values, sweeps))
+        return future.result()
 
 
-def _solve(game: TurnBasedGame) -> GameSolution:
-    """The game's values and strategies. Where the DFA has several strongly connected parts
-    (`TurnBasedGame.parts`), each is solved on its own, downstream first, with the values of
-    what it can enter fixed (on delay worlds each part is a third to a fifth of the game, and
-    its linear solves several times cheaper); the composed values are then certified on the
-    whole game (module docstring), which falls back to solving it whole should that fail."""
+def solve_game(ts: TransitionSystem, dfa: DFA, shared: SharedParts | None = None) -> GameSolution:
+    return _solve(TurnBasedGame(ts, dfa), shared)
+
+
+def _solve(game: TurnBasedGame, shared: SharedParts | None = None) -> GameSolution:
+    """The game's values and strategies. The free states are solved one part at a time
+    (`TurnBasedGame.parts`: one per strongly connected set of DFA states), downstream first,
+    each on its own with the values of what it can enter fixed (on delay worlds a part is a
+    third to a fifth of the game, and its linear solves several times cheaper; a game of one
+    part leaves out its absorbing states, two thirds of its tables), and each once per world
+    when `shared` is given; the composed values are then certified on the whole game (module
+    docstring), which falls back to solving it whole should that fail."""
     parts = game.parts()
     certified = None
-    if len(parts) > 1:
+    if parts:
         x, sweeps = game.terminal.copy(), 0
         for states in parts:
-            values, _, _, used = _solve_whole(game.restricted(states, x))
+            part = game.restricted(states, x)
+            if shared is None:
+                values, _, _, used = _solve_whole(part)
+            else:
+                values, used = shared.solved(part)
             x[states] = values[:states.size]
             sweeps += used
         certified = _finish(game, x, game.allowed_q(x))
@@ -604,11 +660,13 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
     return FastestMoves(answers=np.where(optimal, gain, -1.0).argmax(axis=1), scores=w)
 
 
-def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float) -> PerceptualGame:
+def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
+                    shared: SharedParts | None = None) -> PerceptualGame:
     """Solve G(x) and derive P2's strategy and her softmax model of P1 (docs/semantics.md
-    §§4, 15): the softmax and the max over a1 range over the actions enabled at v."""
+    §§4, 15): the softmax and the max over a1 range over the actions enabled at v. `shared`:
+    the parts solved for the world's other games (`SharedParts`)."""
     game = TurnBasedGame(ts, dfa)
-    solution = _solve(game)
+    solution = _solve(game, shared)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
