@@ -21,6 +21,8 @@ from __future__ import annotations
 import random
 from pathlib import Path
 
+import spot
+
 # State names: identifiers, a few of them PRISM keywords or one letter (the package must prefix
 # them); never "trapped" and never a proposition.
 STATE_NAMES = ["lobby", "hall", "vault", "dock", "lab", "yard", "gate", "roof", "cellar",
@@ -200,7 +202,8 @@ def arena_world(seed: int, *, mode: str | None = None, delay: int | None = None,
         if len(hyps) == n_hyp:
             break
         h = _fmt(*_template(rng, HYPOTHESES, used, labels))
-        if h not in hyps:
+        # distinct languages, as the world file asks ("F (a & b)" and "F (b & a)" are one)
+        if not any(spot.are_equivalent(h, other) for other in hyps):
             hyps.append(h)
     if nowhere and rng.random() < 0.5:
         hyps[-1] = f"F {nowhere}"               # a hypothesis nothing can satisfy

@@ -34,6 +34,8 @@ INVALID = [
     (GRID, "formula", "G obs", "task.formula"),
     (GRID, "formula", "F Q", "task.formula"),
     (GRID, "hypotheses", ("F A", "F A"), "adversary.hypotheses[1]"),
+    # the same language in other words (Spot writes "true U A" as "1 U A", not "F A")
+    (GRID, "hypotheses", ("F A", "!obs U B", "true U A"), "adversary.hypotheses[2]"),
     (GRID, "hypotheses", (), "adversary.hypotheses"),
     (GRID, "traps", 0, "adversary.traps"),
     (GRID, "traps", 5, "adversary.traps"),

@@ -259,16 +259,21 @@ class Checks:
         if not items:
             raise self.fail("adversary.hypotheses", "hypotheses is empty; expected at least one "
                                                     "co-safe LTL formula")
-        seen: dict[str, int] = {}
+        # Distinct languages, not only distinct texts: two equivalent hypotheses ("F A" and
+        # "true U A", "F (A & B)" and "F (B & A)") have the same DFA and game, and P2 could
+        # never tell them apart.
+        import spot
+
+        parsed: list = []
         for i, h in enumerate(items):
             key = f"adversary.hypotheses[{i}]"
-            canon = str(self.formula(h, key, vocabulary))
-            if canon in seen:
-                j = seen[canon]
-                raise self.fail(key, f"hypothesis {h!r} is repeated: it is the same formula as "
-                                     f"hypotheses[{j}] ({items[j]!r}); expected distinct "
-                                     "hypotheses")
-            seen[canon] = i
+            formula = self.formula(h, key, vocabulary)
+            for j, other in enumerate(parsed):
+                if spot.are_equivalent(formula, other):
+                    raise self.fail(key, f"hypothesis {h!r} is repeated: it is equivalent to "
+                                         f"hypotheses[{j}] ({items[j]!r}); expected hypotheses "
+                                         "with distinct languages")
+            parsed.append(formula)
         return tuple(items)
 
 
