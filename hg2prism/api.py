@@ -738,7 +738,7 @@ def draw_world(solution: Solution, played: Episode | None = None, *, ax=None):
     _one_type(solution, "draw_world")
     played = _played_episode(solution, played, "draw_world")
     ts = solution.check.analysis.ts
-    ax = ax if ax is not None else _new_axes(plots.world_figure_inches(solution.world, ts))
+    ax = _axes(ax, "draw_world", lambda: plots.world_figure_inches(solution.world, ts))
     trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
     plots.world_figure(solution.world, ts, played.drawn, trace, None, ax=ax)
     return ax
@@ -752,7 +752,7 @@ def draw_belief(solution: Solution, played: Episode | None = None, *, ax=None):
 
     _one_type(solution, "draw_belief")
     played = _played_episode(solution, played, "draw_belief")
-    ax = ax if ax is not None else _new_axes(plots.BELIEF_INCHES)
+    ax = _axes(ax, "draw_belief", lambda: plots.BELIEF_INCHES)
     trace = belief_trace(solution.check.analysis.inference, played.drawn.steps)
     plots.belief_figure(solution.world, trace, played.drawn, None, ax=ax)
     return ax
@@ -762,7 +762,7 @@ def draw_sweep(table: SweepTable, *, ax=None, world_name: str | None = None):
     """A sweep's values against its (first) parameter, as `hg2prism sweep`'s figure."""
     from hg2prism.report import plots
 
-    ax = ax if ax is not None else _new_axes(plots.SWEEP_INCHES)
+    ax = _axes(ax, "draw_sweep", lambda: plots.SWEEP_INCHES)
     rows = [row.row for row in table.rows]
     if len(table.parameters) == 1:
         plots.sweep_figure(table.parameters[0], rows, None, world_name, ax=ax)
@@ -771,7 +771,15 @@ def draw_sweep(table: SweepTable, *, ax=None, world_name: str | None = None):
     return ax
 
 
-def _new_axes(inches):
+def _axes(ax: object, verb: str, inches):
+    """The Axes a figure draws into: `ax`, which must be a matplotlib Axes, or a new figure's
+    of the size `inches()`."""
+    from matplotlib.axes import Axes
     import matplotlib.pyplot as plt
 
-    return plt.figure(figsize=inches, layout="constrained").add_subplot()
+    if ax is None:
+        return plt.figure(figsize=inches(), layout="constrained").add_subplot()
+    if not isinstance(ax, Axes):
+        raise InputError(f"{verb}()", "ax", "expected a matplotlib Axes (or None for a new "
+                         f"figure), got {type(ax).__name__}")
+    return ax

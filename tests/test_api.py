@@ -505,6 +505,10 @@ def test_a_wrong_kind_of_argument_says_what_was_expected(lateral_solution, monke
          "an Episode"),
         (lambda: hg2prism.draw_belief(lateral_solution, 1), "draw_belief()", "played",
          "an Episode"),
+        (lambda: hg2prism.draw_world(lateral_solution, ax="x"), "draw_world()", "ax",
+         "a matplotlib Axes"),
+        (lambda: hg2prism.draw_belief(lateral_solution, ax=3), "draw_belief()", "ax",
+         "a matplotlib Axes"),
         (lambda: hg2prism.world_from_graph([(1, 2)], entries=[1], task="F asset2"), "graph",
          "graph", "networkx.DiGraph"),
     ]
