@@ -106,6 +106,58 @@ def test_robust_values_match_the_reference_and_are_ordered(case) -> None:
     assert max(row.storm_states for row in rows) <= 1.1 * bound
 
 
+BAYES_DELAY = """
+name = "bayes_delay"
+[grid]
+map = \"\"\"
+########
+#BB.t..#
+##.....#
+#.....@#
+#..t..t#
+#DtA...#
+########
+\"\"\"
+[robot]
+slip = 0.1
+[task]
+formula = "(!obs U D) & F B"
+[adversary]
+traps = 1
+delay = 1
+initial_traps = [[2, 1]]
+hypotheses = ["F (B & F D)", "!A U D", "F (A & F D)"]
+[inference]
+kind = "bayes"
+window = 2
+rationality = 3.0
+decision = "map"
+prior = [2, 1, 1]
+"""
+
+
+def test_a_bayesian_world_with_delay_is_bounded_given_p2s_games(tmp_path: Path) -> None:
+    """A stress test's Bayesian world with delay (23k canonical states; its interval model,
+    forced, had 4.46e6 Storm states and took 6 GB): from the world alone its interval model
+    is estimated above the default limit, so, as for the hypergame, P2's games are solved and
+    bound it again (an observation records one of the hypotheses' sets at its state, or the
+    standing set): accepted, and the hypergame's bound given the games still holds."""
+    from hg2prism.model import sizeguard
+
+    path = tmp_path / "bayes_delay.toml"
+    path.write_text(BAYES_DELAY)
+    world = load_world(path)
+    factor = 17                     # 1 + P1's 4 moves x P2's 4 trap sets (one trap, 4 cells)
+    assert sizeguard.estimate_states(world) * factor > sizeguard.DEFAULT_LIMIT
+    games = sizeguard.solved_games(world)
+    interval = sizeguard.check_robust_size(world)
+    assert interval == sizeguard._bounded(float(sizeguard.estimate_states(world, games)) * factor)
+    assert interval <= sizeguard.DEFAULT_LIMIT
+    with progress.quiet():
+        states = pipeline.check(world, tmp_path / "out").results.states
+    assert states <= sizeguard.estimate_states(world, games) <= 6 * states
+
+
 def test_the_size_guard_bounds_the_interval_model(tmp_path: Path, capsys) -> None:
     """`robust` refuses a world whose interval model (the hypergame's estimate times 1 + P1's
     actions x P2's actions played) exceeds --max-states, though its hypergame does not, in
