@@ -317,15 +317,24 @@ def test_shared_parts_are_solved_once_and_change_nothing(monkeypatch: pytest.Mon
     ts = build_transition_system(world)
     dfa = translate(world.formula, ts.label_names, ts.letters)
 
+    calls: list[int] = []
+
     def failing(game: TurnBasedGame):
+        calls.append(game.size)
         raise SolverError("no")
 
     shared = perceptual_games.SharedParts()
     with monkeypatch.context() as patch:
         patch.setattr(perceptual_games, "_solve_whole", failing)
-        for _ in range(2):
+        with pytest.raises(SolverError, match="no"):
+            perceptual_games.solve_game(ts, dfa, shared)
+        # the same game again, from another thread: the part's failure is shared, not retried
+        # (and not waited for forever)
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            again = pool.submit(perceptual_games.solve_game, ts, dfa, shared)
             with pytest.raises(SolverError, match="no"):
-                perceptual_games.solve_game(ts, dfa, shared)
+                again.result(timeout=60)
+    assert len(calls) == 1
 
 
 def test_look_ahead_keeps_the_values(monkeypatch: pytest.MonkeyPatch) -> None:

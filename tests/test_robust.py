@@ -138,24 +138,28 @@ prior = [2, 1, 1]
 
 def test_a_bayesian_world_with_delay_is_bounded_given_p2s_games(tmp_path: Path) -> None:
     """A stress test's Bayesian world with delay (23k canonical states; its interval model,
-    forced, had 4.46e6 Storm states and took 6 GB): from the world alone its interval model
-    is estimated above the default limit, so, as for the hypergame, P2's games are solved and
-    bound it again (an observation records one of the hypotheses' sets at its state, or the
-    standing set): accepted, and the hypergame's bound given the games still holds."""
+    forced, had 4.46e6 Storm states and took 6 GB). Its hypergame: an observation records P2's
+    choice at its state or the standing set, one of the hypotheses' sets there, so the bound
+    from the world alone and, tighter, the one given P2's games hold (within 6x). Its interval
+    model: there P2 also plays sets no hypothesis chooses and the window records them, so the
+    estimate counts every set per observation step (above the nominal bound) and `robust`
+    refuses it by default, naming the size."""
+    from hg2prism.errors import InputError
     from hg2prism.model import sizeguard
 
     path = tmp_path / "bayes_delay.toml"
     path.write_text(BAYES_DELAY)
     world = load_world(path)
-    factor = 17                     # 1 + P1's 4 moves x P2's 4 trap sets (one trap, 4 cells)
-    assert sizeguard.estimate_states(world) * factor > sizeguard.DEFAULT_LIMIT
     games = sizeguard.solved_games(world)
-    interval = sizeguard.check_robust_size(world)
-    assert interval == sizeguard._bounded(float(sizeguard.estimate_states(world, games)) * factor)
-    assert interval <= sizeguard.DEFAULT_LIMIT
     with progress.quiet():
         states = pipeline.check(world, tmp_path / "out").results.states
     assert states <= sizeguard.estimate_states(world, games) <= 6 * states
+    assert sizeguard.estimate_states(world, games) <= sizeguard.estimate_states(world)
+    deviating = sizeguard.estimate_states(world, deviations=True)
+    assert deviating > sizeguard.estimate_states(world)
+    with pytest.raises(InputError) as refused:
+        sizeguard.check_robust_size(world)
+    assert refused.value.key == "size" and f"{deviating * 17 + 2:,}" in str(refused.value)
 
 
 def test_the_size_guard_bounds_the_interval_model(tmp_path: Path, capsys) -> None:

@@ -132,16 +132,22 @@ def _cells(world: World) -> tuple[Arena, np.ndarray, sp.csr_matrix]:
 
 
 def _memories(world: World, adjacency: sp.csr_matrix, n: int,
-              games: list[PerceptualGame] | None = None) -> np.ndarray | None:
+              games: list[PerceptualGame] | None = None, deviations: bool = False
+              ) -> np.ndarray | None:
     """Per arena state c, X * sum_L N_L(c): the memories P2's observer (the world's own) can
     hold next to c (None: more than BEYOND). With P2's solved `games`, the observer's bound
     given them (`ObserverKind.solved_memory`), where it has one: each observation step of a
-    walk then counts the sets an observation at its state may record."""
+    walk then counts the sets an observation at its state may record. With `deviations` (P2
+    may play any set, as in robust deception's interval model), an observer that records the
+    set played counts every set per observation step."""
     kind = observer_kind(world.inference)
     memory = (kind.solved_memory(world, games) if games is not None and kind.solved_memory
               else kind.memory(world))                  # CUSUM: X hypotheses, w-1 walks
-    sets = (memory.sets_per_observation if memory.sets_at is None
-            else memory.sets_at[:n].astype(float))      # (arena state c = TS state c, no delay)
+    if deviations and memory.records:
+        sets = float(p2_action_count(world))
+    else:
+        sets = (memory.sets_per_observation if memory.sets_at is None
+                else memory.sets_at[:n].astype(float))  # per arena state
     walks = np.ones(n)                                                    # N_0
     total = np.zeros(n)
     for length in range(memory.observations + 1):                        # L = 0 .. w-1 (CUSUM)
@@ -162,12 +168,15 @@ def _bounded(total: float) -> int:
     return min(math.ceil(total * (1 + 1e-9)) + 2, BEYOND)
 
 
-def estimate_states(world: World, games: list[PerceptualGame] | None = None) -> int:
+def estimate_states(world: World, games: list[PerceptualGame] | None = None,
+                    deviations: bool = False) -> int:
     """An upper bound of the hypergame's canonical size (see the module docstring), of the
     world's own observer (a world with types: its first type's); tighter for some observers
-    given P2's solved perceptual `games` (`solved_games`)."""
+    given P2's solved perceptual `games` (`solved_games`). `deviations`: of the memories
+    where P2 may also play sets her hypotheses do not choose (robust deception's interval
+    model), which an observer that records the set played then holds."""
     arena, q_count, adjacency = _cells(world)
-    memories = _memories(world, adjacency, arena.n_states, games)
+    memories = _memories(world, adjacency, arena.n_states, games, deviations)
     if memories is None:
         return BEYOND
     return _bounded(float(np.dot(q_count, memories)) * trap_parts(world))
@@ -176,7 +185,7 @@ def estimate_states(world: World, games: list[PerceptualGame] | None = None) -> 
 def estimate_adaptive(world: World) -> int:
     """An upper bound of the adaptive hypergame's canonical size (docs/semantics.md §16:
     states (v, q, C, memories of the types of C)), for a world with types: the least of two
-    bounds, each rigorous. `_shared_run` counts the run of observations the types share once
+    bounds (their totals), each rigorous. `_shared_run` counts the run of observations the types share once
     (tight where several types watch short windows: 245,602 against the other's 13.8e6 on a
     6 x 5 grid with three types and 2,331 canonical states); `_independent_types` counts each
     type's memory on its own (tighter where one type's long window dominates: 10,690 against
@@ -231,8 +240,9 @@ def _shared_run(world: World) -> int:
     for k in range(len(world.types)):
         typed = world_of_type(world, k)
         bounds.append(observer_kind(typed.inference).memory(typed))
-    records = world.delay > 0 or any(b.sets_per_observation > 1 for b in bounds)
-    step = float(min(p2_action_count(world), len(world.hypotheses))) if records else 1.0
+    records = world.delay > 0 or any(b.records for b in bounds)
+    step = float(max([min(p2_action_count(world), len(world.hypotheses)) if records else 1]
+                     + [b.sets_per_observation for b in bounds]))
     parts = trap_parts(world)
     walks = np.ones(arena.n_states)                                       # N_L f^L
     total = np.zeros(arena.n_states)
@@ -276,17 +286,16 @@ def check_robust_size(world: World, limit: int | None = None) -> int:
     played: the hypergame's estimate times 1 + |A1| |A2| (33 on an 8-set grid; the interval
     model of a 12,318-state hypergame had 416,881 states). An estimate rather than a bound:
     Storm keeps each goal and failure state apart, which the hypergame's estimate merges (0.22
-    to 1.05 times the interval model's states on test_robust's worlds; 0.46 on a Bayesian world
-    with delay, 2.06e6 against 4.46e6, which a run builds in 6 GB). Where that exceeds the
-    limit and the observer bounds its memory tighter given P2's games, they are solved and the
-    hypergame bounded again, as `check_size` does. Returns it."""
+    to 1.05 times the interval model's states on test_robust's worlds). In the interval model
+    P2 also plays sets her hypotheses do not choose, and an observer that records the set
+    played (the Bayesian one) then holds them: its hypergame is counted with every set per
+    observation step (`estimate_states(deviations=True)`; a Bayesian world with delay: 24.7e6
+    against an interval model of 4.46e6 Storm states). Returns it."""
     limit = DEFAULT_LIMIT if limit is None else limit
     estimate = check_size(world, limit)
     factor = 1 + arena_of(world).n_actions * p2_action_count(world)
-    if (estimate * factor > limit and not world.types
-            and observer_kind(world.inference).solved_memory):
-        # as check_size does for the hypergame: bound it again given P2's games
-        estimate = min(estimate, estimate_states(world, solved_games(world)))
+    if not world.types and observer_kind(world.inference).memory(world).records:
+        estimate = max(estimate, estimate_states(world, deviations=True))
     return _refuse(world, "size", "interval model of robust deception",
                    _bounded(float(estimate) * factor), limit,
                    f"{len(world.hypotheses)} hypotheses and window {world.window}, times 1 + "
@@ -296,7 +305,7 @@ def check_robust_size(world: World, limit: int | None = None) -> int:
 def solved_games(world: World) -> list[PerceptualGame]:
     """P2's perceptual games of the world (the first stage of every command), for a bound an
     observer tightens with them: solved only where the bound from the world alone exceeds the
-    limit (the games are small; without delay they take well under a second)."""
+    limit (the games are small: well under a second without delay, seconds with)."""
     from hg2prism.frontends import transition_system
     from hg2prism.model.automata import translate
     from hg2prism.opponent.perceptual_games import perceptual_game

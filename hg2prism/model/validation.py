@@ -261,7 +261,9 @@ class Checks:
                                                     "co-safe LTL formula")
         # Distinct languages, not only distinct texts: two equivalent hypotheses ("F A" and
         # "true U A", "F (A & B)" and "F (B & A)") have the same DFA and game, and P2 could
-        # never tell them apart.
+        # never tell them apart. (Equivalence over every word: formulas that differ only on
+        # letters the world never produces, two propositions on one cell, pass, as
+        # docs/semantics.md §1 says; the arena is not compiled yet here.)
         import spot
 
         parsed: list = []

@@ -213,7 +213,7 @@ def _memory(world: World) -> MemoryBound:
     canonical states on a 6 x 6 world with delay 1 and window 3.)"""
     actions = p2_action_count(world)
     return MemoryBound(hypotheses=1, observations=world.window,
-                       sets_per_observation=min(actions, len(world.hypotheses)))
+                       sets_per_observation=min(actions, len(world.hypotheses)), records=True)
 
 
 def _solved_memory(world: World, games: list[PerceptualGame]) -> MemoryBound:

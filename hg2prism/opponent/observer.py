@@ -130,6 +130,9 @@ class MemoryBound:
     hypotheses: int
     observations: int
     sets_per_observation: int = 1
+    # each observation records the set P2 played (so where she may play any set, as in robust
+    # deception's interval model, it may record any of them)
+    records: bool = False
     # where known (from P2's solved games): per TS state, how many sets an observation made
     # there may record; replaces sets_per_observation
     sets_at: np.ndarray | None = None

@@ -127,7 +127,8 @@ class TurnBasedGame:
         sub.prob = np.zeros((n,) + shape)
         sub.prob[:states.size] = self.prob[states]
         sub.prob[states.size:, ..., 0] = 1.0
-        # An exit is absorbing: one allowed set (the first) keeps its moves out of the searches.
+        # An exit is absorbing, with one allowed set (the first; any would do: an exit's moves
+        # are never searched, `_predecessors` leaving out every state that is not free).
         sub.allowed = np.zeros((n, self.allowed.shape[1]), dtype=bool)
         sub.allowed[:states.size] = self.allowed[states]
         sub.allowed[states.size:, 0] = True
@@ -282,7 +283,8 @@ class SharedParts:
         self._parts: dict[bytes, Future] = {}
 
     def solved(self, part: TurnBasedGame) -> tuple[np.ndarray, int]:
-        """(values, sweeps) of `_solve_whole(part)`, solved once."""
+        """(values, sweeps) of `_solve_whole(part)`, solved once (the sweeps 0 where the part
+        was solved for another game)."""
         key = part.signature()
         with self._lock:
             future = self._parts.get(key)
@@ -296,7 +298,8 @@ class SharedParts:
                 future.set_exception(error)
                 raise
             future.set_result((values, sweeps))
-        return future.result()
+            return values, sweeps
+        return future.result()[0], 0
 
 
 def solve_game(ts: TransitionSystem, dfa: DFA, shared: SharedParts | None = None) -> GameSolution:
