@@ -280,3 +280,19 @@ def test_a_wide_bracket_is_refined(tmp_path: Path) -> None:
     ref = reference_nash.v_ne(path)
     assert ref.contains(nash.v_ne, 1e-6), (nash.v_ne, ref)
     assert ref.lower - 1e-6 <= high and low <= ref.upper + 1e-6
+
+
+@pytest.mark.parametrize("formula, value", [("true", 1.0), ("F (A & B)", 0.0)])
+def test_a_game_with_every_state_decided(formula: str, value: float) -> None:
+    """A task that holds at once ("true") or that no cell satisfies ("F (A & B)": no cell
+    carries both) leaves no undecided state in the game: the Nash baseline is that value,
+    its bracket a point, with nothing to iterate (an edge-case stress test found an IndexError
+    on an empty table there, and `run` failed)."""
+    world = load_world(WORLD1).replace(formula=formula)
+    ts = build_transition_system(world)
+    dfa = translate(world.formula, ts.label_names, ts.letters)
+    assert not concurrent_game(ts, dfa).free.any()
+    baseline = nash_baseline(ts, dfa)
+    assert baseline.v_ne == baseline.v_ne_p1_guaranteed == value
+    assert baseline.v_ne_bounds == (value, value)
+    assert baseline.solution.sweeps == 0

@@ -329,6 +329,12 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE,
     free = np.flatnonzero(game.free)
     kernels = _Kernels(rows=[None] * game.size, cols=[None] * game.size)
     v = game.goal.astype(float) if start is None else start.values.copy()
+    n1 = game.next.shape[1]
+    uniform = (np.full((game.size, n1), 1.0 / n1),
+               game.allowed / game.allowed.sum(axis=1, keepdims=True))
+    if not free.size:       # every state decided (a goal or a failure): nothing to iterate
+        return NashSolution(values=v, p1=uniform[0], p2=uniform[1],
+                            sweeps=0 if start is None else start.sweeps, lp_calls=0)
     # Only free states change: restrict the tables to them once.
     nxt, prob, allowed = game.next[free], game.prob[free], game.allowed[free]
     # A state's matrix game, hence its solution (saddle point, cached kernel or LP: each a
@@ -360,9 +366,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE,
         raise SolverError(f"Nash value iteration did not converge in {MAX_SWEEPS} sweeps")
 
     # Strategies from the final matrices. Absorbing states: uniform (their moves do not matter).
-    n1, n2 = game.next.shape[1:3]
-    p1 = np.full((game.size, n1), 1.0 / n1)
-    p2 = game.allowed / game.allowed.sum(axis=1, keepdims=True)
+    p1, p2 = uniform
     final = _solve_matrix_games(outcome_sum(prob, v, nxt), allowed, free, kernels)
     p1[free], p2[free] = final.x, final.y
     return NashSolution(values=v, p1=p1, p2=p2,
