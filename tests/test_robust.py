@@ -395,6 +395,8 @@ def test_robust_command_writes_its_outputs(world_dir: Path, tmp_path: Path) -> N
     (["robust", "WORLD", "--deltas", "1"], "--deltas"),
     (["robust", "WORLD", "--deltas", "0.1", "0.1"], "--deltas"),
     (["robust", "WORLD", "--deltas", "x"], "--deltas"),
+    # below what the cross-check's model can give P2's other sets (1e-9 each): was a ValueError
+    (["robust", "WORLD", "--deltas", "0", "1e-30"], "--deltas"),
     (["detect", "WORLD", "--fallback-delta", "0.1"], "--fallback-delta"),
     (["detect", "WORLD", "--fallback", "robust", "--fallback-delta", "-0.5"], "--fallback-delta"),
     (["detect", "WORLD", "--fallback", "leader", "--fallback-delta", "0.1"], "--fallback-delta"),
@@ -547,3 +549,13 @@ def test_replanning_predicts_a_drawing_p2_by_her_mixture(tmp_path: Path) -> None
     summary, batch = detection_batch(a, deceptive, 400, 100, 0, settings.alpha,
                                      settings.epsilon, replanning=plan)
     assert summary.replanned == len(batch.first_rejection) <= 0.05 * 400
+
+
+def test_budget_names_stay_short() -> None:
+    """A budget's folder is robust_<its shortest decimal>, or its scientific form where that
+    decimal would be long (1e-300 wrote a 300-digit folder name: "File name too long")."""
+    from hg2prism.prism.robust_model import delta_text
+
+    assert [delta_text(d) for d in (0, 0.0, 0.02, 0.1, 0.05, 1e-4)] == \
+        ["0", "0", "0.02", "0.1", "0.05", "0.0001"]
+    assert delta_text(1e-300) == "1e-300" and delta_text(1.5e-12) == "1.5e-12"

@@ -266,6 +266,19 @@ def robust_strategy_for(world: World, check_result: CheckResult, delta: float, f
     return solved.records_json
 
 
+def _check_cross_checkable(world: World, deltas: list[float], eps: float) -> None:
+    """InputError (--deltas) for a positive budget too small for the cross-check's model, which
+    gives each of P2's other sets at least `eps` out of the budget."""
+    from hg2prism.opponent.observer import p2_action_count
+
+    least = eps * (p2_action_count(world) - 1)
+    for delta in deltas:
+        if 0 < delta < least:
+            raise InputError(_CLI, "--deltas", f"{delta:g} is below {least:g}, the least budget "
+                             f"the cross-check's model can give each of P2's other sets "
+                             f"eps = {eps:g}; use 0, a larger budget, or --no-cross-check")
+
+
 def robust(world: World, deltas: Sequence[object], out: Path, show_progress: bool = True,
            check_result=None, cross_check: bool = True) -> dict:
     """Solve the world for every budget; write the outputs (module docstring) into `out` and
@@ -278,6 +291,8 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     from hg2prism.report import plots
 
     parsed = parse_deltas(deltas)
+    if cross_check:
+        _check_cross_checkable(world, parsed, CHECK_EPS)
     out = Path(out)
     start_all = time.perf_counter()
 

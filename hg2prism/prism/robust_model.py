@@ -52,9 +52,11 @@ class RobustModel:
 
 
 def delta_text(delta: float) -> str:
-    """How a budget is written in file and folder names: 0, 0.02, 0.1 (shortest decimal)."""
+    """How a budget is written in file and folder names: 0, 0.02, 0.1 (shortest decimal), or
+    1e-30 where that decimal would be long (a name must stay short enough for the system)."""
     text = prism_number(float(delta))
-    return text[:-2] if text.endswith(".0") else text
+    text = text[:-2] if text.endswith(".0") else text
+    return text if len(text) <= 12 else repr(float(delta))
 
 
 def refuse_drawing(world: World, inference: Observer) -> None:
