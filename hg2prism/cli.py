@@ -435,8 +435,18 @@ COMMANDS: dict[str, Command] = {     # in the order `hg2prism --help` lists them
 # The program
 # ---------------------------------------------------------------------------------------------
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, its errors one line like every other bad input (argparse prints its
+    usage block first): `hg2prism: error: command line: <what> (hg2prism run --help: ...)`."""
+
+    def error(self, message: str):
+        print(f"hg2prism: error: command line: {message} (`{self.prog} --help` lists the "
+              "options)", file=sys.stderr)
+        sys.exit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="hg2prism", description=__doc__)
+    parser = _Parser(prog="hg2prism", description=__doc__)
     parser.add_argument("--version", action="version", version=f"hg2prism {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for command in COMMANDS.values():

@@ -288,3 +288,19 @@ def test_a_rounding_level_difference_is_printed_as_zero() -> None:
 
     assert [_difference(x) for x in (-1.1e-16, 0.0, 4e-7, -4e-7, -6e-7, 0.1234565)] == [
         "0.000000", "0.000000", "0.000000", "0.000000", "-0.000001", "0.123456"]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["run", WORLD1, "--episodes", "abc"], ["--episodes", "invalid int value"]),
+    (["run", WORLD1, "--objective", "bogus"], ["--objective", "invalid choice"]),
+    (["run", WORLD1, "--bogus"], ["unrecognized arguments: --bogus"]),
+    (["robust", "--deltas", "0", "0.05", WORLD1], ["required: world", "hg2prism robust --help"]),
+    ([], ["required: command", "hg2prism --help"]),
+])
+def test_what_argparse_refuses_is_one_line_too(tmp_path: Path, args, words) -> None:
+    """Mistakes argparse itself catches (a type, a choice, an unknown flag, a missing
+    argument) are one line naming the command line and where to find the options, status 2,
+    not argparse's usage block (an edge-case stress test)."""
+    proc = run_cli(args, tmp_path, timeout=60)
+    line = assert_one_line_error(proc, "command line", *words)
+    assert proc.returncode == 2 and "usage:" not in line
