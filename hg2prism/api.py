@@ -196,9 +196,24 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
     (default CUSUM, window 2, rationality 1, threshold 0.6); `simulation` and `detection` the
     optional tables. Every problem is an InputError naming `name`, the key and the reason."""
+    from collections.abc import Mapping
+
     from hg2prism.worldfile import world_from_data
 
-    arena = _graph_arena(graph, list(entries), labels, probability, name)
+    verb = "world_from_graph"
+    if not isinstance(name, str):
+        raise InputError(f"{verb}()", "name", f"expected a str, got {type(name).__name__}")
+    entries = _sequence(verb, entries, "entries", "a list of nodes")
+    if hypotheses is not None:
+        hypotheses = _sequence(verb, hypotheses, "hypotheses", "a list of formulas")
+    for key, nodes in (("trap_candidates", trap_candidates), ("initial_traps", initial_traps)):
+        if nodes is not None:
+            _sequence(verb, nodes, key, "a list of nodes")
+    for key, table in (("labels", labels), ("inference", inference),
+                       ("simulation", simulation), ("detection", detection)):
+        if table is not None and not isinstance(table, Mapping):
+            raise InputError(f"{verb}()", key, f"expected a dict, got {type(table).__name__}")
+    arena = _graph_arena(graph, entries, labels, probability, name)
     nodes, names = _graph_nodes(graph, name, {"trap_candidates": trap_candidates or (),
                                               "initial_traps": initial_traps or ()})
     if trap_candidates is None:
@@ -677,6 +692,7 @@ class Episode:
     belief_name: str | None               # what EpisodeStep.belief is ("CUSUM score Z_x")
     threshold: float | None               # where P2 changes her mind, if her rule has one
     drawn: object = field(repr=False, compare=False)   # analyses.episodes.ChosenEpisode
+    made_for: tuple = field(default=(), repr=False, compare=False)  # _episode_key of its Solution
 
     def __len__(self) -> int:
         return len(self.steps)
@@ -712,12 +728,20 @@ def episode(solution: Solution, seed: int | None = None, *, horizon: int | None 
         belief=trace.values[i] if trace.values is not None else None)
         for i, step in enumerate(episode_steps(ts, drawn.steps)))
     return Episode(seed=drawn.seed, outcome=drawn.outcome, steps=steps,
+                   made_for=_episode_key(solution),
                    belief_name=trace.name, threshold=trace.threshold, drawn=drawn)
 
 
 # ---------------------------------------------------------------------------------------------
 # Figures: each draws into the matplotlib Axes given (or a new figure's) and returns them
 # ---------------------------------------------------------------------------------------------
+
+def _episode_key(solution: Solution) -> tuple:
+    """What an episode's states and hypotheses are numbered by: its world and hypergame."""
+    analysis = solution.check.analysis
+    return (analysis.world.name, analysis.ts.n_states, analysis.world.hypotheses,
+            analysis.world.inference)
+
 
 def _played_episode(solution: Solution, played: object, verb: str) -> Episode:
     """The episode a figure draws: `played`, or by default the world's seed's."""
@@ -726,6 +750,9 @@ def _played_episode(solution: Solution, played: object, verb: str) -> Episode:
     if not isinstance(played, Episode):
         raise InputError(f"{verb}()", "played", "expected an Episode (what hg2prism.episode "
                          f"returns), got {type(played).__name__}")
+    if played.made_for != _episode_key(solution):
+        raise InputError(f"{verb}()", "played", "is an episode of another world or hypergame "
+                         f"({played.made_for[0]!r}); draw it with the Solution it came from")
     return played
 
 
@@ -762,6 +789,9 @@ def draw_sweep(table: SweepTable, *, ax=None, world_name: str | None = None):
     """A sweep's values against its (first) parameter, as `hg2prism sweep`'s figure."""
     from hg2prism.report import plots
 
+    if not isinstance(table, SweepTable):
+        raise InputError("draw_sweep()", "table", "expected a SweepTable (what hg2prism.sweep "
+                         f"returns), got {type(table).__name__}")
     ax = _axes(ax, "draw_sweep", lambda: plots.SWEEP_INCHES)
     rows = [row.row for row in table.rows]
     if len(table.parameters) == 1:

@@ -511,8 +511,20 @@ def test_a_wrong_kind_of_argument_says_what_was_expected(lateral_solution, monke
          "a matplotlib Axes"),
         (lambda: hg2prism.world_from_graph([(1, 2)], entries=[1], task="F asset2"), "graph",
          "graph", "networkx.DiGraph"),
+        (lambda: hg2prism.draw_sweep(None), "draw_sweep()", "table", "a SweepTable"),
+        (lambda: hg2prism.draw_sweep([]), "draw_sweep()", "table", "a SweepTable"),
     ]
-    assert nx.DiGraph     # world_from_graph's own graphs are tested above
+    graph = nx.DiGraph([(1, 2)])
+    for key, value, expected in [("entries", 1, "a list of nodes"),
+                                 ("entries", None, "a list of nodes"),
+                                 ("hypotheses", "F asset2", "a list of formulas"),
+                                 ("trap_candidates", 5, "a list of nodes"),
+                                 ("initial_traps", 2, "a list of nodes"),
+                                 ("labels", 5, "a dict"), ("inference", 5, "a dict"),
+                                 ("simulation", 5, "a dict"), ("name", 5, "a str")]:
+        arguments = dict(entries=[1], task="F asset2") | {key: value}
+        cases.append((lambda arguments=arguments: hg2prism.world_from_graph(graph, **arguments),
+                      "world_from_graph()", key, expected))
     for call, file, key, expected in cases:
         assert expected in _refused(call, file, key).reason
 
@@ -536,3 +548,16 @@ def test_replace_with_a_settings_table_names_the_key() -> None:
     assert initial_trap_cells(later) == (world.grid.trap_candidates[1],)
     _refused(lambda: world.replace(delay=2, initial_traps=[[3, 4]]), str(world.path),
              "initial_traps")
+
+
+def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solution) -> None:
+    """draw_world/draw_belief with an Episode of another Solution's world: one InputError
+    naming `played` (was an IndexError from the observer's tables)."""
+    import matplotlib.pyplot as plt
+
+    other = hg2prism.episode(world1_solution)
+    for draw, verb in ((hg2prism.draw_world, "draw_world()"),
+                       (hg2prism.draw_belief, "draw_belief()")):
+        assert "another world" in _refused(lambda: draw(lateral_solution, other), verb,
+                                           "played").reason
+    plt.close("all")
