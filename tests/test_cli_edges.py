@@ -304,3 +304,38 @@ def test_what_argparse_refuses_is_one_line_too(tmp_path: Path, args, words) -> N
     proc = run_cli(args, tmp_path, timeout=60)
     line = assert_one_line_error(proc, "command line", *words)
     assert proc.returncode == 2 and "usage:" not in line
+
+
+def test_sigterm_stops_storm_while_it_computes(tmp_path: Path) -> None:
+    """SIGTERM and Ctrl-C reach the command while Storm computes (its calls run on a worker
+    thread, engines/storm.py): world1 with slip 0.49999999 defeats the certified check, and
+    Storm's sound solver then ran for 13 minutes, deaf to both (found by an edge-case stress
+    test; `timeout` could not stop it, and SIGKILL left staging folders behind). Stopped
+    during that solve, the command exits at once with 128 + the signal, one line, nothing
+    written and no staging folder left."""
+    world = tmp_path / "slippery.toml"
+    world.write_text((MODELS / "world1.toml").read_text().replace("slip = 0.1", "slip = 0.49999999"))
+    for signum, status in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):
+        out = tmp_path / f"out_{signum}"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "hg2prism", "check", str(world), "--out", str(out)],
+            cwd=tmp_path, env=dict(os.environ, PYTHONPATH=str(ROOT)), text=True,
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+        lines = []
+        while not any("Storm's sound solver" in line for line in lines):
+            line = proc.stderr.readline()
+            assert line, ("the check ended before Storm's sound solver", lines)
+            lines.append(line)
+        time.sleep(1.0)                         # well inside the sound solve
+        proc.send_signal(signum)
+        start = time.perf_counter()
+        try:
+            proc.wait(timeout=20)
+        finally:
+            proc.kill()
+        assert time.perf_counter() - start < 10 and proc.returncode == status
+        rest = proc.stderr.read().strip().splitlines()
+        assert len(rest) == 1 and "Traceback" not in rest[0], rest
+        assert not out.exists()
+        assert not [p for p in tmp_path.iterdir() if "staging" in p.name]

@@ -32,6 +32,33 @@ PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
 ROBUST_MAX_ITERATIONS = 100_000   # Storm's robust value iteration (the cross-check of §13)
 
 
+def _interruptible(call: Callable[..., object], *args, **kwargs) -> object:
+    """call(*args, **kwargs) (a long Storm computation) on a worker thread while the main
+    thread waits in short slices, so that Ctrl-C and SIGTERM stop the command while Storm
+    computes: Python runs signal handlers only in the main thread between its own steps, and a
+    call into Storm is one step however long it runs (Storm's sound solver ran 13 minutes
+    deaf to both). Storm releases the GIL. Interrupted, the command unwinds (its staging
+    folder removed) and exits while the worker, a daemon thread, is abandoned. Off the main
+    thread (a Dask worker, a pool) the call runs right there."""
+    if threading.current_thread() is not threading.main_thread():
+        return call(*args, **kwargs)
+    outcome: dict[str, object] = {}
+
+    def run() -> None:
+        try:
+            outcome["value"] = call(*args, **kwargs)
+        except BaseException as error:     # handed to the main thread
+            outcome["error"] = error
+
+    worker = threading.Thread(target=run, name="storm", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(0.25)
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
+
+
 def sound_environment() -> developer.Environment:
     env = environments.sound()
     solver = env.solver()
@@ -133,7 +160,7 @@ def build(prism_path: Path, prop: str) -> tuple[object, object, dict[str, float]
     options.set_build_choice_labels(True)
     options.set_build_state_valuations(True)
     options.set_build_all_labels(True)
-    model = stormpy.build_model(program, options=options)
+    model = _interruptible(stormpy.build_model, program, options=options)
     timings["build"] = time.perf_counter() - start
     return model, properties[0], timings
 
@@ -143,7 +170,8 @@ def solve(model: object, formula: object, method: str = "sound") -> tuple[np.nda
     of STORM_METHODS, and a scheduler object of the model when the method made one (else None)."""
     if method == "sound":
         return _certified_values(model, formula)
-    result = stormpy.model_checking(model, formula, environment=solver_environment(method))
+    result = _interruptible(stormpy.model_checking, model, formula,
+                            environment=solver_environment(method))
     return np.asarray(result.get_value_vector()), None
 
 
@@ -154,7 +182,8 @@ def certificate(model: object, formula: object, max_rounds: int = certify.MAX_RO
     engines/certify.py from the strategy that Storm's fast values suggest
     (`certify.initial_strategy`). `perturb(choice, group_start)` may replace that first
     strategy (global choice indices), for tests."""
-    result = stormpy.model_checking(model, formula, environment=_rough_environment())
+    result = _interruptible(stormpy.model_checking, model, formula,
+                            environment=_rough_environment())
     estimate = np.asarray(result.get_value_vector())
     structure = read_structure(model)
     group_start = np.searchsorted(structure.source, np.arange(model.nr_states + 1))
@@ -189,7 +218,8 @@ def _certified_values(model: object, formula: object) -> tuple[np.ndarray, objec
         return certified.values, None
     warn(f"could not certify the fast solver's strategy ({certified.reason}); "
          f"solving with Storm's sound solver instead")
-    result = stormpy.model_checking(model, formula, environment=sound_environment())
+    result = _interruptible(stormpy.model_checking, model, formula,
+                            environment=sound_environment())
     return np.asarray(result.get_value_vector()), None
 
 
@@ -290,7 +320,8 @@ def _induced_dtmc(checked: StormChecked, choice: np.ndarray) -> object:
 
 def _dtmc_value(dtmc: object, prop: str) -> float:
     formula = stormpy.parse_properties(prop)[0]
-    result = stormpy.model_checking(dtmc, formula, environment=sound_environment())
+    result = _interruptible(stormpy.model_checking, dtmc, formula,
+                            environment=sound_environment())
     return float(result.get_value_vector()[dtmc.initial_states[0]])
 
 
@@ -336,7 +367,7 @@ def build_interval_model(prism_path: Path) -> tuple[object, dict[str, float]]:
         options.set_build_choice_labels(True)
         options.set_build_state_valuations(True)
         options.set_build_all_labels(True)
-        model = stormpy.build_model[stormpy.Interval](program, options=options)
+        model = _interruptible(stormpy.build_model[stormpy.Interval], program, options=options)
         timings["build"] = time.perf_counter() - start
     except RuntimeError as err:
         raise StormError(f"{prism_path}: {err}") from err
@@ -361,8 +392,8 @@ def check_robust(prism_path: Path, prop: str) -> float:
         level = developer.get_log_level()
         developer.set_log_level(developer.LogLevel.ERR)
         try:
-            result = stormpy.model_checking(
-                model, formula, environment=env,
+            result = _interruptible(
+                stormpy.model_checking, model, formula, environment=env,
                 uncertainty_resolution_mode=stormpy.UncertaintyResolutionMode.ROBUST)
         finally:
             developer.set_log_level(level)
