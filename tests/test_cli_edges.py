@@ -339,3 +339,14 @@ def test_sigterm_stops_storm_while_it_computes(tmp_path: Path) -> None:
         assert len(rest) == 1 and "Traceback" not in rest[0], rest
         assert not out.exists()
         assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
+
+
+def test_validate_counts_one_trap_candidate(tmp_path: Path) -> None:
+    world = tmp_path / "one.toml"
+    world.write_text('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\n'
+                     'slip = 0.1\n[task]\nformula = "F A"\n[adversary]\ntraps = 1\n'
+                     'hypotheses = ["F A"]\n[inference]\nwindow = 1\nthreshold = 1.0\n'
+                     'rationality = 1.0\n')
+    proc = run_cli(["validate", str(world)], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "5x3 grid, 1 trap candidate, 1 hypothesis)" in proc.stdout, proc.stdout

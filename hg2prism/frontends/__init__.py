@@ -13,13 +13,18 @@ def kind_of(world: World) -> str:
     return "arena" if world.arena is not None else "grid"
 
 
+def counted(n: int, thing: str) -> str:
+    """"1 trap candidate", "3 trap candidates"."""
+    return f"{n} {thing}" + ("" if n == 1 else "s")
+
+
 def describe(world: World) -> str:
     """What the world is made of, in a few words (`hg2prism validate`)."""
     if world.arena is None:
         return world.grid.describe()
     arena = world.arena
-    p2 = (f"{len(arena.trap_candidates)} trap candidates" if arena.traps_mode
-          else f"{len(arena.p2_actions)} P2 actions")
+    p2 = (counted(len(arena.trap_candidates), "trap candidate") if arena.traps_mode
+          else counted(len(arena.p2_actions), "P2 action"))
     return f"arena of {arena.n_states} states, {p2}"
 
 

@@ -67,7 +67,9 @@ class Grid:
         check_slip(checks, self.slip)
 
     def describe(self) -> str:
-        return (f"{self.width}x{self.height} grid, {len(self.trap_candidates)} trap candidates")
+        from hg2prism.frontends import counted
+
+        return f"{self.width}x{self.height} grid, {counted(len(self.trap_candidates), 'trap candidate')}"
 
 ACTIONS = ("N", "E", "S", "W")
 # LEGACY: action labels in generated PRISM (E, S and W are PRISM keywords)
