@@ -25,6 +25,7 @@ GRID_SETTINGS = ("slip",)
 INVALID = [
     (GRID, "rationality", -1.0, "inference.rationality"),
     (GRID, "rationality", float("nan"), "inference.rationality"),
+    (GRID, "rationality", 1.7e308, "inference.rationality"),     # overflows P2's ratios
     (GRID, "slip", 0.7, "robot.slip"),
     (GRID, "window", 0, "inference.window"),
     (GRID, "window", 1.5, "inference.window"),
@@ -226,3 +227,14 @@ def test_the_loader_and_a_typed_variant_share_one_rule(old, new, key) -> None:
         TYPED.replace(**change)
     assert from_file.value.key == key
     assert str(from_file.value) == str(from_variant.value)
+
+
+def test_rationality_at_its_largest_is_accepted() -> None:
+    """1e100 itself is allowed, the next double above it is not (P2's ratios stay finite)."""
+    import math
+
+    from hg2prism.errors import InputError
+
+    assert GRID.replace(rationality=1e100).rationality == 1e100
+    with pytest.raises(InputError, match="at most 1e"):
+        GRID.replace(rationality=math.nextafter(1e100, math.inf))

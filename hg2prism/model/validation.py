@@ -20,6 +20,8 @@ from typing import Any
 
 from hg2prism.errors import InputError
 
+MAX_RATIONALITY = 1e100     # P2's softmax in double precision (docs/semantics.md §1)
+
 # Limits that keep every accepted world within bounded time and memory. Simulated episodes run
 # side by side (arrays of `episodes` entries); a horizon bounds the steps of an episode that
 # never ends (P1 kept away from both goal and traps), and the exact within-horizon numbers stop
@@ -201,6 +203,11 @@ class Checks:
         rationality = self.number(value, "inference.rationality")
         if rationality <= 0:
             raise self.fail("inference.rationality", f"rationality must be > 0, got {rationality}")
+        if rationality > MAX_RATIONALITY:
+            # beta * Q reaches 1e308 near here and P2's log-likelihood ratios overflow to
+            # +-inf (world1 with 1.7e308 had 2 canonical states fewer than with 1e300)
+            raise self.fail("inference.rationality", f"rationality must be at most "
+                                                     f"{MAX_RATIONALITY:g}, got {rationality:g}")
         return rationality
 
     def episodes(self, value: object) -> int:
