@@ -106,13 +106,37 @@ def _join_pool_workers(timeout: float = 10.0) -> None:
                     time.sleep(0.001)
 
 
+# The record files whose "world" names the world a folder's outputs are of.
+_RECORDS = ("results.json", "robust.json", "detection.json", "sweep.json")
+
+
+def _of_another_world(out: Path, world: str) -> bool:
+    """Whether `out` holds outputs of a world other than `world`, by the name its record
+    files give (read before the new outputs move in)."""
+    for name in _RECORDS:
+        path = out / name
+        if not path.is_file():
+            continue
+        try:
+            named = json.loads(path.read_text()).get("world")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(named, str) and named != world:
+            return True
+    return False
+
+
 @contextmanager
-def staged(out: Path, owns: str | None = None) -> Iterator[Path]:
+def staged(out: Path, owns: str | None = None, world: str | None = None,
+           every: str | None = None) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
     the command succeeds, so a failure leaves nothing half-written. Each item replaces its
     predecessor in one rename (a stop between two items leaves some new, some old, none
     broken); an item that cannot be placed puts its predecessor back. `owns` (a regular
-    expression over names, see OWNED) removes the command's stale outputs afterwards."""
+    expression over names, see OWNED) removes the command's stale outputs afterwards; where
+    `out` held outputs of another world than `world` (its record files name it), `every`
+    (what any command owns) removes all of them: the commands of one world share a folder,
+    two worlds do not."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
@@ -125,6 +149,8 @@ def staged(out: Path, owns: str | None = None) -> Iterator[Path]:
             raise
         out.mkdir(exist_ok=True)
         new_items = list(stage.iterdir())
+        if world is not None and every is not None and _of_another_world(out, world):
+            owns = every
         for item in new_items:
             target = out / item.name
             if not (item.is_dir() or target.is_dir()) or not (target.exists() or

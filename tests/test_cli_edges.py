@@ -350,3 +350,33 @@ def test_validate_counts_one_trap_candidate(tmp_path: Path) -> None:
     proc = run_cli(["validate", str(world)], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "5x3 grid, 1 trap candidate, 1 hypothesis)" in proc.stdout, proc.stdout
+
+
+def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
+    """The commands of one world share an output folder (`make world2`: run, sweep, detect),
+    but a command on another world removes what the folder held of the first (found by an
+    edge-case stress test: check of world B left world A's detection and robust outputs beside
+    B's results)."""
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "out"
+    other = tmp_path / "one.toml"
+    other.write_text('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\n'
+                     'slip = 0.1\n[task]\nformula = "F A"\n[adversary]\ntraps = 1\n'
+                     'hypotheses = ["F A"]\n[inference]\nwindow = 1\nthreshold = 1.0\n'
+                     'rationality = 1.0\n')
+    with quiet():
+        assert main(["check", WORLD1, "--out", str(out)]) == 0
+        # what detect and robust of world1 leave there (their record names the world)
+        (out / "detection.json").write_text(json.dumps({"world": "world1"}))
+        (out / "detection.png").write_bytes(b"")
+        (out / "robust_0.1").mkdir()
+        (out / "mine.txt").write_text("not hg2prism's")
+        assert main(["check", WORLD1, "--out", str(out)]) == 0          # the same world: kept
+        assert {"detection.json", "detection.png", "robust_0.1"} <= {p.name for p in out.iterdir()}
+        assert main(["check", str(other), "--out", str(out)]) == 0      # another: removed
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"detection.json", "detection.png", "robust_0.1"}
+    assert "mine.txt" in names and "hypothesis_1.hoa" not in names     # world1's had three
+    assert json.loads((out / "results.json").read_text())["world"] == "one"
