@@ -15,12 +15,13 @@ and docs/semantics.md the meaning of every number.
 from __future__ import annotations
 
 import contextlib
+import numbers
 import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, Checks
+from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, MAX_SEED, Checks
 from hg2prism.model.world import World
 
 from hg2prism.errors import InputError
@@ -41,8 +42,6 @@ __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baseli
 def _integer(verb: str, value: object, key: str, minimum: int,
              maximum: int | None = None) -> int:
     """An integer argument (numpy's too) in [minimum, maximum], by model/validation.py's rule."""
-    import numbers
-
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
         value = int(value)
     return Checks(f"{verb}()").integer(value, key, minimum, maximum)
@@ -323,6 +322,9 @@ def _out_folder(verb: str, out: object) -> Path:
     if not isinstance(out, (str, os.PathLike)):
         raise InputError(f"{verb}()", "out", "expected the path of a folder (a str or a "
                          f"pathlib.Path), got {type(out).__name__}")
+    if os.fspath(out) == "":        # not the current folder by accident (None writes nothing)
+        raise InputError(f"{verb}()", "out", "an empty path; expected a folder (\".\" for the "
+                         "current one), or None to write nothing")
     with _as_arguments(verb):
         check_writable(Path(out), "out")
     return Path(out)
@@ -336,6 +338,8 @@ def _out_file(verb: str, path: object) -> Path:
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"{verb}()", "path", "expected the path of a file (a str or a "
                          f"pathlib.Path), got {type(path).__name__}")
+    if os.fspath(path) == "":
+        raise InputError(f"{verb}()", "path", "an empty path; expected a file name")
     if Path(path).is_dir():
         raise InputError(f"{verb}()", "path", f"{path} is a folder; expected a file name")
     with _as_arguments(verb, {"out": "path"}):
@@ -473,7 +477,7 @@ def _simulation_arguments(verb: str, episodes: object, horizon: object, seed: ob
     return tuple(None if value is None else _integer(verb, value, key, minimum, most)
                  for key, value, minimum, most in (("episodes", episodes, 1, MAX_EPISODES),
                                                    ("horizon", horizon, 1, MAX_HORIZON),
-                                                   ("seed", seed, 0, None)))
+                                                   ("seed", seed, 0, MAX_SEED)))
 
 
 def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | None = None,
@@ -542,6 +546,10 @@ def robust(solution: Solution, deltas) -> list[RobustValue]:
     from hg2prism.experiments.robust import parse_deltas, solve_budgets
 
     deltas = _sequence("robust", deltas, "deltas", "a list of deviation budgets in [0, 1)")
+    for delta in deltas:        # numbers, as the other verbs take them (the CLI's are text)
+        if isinstance(delta, bool) or not isinstance(delta, numbers.Real):
+            raise InputError("robust()", "deltas", f"{delta!r} is not a deviation budget in "
+                             "[0, 1): expected a number")
     with _as_arguments("robust"):
         budgets = parse_deltas(deltas)
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:

@@ -266,6 +266,9 @@ def _simulation_options(args: argparse.Namespace, world: object) -> None:
                              f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
     if args.seed is not None and args.seed < 0:
         raise InputError("command line", "--seed", "must be at least 0")
+    if args.seed is not None and args.seed > world_mod.MAX_SEED:
+        raise InputError("command line", "--seed", f"must be at most {world_mod.MAX_SEED:,} "
+                         f"({world_mod.LIMIT_REASON['--seed']}), got {args.seed:,}")
 
 
 def _bound_option(args: argparse.Namespace, world: object) -> None:

@@ -81,8 +81,9 @@ def check_writable(out: Path, what: str = "--out") -> None:
     try:    # os.access says yes to root on read-only file systems: try it
         tempfile.TemporaryDirectory(dir=existing, prefix=".hg2prism-probe-").cleanup()
     except OSError as err:
-        raise InputError("command line", what,
-                         f"cannot write in {existing}: {err.strerror or err}") from None
+        made = "" if existing == out else f", so {out} cannot be made"
+        raise InputError("command line", what, f"cannot write in {existing} "
+                         f"({err.strerror or err}){made}") from None
 
 
 def _join_pool_workers(timeout: float = 10.0) -> None:

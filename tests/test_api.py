@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace as dataclasses_replace
 from pathlib import Path
 
 import pytest
@@ -414,6 +415,8 @@ def test_solve_refuses_an_out_it_cannot_write_before_any_work(tmp_path: Path,
         _refused(lambda: hg2prism.solve(world, out=out), "solve()", "out")
         _refused(lambda: hg2prism.solve(MODELS / "world1.toml", out=out), "solve()", "out")
     _refused(lambda: hg2prism.solve(world, out=3), "solve()", "out")
+    # "" is no folder (Path("") would be the current one; the CLI's --out "" is the default)
+    assert "empty path" in _refused(lambda: hg2prism.solve(world, out=""), "solve()", "out").reason
     assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"] and afile.read_text() == "x"
     assert not Path("/proc/hg2prism-out").exists()
 
@@ -449,10 +452,16 @@ def test_the_verbs_check_their_arguments(lateral_solution, monkeypatch) -> None:
         "episode": [(dict(seed=-1), "seed"), (dict(seed="a"), "seed"),
                     (dict(horizon=0), "horizon")],
         "robust": [(dict(deltas=None), "deltas"), (dict(deltas="0.1"), "deltas"),
-                   (dict(deltas=[2]), "deltas"), (dict(deltas=[]), "deltas")],
+                   (dict(deltas=[2]), "deltas"), (dict(deltas=[]), "deltas"),
+                   # text is the command line's; a verb takes numbers (was accepted)
+                   (dict(deltas=["0.1"]), "deltas"), (dict(deltas=[0.1, True]), "deltas")],
+        # 2**62 + 1: its seed set would not fit a world file's integers (was accepted)
+        "simulate#seed": [(dict(seed=2**62 + 1), "seed")],
+        "episode#seed": [(dict(seed=2**62 + 1), "seed")],
     }
     for verb, cases in bad.items():
         for kwargs, key in cases:
+            verb = verb.partition("#")[0]
             _refused(lambda: getattr(hg2prism, verb)(sol, **kwargs), f"{verb}()", key)
     import numpy as np
 
@@ -548,6 +557,27 @@ def test_replace_with_a_settings_table_names_the_key() -> None:
     assert initial_trap_cells(later) == (world.grid.trap_candidates[1],)
     _refused(lambda: world.replace(delay=2, initial_traps=[[3, 4]]), str(world.path),
              "initial_traps")
+
+
+def test_replace_takes_values_as_python_gives_them() -> None:
+    """World.replace with a list where the World holds a tuple, and with numpy's numbers, makes
+    the world the plain values make (both were refused: "must be a tuple", "got int64"); text is
+    still refused, as in a world file."""
+    import numpy as np
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    listed = world.replace(hypotheses=list(world.hypotheses), window=np.int64(2),
+                           rationality=np.float32(0.5), slip=np.float64(0.1))
+    assert listed == world.replace(hypotheses=world.hypotheses, window=2, rationality=0.5,
+                                   slip=0.1)
+    assert type(listed.hypotheses) is tuple and type(listed.window) is int
+    assert type(listed.rationality) is float and type(listed.grid.slip) is float
+    _refused(lambda: world.replace(window="2"), str(world.path), "inference.window")
+    _refused(lambda: world.replace(window=np.bool_(True)), str(world.path), "inference.window")
+    seeded = dataclasses_replace(world.simulation, seed=2**62 + 1)
+    _refused(lambda: world.replace(simulation=seeded), str(world.path), "simulation.seed")
+    assert world.replace(simulation=dataclasses_replace(world.simulation, seed=2**62)) \
+        .simulation.seed == 2**62
 
 
 def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solution) -> None:

@@ -174,7 +174,8 @@ def test_huge_window_is_refused_up_front(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("key,line", [("simulation.horizon", "horizon = 1000000000"),
-                                      ("simulation.episodes", "episodes = 1000000000")])
+                                      ("simulation.episodes", "episodes = 1000000000"),
+                                      ("simulation.seed", "seed = 4611686018427387905")])
 def test_huge_simulation_is_refused_by_the_validator(tmp_path: Path, key: str, line: str) -> None:
     world = small_world(tmp_path)
     world.write_text(world.read_text() + f"\n[simulation]\n{line}\n")
@@ -185,6 +186,15 @@ def test_huge_simulation_is_refused_by_the_validator(tmp_path: Path, key: str, l
 def test_huge_horizon_on_the_command_line_is_refused(tmp_path: Path) -> None:
     proc = run_cli(["run", WORLD1, "--out", str(tmp_path / "o"), "--horizon", "1000000000"], tmp_path)
     assert_one_line_error(proc, "--horizon", "at most 100,000")
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_seed_beyond_what_a_world_file_holds_is_refused(tmp_path: Path) -> None:
+    """--seed and --episode seed=N at most 2**62, as a world file's seed (both were accepted:
+    their seed sets would not fit a world file's 64-bit integers)."""
+    for option in (["--seed", str(2**62 + 1)], ["--episode", f"seed={2**62 + 1}"]):
+        proc = run_cli(["run", WORLD1, "--out", str(tmp_path / "o"), *option], tmp_path)
+        assert_one_line_error(proc, option[0], "4,611,686,018,427,387,904")
     assert not (tmp_path / "o").exists()
 
 

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from hg2prism.errors import InputError
+from hg2prism.model.validation import MAX_SEED
 from hg2prism.strategy.policy import Policy
 
 if TYPE_CHECKING:
@@ -59,10 +60,10 @@ def parse_episode_rule(text: str | EpisodeRule | None) -> EpisodeRule:
     if value in RULES:
         return EpisodeRule(value)
     match = _SEED_RULE.fullmatch(value)
-    if match:
+    if match and int(match.group(1)) <= MAX_SEED:
         return EpisodeRule("seed", int(match.group(1)))
-    raise InputError("command line", "--episode",
-                     f"expected median, shortest or seed=N with N an integer >= 0, got {value!r}")
+    raise InputError("command line", "--episode", "expected median, shortest or seed=N with N "
+                     f"an integer in [0, {MAX_SEED:,}], got {value!r}")
 
 
 @dataclass(frozen=True, eq=False)

@@ -28,7 +28,12 @@ MAX_RATIONALITY = 1e100     # P2's softmax in double precision (docs/semantics.m
 # once converged. 10^5 steps x 10^6 episodes is the worst case these admit.
 MAX_EPISODES = 1_000_000
 MAX_HORIZON = 100_000
+# Seeds at most this, so that every seed derived from one (an episode's seed set, detection's
+# search) is still an integer a world file (TOML: 64 bits) can hold.
+MAX_SEED = 2**62
+_SEED_REASON = "the seeds derived from it must fit a world file's 64-bit integers"
 LIMIT_REASON = {
+    "simulation.seed": _SEED_REASON, "--seed": _SEED_REASON, "seed": _SEED_REASON,
     "simulation.episodes": "episodes are simulated side by side in memory",
     "simulation.horizon": "an episode that never ends is simulated to the horizon",
     "--episodes": "episodes are simulated side by side in memory",
@@ -217,7 +222,7 @@ class Checks:
         return self.integer(value, "simulation.horizon", 1, MAX_HORIZON)
 
     def seed(self, value: object) -> int:
-        return self.integer(value, "simulation.seed", 0)
+        return self.integer(value, "simulation.seed", 0, MAX_SEED)
 
     def open_unit(self, value: object, key: str) -> float:
         number = self.number(value, key)

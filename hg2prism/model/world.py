@@ -85,7 +85,10 @@ class World:
     def replace(self, **changes: object) -> World:
         """This world with `changes` (field names: rationality=2.0, window=3, ...; a grid
         world's own robot settings too), validated: InputError(file, key, reason) on a value
-        no world file could give or on a name that is no setting of this world."""
+        no world file could give or on a name that is no setting of this world. Values are
+        taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
+        numpy's numbers as Python's (window=np.int64(3))."""
+        changes = {name: _plain(value) for name, value in changes.items()}
         own = {name: value for name, value in changes.items() if name in _FIELDS}
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
@@ -121,6 +124,18 @@ class World:
     @property
     def decision(self) -> str:
         return self.setting("decision", "map")
+
+
+def _plain(value: object) -> object:
+    """A value given to `World.replace` as a world file would give it: a list as a tuple (of
+    plain values), a numpy number as the Python number it equals (np.int64(3) -> 3); anything
+    else as it is, for validation to judge."""
+    if isinstance(value, list):
+        return tuple(_plain(item) for item in value)
+    item = getattr(value, "item", None)
+    if item is not None and type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:
+        return item()
+    return value
 
 
 def _fields(value: object) -> frozenset[str]:
