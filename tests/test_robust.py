@@ -257,12 +257,13 @@ def test_a_bayesian_observer_records_the_set_played(world_dir: Path, capsys) -> 
     world = load_world(path)
     with progress.quiet():
         result = pipeline.check(world, world_dir / "bayes_check")
-    rows = [row for row, _ in robust.solve_budgets(world, result, (0.0,) + DELTAS,
+    # one positive budget (each costs both solvers about 2.5 s here; the others' tests sweep)
+    rows = [row for row, _ in robust.solve_budgets(world, result, (0.0, 0.3),
                                                    world_dir / "bayes_robust", storm_check=False)]
     reference = RobustHypergame(path, reference_bayes.BayesWorld(path))
     assert rows[0].robust_value == pytest.approx(result.results.deceptive_value, abs=TOL)
-    expected = reference.robust_values(list(DELTAS))
-    assert expected[-1] < expected[0] - 0.05      # deviations cost P1 something here
+    expected = reference.robust_values([0.3])
+    assert expected[0] < rows[0].robust_value - 0.05      # deviations cost P1 something here
     for row, value in zip(rows[1:], expected):
         assert row.robust_value == pytest.approx(value, abs=TOL)
         assert row.residual <= 1e-10
