@@ -28,7 +28,7 @@ from hg2prism.analyses.simulation import (LeaderStrategy, Replanning, deviating_
 from hg2prism.cli import main
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
-from hg2prism.prism.robust_model import CHECK_EPS, build_robust_model, write_robust_model
+from hg2prism.prism.robust_model import CHECK_CONSTANTS, EXACT_CONSTANTS
 from hg2prism.strategy.records import Strategy, describe_state
 
 DELTAS = (0.01, 0.1, 0.3)
@@ -275,12 +275,9 @@ def test_a_bayesian_observer_records_the_set_played(world_dir: Path, capsys) -> 
     assert not (world_dir / "bayes_sample").exists()
 
 
-def _check_model(name: str, folder: Path, delta: float) -> Path:
-    result = checked(name, str(folder))
-    a = result.analysis
-    model = build_robust_model(a.world, a.ts, a.task, a.games, a.inference, delta, CHECK_EPS)
-    path, _ = write_robust_model(model, folder / f"{name}_eps_{delta}")
-    return path
+def _exported_model(name: str, folder: Path, delta: float) -> Path:
+    """robust_<delta>/robust.prism as `robust` wrote it (its constant eps undefined)."""
+    return folder / f"{name}_robust" / f"robust_{delta}" / "robust.prism"
 
 
 @pytest.mark.parametrize("name", ["world2", "fam01_d1_l1_w1_x3", "fam09_d0_l2_w1_x3"])
@@ -291,12 +288,13 @@ def test_storm_robust_mode_agrees_on_the_eps_model(name: str, world_dir: Path) -
     from hg2prism.strategy.robust import IntervalGame, solve_robust
 
     rows, _ = solved(name, str(world_dir))
-    path = _check_model(name, world_dir, 0.1)
-    model, _ = storm.build_interval_model(path)
+    path = _exported_model(name, world_dir, 0.1)
+    model, _ = storm.build_interval_model(path, CHECK_CONSTANTS)
     moves = storm.read_structure(model)
     game = IntervalGame.of(moves, moves.labels["goal"], moves.labels["fail"], model.initial_states[0])
     ours = solve_robust(game).value(game.initial)
-    assert storm.check_robust(path, 'Pmax=? [F "goal"]') == pytest.approx(ours, abs=TOL)
+    assert storm.check_robust(path, 'Pmax=? [F "goal"]', CHECK_CONSTANTS) == \
+        pytest.approx(ours, abs=TOL)
     exact = next(row.robust_value for row in rows if row.delta == 0.1)
     assert exact - 1e-9 <= ours <= exact + TOL
 
@@ -308,13 +306,19 @@ def _prism() -> str | None:
 
 @pytest.mark.skipif(_prism() is None, reason="PRISM not installed (set PRISM or PATH)")
 def test_prism_reads_the_interval_model_and_gives_the_value(world_dir: Path) -> None:
+    """The command robust.prism's header gives checks it with PRISM (it did not: eps was
+    defined as 0 in the file, which PRISM cannot check nor redefine); with eps=0 PRISM builds
+    the model but refuses to check it."""
     name = "fam09_d0_l2_w1_x3"
     rows, _ = solved(name, str(world_dir))
-    exact_model = world_dir / f"{name}_robust" / "robust_0.1" / "robust.prism"
-    path = _check_model(name, world_dir, 0.1)
-    for model, expect_value in ((exact_model, False), (path, True)):
-        run = subprocess.run([_prism(), str(model), "-pf", 'Pmaxmin=? [F "goal"]',
-                              "-epsilon", "1e-12"], capture_output=True, text=True, timeout=300)
+    model = _exported_model(name, world_dir, 0.1)
+    header = next(line for line in model.read_text().splitlines() if "-const" in line)
+    constants = header.split("-const", 1)[1].split()[0]
+    assert constants == CHECK_CONSTANTS
+    for given, expect_value in ((EXACT_CONSTANTS, False), (constants, True)):
+        run = subprocess.run([_prism(), str(model), str(model.with_suffix(".props")), "-const",
+                              given, "-epsilon", "1e-12"], capture_output=True, text=True,
+                             timeout=300)
         output = run.stdout + run.stderr
         assert "Type:        IMDP" in output, output[-2000:]
         if not expect_value:

@@ -354,13 +354,17 @@ def induced_within(checked: StormChecked, choice: np.ndarray, horizon: int) -> f
 # Interval models (docs/semantics.md §13)
 # ---------------------------------------------------------------------------------------------
 
-def build_interval_model(prism_path: Path) -> tuple[object, dict[str, float]]:
-    """Storm's interval MDP of a PRISM model with interval probabilities, with choice labels,
+def build_interval_model(prism_path: Path, constants: str = ""
+                         ) -> tuple[object, dict[str, float]]:
+    """Storm's interval MDP of a PRISM model with interval probabilities, its undefined
+    constants defined by `constants` ("eps=0", as Storm's --constants), with choice labels,
     state valuations and every label; and the parse and build times."""
     timings = {}
     try:
         start = time.perf_counter()
         program = stormpy.parse_prism_program(str(prism_path))
+        if constants:
+            program, _ = stormpy.instantiate_constants(program, constants)
         timings["parse"] = time.perf_counter() - start
         start = time.perf_counter()
         options = developer.BuilderOptions([])
@@ -374,14 +378,14 @@ def build_interval_model(prism_path: Path) -> tuple[object, dict[str, float]]:
     return model, timings
 
 
-def check_robust(prism_path: Path, prop: str) -> float:
+def check_robust(prism_path: Path, prop: str, constants: str = "") -> float:
     """Storm's robust mode on an interval model: the property's value at the initial state, P1
     optimising as `prop` says and the intervals resolved against it. Storm needs every lower
     bound positive, and its robust value iteration is not sound: it stops when an iteration
     changes the values by less than 1e-10 (absolute), or after ROBUST_MAX_ITERATIONS
     iterations, its value then as far as it got. A cross-check, not a certified value."""
     try:
-        model, _ = build_interval_model(prism_path)
+        model, _ = build_interval_model(prism_path, constants)
         formula = stormpy.parse_properties(prop)[0]
         env = developer.Environment()
         env.solver().min_max().precision = stormpy.Rational(PRECISION)
@@ -422,11 +426,12 @@ class StormEngine:
                             prop: str = 'P=? [F "goal"]') -> float:
         return induced_probability(checked, choice, prop)
 
-    def build_interval(self, prism_path: Path) -> tuple[object, dict[str, float]]:
-        return build_interval_model(prism_path)
+    def build_interval(self, prism_path: Path, constants: str = ""
+                       ) -> tuple[object, dict[str, float]]:
+        return build_interval_model(prism_path, constants)
 
-    def check_robust(self, prism_path: Path, prop: str) -> float:
-        return check_robust(prism_path, prop)
+    def check_robust(self, prism_path: Path, prop: str, constants: str = "") -> float:
+        return check_robust(prism_path, prop, constants)
 
     def check_pomdp(self, prism_path: Path, prop: str,
                     max_exploration_time: int | None = None) -> PomdpValue:

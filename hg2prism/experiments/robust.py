@@ -129,16 +129,18 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
     return _choices_of(game, moves.action, wanted[canonical], decides)
 
 
-def _cross_check(engine: ModelChecker, check_path: Path, layout: Layout, value: float) -> dict:
-    """The interval model at `check_path` (eps > 0, laid out as `layout`) checked by the
-    engine's robust mode and by numpy, beside the exact value R_delta."""
-    from hg2prism.prism.robust_model import CHECK_EPS, MOVE_VARIABLE, STORM_PROPERTY
+def _cross_check(engine: ModelChecker, prism_path: Path, layout: Layout, value: float) -> dict:
+    """The interval model at `prism_path` (laid out as `layout`) with eps > 0
+    (`CHECK_CONSTANTS`) checked by the engine's robust mode and by numpy, beside the exact
+    value R_delta."""
+    from hg2prism.prism.robust_model import (CHECK_CONSTANTS, CHECK_EPS, MOVE_VARIABLE,
+                                             STORM_PROPERTY)
     from hg2prism.strategy.robust import IntervalGame, solve_robust
 
     progress.say("robust: cross-checking with the model checker's robust mode on the model "
                  f"with eps = {CHECK_EPS:g} (a value iteration, not sound, with a cap)")
-    storm_value = engine.check_robust(check_path, STORM_PROPERTY)
-    eps_model = engine.explicit(engine.build_interval(check_path)[0])
+    storm_value = engine.check_robust(prism_path, STORM_PROPERTY, CHECK_CONSTANTS)
+    eps_model = engine.explicit(engine.build_interval(prism_path, CHECK_CONSTANTS)[0])
     eps_moves = eps_model.transitions
     eps_game = IntervalGame.of(eps_moves, eps_moves.labels["goal"], eps_moves.labels["fail"],
                                eps_model.initial, chance=eps_model.variable(
@@ -149,22 +151,23 @@ def _cross_check(engine: ModelChecker, check_path: Path, layout: Layout, value: 
 
 
 def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout: Layout,
-                 delta: float, check_path: Path | None = None,
+                 delta: float, cross_check: bool = False,
                  engine: ModelChecker | None = None) -> RobustSolved:
-    """Solve the interval model at `prism_path` (rendered for `delta`), built by the model
-    checker `engine` (default: Storm). `deceptive` is the deceptive strategy (a Policy: a
-    records.Strategy with its fallback); `check_path`, the same model rendered with eps > 0, is
-    checked by the engine's robust mode and by numpy (at delta = 0 the model itself is)."""
+    """Solve the interval model at `prism_path` (rendered for `delta`) with eps = 0, built by
+    the model checker `engine` (default: Storm). `deceptive` is the deceptive strategy (a
+    Policy: a records.Strategy with its fallback). With `cross_check`, the same model with
+    eps > 0 is checked by the engine's robust mode and by numpy (at delta = 0, or where P2 has
+    one set, min(eps, delta) leaves the model itself)."""
     from hg2prism.prism.decoding import decode_states, row_keys
     from hg2prism.strategy.deceptive import StormChoices
     from hg2prism.strategy.records import RecordExtras, strategy_json
     from hg2prism.strategy.robust import (IntervalGame, adversary_response, fastest_choices,
                                           move_values, solve_robust)
-    from hg2prism.prism.robust_model import MOVE_VARIABLE, PLAYED_VARIABLE
+    from hg2prism.prism.robust_model import EXACT_CONSTANTS, MOVE_VARIABLE, PLAYED_VARIABLE
 
     engine = engine or default()
     ts, task = analysis.ts, analysis.task
-    model = engine.explicit(engine.build_interval(prism_path)[0])
+    model = engine.explicit(engine.build_interval(prism_path, EXACT_CONSTANTS)[0])
     moves = model.transitions
     decoded = decode_states(model, layout, ts, task)
     def column(name: str) -> np.ndarray:
@@ -214,7 +217,7 @@ def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout
                               ts, deceptive)
     nominal_worst = adversary_response(game, nominal)[game.initial]
 
-    check = None if check_path is None else _cross_check(engine, check_path, layout, value)
+    check = _cross_check(engine, prism_path, layout, value) if cross_check else None
     return RobustSolved(
         delta=delta, robust_value=value,
         nominal_worst_case=probability(nominal_worst, "the deceptive strategy's worst case"),
@@ -230,31 +233,21 @@ def solve_budgets(world: World, check_result: CheckResult, deltas: Sequence[floa
     `check_result` is pipeline.check(world, ...). With `storm_check`, Storm's robust mode and
     numpy check the model with eps > 0 too (RobustSolved.storm_check)."""
     from hg2prism.analyses.simulation import leader_fallback
-    from hg2prism.prism.robust_model import (CHECK_EPS, build_robust_model, delta_text,
-                                             write_robust_model)
+    from hg2prism.prism.robust_model import build_robust_model, delta_text, write_robust_model
     from hg2prism.strategy.records import Strategy
 
     analysis = check_result.analysis
     deceptive = Strategy.from_records(check_result.records, analysis.ts,
                                       fallback=leader_fallback(analysis))
     solved = []
-    with tempfile.TemporaryDirectory(prefix="hg2prism-robust-") as scratch:
-        for delta in deltas:
-            start = time.perf_counter()
-            model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
-                                       analysis.inference, delta)
-            prism_path, _ = write_robust_model(model, Path(folder) / f"robust_{delta_text(delta)}")
-            check_path = None
-            if storm_check:
-                check_path = prism_path
-                if delta > 0 and analysis.ts.n_sets > 1:
-                    eps_model = build_robust_model(world, analysis.ts, analysis.task,
-                                                   analysis.games, analysis.inference, delta,
-                                                   CHECK_EPS)
-                    check_path, _ = write_robust_model(eps_model, Path(scratch) / f"eps_{delta}")
-            result = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
-                                  check_path, check_result.engine)
-            solved.append((result, time.perf_counter() - start))
+    for delta in deltas:
+        start = time.perf_counter()
+        model = build_robust_model(world, analysis.ts, analysis.task, analysis.games,
+                                   analysis.inference, delta)
+        prism_path, _ = write_robust_model(model, Path(folder) / f"robust_{delta_text(delta)}")
+        result = solve_budget(analysis, deceptive, prism_path, model.prism.layout, delta,
+                              storm_check, check_result.engine)
+        solved.append((result, time.perf_counter() - start))
     return solved
 
 

@@ -9,8 +9,11 @@ advance as in the hypergame.
 P1 maximises, the resolution of the intervals minimises: PRISM's `Pmaxmin=? [F "goal"]`.
 
 The model of §13 has eps = 0. PRISM and Storm read it (Storm's interval builder, PRISM as an
-IMDP) but check interval models only when every lower bound is positive, so the cross-checks
-render it with eps > 0 (`eps` below): a slightly weaker adversary, a value at least R_delta.
+IMDP) but check interval models only when every lower bound is positive, so `eps` is a
+constant the file leaves undefined: hg2prism builds it with eps = 0 (`EXACT_CONSTANTS`), the
+cross-checks, and PRISM or Storm on the command line, with eps = 1e-9 (`CHECK_CONSTANTS`; `prism
+robust.prism robust.props -const eps=1e-9`): a slightly weaker adversary, a value at least
+R_delta.
 """
 
 from __future__ import annotations
@@ -36,8 +39,11 @@ STORM_PROPERTY = 'Pmax=? [F "goal"]'
 # played) are step_a<i>; P1's choices keep the hypergame's labels a<i>, so that decoding Storm's
 # choices reads the same slots (and step_a<i> reads as no slot).
 STEP_PREFIX = "step_"
-# Smallest lower bound PRISM and Storm accept for a deviation (docs/semantics.md §13).
+# Smallest lower bound PRISM and Storm accept for a deviation (docs/semantics.md §13), and the
+# definitions of the model's constant eps for the exact model and for the cross-checks.
 CHECK_EPS = 1e-9
+EXACT_CONSTANTS = "eps=0"
+CHECK_CONSTANTS = "eps=1e-9"
 # Names of the variables that tell an intermediate state (move >= 0) from one where P1 chooses.
 MOVE_VARIABLE, PLAYED_VARIABLE = "move", "played"
 
@@ -48,7 +54,6 @@ class RobustModel:
 
     prism: PrismModel
     delta: float
-    eps: float
 
 
 def delta_text(delta: float) -> str:
@@ -70,15 +75,14 @@ def refuse_drawing(world: World, inference: Observer) -> None:
 
 
 def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
-                       games: list[PerceptualGame], inference: Observer, delta: float,
-                       eps: float = 0.0) -> RobustModel:
-    """The interval model of docs/semantics.md §13 for budget `delta` (0 <= delta < 1); with
-    eps > 0 every off-prediction set where P2 may deviate gets at least eps (for PRISM and
-    Storm, which need positive lower bounds)."""
+                       games: list[PerceptualGame], inference: Observer, delta: float
+                       ) -> RobustModel:
+    """The interval model of docs/semantics.md §13 for budget `delta` (0 <= delta < 1), its
+    constant eps undefined: every off-prediction set where P2 may deviate gets at least
+    min(eps, delta) (0 for the model itself, `EXACT_CONSTANTS`; positive for PRISM and Storm's
+    checks, which need positive lower bounds, `CHECK_CONSTANTS`)."""
     if not 0.0 <= delta < 1.0:
         raise ValueError(f"delta must lie in [0, 1), got {delta}")
-    if eps < 0 or (delta > 0 and eps * (ts.n_sets - 1) > delta):
-        raise ValueError(f"eps {eps} must be >= 0 and leave the predicted set its 1-delta")
     refuse_drawing(world, inference)
     context = template_context(world, ts, task, games, inference, played=PLAYED_VARIABLE,
                                observer_prefix=STEP_PREFIX)
@@ -91,7 +95,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
     text = render_template(
         "robust.prism.j2", **context, step_labels=slot_labels(context["tables"], STEP_PREFIX),
         deviation=deviation,
-        delta_text=prism_number(float(delta)), eps_text=prism_number(float(eps)),
+        delta_text=prism_number(float(delta)), check_constants=CHECK_CONSTANTS,
         property=PRISM_PROPERTY)
     prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
                        layout=Layout(slots=context["observer"].slots, delay=ts.delay,
@@ -99,7 +103,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
                                      hypothesis_variable=context["observer"].hypothesis_variable,
                                      initial=Layout.initial_values(text)),
                        commands=count_commands(text))
-    return RobustModel(prism=prism, delta=float(delta), eps=float(eps))
+    return RobustModel(prism=prism, delta=float(delta))
 
 
 def write_robust_model(model: RobustModel, folder: Path) -> tuple[Path, Path]:
