@@ -615,11 +615,15 @@ class SweepTable:
 
 
 def sweep(world: World | str | Path, parameter: str | None = None, values=None, *,
-          grid=None, storm_method: str = "sound", workers: int = 1) -> SweepTable:
+          grid=None, storm_method: str = "sound", workers: int = 1,
+          deception: bool = False) -> SweepTable:
     """Solve the world at each value of `parameter` (or at every point of `grid`, a list of
     (parameter, values) pairs), as `hg2prism sweep` does; the parameters are those of
     `hg2prism sweep --param` (rationality, threshold, window, delay, traps, inference, prior,
-    and a front end's own, such as a grid's robot settings). Writes nothing; a bad parameter or value raises InputError."""
+    decision, initial_hypothesis, and a front end's own, such as a grid's robot settings).
+    With `deception` (`sweep --deception`) each row also has `row["v_static"]`,
+    `row["v_naive"]` and `row["value_of_deception"]`. Writes nothing; a bad parameter or value
+    raises InputError."""
     from hg2prism.experiments.sweep import sweep_grid
 
     storm_method = _storm_method("sweep", storm_method)
@@ -641,7 +645,7 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, \
             _as_arguments("sweep", renamed):
         run = sweep_grid(world, grid, Path(scratch), show_progress=False,
-                         storm_method=storm_method, workers=workers)
+                         storm_method=storm_method, workers=workers, deception=bool(deception))
     names = tuple(name for name, _ in run.parameters)
     rows = tuple(SweepRow(point=tuple((n, row[n]) for n in names),
                           deceptive_value=row["deceptive_value"], v_lead=row["v_lead"],

@@ -51,7 +51,8 @@ def _add(sub: Subparsers, name: str, help: str) -> argparse.ArgumentParser:
 def _max_states_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-states", type=int, metavar="N",
                    help="refuse worlds whose estimated hypergame size exceeds N "
-                        f"(default {sizeguard.DEFAULT_LIMIT:,}, what fits in memory)")
+                        f"(default {sizeguard.DEFAULT_LIMIT:,}, about what 24 GiB holds at "
+                        "4 KiB per estimated state)")
 
 
 def _solver_options(p: argparse.ArgumentParser) -> None:
@@ -143,7 +144,9 @@ def _sweep_parser(sub: Subparsers) -> None:
              "parallel on Dask (docs/semantics.md §7, Sweeps).")
     p.add_argument("--param", required=True, action="append", metavar="NAME",
                    help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
-                        + "; repeat --param NAME --values V... to sweep the grid of several")
+                        + "; repeat --param NAME --values V... to sweep the grid of several; "
+                        "a world with P2's types ([[type]]) sweeps weight (its first type's "
+                        "prior weight) only")
     p.add_argument("--values", required=True, action="append", nargs="+", metavar="V",
                    help="the values of the --param before it")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")

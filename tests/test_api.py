@@ -239,6 +239,30 @@ def test_robust_values_are_robust_json_rows(lateral_solution, tmp_path: Path) ->
     assert rows[1].robust_value <= rows[0].robust_value + 1e-12
 
 
+def test_a_sweep_with_deception_has_its_values_in_the_csv_too(tmp_path: Path) -> None:
+    """sweep --deception (deception=True): V_static, V_naive and the value of deception of each
+    point are those of the point's world solved alone (deception_values), in sweep.json, the
+    table and sweep.csv (the CSV lacked them); without it the CSV has no such column."""
+    import csv
+
+    import arenas
+    from hg2prism.experiments import sweep
+
+    world = arenas.lateral()
+    table = hg2prism.sweep(world, "rationality", [0.5, 2], deception=True)
+    run = sweep.sweep_grid(world, [("rationality", [0.5, 2])], tmp_path, show_progress=False,
+                           deception=True)
+    with open(tmp_path / "sweep.csv") as handle:
+        lines = list(csv.DictReader(handle))
+    for rationality, row, line, stored in zip([0.5, 2.0], table, lines, run.rows):
+        alone = hg2prism.deception_values(hg2prism.solve(world.replace(rationality=rationality)))
+        for name in ("v_static", "v_naive", "value_of_deception"):
+            assert row[name] == stored[name] == float(line[name]) == getattr(alone, name), name
+    assert "v_static" not in sweep.sweep_csv(["rationality"], [
+        {k: v for k, v in r.items() if k not in ("v_static", "v_naive", "value_of_deception")}
+        for r in run.rows]).splitlines()[0]
+
+
 def test_sweep_table_is_sweep_csv(tmp_path: Path) -> None:
     import arenas
     from hg2prism.experiments import sweep

@@ -268,7 +268,7 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     --values)."""
     if parameter not in SWEEP_PARAMETERS:
         raise InputError(_CLI, "--param", f"unknown parameter {parameter!r}; expected one of "
-                                          + ", ".join(SWEEP_PARAMETERS))
+                         + ", ".join(SWEEP_PARAMETERS) + " (weight: for a world with P2's types)")
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(_CLI, "--values", f"expected at least one value of {parameter} "
                                            f"({SWEEP_PARAMETERS[parameter].expected})")
@@ -736,15 +736,24 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     return run
 
 
+# With --deception, after v_ne_p1_guaranteed (docs/semantics.md §11).
+_DECEPTION_COLUMNS = ("v_static", "v_naive", "value_of_deception")
+
+
 def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
-    """sweep.csv: the swept parameters, then _CSV_COLUMNS, one line per solved point."""
+    """sweep.csv: the swept parameters, then _CSV_COLUMNS (with the deception's values where
+    the rows have them: `sweep --deception`), one line per solved point."""
+    columns = _CSV_COLUMNS
+    if rows and all("v_static" in row for row in rows):
+        at = columns.index("v_ne_p1_guaranteed") + 1
+        columns = columns[:at] + _DECEPTION_COLUMNS + columns[at:]
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(tuple(names) + _CSV_COLUMNS)
+    writer.writerow(tuple(names) + columns)
     for row in rows:
         writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
                         + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                           for c in _CSV_COLUMNS])
+                           for c in columns])
     return buffer.getvalue()
 
 

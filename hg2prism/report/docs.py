@@ -56,6 +56,20 @@ SOURCES: dict[str, tuple[str, ...]] = {
 }
 # where a case's files are, under the repository's root, when not under models/
 ORIGIN = {"bench": "bench"}
+# The showcase figures the documents show, docs/<name> copied from models/<source> (the
+# explorer's screenshot, docs/world3_explorer.png, is taken by hand in a browser).
+FIGURES: dict[str, str] = {
+    "world1.png": "world1/world.png", "world1.svg": "world1/world.svg",
+    "world1_belief.png": "world1/belief.png", "world1_completion.png": "world1/completion.png",
+    "world1_replay.gif": "world1/replay.gif",
+    "world2_sweep.png": "world2/sweep.png", "world2_sweep.svg": "world2/sweep.svg",
+    "world2_detection.png": "world2/detection.png", "world2_detection.svg": "world2/detection.svg",
+    "world2_robust.png": "world2/robust.png", "world2_robust.svg": "world2/robust.svg",
+    "world3.png": "world3/world.png", "world3_belief.png": "world3/belief.png",
+    "world3_bayes_belief.png": "world3_bayes/belief.png",
+    "mir100.png": "mir100/world.png",
+    "world4_adaptive_belief.png": "world4/adaptive_belief.png",
+}
 VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file"}
 # the explorer's candidate episodes docs/data keeps step by step, besides the drawn one (each
 # candidate's path is kept): hand-picked examples the documents describe
@@ -169,6 +183,20 @@ def start_records(records: list[dict]) -> list[dict]:
             if known not in kept:
                 kept.append(known)
     return kept
+
+
+def copy_figures(models: Path, docs_folder: Path) -> list[str]:
+    """Copy the FIGURES present under `models` into `docs_folder` where they differ; the
+    copied."""
+    from hg2prism.outputs import write_bytes
+
+    copied = []
+    for name, source in FIGURES.items():
+        path, target = models / source, docs_folder / name
+        if path.is_file() and (not target.is_file() or target.read_bytes() != path.read_bytes()):
+            write_bytes(target, path.read_bytes())
+            copied.append(name)
+    return copied
 
 
 def collect(models: Path, data: Path, root: Path | None = None) -> list[str]:
@@ -547,6 +575,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1 if differ else 0
     for name in collect(args.models, data, ROOT):
         print(f"docs/data/{name}")
+    for name in copy_figures(args.models, ROOT / "docs"):
+        print(f"copied docs/{name}")
     out = Outputs(data)
     for doc in documents(ROOT):
         text = doc.read_text()
