@@ -121,7 +121,11 @@ def test_perceptual_games(solved) -> None:
     start_label = ts.place_label[ts.decode(ts.start_state)[0]]
     for index, game in enumerate(analysis.games):
         expected = game.values[ts.start_state, game.dfa.delta[game.dfa.initial, start_label]]
-        assert abs(prism_value(out / f"perceptual_{index}.prism") - expected) <= TOL, index
+        value = prism_value(out / f"perceptual_{index}.prism")
+        assert abs(value - expected) <= TOL, index
+        # the property file says the value PRISM-games computes (so a reader can compare)
+        props = (out / f"perceptual_{index}.props").read_text()
+        assert abs(float(re.search(r"V_x = (\S+)\n", props).group(1)) - value) <= TOL, props
 
 
 def test_symmetric_game_within_the_nash_bracket(solved) -> None:

@@ -108,12 +108,16 @@ def render_symmetric(world: World, ts: TransitionSystem, task: DFA) -> tuple[str
     return text, props
 
 
-def render_perceptual(world: World, ts: TransitionSystem, dfa: DFA, index: int) -> tuple[str, str]:
-    """P2's perceptual game G(x_index) of docs/semantics.md §4 as a PRISM-games smg, and its property file."""
+def render_perceptual(world: World, ts: TransitionSystem, dfa: DFA, index: int,
+                      value: float | None = None) -> tuple[str, str]:
+    """P2's perceptual game G(x_index) of docs/semantics.md §4 as a PRISM-games smg, and its
+    property file (saying hg2prism's `value` of the game at its initial state, when given)."""
     text = render_template("perceptual.prism.j2", index=index, **_context(world, ts, dfa))
+    said = ("" if value is None else
+            f"// hg2prism's value, certified (docs/semantics.md §10): V_x = {float(value)!r}\n")
     props = (f"// V_x of world {world.name} for hypothesis x{index} = \"{dfa.formula}\" (docs/semantics.md §4): P2 places\n"
              f"// the traps first each step, P1 answers; P1 maximises, P2 minimises.\n"
-             f"{PROPERTY}\n")
+             f"{said}{PROPERTY}\n")
     return text, props
 
 
@@ -128,8 +132,10 @@ def write_game_models(analysis: Analysis, out_dir: Path) -> list[Path]:
     files: list[tuple[str, str]] = []
     text, props = render_symmetric(world, ts, analysis.task)
     files += [("symmetric.prism", text), ("symmetric.props", props)]
+    start = ts.start_state
     for i, game in enumerate(analysis.games):
-        text, props = render_perceptual(world, ts, game.dfa, i)
+        text, props = render_perceptual(world, ts, game.dfa, i,
+                                        game.values[start, game.fresh_q[start]])
         files += [(f"perceptual_{i}.prism", text), (f"perceptual_{i}.props", props)]
     written = []
     for name, content in files:
