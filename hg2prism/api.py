@@ -47,6 +47,23 @@ def _integer(verb: str, value: object, key: str, minimum: int,
     return Checks(f"{verb}()").integer(value, key, minimum, maximum)
 
 
+def _budget(verb: str, value: object, key: str) -> None:
+    """InputError unless a deviation budget is a number (numpy's too): the verbs take numbers,
+    the command line's text is parsed by the command line."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(f"{verb}()", key, f"{value!r} is not a deviation budget in [0, 1): "
+                         "expected a number")
+
+
+def _flag(verb: str, value: object, key: str) -> bool:
+    """A True/False argument (numpy's bool too)."""
+    import numpy as np
+
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"{verb}()", key, f"expected True or False, got {value!r}")
+    return bool(value)
+
+
 def _option(verb: str, value: object, key: str, what: str, options) -> str:
     return Checks(f"{verb}()").choice(value, key, what, tuple(options))
 
@@ -546,10 +563,8 @@ def robust(solution: Solution, deltas) -> list[RobustValue]:
     from hg2prism.experiments.robust import parse_deltas, solve_budgets
 
     deltas = _sequence("robust", deltas, "deltas", "a list of deviation budgets in [0, 1)")
-    for delta in deltas:        # numbers, as the other verbs take them (the CLI's are text)
-        if isinstance(delta, bool) or not isinstance(delta, numbers.Real):
-            raise InputError("robust()", "deltas", f"{delta!r} is not a deviation budget in "
-                             "[0, 1): expected a number")
+    for delta in deltas:
+        _budget("robust", delta, "deltas")
     with _as_arguments("robust"):
         budgets = parse_deltas(deltas)
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
@@ -628,6 +643,7 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
 
     storm_method = _storm_method("sweep", storm_method)
     workers = _integer("sweep", workers, "workers", 1)
+    deception = _flag("sweep", deception, "deception")
     world = _world("sweep", world)
     _typed_world(world, "sweep", "sweep its prior with hg2prism sweep WORLD --param weight")
     if (grid is None) == (parameter is None):
@@ -645,7 +661,7 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, \
             _as_arguments("sweep", renamed):
         run = sweep_grid(world, grid, Path(scratch), show_progress=False,
-                         storm_method=storm_method, workers=workers, deception=bool(deception))
+                         storm_method=storm_method, workers=workers, deception=deception)
     names = tuple(name for name, _ in run.parameters)
     rows = tuple(SweepRow(point=tuple((n, row[n]) for n in names),
                           deceptive_value=row["deceptive_value"], v_lead=row["v_lead"],
@@ -668,6 +684,8 @@ def detection(solution: Solution, *, episodes: int | None = None, seed: int | No
     from hg2prism.experiments.detect import detection_experiment, parse_fallback
 
     episodes, horizon, seed = _simulation_arguments("detection", episodes, horizon, seed)
+    if fallback_delta is not None:
+        _budget("detection", fallback_delta, "fallback_delta")
     with _as_arguments("detection"):
         parse_fallback(fallback, fallback_delta)
     with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, progress.quiet(), \

@@ -469,6 +469,8 @@ def test_the_verbs_check_their_arguments(lateral_solution, monkeypatch) -> None:
                      (dict(horizon=True), "horizon"), (dict(seed=-1), "seed"),
                      (dict(seed="a"), "seed"), (dict(seed=1.5), "seed")],
         "detection": [(dict(episodes=-1), "episodes"), (dict(episodes=1.5), "episodes"),
+                      # text was parsed as on the command line (robust() refused it)
+                      (dict(fallback="robust", fallback_delta="0.05"), "fallback_delta"),
                       (dict(horizon=0), "horizon"), (dict(seed=-2), "seed"),
                       (dict(fallback="bogus"), "fallback"),
                       (dict(fallback_delta=0.1), "fallback_delta"),
@@ -501,6 +503,7 @@ def test_sweep_checks_its_arguments(monkeypatch) -> None:
     world = arenas.lateral()
     for args, kwargs, key in [(("window", [1]), dict(workers=0), "workers"),
                               (("window", [1]), dict(workers=1.5), "workers"),
+                              (("window", [1]), dict(deception="no"), "deception"),
                               (("window", [1]), dict(storm_method="bogus"), "storm_method"),
                               (("bogus", [1]), {}, "parameter"),
                               (("window", "2"), {}, "values"),
@@ -591,9 +594,11 @@ def test_replace_takes_values_as_python_gives_them() -> None:
 
     world = hg2prism.load_world(MODELS / "world1.toml")
     listed = world.replace(hypotheses=list(world.hypotheses), window=np.int64(2),
-                           rationality=np.float32(0.5), slip=np.float64(0.1))
+                           rationality=np.float32(0.5), slip=np.float64(0.1),
+                           start=(np.int64(2), np.int64(4)))
     assert listed == world.replace(hypotheses=world.hypotheses, window=2, rationality=0.5,
-                                   slip=0.1)
+                                   slip=0.1, start=(2, 4))
+    assert all(type(c) is int for c in listed.grid.start)
     assert type(listed.hypotheses) is tuple and type(listed.window) is int
     assert type(listed.rationality) is float and type(listed.grid.slip) is float
     _refused(lambda: world.replace(window="2"), str(world.path), "inference.window")

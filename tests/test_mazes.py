@@ -4,8 +4,8 @@ converge" on small worlds that `check` solves. Now
 * `run` completes on the issue's world (deceptive value 0.9, V_lead 0), on maze 113, where
   P2's Nash strategy plays a trap set with probability 2e-9 and the old solve cycled, and on
   every fifth of the 200 random mazes (tests/mazegen.py) and maze 3 (`make mazes`, or
-  HG2PRISM_ALL_MAZES=1, runs all 200, each with its figures; by default a fifth of them draw
-  theirs); on those, where PRISM is installed, PRISM-games' csg
+  HG2PRISM_ALL_MAZES=1, runs all 200, each with its figures; by default 11 of the 41 draw
+  theirs: every twentieth and maze 3); on those, where PRISM is installed, PRISM-games' csg
   engine computes V_NE from the exported symmetric.prism, an engine independent of ours, and
   it lies in our bracket (within 1e-6, as in tests/test_prism.py);
 * on 200 random small mazes (walls at random, trap candidates on the shortest paths to the

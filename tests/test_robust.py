@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -26,6 +27,7 @@ from hg2prism import pipeline, progress
 from hg2prism.analyses.simulation import (LeaderStrategy, Replanning, deviating_policy,
                                           leader_fallback, simulate_deceptive)
 from hg2prism.cli import main
+from hg2prism.errors import InputError
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
 from hg2prism.prism.robust_model import CHECK_CONSTANTS, EXACT_CONSTANTS
@@ -564,3 +566,30 @@ def test_budget_names_stay_short() -> None:
     assert [delta_text(d) for d in (0, 0.0, 0.02, 0.1, 0.05, 1e-4)] == \
         ["0", "0", "0.02", "0.1", "0.05", "0.0001"]
     assert delta_text(1e-300) == "1e-300" and delta_text(1.5e-12) == "1.5e-12"
+
+
+def test_the_constants_a_checker_is_told_leave_the_budget_its_mass() -> None:
+    """robust.prism's header gives eps = 1e-9 unless the budget is below 1e-9 for each of P2's
+    other actions, where 1e-9 would make a step's lower bounds sum above 1 (PRISM refused the
+    header's own command on such a model): then eps = delta / |A2|."""
+    from types import SimpleNamespace
+
+    from hg2prism.prism.robust_model import CHECK_EPS, checkable_constants
+
+    ts = SimpleNamespace(n_sets=4)
+    assert checkable_constants(0.0, ts) == CHECK_CONSTANTS == f"eps={CHECK_EPS!r}"
+    assert checkable_constants(3 * CHECK_EPS, ts) == CHECK_CONSTANTS      # exactly enough
+    for delta in (1e-10, math.nextafter(3 * CHECK_EPS, 0.0)):
+        eps = float(checkable_constants(delta, ts).split("=")[1])
+        assert eps == delta / 4 and 3 * eps < delta
+
+
+def test_solving_with_the_cross_check_refuses_a_budget_it_cannot_check(world_dir: Path) -> None:
+    """solve_budgets with the cross-check refuses a budget below eps * (|A2| - 1) before any
+    work (it built an interval model whose lower bounds sum above 1 and failed in the solver)."""
+    result = checked("world2", str(world_dir))
+    out = world_dir / "tiny_budget"
+    with pytest.raises(InputError) as caught:
+        robust.solve_budgets(result.analysis.world, result, [1e-10], out)
+    assert caught.value.key == "--deltas" and "least budget" in caught.value.reason
+    assert not out.exists()

@@ -178,7 +178,6 @@ INVALID_TYPES = [
         STUBBORN, name="third", weight=0.25, window=2, rationality=-3.0)),
      "type[2].inference.rationality", "> 0"),
     (_typed(JUMPY, "stubborn"), "type[1]", "PlayerType"),
-    ([JUMPY, STUBBORN], "type", "tuple"),
     # the world's own observer is its first type's
     (_typed(STUBBORN, JUMPY), "type[0]", "first type's"),
 ]
@@ -188,6 +187,19 @@ INVALID_TYPES = [
                          ids=[f"{k}-{r}" for _, k, r in INVALID_TYPES])
 def test_every_way_to_make_a_typed_variant_validates(types, key, reason) -> None:
     _every_way_refuses(TYPED, {"types": types}, {"types": types}, key, reason)
+
+
+def test_a_list_of_types_is_taken_by_replace_only() -> None:
+    """World.replace takes the types as a list too (values as Python gives them, docs/api.md);
+    the constructor and dataclasses.replace want what a World holds, a tuple."""
+    assert TYPED.replace(types=[JUMPY, STUBBORN]) == TYPED.replace(types=(JUMPY, STUBBORN))
+    for make in (lambda: dataclasses.replace(TYPED, types=[JUMPY, STUBBORN]),
+                 lambda: World(**{**{f.name: getattr(TYPED, f.name)
+                                     for f in dataclasses.fields(TYPED)},
+                                  "types": [JUMPY, STUBBORN]})):
+        with pytest.raises(InputError) as caught:
+            make()
+        assert caught.value.key == "type" and "tuple" in str(caught.value)
 
 
 def test_a_typed_world_keeps_its_own_observer_its_first_types() -> None:

@@ -117,13 +117,13 @@ class ModelChecker(Protocol):
                             prop: str = 'P=? [F "goal"]') -> float:
         """A property of the chain that fixing choice[state] induces."""
 
-    def build_interval(self, prism_path: Path, constants: str = ""
+    def build_interval(self, prism_path: Path, constants: str
                        ) -> tuple[object, dict[str, float]]:
         """The interval MDP of a PRISM model with interval probabilities (docs/semantics.md
         §13), its undefined constants defined by `constants` ("eps=0"), and the parse and
         build times."""
 
-    def check_robust(self, prism_path: Path, prop: str, constants: str = "") -> float:
+    def check_robust(self, prism_path: Path, prop: str, constants: str) -> float:
         """`prop` at the initial state of an interval model (its undefined constants defined
         by `constants`), the intervals resolved against P1: a cross-check, not a certified
         value."""

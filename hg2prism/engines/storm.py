@@ -354,7 +354,7 @@ def induced_within(checked: StormChecked, choice: np.ndarray, horizon: int) -> f
 # Interval models (docs/semantics.md §13)
 # ---------------------------------------------------------------------------------------------
 
-def build_interval_model(prism_path: Path, constants: str = ""
+def build_interval_model(prism_path: Path, constants: str
                          ) -> tuple[object, dict[str, float]]:
     """Storm's interval MDP of a PRISM model with interval probabilities, its undefined
     constants defined by `constants` ("eps=0", as Storm's --constants), with choice labels,
@@ -378,7 +378,7 @@ def build_interval_model(prism_path: Path, constants: str = ""
     return model, timings
 
 
-def check_robust(prism_path: Path, prop: str, constants: str = "") -> float:
+def check_robust(prism_path: Path, prop: str, constants: str) -> float:
     """Storm's robust mode on an interval model: the property's value at the initial state, P1
     optimising as `prop` says and the intervals resolved against it. Storm needs every lower
     bound positive, and its robust value iteration is not sound: it stops when an iteration
@@ -426,11 +426,11 @@ class StormEngine:
                             prop: str = 'P=? [F "goal"]') -> float:
         return induced_probability(checked, choice, prop)
 
-    def build_interval(self, prism_path: Path, constants: str = ""
+    def build_interval(self, prism_path: Path, constants: str
                        ) -> tuple[object, dict[str, float]]:
         return build_interval_model(prism_path, constants)
 
-    def check_robust(self, prism_path: Path, prop: str, constants: str = "") -> float:
+    def check_robust(self, prism_path: Path, prop: str, constants: str) -> float:
         return check_robust(prism_path, prop, constants)
 
     def check_pomdp(self, prism_path: Path, prop: str,

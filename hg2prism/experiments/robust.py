@@ -231,11 +231,15 @@ def solve_budgets(world: World, check_result: CheckResult, deltas: Sequence[floa
     """Render and solve the interval model of every budget, each into
     ``folder/robust_<delta>/`` (robust.prism, robust.props): (solution, seconds) per budget.
     `check_result` is pipeline.check(world, ...). With `storm_check`, Storm's robust mode and
-    numpy check the model with eps > 0 too (RobustSolved.storm_check)."""
+    numpy check the model with eps > 0 too (RobustSolved.storm_check), which needs every
+    positive budget at least eps * (|A2| - 1) (InputError otherwise, before any work)."""
     from hg2prism.analyses.simulation import leader_fallback
-    from hg2prism.prism.robust_model import build_robust_model, delta_text, write_robust_model
+    from hg2prism.prism.robust_model import (CHECK_EPS, build_robust_model, delta_text,
+                                             write_robust_model)
     from hg2prism.strategy.records import Strategy
 
+    if storm_check:
+        _check_cross_checkable(world, list(deltas), CHECK_EPS)
     analysis = check_result.analysis
     deceptive = Strategy.from_records(check_result.records, analysis.ts,
                                       fallback=leader_fallback(analysis))

@@ -127,10 +127,10 @@ class World:
 
 
 def _plain(value: object) -> object:
-    """A value given to `World.replace` as a world file would give it: a list as a tuple (of
-    plain values), a numpy number as the Python number it equals (np.int64(3) -> 3); anything
-    else as it is, for validation to judge."""
-    if isinstance(value, list):
+    """A value given to `World.replace` as a world file would give it: a list or tuple as a
+    tuple of plain values, a numpy number as the Python number it equals (np.int64(3) -> 3);
+    anything else (a PlayerType, a settings dataclass) as it is, for validation to judge."""
+    if isinstance(value, (list, tuple)) and not hasattr(value, "_fields"):
         return tuple(_plain(item) for item in value)
     item = getattr(value, "item", None)
     if item is not None and type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:

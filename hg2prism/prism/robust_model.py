@@ -43,7 +43,7 @@ STEP_PREFIX = "step_"
 # definitions of the model's constant eps for the exact model and for the cross-checks.
 CHECK_EPS = 1e-9
 EXACT_CONSTANTS = "eps=0"
-CHECK_CONSTANTS = "eps=1e-9"
+CHECK_CONSTANTS = f"eps={CHECK_EPS!r}"
 # Names of the variables that tell an intermediate state (move >= 0) from one where P1 chooses.
 MOVE_VARIABLE, PLAYED_VARIABLE = "move", "played"
 
@@ -62,6 +62,16 @@ def delta_text(delta: float) -> str:
     text = prism_number(float(delta))
     text = text[:-2] if text.endswith(".0") else text
     return text if len(text) <= 12 else repr(float(delta))
+
+
+def checkable_constants(delta: float, ts: TransitionSystem) -> str:
+    """The definition of eps a checker can be given for budget `delta`: CHECK_CONSTANTS, or,
+    for a budget below CHECK_EPS for each of P2's other actions, eps = delta / |A2|, so that
+    the lower bounds of a step (1 - delta, and eps for each other action) sum to less than 1
+    whatever the rounding (with CHECK_EPS they would exceed 1)."""
+    if 0 < delta < CHECK_EPS * (ts.n_sets - 1):
+        return f"eps={delta / ts.n_sets!r}"
+    return CHECK_CONSTANTS
 
 
 def refuse_drawing(world: World, inference: Observer) -> None:
@@ -95,7 +105,7 @@ def build_robust_model(world: World, ts: TransitionSystem, task: DFA,
     text = render_template(
         "robust.prism.j2", **context, step_labels=slot_labels(context["tables"], STEP_PREFIX),
         deviation=deviation,
-        delta_text=prism_number(float(delta)), check_constants=CHECK_CONSTANTS,
+        delta_text=prism_number(float(delta)), check_constants=checkable_constants(delta, ts),
         property=PRISM_PROPERTY)
     prism = PrismModel(text=text, properties=PRISM_PROPERTY + "\n",
                        layout=Layout(slots=context["observer"].slots, delay=ts.delay,
