@@ -546,7 +546,8 @@ def _perform(args: argparse.Namespace) -> int:
     command.options(args, world)
     owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
     every = "|".join(f"(?:{pattern})" for pattern in (*OWNED.values(), SWEEP_OWNED))
-    with staged(out, owns=owns, world=world.name, every=every) as stage:
+    with staged(out, owns=owns, world=world.name, every=every,
+                digest=world.digest()) as stage:
         outcome = command.act(args, world, stage)
         files = sorted(p.name for p in stage.iterdir())
     print(tables.summary(outcome.results, out, files) if outcome.results is not None

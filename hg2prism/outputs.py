@@ -111,33 +111,38 @@ def _join_pool_workers(timeout: float = 10.0) -> None:
 _RECORDS = ("results.json", "robust.json", "detection.json", "sweep.json")
 
 
-def _of_another_world(out: Path, world: str) -> bool:
-    """Whether `out` holds outputs of a world other than `world`, by the name its record
-    files give (read before the new outputs move in)."""
+def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
+    """Whether `out` holds outputs of a world other than `world` (its name) or than the world
+    of `digest` (World.digest: the same name, its file edited), by what its record files say
+    (read before the new outputs move in; a record without a digest is judged by name)."""
     for name in _RECORDS:
         path = out / name
         if not path.is_file():
             continue
         try:
-            named = json.loads(path.read_text()).get("world")
+            record = json.loads(path.read_text())
+            named, digested = record.get("world"), record.get("world_digest")
         except (OSError, ValueError, AttributeError):
             continue
         if isinstance(named, str) and named != world:
+            return True
+        if digest is not None and isinstance(digested, str) and digested != digest:
             return True
     return False
 
 
 @contextmanager
 def staged(out: Path, owns: str | None = None, world: str | None = None,
-           every: str | None = None) -> Iterator[Path]:
+           every: str | None = None, digest: str | None = None) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
     the command succeeds, so a failure leaves nothing half-written. Each item replaces its
     predecessor in one rename (a stop between two items leaves some new, some old, none
     broken); an item that cannot be placed puts its predecessor back. `owns` (a regular
     expression over names, see OWNED) removes the command's stale outputs afterwards; where
-    `out` held outputs of another world than `world` (its record files name it), `every`
-    (what any command owns) removes all of them: the commands of one world share a folder,
-    two worlds do not."""
+    `out` held outputs of another world than `world` (its record files name it) or another
+    version of it (their `world_digest` is not `digest`), `every` (what any command owns)
+    removes all of them: the commands of one world share a folder, two worlds (or two versions
+    of one world file) do not."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
@@ -150,7 +155,7 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             raise
         out.mkdir(exist_ok=True)
         new_items = list(stage.iterdir())
-        if world is not None and every is not None and _of_another_world(out, world):
+        if world is not None and every is not None and _of_another_world(out, world, digest):
             owns = every
         for item in new_items:
             target = out / item.name

@@ -250,6 +250,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     results = CheckResults(
         world=world.name,
         world_file=str(world.path),
+        world_digest=world.digest(),
         hg2prism_version=__version__,
         deceptive_value=checked.value,
         storm_method=storm_method,

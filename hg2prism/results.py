@@ -119,6 +119,7 @@ class CheckResults:
 
     world: str                      # the world's name
     world_file: str                 # the world file as given (may be relative)
+    world_digest: str               # World.digest(): which world exactly (not where its file is)
     hg2prism_version: str
     deceptive_value: float          # Pmax=? [F "goal"] at the hypergame's initial state (§6), by Storm
     storm_method: str               # "sound", "storm-sound", "sound-ovi" or "fast" (§10)
@@ -142,6 +143,7 @@ class CheckResults:
         return {
             "world": self.world,
             "world_file": self.world_file,
+            "world_digest": self.world_digest,
             "hg2prism_version": self.hg2prism_version,
             "deceptive_value": self.deceptive_value,
             "storm_method": self.storm_method,

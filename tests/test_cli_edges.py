@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from conftest import MODELS, ROOT
 from hg2prism import __version__
 from hg2prism.numeric import bounded_reach
+from hg2prism.worldfile import load_world
 
 WORLD1 = str(MODELS / "world1.toml")
 
@@ -390,3 +391,56 @@ def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
     assert not names & {"detection.json", "detection.png", "robust_0.1"}
     assert "mine.txt" in names and "hypothesis_1.hoa" not in names     # world1's had three
     assert json.loads((out / "results.json").read_text())["world"] == "one"
+
+
+def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path) -> None:
+    """The same world file edited between two commands is another world: its outputs do not
+    stay beside the old version's (the folder kept world1's detection outputs when `check`
+    ran on an edited world1; records now carry World.digest())."""
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "out"
+    world = small_world(tmp_path)
+    with quiet():
+        assert main(["check", str(world), "--out", str(out)]) == 0
+    digest = json.loads((out / "results.json").read_text())["world_digest"]
+    assert digest == load_world(world).digest()
+    (out / "detection.json").write_text(json.dumps({"world": "world1", "world_digest": digest}))
+    (out / "detection.png").write_bytes(b"")
+    with quiet():
+        assert main(["check", str(world), "--out", str(out)]) == 0         # unchanged: kept
+    assert (out / "detection.png").exists()
+    world.write_text(world.read_text().replace("window = 2", "window = 1"))
+    with quiet():
+        assert main(["check", str(world), "--out", str(out)]) == 0         # edited: removed
+    assert not (out / "detection.json").exists() and not (out / "detection.png").exists()
+    assert json.loads((out / "results.json").read_text())["world_digest"] != digest
+
+
+def test_the_digest_is_the_worlds_content() -> None:
+    """World.digest(): equal for equal worlds (another path, a list for a tuple, numpy's
+    numbers), different for any change (a setting, the map, an arena's table)."""
+    import dataclasses
+
+    import hg2prism
+
+    world1 = load_world(MODELS / "world1.toml")
+    same = dataclasses.replace(world1, path=Path("elsewhere.toml"))
+    assert same.digest() == world1.digest() == world1.replace(window=np.int64(2)).digest()
+    changed = [world1.replace(window=1), world1.replace(slip=0.2),
+               world1.replace(hypotheses=list(world1.hypotheses[::-1])),
+               world1.replace(simulation=dataclasses.replace(world1.simulation, seed=1))]
+    assert len({w.digest() for w in changed} | {world1.digest()}) == len(changed) + 1
+    arena = hg2prism.world_from_toml(
+        (MODELS / "mir100.toml").read_text(), name=str(MODELS / "mir100.toml"))
+    assert arena.digest() == load_world(MODELS / "mir100.toml").digest()
+    prob = arena.arena.prob.copy()
+    rows = prob.reshape(-1, prob.shape[-1])
+    split = np.flatnonzero((rows > 0.01).sum(axis=1) == 2)[0]          # a move of two outcomes
+    first, second = np.flatnonzero(rows[split] > 0.01)
+    rows[split, first] += 0.005
+    rows[split, second] -= 0.005
+    moved = dataclasses.replace(arena, arena=dataclasses.replace(arena.arena, prob=prob))
+    assert moved.digest() != arena.digest()
+    assert dataclasses.replace(moved, arena=arena.arena).digest() == arena.digest()

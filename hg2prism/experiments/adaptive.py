@@ -129,8 +129,8 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
         warn(f"V_adapt {v_adapt:.9f} is not between max V_commit {best:.9f} and V_oracle "
              f"{v_oracle:.9f}")
     results = {
-        "world": world.name, "world_file": str(world.path), "hg2prism_version": __version__,
-        "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
+        "world": world.name, "world_file": str(world.path), "world_digest": world.digest(),
+        "hg2prism_version": __version__, "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
         "value_of_adaptivity": v_adapt - best, "cost_of_not_knowing": v_oracle - v_adapt,
         "storm_method": storm_method, "sound": storm_method in engine.sound_methods,
         "states": strategy.size[0], "transitions": strategy.size[1],
@@ -440,7 +440,8 @@ def sweep_weights(world: World, weights: list[float], out: Path,
                      "value_of_adaptivity": r["value_of_adaptivity"],
                      "cost_of_not_knowing": r["cost_of_not_knowing"]})
     write_json(out / "sweep.json", {
-        "world": world.name, "world_file": str(world.path), "parameter": "weight",
+        "world": world.name, "world_file": str(world.path), "world_digest": world.digest(),
+        "parameter": "weight",
         "values": weights, "parameters": ["weight"], "type": names[0],
         "storm_method": storm_method, "sound": results_sound(storm_method), "rows": rows,
         "failed": failed, "seconds": round(time.perf_counter() - start, 3)})

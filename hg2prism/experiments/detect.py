@@ -348,6 +348,7 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
     return {
         "world": world.name,
         "world_file": str(world.path),
+        "world_digest": world.digest(),
         "alpha": batches.alpha,
         "epsilon": batches.epsilon,
         "deviate_after": deviate_after,

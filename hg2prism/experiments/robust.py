@@ -329,6 +329,7 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
     result = {
         "world": world.name,
         "world_file": str(world.path),
+        "world_digest": world.digest(),
         "deceptive_value": check_result.results.deceptive_value,
         "v_lead": check_result.results.v_lead,
         "deltas": parsed,

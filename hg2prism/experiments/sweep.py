@@ -765,7 +765,8 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
     fixed = Parameters.of(world).to_json()
     for name in names:
         fixed.pop(name, None)
-    summary: dict[str, object] = {"world": world.name, "world_file": str(world.path)}
+    summary: dict[str, object] = {"world": world.name, "world_file": str(world.path),
+                                  "world_digest": world.digest()}
     if len(names) == 1:        # the one-parameter format, as before grids existed
         summary.update(parameter=names[0], values=[_json_value(v) for v in run.parameters[0][1]])
     else:

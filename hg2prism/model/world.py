@@ -102,6 +102,19 @@ class World:
             own["grid"] = dataclasses.replace(own.get("grid", self.grid), **front)
         return dataclasses.replace(self, **own)
 
+    def digest(self) -> str:
+        """"sha256:<hex>" of everything the world says but where its file is (its path): two
+        worlds with one digest are the same world. The records of an output folder carry it
+        (`world_digest`), so that a command on an edited world file does not leave the old
+        version's outputs beside its own (outputs.staged)."""
+        import hashlib
+        import json
+
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                  if f.name != "path"}
+        text = json.dumps(_canonical(fields), sort_keys=True, separators=(",", ":"))
+        return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
+
     def atomic_propositions(self) -> tuple[str, ...]:
         """AP: an arena world's are its arena's; a grid's are its map's (frontends/grid.py)."""
         if self.arena is not None:
@@ -124,6 +137,43 @@ class World:
     @property
     def decision(self) -> str:
         return self.setting("decision", "map")
+
+
+def _canonical(value: object) -> object:
+    """`value` as plain JSON data, the same for equal values: dataclasses as tables of their
+    fields, sets sorted, tuples as lists, numpy numbers as Python's, an array as its dtype,
+    shape and the sha256 of its bytes (C order)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {"__" + type(value).__name__: {f.name: _canonical(getattr(value, f.name))
+                                              for f in dataclasses.fields(value)}}
+    if isinstance(value, dict):
+        return {str(key): _canonical(item) for key, item in value.items()}
+    if isinstance(value, (set, frozenset)):
+        items = [_canonical(item) for item in value]
+        return sorted(items, key=lambda item: json_text(item))
+    if isinstance(value, (list, tuple)):
+        return [_canonical(item) for item in value]
+    if hasattr(value, "tolist") and getattr(value, "ndim", 0) > 0:      # a numpy array
+        import hashlib
+
+        import numpy as np
+
+        data = np.ascontiguousarray(value)
+        return {"__array": [data.dtype.str, list(data.shape),
+                            hashlib.sha256(data.tobytes()).hexdigest()]}
+    if hasattr(value, "tolist"):            # a numpy number
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return repr(value)
+
+
+def json_text(value: object) -> str:
+    import json
+
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
 
 
 def _plain(value: object) -> object:

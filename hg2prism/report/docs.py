@@ -70,7 +70,7 @@ FIGURES: dict[str, str] = {
     "mir100.png": "mir100/world.png",
     "world4_adaptive_belief.png": "world4/adaptive_belief.png",
 }
-VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file"}
+VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file", "world_digest"}
 # the explorer's candidate episodes docs/data keeps step by step, besides the drawn one (each
 # candidate's path is kept): hand-picked examples the documents describe
 EXPLORER_SEEDS = {"world3": (44,)}
@@ -86,8 +86,9 @@ def documents(root: Path = ROOT) -> list[Path]:
 # ---- the data: outputs without what varies between runs ----
 
 def stable(value: object) -> object:
-    """`value` (parsed JSON) without timings, the version and the world file's path, its
-    numbers rounded to 10 decimals."""
+    """`value` (parsed JSON) without timings, the version, the world file's path and the
+    world's digest (bookkeeping, which a change of the World's fields changes), its numbers
+    rounded to 10 decimals."""
     if isinstance(value, dict):
         return {k: stable(v) for k, v in value.items() if k not in VOLATILE}
     if isinstance(value, list):
