@@ -70,6 +70,8 @@ FIGURES: dict[str, str] = {
     "mir100.png": "mir100/world.png",
     "world4_adaptive_belief.png": "world4/adaptive_belief.png",
 }
+# and the benchmark's plot, from the repository's bench/ (make bench)
+ROOT_FIGURES: dict[str, str] = {"scaling.png": "bench/scaling.png"}
 VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file", "world_digest"}
 # the explorer's candidate episodes docs/data keeps step by step, besides the drawn one (each
 # candidate's path is kept): hand-picked examples the documents describe
@@ -186,14 +188,17 @@ def start_records(records: list[dict]) -> list[dict]:
     return kept
 
 
-def copy_figures(models: Path, docs_folder: Path) -> list[str]:
-    """Copy the FIGURES present under `models` into `docs_folder` where they differ; the
-    copied."""
+def copy_figures(models: Path, docs_folder: Path, root: Path | None = None) -> list[str]:
+    """Copy the FIGURES present under `models` (and, with `root`, the ROOT_FIGURES present
+    under it) into `docs_folder` where they differ; the copied."""
     from hg2prism.outputs import write_bytes
 
     copied = []
-    for name, source in FIGURES.items():
-        path, target = models / source, docs_folder / name
+    sources = [(name, models / source) for name, source in FIGURES.items()]
+    if root is not None:
+        sources += [(name, root / source) for name, source in ROOT_FIGURES.items()]
+    for name, path in sources:
+        target = docs_folder / name
         if path.is_file() and (not target.is_file() or target.read_bytes() != path.read_bytes()):
             write_bytes(target, path.read_bytes())
             copied.append(name)
@@ -576,7 +581,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1 if differ else 0
     for name in collect(args.models, data, ROOT):
         print(f"docs/data/{name}")
-    for name in copy_figures(args.models, ROOT / "docs"):
+    for name in copy_figures(args.models, ROOT / "docs", ROOT):
         print(f"copied docs/{name}")
     out = Outputs(data)
     for doc in documents(ROOT):
