@@ -21,6 +21,7 @@ import scipy.sparse as sp
 
 from conftest import MODELS, ROOT
 from hg2prism import __version__
+from hg2prism.errors import InputError
 from hg2prism.numeric import bounded_reach
 from hg2prism.worldfile import load_world
 
@@ -444,3 +445,49 @@ def test_the_digest_is_the_worlds_content() -> None:
     moved = dataclasses.replace(arena, arena=dataclasses.replace(arena.arena, prob=prob))
     assert moved.digest() != arena.digest()
     assert dataclasses.replace(moved, arena=arena.arena).digest() == arena.digest()
+
+
+def _many_trap_sets_world(candidates: int) -> object:
+    """A 40-node attack graph, `candidates` trap candidates, 3 traps, delay 1 (a stress test's:
+    with 25 candidates, 2,300 trap sets, `emit` was killed by the kernel at 22 GB)."""
+    import random
+
+    import networkx as nx
+
+    import hg2prism
+
+    rng, graph = random.Random(4), nx.DiGraph()
+    for v in range(1, 38):
+        for w in rng.sample(range(v + 1, min(40, v + 6) + 1), 2):
+            graph.add_edge(v, w, p=rng.choice([0.5, 0.8]))
+    target = max(v for v in graph if graph.out_degree(v) == 0)
+    chosen = list(range(3, 3 + candidates))
+    return hg2prism.world_from_graph(graph, entries=[1, 2], task=f"F asset{target}",
+                                     trap_candidates=chosen, traps=3, delay=1,
+                                     initial_traps=chosen[:3], name="many_sets")
+
+
+def test_games_too_large_for_memory_are_refused_up_front(tmp_path: Path) -> None:
+    """The size guard bounds P2's perceptual games too (their tables over TS state x P1's action
+    x P2's action x outcome), not only the hypergame: one line naming `size`, before any work,
+    nothing written; --max-states raises that bound with the other."""
+    from hg2prism.frontends.arena import to_toml
+    from hg2prism.model import sizeguard
+
+    world = _many_trap_sets_world(25)
+    assert sizeguard.estimate_states(world) < sizeguard.DEFAULT_LIMIT     # the hypergame fits
+    path = tmp_path / "many_sets.toml"
+    path.write_text(to_toml(world))
+    start = time.monotonic()
+    proc = run_cli(["emit", str(path), "--out", str(tmp_path / "o")], tmp_path, timeout=120)
+    assert time.monotonic() - start < 30
+    line = assert_one_line_error(proc, "size", "P2's perceptual games", "GiB", "--max-states")
+    assert not (tmp_path / "o").exists()
+    enough = int(line.rsplit("--max-states ", 1)[1].split()[0])
+    assert sizeguard.check_games_size(world, enough) == sizeguard.game_table_bytes(world)
+    with pytest.raises(InputError):
+        sizeguard.check_games_size(world, enough - 1)
+    # a --max-states below the default lowers the hypergame's bound only
+    assert sizeguard.check_games_size(_many_trap_sets_world(10), 100) > 100 * 4096
+    # one that fits: 10 candidates (120 trap sets) took a peak of 1.3 GB, the bound says more
+    assert 1.3e9 < sizeguard.check_games_size(_many_trap_sets_world(10)) < 2e9

@@ -85,6 +85,53 @@ MEMORY_BUDGET = 24 * 2 ** 30
 BYTES_PER_STATE = 4 * 1024
 DEFAULT_LIMIT = MEMORY_BUDGET // BYTES_PER_STATE        # 6,291,456 estimated states
 BEYOND = 10 ** 18     # the estimate stops counting here ("more than 10^18 states")
+# P2's perceptual games hold tables over TS state x P1's action x P2's action x outcome, a
+# successor and a probability (16 bytes) per entry, once for the TS and once per DFA state in
+# each game, several games' worth at a time (two threads, their parts, the leader game).
+# Measured: a peak of 1.3 GB (the process's, imports included) on a 41-state attack graph with
+# 120 trap sets, delay 1 and 2-state DFAs (4.7e6 TS entries: 275 bytes each), 4.0 GB with 220
+# sets (1.6e7 entries); this bound gives 288 bytes per entry there, 16 * (2 + 8 * 2).
+GAME_COPIES = 8
+
+
+def game_table_bytes(world: World) -> int:
+    """The memory P2's perceptual games would take (GAME_COPIES), from the world alone: TS
+    states (arena states, times |A2| * (k+1) with delay k) x P1's actions x |A2| x outcomes,
+    16 bytes each, times 2 + GAME_COPIES * the largest DFA (task and hypotheses). The games
+    come before the hypergame and are not bounded by its estimate: with many trap sets and
+    delay their tables dwarf a small hypergame (41 arena states, 2,300 trap sets, delay 1:
+    about 9e11 bytes, for a hypergame of a few dozen states)."""
+    from hg2prism.model.automata import translate
+
+    arena = arena_of(world)
+    n_a2 = p2_action_count(world)
+    ts_states = arena.n_states * (n_a2 * (world.delay + 1) if world.delay else 1) + 1
+    classes, _ = arena.label_classes()
+    label_names = tuple(class_name(c, arena.propositions) for c in classes)
+    largest = max(translate(f, label_names).n_states
+                  for f in (world.formula, *world.hypotheses))
+    entries = float(ts_states) * arena.dest.shape[1] * n_a2 * arena.dest.shape[-1]
+    return _bounded(entries * 16 * (2 + GAME_COPIES * largest))
+
+
+def check_games_size(world: World, limit: int | None = None) -> int:
+    """`game_table_bytes`, or InputError (key ``size``) when it exceeds the memory of `limit`
+    estimated states (limit * BYTES_PER_STATE), and at least MEMORY_BUDGET (24 GiB): a
+    --max-states above the default raises this bound with the hypergame's, a smaller one
+    lowers only the hypergame's."""
+    limit = DEFAULT_LIMIT if limit is None else limit
+    need = game_table_bytes(world)
+    budget = max(limit, DEFAULT_LIMIT) * BYTES_PER_STATE
+    if need > budget:
+        hint = (f"To solve them anyway, pass --max-states {-(-need // BYTES_PER_STATE)}"
+                if need < BEYOND else "Reduce the trap candidates, traps or delay")
+        raise InputError(
+            str(world.path), "size",
+            f"P2's perceptual games would need about {need / 2 ** 30:,.1f} GiB (their tables "
+            f"over TS state x P1's action x {p2_action_count(world):,} P2 actions x outcome, "
+            f"with delay {world.delay}), more than the {budget / 2 ** 30:,.1f} GiB of the "
+            f"limit; nothing was written. {hint}")
+    return need
 
 def _adjacency(arena: Arena) -> sp.csr_matrix:
     """A[s', s] = the number of P1's actions a at s such that s' is a successor of a from s
@@ -262,6 +309,7 @@ def check_size(world: World, limit: int | None = None) -> int:
     with P2's types: every type's hypergame (key ``type[<k>]``) and the adaptive hypergame
     (key ``type``) are bounded; the adaptive estimate is returned."""
     limit = DEFAULT_LIMIT if limit is None else limit
+    check_games_size(world, limit)
     if not world.types:
         estimate = estimate_states(world)
         if estimate > limit and observer_kind(world.inference).solved_memory:
