@@ -491,3 +491,18 @@ def test_games_too_large_for_memory_are_refused_up_front(tmp_path: Path) -> None
     assert sizeguard.check_games_size(_many_trap_sets_world(10), 100) > 100 * 4096
     # one that fits: 10 candidates (120 trap sets) took a peak of 1.3 GB, the bound says more
     assert 1.3e9 < sizeguard.check_games_size(_many_trap_sets_world(10)) < 2e9
+
+
+@pytest.mark.parametrize("old, new, key", [
+    ('name = "world1"', 'name = "world\\none"', "name"),
+    ('description = "', 'description = "first line\\nsecond line ', "description"),
+    ('"!obs U B"', '"!obs U\\nB"', "adversary.hypotheses"),
+    ('formula = "', 'formula = "\\n', "task.formula"),
+])
+def test_a_line_break_in_a_text_the_models_show_is_refused(tmp_path: Path, old, new, key) -> None:
+    """A name, description or formula with a line break validated, then broke the generated
+    model (its header comment ended at the break and Storm read the rest as the model: a
+    multi-line error naming the staging folder). One line from validate, naming the key."""
+    world = small_world(tmp_path, {old: new})
+    proc = run_cli(["validate", str(world)], tmp_path)
+    assert_one_line_error(proc, str(world), key, "one line")

@@ -177,6 +177,14 @@ class Checks:
     def name(self, value: object) -> str:
         if self.string(value, "name").strip() == "":
             raise self.fail("name", "name must not be empty")
+        return self.one_line(value, "name")
+
+    def one_line(self, value: str, key: str) -> str:
+        """A text the generated models' comments and the figures' titles show: one line (a
+        line break in a PRISM comment ends it, and Storm then read the rest as the model)."""
+        if "\n" in value or "\r" in value:
+            raise self.fail(key, f"{key.rsplit('.', 1)[-1]} must be one line (it heads the "
+                                 f"generated models' comments), got {value!r}")
         return value
 
     def traps(self, value: object, candidates: int, grid: bool) -> int:
@@ -247,6 +255,9 @@ class Checks:
         if text.strip() == "":
             raise self.fail(key, "the formula is empty; expected a co-safe LTL formula in Spot "
                                  "syntax, e.g. \"!obs U A\"")
+        if "\n" in text or "\r" in text:
+            raise self.fail(key, f"the formula must be one line (it heads the generated models' "
+                                 f"comments), got {text!r}")
         try:
             parsed = spot.formula(text)
         except Exception as err:  # Spot raises SyntaxError with a multi-line diagnosis
@@ -327,7 +338,7 @@ class TypeChecks:
         key = f"type[{i}].name"
         if checks.string(value, key).strip() == "":
             raise checks.fail(key, "name must not be empty")
-        return value
+        return checks.one_line(value, key)
 
     @staticmethod
     def weight(checks: Checks, value: object, i: int) -> float:
@@ -433,7 +444,7 @@ def validate(world: Any) -> None:
     file could give (called by World.__post_init__)."""
     checks = Checks(str(world.path))
     checks.name(world.name)
-    checks.string(world.description, "description")
+    checks.one_line(checks.string(world.description, "description"), "description")
     if (world.grid is None) == (world.arena is None):
         raise checks.fail("grid", "a world has a grid (grid, arena=None) or an arena (arena, "
                                   "grid=None), not both nor neither")
