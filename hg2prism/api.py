@@ -250,7 +250,19 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     for key, table in (("simulation", simulation), ("detection", detection)):
         if table is not None:
             data[key] = dict(table)
-    return world_from_data(data, name=name)
+    return world_from_data(_as_toml_data(data), name=name)
+
+
+def _as_toml_data(value: object) -> object:
+    """Tables as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was
+    refused as "got int64"), tuples as arrays; anything else as it is, for validation."""
+    if isinstance(value, dict):
+        return {key: _as_toml_data(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_as_toml_data(item) for item in value]
+    if type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:
+        return value.item()
+    return value
 
 
 def _reported(name: str, doc: str) -> property:

@@ -620,3 +620,27 @@ def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solutio
         assert "another world" in _refused(lambda: draw(lateral_solution, other), verb,
                                            "played").reason
     plt.close("all")
+
+
+def test_graph_worlds_take_numpy_numbers_and_compare_by_value() -> None:
+    """world_from_graph with numpy's numbers makes the world plain numbers make (traps and
+    the [inference] table's were refused as "got int64"); arena worlds compare by value (two
+    loads of models/mir100.toml were unequal: the arena compared by identity)."""
+    import networkx as nx
+    import numpy as np
+
+    graph = nx.DiGraph()
+    for u, v, p in ((1, 3, 0.9), (1, 4, 0.7), (3, 5, 0.6), (3, 6, 0.6), (4, 6, 0.5)):
+        graph.add_edge(u, v, p=p)
+
+    def made(number) -> hg2prism.World:
+        return hg2prism.world_from_graph(
+            graph, entries=[1], task="F asset6", trap_candidates=[3, 4], traps=number(1),
+            inference={"window": number(2), "rationality": 1.0, "threshold": 0.6}, name="t")
+
+    numpy_made = made(np.int64)
+    assert numpy_made == made(int) and numpy_made.digest() == made(int).digest()
+    assert type(numpy_made.traps) is int and type(numpy_made.window) is int
+    first, second = (hg2prism.load_world(MODELS / "mir100.toml") for _ in range(2))
+    assert first == second and hash(first) == hash(second)
+    assert first != made(int) and first.arena != made(int).arena

@@ -17,6 +17,7 @@ j runs over P2's actions when some transition depends on them, else has length 1
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,6 +35,19 @@ class Arena:
     p2_actions: tuple[str, ...] = ()          # general P2 actions A2, in order (else traps)
     trap_candidates: tuple[int, ...] = ()     # trap mode: the states P2 may set traps on
     positions: tuple[tuple[float, float], ...] | None = None   # for drawing
+
+    def __eq__(self, other: object) -> bool:
+        """Equal tables make equal arenas (so two loads of one world file give equal Worlds;
+        numpy's arrays compare by value here, not by identity)."""
+        if not isinstance(other, Arena):
+            return NotImplemented
+        return all(np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b
+                   for a, b in ((getattr(self, f.name), getattr(other, f.name))
+                                for f in dataclasses.fields(self)))
+
+    def __hash__(self) -> int:
+        return hash((self.states, self.initial, self.propositions, self.p2_actions,
+                     self.trap_candidates))
 
     @property
     def n_states(self) -> int:
