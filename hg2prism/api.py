@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, MAX_SEED, Checks
-from hg2prism.model.world import World
+from hg2prism.model.world import World, plain
 
 from hg2prism.errors import InputError
 from hg2prism.worldfile import load_world, world_from_toml
@@ -42,9 +42,7 @@ __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baseli
 def _integer(verb: str, value: object, key: str, minimum: int,
              maximum: int | None = None) -> int:
     """An integer argument (numpy's too) in [minimum, maximum], by model/validation.py's rule."""
-    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        value = int(value)
-    return Checks(f"{verb}()").integer(value, key, minimum, maximum)
+    return Checks(f"{verb}()").integer(plain(value), key, minimum, maximum)
 
 
 def _budget(verb: str, value: object, key: str) -> None:
@@ -250,19 +248,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     for key, table in (("simulation", simulation), ("detection", detection)):
         if table is not None:
             data[key] = dict(table)
-    return world_from_data(_as_toml_data(data), name=name)
-
-
-def _as_toml_data(value: object) -> object:
-    """Tables as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was
-    refused as "got int64"), tuples as arrays; anything else as it is, for validation."""
-    if isinstance(value, dict):
-        return {key: _as_toml_data(item) for key, item in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_as_toml_data(item) for item in value]
-    if type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:
-        return value.item()
-    return value
+    # as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was refused)
+    return world_from_data(plain(data, list), name=name)
 
 
 def _reported(name: str, doc: str) -> property:

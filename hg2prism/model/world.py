@@ -88,7 +88,7 @@ class World:
         no world file could give or on a name that is no setting of this world. Values are
         taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
         numpy's numbers as Python's (window=np.int64(3))."""
-        changes = {name: _plain(value) for name, value in changes.items()}
+        changes = {name: plain(value) for name, value in changes.items()}
         own = {name: value for name, value in changes.items() if name in _FIELDS}
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
@@ -176,15 +176,18 @@ def json_text(value: object) -> str:
     return json.dumps(value, sort_keys=True, separators=(",", ":"))
 
 
-def _plain(value: object) -> object:
-    """A value given to `World.replace` as a world file would give it: a list or tuple as a
-    tuple of plain values, a numpy number as the Python number it equals (np.int64(3) -> 3);
-    anything else (a PlayerType, a settings dataclass) as it is, for validation to judge."""
+def plain(value: object, sequence: type = tuple) -> object:
+    """A value given through the API as a world file would give it: a list or tuple as a
+    `sequence` (tuple for a World's fields, list for world-file tables) of plain values, a
+    table's values plain, a numpy number as the Python number it equals (np.int64(3) -> 3);
+    anything else (a PlayerType, a settings dataclass, text) as it is, for validation to
+    judge. The one place numpy's numbers become Python's."""
+    if isinstance(value, dict):
+        return {key: plain(item, sequence) for key, item in value.items()}
     if isinstance(value, (list, tuple)) and not hasattr(value, "_fields"):
-        return tuple(_plain(item) for item in value)
-    item = getattr(value, "item", None)
-    if item is not None and type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:
-        return item()
+        return sequence(plain(item, sequence) for item in value)
+    if type(value).__module__ == "numpy" and getattr(value, "ndim", 1) == 0:
+        return value.item()
     return value
 
 
