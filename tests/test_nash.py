@@ -296,3 +296,31 @@ def test_a_game_with_every_state_decided(formula: str, value: float) -> None:
     assert baseline.v_ne == baseline.v_ne_p1_guaranteed == value
     assert baseline.v_ne_bounds == (value, value)
     assert baseline.solution.sweeps == 0
+
+
+def test_a_nash_iteration_cut_short_still_gives_a_sound_bracket(monkeypatch) -> None:
+    """Value iteration that has not converged after MAX_SWEEPS sweeps (an attack-graph edge of
+    probability 1e-6 needs more than 10^6: `run` failed there) ends with the bracket of the
+    strategies read off its iterate, which holds V_NE, instead of a SolverError. Here a
+    1e-3 edge and a budget cut to 50 sweeps, against the converged solve."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.analyses import baselines
+    from hg2prism.frontends import transition_system
+    from hg2prism.model.automata import translate
+
+    graph = nx.DiGraph()
+    for u, v, p in ((1, 9, 1e-3), (1, 5, 0.5), (5, 8, 0.5)):
+        graph.add_edge(u, v, p=p)
+    world = hg2prism.world_from_graph(graph, entries=[1], task="F asset9", trap_candidates=[5],
+                                      name="leak")
+    ts = transition_system(world)
+    dfa = translate(world.formula, ts.label_names, ts.letters)
+    converged = baselines.nash_baseline(ts, dfa)
+    assert converged.solution.sweeps > 50
+    monkeypatch.setattr(baselines, "MAX_SWEEPS", 50)
+    cut = baselines.nash_baseline(ts, dfa)
+    low, high = cut.v_ne_bounds
+    assert low - 1e-12 <= converged.v_ne <= high + 1e-12
+    assert low <= cut.v_ne <= high
