@@ -77,6 +77,8 @@ def analyse(world: World) -> Analysis:
             futures = {i: (pool.submit(solve_game, ts, dfa, shared) if i < 0 else
                            pool.submit(perceptual_game, ts, dfa, world.rationality, shared))
                        for dfa, i in jobs}
+            if ts.succ.size >= LONG_GAMES:      # seconds to minutes: say how it goes
+                _say_games_progress(futures, ts, timings)
             games = [futures[i].result() for i in range(len(hypotheses))]
             leader = futures[-1].result()
         finally:    # a failed game (or Ctrl-C) does not wait for the games still queued
@@ -88,6 +90,26 @@ def analyse(world: World) -> Analysis:
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {timings['games']:.2f} s")
     return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
+
+
+# TS tables (state x P1's action x P2's action x outcome) from which the games take seconds:
+# a progress line as each game is solved (a 37k-TS-state world with 455 trap sets was silent
+# for a minute).
+LONG_GAMES = 5_000_000
+
+
+def _say_games_progress(futures: dict, ts: TransitionSystem, timings: dict[str, float]) -> None:
+    from concurrent.futures import as_completed
+
+    start = time.perf_counter()
+    say(f"games: solving {len(futures)} games on {ts.n_states:,} TS states x {ts.n_sets:,} "
+        f"P2 actions")
+    names = {future: ("the leader game" if i < 0 else f"the game of hypothesis x{i}")
+             for i, future in futures.items()}
+    for done, future in enumerate(as_completed(names), 1):
+        if future.exception() is None:
+            say(f"games: {names[future]} solved ({done} of {len(futures)}, "
+                f"{time.perf_counter() - start:.1f} s)")
 
 
 def build_observer(world: World, games: list[PerceptualGame]) -> Observer:

@@ -506,3 +506,26 @@ def test_a_line_break_in_a_text_the_models_show_is_refused(tmp_path: Path, old, 
     world = small_world(tmp_path, {old: new})
     proc = run_cli(["validate", str(world)], tmp_path)
     assert_one_line_error(proc, str(world), key, "one line")
+
+
+def test_long_games_say_how_they_go(monkeypatch, caplog) -> None:
+    """Games on large TS tables print a line as each is solved (a world whose games took a
+    minute printed nothing meanwhile); small ones print only the stage's summary."""
+    import logging
+
+    from hg2prism import pipeline
+
+    world = load_world(MODELS / "world1.toml")
+    with caplog.at_level(logging.INFO, logger="hg2prism"):
+        pipeline.analyse(world)
+    assert not [r for r in caplog.messages if "solved (" in r and " of " in r]
+    caplog.clear()
+    monkeypatch.setattr(pipeline, "LONG_GAMES", 0)
+    with caplog.at_level(logging.INFO, logger="hg2prism"):
+        pipeline.analyse(world)
+    lines = [r for r in caplog.messages if r.startswith("games: ")]
+    assert lines[0].startswith("games: solving 4 games on ")
+    solved = sorted(line.split(" solved (")[0] for line in lines[1:5])
+    assert solved == sorted(["games: the leader game"] +
+                            [f"games: the game of hypothesis x{i}" for i in range(3)])
+    assert lines[5].startswith("games: 3 perceptual game(s) and the leader game solved")
