@@ -111,12 +111,13 @@ def _node_name(node: object, file: str) -> str:
     import numbers
     import re
 
-    if isinstance(node, numbers.Integral) and not isinstance(node, bool):
+    if isinstance(node, numbers.Integral) and not isinstance(node, bool) and node >= 0:
         return f"n{int(node)}"
     if isinstance(node, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", node):
         return node
     raise InputError(file, "graph", f"node {node!r} has no state name: nodes are integers "
-                     "(state n<v>) or identifiers (the state of that name)")
+                     ">= 0 (state n<v>) or identifiers (the state of that name; "
+                     "networkx.relabel_nodes renames the others)")
 
 
 def _asset(node: object, name: str) -> str:
@@ -155,9 +156,15 @@ def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict
     except TypeError:
         nodes = list(graph.nodes)
     names = {node: _node_name(node, file) for node in nodes}
-    if "outside" in names.values() or len(set(names.values())) < len(names):
-        raise InputError(file, "graph", "two nodes share a state name, or a node is named "
-                         "outside (the attacker's initial state)")
+    if "outside" in names.values():
+        raise InputError(file, "graph", "a node is named 'outside', the attacker's initial "
+                         "state; rename it (networkx.relabel_nodes)")
+    seen: dict[str, object] = {}
+    for node, state in names.items():
+        if state in seen:
+            raise InputError(file, "graph", f"nodes {seen[state]!r} and {node!r} would both "
+                             f"be the state {state!r}; rename one (networkx.relabel_nodes)")
+        seen[state] = node
     for what, items in given.items():
         for node in items:
             if node not in names:

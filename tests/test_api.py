@@ -644,3 +644,17 @@ def test_graph_worlds_take_numpy_numbers_and_compare_by_value() -> None:
     first, second = (hg2prism.load_world(MODELS / "mir100.toml") for _ in range(2))
     assert first == second and hash(first) == hash(second)
     assert first != made(int) and first.arena != made(int).arena
+
+
+def test_move_says_what_it_expected() -> None:
+    """Strategy.move with a hypothesis given as a formula, or a window entry that lacks the
+    standing set and countdown of a delayed world: a KeyError saying what was expected (a raw
+    ValueError from int(), and a message about the state's standing/countdown, before)."""
+    world = hg2prism.load_world(MODELS / "world1.toml").replace(delay=1, initial_standing=0)
+    strategy = hg2prism.solve(world).strategy
+    start = dict(state="x2_y4", q=0, standing="x3_y4", countdown=0)
+    with pytest.raises(KeyError, match="as its index"):
+        strategy.move(hypothesis="!obs U A", **start)
+    with pytest.raises(KeyError, match=r"window entry \('x2_y4', 'E'\): expected \(state, "
+                                       r"action, standing, countdown\)"):
+        strategy.move(hypothesis=0, window=[("x2_y4", "E")], **start)

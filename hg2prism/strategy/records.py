@@ -386,10 +386,19 @@ class Strategy:
             return _record_ts_state(ts, {"state": name, "standing": standing,
                                          "countdown": countdown}, where)
 
+        import numbers
+
+        if isinstance(hypothesis, bool) or not isinstance(hypothesis, numbers.Integral):
+            raise KeyError(f"hypothesis {hypothesis!r}: expected P2's hypothesis as its index "
+                           "into the world's hypotheses")
+        shape = "(state, action)" if ts.delay == 0 else "(state, action, standing, countdown)"
         try:
             v = at(state, standing, countdown)
             observed = []
             for entry in window:
+                if len(entry) < (2 if ts.delay == 0 else 4):
+                    raise StrategyError(f"window entry {tuple(entry)!r}: expected {shape} "
+                                        "(and the action played, for a Bayesian observer)")
                 u = at(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None)))
                 observed.append((u, _action_index(ts, u, entry[1], where))
                                 + ((_p2_action_index(ts, entry[4], where),)
