@@ -381,3 +381,28 @@ def test_report_layer_holds_no_grid_concept() -> None:
         for word in ("ACTIONS", "outcome_directions", "geometry", ".cells", "cell_index",
                      "trap_cells", "set_cells", "PERPENDICULAR", "slip"):
             assert word not in source, (path.name, word)
+
+
+def test_twelve_hypotheses_are_told_apart_in_the_belief_figure() -> None:
+    """The belief figure's lines: the first twelve hypotheses each have their own colour (with
+    six colours x5 and x11 shared one, and their marker, told apart only by "--" against "-."
+    in a small legend: a stress test with 12 targets could not), read off the lines the figure
+    draws; no hypothesis takes the traps' or the trapped state's colour."""
+    from types import SimpleNamespace
+
+    import matplotlib.colors as mcolors
+
+    from hg2prism.report import plots, style
+
+    k = 12
+    world = SimpleNamespace(name="twelve", hypotheses=tuple(f"F asset{x}" for x in range(k)))
+    trace = SimpleNamespace(after=[0, 1, 2], values=[[float(x) for x in range(k)]] * 3,
+                            threshold=None, name="CUSUM score", changes=())
+    fig, _ = plots.belief_picture(world, trace, SimpleNamespace(n_steps=3, seed=0))
+    lines = [line for line in fig.axes[0].get_lines() if line.get_label().startswith("x")]
+    looks = {(mcolors.to_hex(line.get_color()), line.get_linestyle(), line.get_marker())
+             for line in lines}
+    assert len(lines) == k and len(looks) == k
+    assert len({mcolors.to_hex(line.get_color()) for line in lines}) == k
+    reserved = {mcolors.to_hex(style.TRAP_COLOUR), mcolors.to_hex(style.TRAPPED_COLOUR)}
+    assert not {mcolors.to_hex(c) for c in style.HYPOTHESIS_COLOURS} & reserved

@@ -24,6 +24,7 @@ from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes
 from hg2prism.report import plots
+from hg2prism.report.style import hypothesis_colour
 
 __all__ = ["REPLAY_MAX_FRAMES", "REPLAY_FRAME_MS", "REPLAY_DPI", "REPLAY_FONT", "REPLAY_MIN_FONT",
            "FrameNote", "frame_notes", "replay_frames", "replay_inches", "replay_figure",
@@ -130,7 +131,7 @@ def _belief_panel(ax, world: World, trace, wrap: int) -> tuple[list, np.ndarray 
         values = None
         top, label = 1.05, "P2's hypothesis"
     bars = ax.bar(range(n_x), np.zeros(n_x),
-                  color=[plots.HYPOTHESIS_COLOURS[x % len(plots.HYPOTHESIS_COLOURS)]
+                  color=[hypothesis_colour(x)
                          for x in range(n_x)])
     legend = [textwrap.fill(f"x{x}: {h}", wrap, subsequent_indent="    ")
               for x, h in enumerate(world.hypotheses)]
@@ -208,7 +209,7 @@ def _frame(replay: _Replay, world: World, positions: list, steps: list, trace,
     replay.robot.set_data([positions[state][0]], [positions[state][1]])
     replay.robot.set_markerfacecolor(
         "red" if step is not None and step.trapped
-        else plots.HYPOTHESIS_COLOURS[hypothesis_after % len(plots.HYPOTHESIS_COLOURS)])
+        else hypothesis_colour(hypothesis_after))
     before = set(map_ax.get_children())
     if step is not None:
         trap_at = [replay.drawer.position(p) for p in step.traps]

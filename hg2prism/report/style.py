@@ -20,7 +20,11 @@ __all__ = ["HYPOTHESIS_COLOURS", "TRAP_COLOUR", "TRAPPED_COLOUR", "STEP_RULE", "
 STEP_RULE = ("step n = P1's n-th move; P2's hypothesis at step n = hers after observing "
              "step n")
 
-HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
+# One colour per hypothesis, none the traps' green or the trapped red; twelve, so that with
+# the belief figure's four dashes and six markers no two of the first twelve hypotheses look
+# alike (with six colours x5 and x11 had one colour, dash and marker).
+HYPOTHESIS_COLOURS = ("tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
+                      "tab:cyan", "tab:gray", "navy", "goldenrod", "teal", "magenta")
 TRAPPED_COLOUR = "red"
 TRAP_COLOUR = "darkgreen"
 
