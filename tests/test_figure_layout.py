@@ -333,3 +333,37 @@ def test_scaling_has_a_series_per_delay() -> None:
     assert by_label["games"] == [1000, 10000, 100000]
     assert by_label["total, delay 1 (2 worlds)"] == [2500, 45000]
     assert by_label["total, delay 2 (1 world)"] == [2600]
+
+
+def test_the_trapped_cross_leaves_the_state_name_readable() -> None:
+    """On an arena world the red cross where P1 was trapped sits beside the state's box, not on
+    its name (it was drawn on the box's corner, over the name: attack-graph stress test)."""
+    import matplotlib.colors as mcolors
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.report.style import TRAPPED_COLOUR
+
+    graph = nx.DiGraph()
+    for u, v, p in ((1, 3, 0.9), (1, 4, 0.7), (3, 5, 0.6), (3, 6, 0.6), (4, 6, 0.5), (4, 1, 0.5)):
+        graph.add_edge(u, v, p=p)
+    graph.add_node(9)
+    world = hg2prism.world_from_graph(graph, entries=[1, 9], task="F asset6",
+                                      trap_candidates=[3, 4, 6], initial_hypothesis=2,
+                                      hypotheses=["F asset6", "F asset5", "F asset9"], name="e")
+    solution = hg2prism.solve(world)
+    played = hg2prism.episode(solution, seed=4)
+    assert played.outcome == "failed" and played.steps[-1].landing == "trapped"
+    ax = hg2prism.draw_world(solution, played)
+    ax.figure.canvas.draw()
+    renderer = ax.figure.canvas.get_renderer()
+    crosses = [line for line in ax.get_lines() if line.get_marker() == "X" and
+               mcolors.to_hex(line.get_color()) == mcolors.to_hex(TRAPPED_COLOUR) and
+               len(line.get_xdata()) == 1]
+    name = next(text for text in ax.texts if text.get_text() == "n3")
+    box = name.get_window_extent(renderer)
+    assert crosses
+    for cross in crosses:
+        x, y = cross.get_transform().transform((cross.get_xdata()[0], cross.get_ydata()[0]))
+        half = cross.get_markersize() / 2 * ax.figure.dpi / 72
+        assert x - half > box.x1 or y - half > box.y1 or x + half < box.x0 or y + half < box.y0

@@ -312,9 +312,13 @@ class ArenaDrawer:
         rad = BASE_RAD + 0.14 * k
         p0, p2 = self._ends(step.start, step.landing, rad)
         self._curve(ax, p0, p2, rad, colour, width)
-        if step.trapped:
-            x0, _, x1, y1 = self.boxes[step.landing]
-            ax.plot(x1, y1, marker="X", ms=14, color=TRAPPED_COLOUR, zorder=7)
+        if step.trapped:        # beside the box's top-right corner, off the state's name
+            from matplotlib.transforms import ScaledTranslation
+
+            _, _, x1, y1 = self.boxes[step.landing]
+            beside = ScaledTranslation(8 / 72, 8 / 72, ax.figure.dpi_scale_trans)
+            ax.plot(x1, y1, marker="X", ms=14, color=TRAPPED_COLOUR, zorder=7,
+                    transform=ax.transData + beside)
         return _spots(p0, p2, rad, (0.12, -0.12, 0.24, -0.24, 0.36, -0.36, 0))
 
     def _step_label(self, step, numbers) -> str:
