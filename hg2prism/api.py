@@ -172,6 +172,31 @@ def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict
     return nodes, names
 
 
+def _graph_positions(graph, entries, positions, file: str) -> dict:
+    """The [arena.positions] table of an attack graph drawn where `positions` (node -> (x, y),
+    every node) says, `outside` one unit left of its entries, at their mean height."""
+    import math
+    import numbers
+
+    nodes, names = _graph_nodes(graph, file, {"positions": list(positions)})
+    missing = [node for node in nodes if node not in positions]
+    if missing:
+        raise InputError(file, "positions", f"no position for {len(missing)} node(s), e.g. "
+                         f"{missing[0]!r}: the figures need every node's (x, y) or none")
+    table = {}
+    for node in nodes:
+        point = positions[node]
+        if (isinstance(point, (str, bytes)) or not hasattr(point, "__len__") or len(point) != 2
+                or not all(isinstance(c, numbers.Real) and not isinstance(c, bool)
+                           and math.isfinite(c) for c in point)):
+            raise InputError(file, "positions", f"node {node!r}: expected (x, y), got {point!r}")
+        table[names[node]] = [float(point[0]), float(point[1])]
+    firsts = [table[names[e]] for e in entries]
+    table["outside"] = [min(x for x, _ in firsts) - 1.0,
+                        sum(y for _, y in firsts) / len(firsts)]
+    return table
+
+
 def _graph_arena(graph, entries, labels, probability: str, file: str) -> dict:
     """The [arena] table of an attack graph (world_from_graph)."""
     nodes, names = _graph_nodes(graph, file, {"entries": entries, "labels": labels or {}})
@@ -201,7 +226,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
                      initial_hypothesis: int | None = None, inference: dict | None = None,
                      simulation: dict | None = None, detection: dict | None = None,
                      probability: str = "p", name: str = "graph",
-                     description: str = "") -> World:
+                     description: str = "", positions=None) -> World:
     """The arena world (docs/semantics.md §15) of an attack graph: a networkx.DiGraph whose
     edges carry the attack step's success probability (attribute `probability`).
 
@@ -216,7 +241,9 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0.
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
     (default CUSUM, window 2, rationality 1, threshold 0.6); `simulation` and `detection` the
-    optional tables. Every problem is an InputError naming `name`, the key and the reason."""
+    optional tables; `positions` (node -> (x, y), every node) where the figures draw the nodes,
+    `outside` then one unit left of the entries (default: a layered layout). Every problem is
+    an InputError naming `name`, the key and the reason."""
     from collections.abc import Mapping
 
     from hg2prism.worldfile import world_from_data
@@ -231,10 +258,13 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
         if nodes is not None:
             _sequence(verb, nodes, key, "a list of nodes")
     for key, table in (("labels", labels), ("inference", inference),
-                       ("simulation", simulation), ("detection", detection)):
+                       ("simulation", simulation), ("detection", detection),
+                       ("positions", positions)):
         if table is not None and not isinstance(table, Mapping):
             raise InputError(f"{verb}()", key, f"expected a dict, got {type(table).__name__}")
     arena = _graph_arena(graph, entries, labels, probability, name)
+    if positions is not None:
+        arena["positions"] = _graph_positions(graph, entries, positions, name)
     nodes, names = _graph_nodes(graph, name, {"trap_candidates": trap_candidates or (),
                                               "initial_traps": initial_traps or ()})
     if trap_candidates is None:

@@ -443,3 +443,35 @@ def test_convert_random_mazes() -> None:
         assert_same_ts(transition_system(grid), transition_system(arena))
         for field in ("settings", "initial_hypothesis", "hypotheses", "formula", "delay"):
             assert getattr(arena, field) == getattr(grid, field), (seed, field)
+
+
+def test_world_from_graph_places_the_nodes_where_told(tmp_path: Path) -> None:
+    """positions= (node -> (x, y)) reaches the arena's positions, `outside` one unit left of
+    the entries at their mean height, and survives the world file; a missing node or a bad
+    point is one InputError naming `positions` (there was no way to place the nodes but
+    editing the world file)."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.errors import InputError
+    from hg2prism.frontends.arena import to_toml
+
+    graph = nx.DiGraph()
+    for u, v, p in ((1, 3, 0.9), (2, 4, 0.7), (3, 5, 0.6), (4, 5, 0.5)):
+        graph.add_edge(u, v, p=p)
+    where = {1: (0, 2), 2: (0, -1), 3: (1, 1), 4: (1, -1), 5: (2.5, 0)}
+    world = hg2prism.world_from_graph(graph, entries=[1, 2], task="F asset5",
+                                      trap_candidates=[3, 4], name="placed", positions=where)
+    placed = dict(zip(world.arena.states, world.arena.positions))
+    assert placed["outside"] == (-1.0, 0.5)
+    assert all(placed[f"n{v}"] == (float(x), float(y)) for v, (x, y) in where.items())
+    path = tmp_path / "placed.toml"
+    path.write_text(to_toml(world))
+    assert hg2prism.load_world(path).arena.positions == world.arena.positions
+    for bad, word in (({1: (0, 0)}, "no position for 4 node(s)"),
+                      ({**where, 3: (0, "y")}, "node 3: expected (x, y)"),
+                      ({**where, 9: (0, 0)}, "9 is not a node")):
+        with pytest.raises(InputError) as caught:
+            hg2prism.world_from_graph(graph, entries=[1, 2], task="F asset5",
+                                      trap_candidates=[3, 4], name="placed", positions=bad)
+        assert caught.value.key == "positions" and word in caught.value.reason
