@@ -173,7 +173,7 @@ def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict
 
 
 def _graph_positions(graph, entries, positions, file: str) -> dict:
-    """The [arena.positions] table of an attack graph drawn where `positions` (node -> (x, y),
+    """The [arena.positions] table of an attack graph drawn where `positions` (node -> [x, y],
     every node) says, `outside` one unit left of its entries, at their mean height."""
     import math
     import numbers
@@ -182,14 +182,14 @@ def _graph_positions(graph, entries, positions, file: str) -> dict:
     missing = [node for node in nodes if node not in positions]
     if missing:
         raise InputError(file, "positions", f"no position for {len(missing)} node(s), e.g. "
-                         f"{missing[0]!r}: the figures need every node's (x, y) or none")
+                         f"{missing[0]!r}: the figures need every node's [x, y] or none")
     table = {}
     for node in nodes:
         point = positions[node]
         if (isinstance(point, (str, bytes)) or not hasattr(point, "__len__") or len(point) != 2
                 or not all(isinstance(c, numbers.Real) and not isinstance(c, bool)
                            and math.isfinite(c) for c in point)):
-            raise InputError(file, "positions", f"node {node!r}: expected (x, y), got {point!r}")
+            raise InputError(file, "positions", f"node {node!r}: expected [x, y] (two numbers), got {point!r}")
         table[names[node]] = [float(point[0]), float(point[1])]
     firsts = [table[names[e]] for e in entries]
     table["outside"] = [min(x for x, _ in firsts) - 1.0,
@@ -241,7 +241,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0.
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
     (default CUSUM, window 2, rationality 1, threshold 0.6); `simulation` and `detection` the
-    optional tables; `positions` (node -> (x, y), every node) where the figures draw the nodes,
+    optional tables; `positions` (node -> [x, y], every node) where the figures draw the nodes,
     `outside` then one unit left of the entries (default: a layered layout). Every problem is
     an InputError naming `name`, the key and the reason."""
     from collections.abc import Mapping

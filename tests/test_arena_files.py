@@ -446,7 +446,7 @@ def test_convert_random_mazes() -> None:
 
 
 def test_world_from_graph_places_the_nodes_where_told(tmp_path: Path) -> None:
-    """positions= (node -> (x, y)) reaches the arena's positions, `outside` one unit left of
+    """positions= (node -> [x, y]) reaches the arena's positions, `outside` one unit left of
     the entries at their mean height, and survives the world file; a missing node or a bad
     point is one InputError naming `positions` (there was no way to place the nodes but
     editing the world file)."""
@@ -469,7 +469,7 @@ def test_world_from_graph_places_the_nodes_where_told(tmp_path: Path) -> None:
     path.write_text(to_toml(world))
     assert hg2prism.load_world(path).arena.positions == world.arena.positions
     for bad, word in (({1: (0, 0)}, "no position for 4 node(s)"),
-                      ({**where, 3: (0, "y")}, "node 3: expected (x, y)"),
+                      ({**where, 3: (0, "y")}, "node 3: expected [x, y]"),
                       ({**where, 9: (0, 0)}, "9 is not a node")):
         with pytest.raises(InputError) as caught:
             hg2prism.world_from_graph(graph, entries=[1, 2], task="F asset5",
