@@ -115,8 +115,8 @@ def _node_name(node: object, file: str) -> str:
         return f"n{int(node)}"
     if isinstance(node, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", node):
         return node
-    raise InputError(file, "graph", f"node {node!r} has no state name: nodes are integers "
-                     ">= 0 (state n<v>) or identifiers (the state of that name; "
+    raise InputError(file, f"node {node!r}", "has no state name: nodes are integers >= 0 "
+                     "(state n<v>) or identifiers (the state of that name; "
                      "networkx.relabel_nodes renames the others)")
 
 
@@ -157,13 +157,13 @@ def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict
         nodes = list(graph.nodes)
     names = {node: _node_name(node, file) for node in nodes}
     if "outside" in names.values():
-        raise InputError(file, "graph", "a node is named 'outside', the attacker's initial "
-                         "state; rename it (networkx.relabel_nodes)")
+        raise InputError(file, "node 'outside'", "is the name of the attacker's initial "
+                         "state; rename the node (networkx.relabel_nodes)")
     seen: dict[str, object] = {}
     for node, state in names.items():
         if state in seen:
-            raise InputError(file, "graph", f"nodes {seen[state]!r} and {node!r} would both "
-                             f"be the state {state!r}; rename one (networkx.relabel_nodes)")
+            raise InputError(file, f"nodes {seen[state]!r} and {node!r}", "would both be the "
+                             f"state {state!r}; rename one (networkx.relabel_nodes)")
         seen[state] = node
     for what, items in given.items():
         for node in items:
@@ -225,7 +225,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
                      traps: int = 1, trap_candidates=None, delay: int = 0, initial_traps=None,
                      initial_hypothesis: int | None = None, inference: dict | None = None,
                      simulation: dict | None = None, detection: dict | None = None,
-                     probability: str = "p", name: str = "graph",
+                     probability: str = "p", name: str = "attack_graph",
                      description: str = "", positions=None) -> World:
     """The arena world (docs/semantics.md §15) of an attack graph: a networkx.DiGraph whose
     edges carry the attack step's success probability (attribute `probability`).

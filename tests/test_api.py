@@ -545,8 +545,8 @@ def test_a_wrong_kind_of_argument_says_what_was_expected(lateral_solution, monke
          "a matplotlib Axes"),
         (lambda: hg2prism.draw_belief(lateral_solution, ax=3), "draw_belief()", "ax",
          "a matplotlib Axes"),
-        (lambda: hg2prism.world_from_graph([(1, 2)], entries=[1], task="F asset2"), "graph",
-         "graph", "networkx.DiGraph"),
+        (lambda: hg2prism.world_from_graph([(1, 2)], entries=[1], task="F asset2"),
+         "attack_graph", "graph", "networkx.DiGraph"),
         (lambda: hg2prism.draw_sweep(None), "draw_sweep()", "table", "a SweepTable"),
         (lambda: hg2prism.draw_sweep([]), "draw_sweep()", "table", "a SweepTable"),
     ]

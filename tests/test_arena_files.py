@@ -394,12 +394,12 @@ def test_world_from_graph_small() -> None:
     (lambda g: g.add_edge(3, 5, p="high"), "edge (3, 5)", "not a probability"),
     (lambda g: g.add_edge(3, 5), "edge (3, 5)", "no 'p' attribute"),
     (lambda g: g.add_edge(3, 3, p=0.5), "edge (3, 3)", "self-loop"),
-    (lambda g: g.add_edge(3, "a b", p=0.5), "graph", "no state name"),
-    (lambda g: g.add_edge(3, "outside", p=0.5), "graph", "outside"),
+    (lambda g: g.add_edge(3, "a b", p=0.5), "node 'a b'", "no state name"),
+    (lambda g: g.add_edge(3, "outside", p=0.5), "node 'outside'", "initial state"),
     # the clash names both nodes (it named neither)
-    (lambda g: g.add_edge(3, "n4", p=0.5), "graph", "would both be the state 'n4'"),
+    (lambda g: g.add_edge(3, "n4", p=0.5), "nodes 4 and 'n4'", "would both be the state 'n4'"),
     # a negative node was reported as a state name "n-1" it never had
-    (lambda g: g.add_edge(3, -1, p=0.5), "graph", "node -1 has no state name"),
+    (lambda g: g.add_edge(3, -1, p=0.5), "node -1", "has no state name"),
 ], ids=["above-1", "negative", "not-a-number", "missing", "self-loop", "bad-name",
         "named-outside", "name-clash", "negative-node"])
 def test_world_from_graph_errors(change, key: str, word: str) -> None:
