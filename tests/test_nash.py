@@ -302,7 +302,9 @@ def test_a_nash_iteration_cut_short_still_gives_a_sound_bracket(monkeypatch) -> 
     """Value iteration that has not converged after MAX_SWEEPS sweeps (an attack-graph edge of
     probability 1e-6 needs more than 10^6: `run` failed there) ends with the bracket of the
     strategies read off its iterate, which holds V_NE, instead of a SolverError. Here a
-    1e-3 edge and a budget cut to 50 sweeps, against the converged solve."""
+    1e-3 edge and a budget cut to 50 sweeps, against the converged solve. Where that bracket
+    is a point (here [1, 1]) it ends at the first check, CHECK_SWEEPS sweeps in: the 1e-6
+    edge ran 10^6 sweeps (43 s) for it."""
     import networkx as nx
 
     import hg2prism
@@ -318,9 +320,39 @@ def test_a_nash_iteration_cut_short_still_gives_a_sound_bracket(monkeypatch) -> 
     ts = transition_system(world)
     dfa = translate(world.formula, ts.label_names, ts.letters)
     converged = baselines.nash_baseline(ts, dfa)
-    assert converged.solution.sweeps > 50
-    monkeypatch.setattr(baselines, "MAX_SWEEPS", 50)
+    assert converged.solution.converged and converged.solution.sweeps > 50
+    assert converged.v_ne_bounds == (1.0, 1.0)
+    monkeypatch.setattr(baselines, "CHECK_SWEEPS", 20)
+    early = baselines.nash_baseline(ts, dfa)
+    assert not early.solution.converged and early.solution.sweeps == 20
+    assert early.v_ne_bounds == (1.0, 1.0) and early.v_ne == 1.0
+    monkeypatch.setattr(baselines, "CHECK_SWEEPS", 5)
+    monkeypatch.setattr(baselines, "MAX_SWEEPS", 5)
     cut = baselines.nash_baseline(ts, dfa)
     low, high = cut.v_ne_bounds
     assert low - 1e-12 <= converged.v_ne <= high + 1e-12
     assert low <= cut.v_ne <= high
+
+
+def test_a_nash_iteration_checked_while_its_bracket_is_wide_goes_on_to_convergence(
+        monkeypatch) -> None:
+    """world1's value iteration converges after about 2,000 sweeps with a bracket 1.2e-10 wide;
+    checked every 30 sweeps, each check finds the bracket wider than 1e-10 and it goes on from
+    its iterate: the same sweeps and the same values, bit for bit, as in one go."""
+    from hg2prism.analyses import baselines
+    from hg2prism.frontends import transition_system
+    from hg2prism.model.automata import translate
+    from hg2prism.worldfile import load_world
+
+    world = load_world(WORLD1)
+    ts = transition_system(world)
+    dfa = translate(world.formula, ts.label_names, ts.letters)
+    whole = baselines.nash_baseline(ts, dfa)
+    low, high = whole.v_ne_bounds
+    assert whole.solution.converged and high - low > baselines.VI_TOLERANCE
+    assert 30 < whole.solution.sweeps < baselines.CHECK_SWEEPS
+    monkeypatch.setattr(baselines, "CHECK_SWEEPS", 30)
+    checked = baselines.nash_baseline(ts, dfa)
+    assert checked.solution.converged and checked.solution.sweeps == whole.solution.sweeps
+    assert checked.v_ne == whole.v_ne and checked.v_ne_bounds == whole.v_ne_bounds
+    assert (checked.values == whole.values).all()

@@ -51,6 +51,7 @@ from hg2prism.numeric.tables import fold, outcome_sum
 
 VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
+CHECK_SWEEPS = 100_000      # unconverged after this many: go on only while the bracket is wide
 GAP = 1e-12                 # accepted width of a matrix game's certified value interval
 LP_GAP = 1e-9               # an unpolished LP solution must still be this tight, or we fail
 LP_OPTIONS = {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10}
@@ -111,6 +112,7 @@ class NashSolution:
     p2: np.ndarray            # [G, A2] P2's, 0 on disallowed actions
     sweeps: int
     lp_calls: int             # LPs solved (the rest was saddle points and cached kernels)
+    converged: bool = True    # the last sweep changed no value by `tolerance` or more
 
 
 @dataclass(frozen=True, eq=False)
@@ -371,7 +373,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE,
     p1[free], p2[free] = final.x, final.y
     return NashSolution(values=v, p1=p1, p2=p2,
                         sweeps=sweeps + (0 if start is None else start.sweeps),
-                        lp_calls=kernels.lp_calls)
+                        lp_calls=kernels.lp_calls, converged=bool(change < tolerance))
 
 
 def _mixed_model(game: ConcurrentGame, mix: np.ndarray, player: int) -> ExplicitModel:
@@ -438,43 +440,69 @@ def _enabled_only(ts: TransitionSystem, p1: np.ndarray, n_q: int) -> np.ndarray:
     return p1
 
 
+@dataclass(frozen=True, eq=False)
+class _Bracket:
+    """The ends of the Nash bracket at the start state g0 (docs/semantics.md §7) and the
+    strategies that give them."""
+
+    guaranteed: np.ndarray    # [G] what p1 guarantees
+    lower: float              # guaranteed[g0]
+    p1: np.ndarray
+    upper: float              # P1's best response to p2 at g0
+    p2: np.ndarray
+
+
+def _bracket(game: ConcurrentGame, solution: NashSolution, g0: int,
+             best: _Bracket | None = None) -> _Bracket:
+    """The bracket of the strategies read off `solution`, each end kept from `best` where it
+    was better there: each end is sound whichever iterate its strategy comes from."""
+    guaranteed = guaranteed_value(game, solution.p1)
+    upper = best_response_value(game, solution.p2)[g0]
+    if best is not None and not guaranteed[g0] > best.lower:
+        guaranteed, lower, p1 = best.guaranteed, best.lower, best.p1
+    else:
+        lower, p1 = probability(guaranteed[g0], "P1's guaranteed Nash value"), solution.p1
+    if best is not None and not upper < best.upper:
+        upper, p2 = best.upper, best.p2
+    else:
+        upper = probability(upper, "P1's best response to P2's Nash strategy")
+        p2 = solution.p2
+    return _Bracket(guaranteed=guaranteed, lower=lower, p1=p1, upper=upper, p2=p2)
+
+
 def nash_baseline(ts: TransitionSystem, dfa: DFA) -> NashBaseline:
     """The Nash baseline of docs/semantics.md §7 for the task DFA, read at every (s, q) and at the start."""
     game = concurrent_game(ts, dfa)
     n_q = dfa.n_states
     q0 = int(dfa.delta[dfa.initial, ts.state_label()[ts.start_state]])
     g0 = product_state(ts.start_state, q0, n_q)
-    # Where value iteration has not converged after MAX_SWEEPS sweeps (an edge of probability
-    # 1e-6 leaks that little per sweep), the strategies read off its iterate still give the
-    # sound bracket below: `run` went on to fail there, on a 5-node attack graph whose bracket
-    # is the point 1.
-    solution = solve_nash(game, budget=MAX_SWEEPS)
-    guaranteed = guaranteed_value(game, solution.p1)
-    best_response = best_response_value(game, solution.p2)
-    v_guaranteed = probability(guaranteed[g0], "P1's guaranteed Nash value")
-    upper = probability(best_response[g0], "P1's best response to P2's Nash strategy")
-    p1, p2 = solution.p1, solution.p2
+    # Where value iteration has not converged after CHECK_SWEEPS sweeps (an edge of probability
+    # 1e-6 leaks that little per sweep), the strategies read off its iterate give a sound
+    # bracket: it goes on, CHECK_SWEEPS sweeps at a time, only while that bracket is wider than
+    # VI_TOLERANCE, and at most MAX_SWEEPS sweeps in all (then the bracket is the answer). A
+    # 5-node attack graph ran 10^6 sweeps (43 s) for a bracket that was the point 1.
+    solution = solve_nash(game, budget=CHECK_SWEEPS)
+    ends = _bracket(game, solution, g0)
+    while (not solution.converged and solution.sweeps < MAX_SWEEPS
+           and ends.upper - ends.lower > VI_TOLERANCE):
+        solution = solve_nash(game, start=solution,
+                              budget=min(CHECK_SWEEPS, MAX_SWEEPS - solution.sweeps))
+        ends = _bracket(game, solution, g0, ends)
     # A wide bracket: strategies read off values that have not converged enough (ties between
     # trap sets that the exact values would break). Value iteration goes on, 100 times
-    # tighter each time down to 1e-14, and each end keeps the best strategy found: each end
-    # is sound whichever iterate its strategy comes from (docs/semantics.md §7).
+    # tighter each time down to 1e-14, and each end keeps the best strategy found.
     tolerance = VI_TOLERANCE
     sweeps = solution.sweeps
-    while upper - v_guaranteed > SHORTFALL_WARNING and tolerance > REFINED_TOLERANCE:
+    while ends.upper - ends.lower > SHORTFALL_WARNING and tolerance > REFINED_TOLERANCE:
         tolerance /= 100.0
         left = REFINING_SWEEPS * sweeps - solution.sweeps
         if left <= 0:
             break
         solution = solve_nash(game, tolerance, start=solution, budget=left,
                               lp_budget=REFINING_LPS)
-        lower_now = guaranteed_value(game, solution.p1)
-        if lower_now[g0] > v_guaranteed:
-            guaranteed, p1 = lower_now, solution.p1
-            v_guaranteed = probability(lower_now[g0], "P1's guaranteed Nash value")
-        upper_now = best_response_value(game, solution.p2)
-        if upper_now[g0] < upper:
-            upper, p2 = probability(upper_now[g0], "P1's best response to P2's Nash strategy"), \
-                solution.p2
+        ends = _bracket(game, solution, g0, ends)
+    guaranteed, v_guaranteed, p1, upper, p2 = (ends.guaranteed, ends.lower, ends.p1,
+                                                ends.upper, ends.p2)
     if v_guaranteed > upper + 1e-9:
         raise SolverError(f"the Nash bracket is empty: [{v_guaranteed!r}, {upper!r}]")
     # Each end is an exact solve within its rounding (about 1e-11 on ill-conditioned chains):
