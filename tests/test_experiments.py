@@ -8,6 +8,7 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import MODELS
@@ -409,3 +410,44 @@ def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: P
                                                                      "detection.png",
                                                                      "detection.svg"]
     assert result["compliant"]["false_alarms"] == 0
+
+
+def test_the_off_record_fallback_is_the_fastest_leader_answer_and_does_not_stall(
+        tmp_path: Path) -> None:
+    """Where P2's deviation takes P1 off its records, P1 falls back on its naive answer
+    (docs/semantics.md §11): among the moves optimal in the leader game against the set its
+    model predicts, the fastest. The first optimal move in slot order (the fallback before)
+    stalls: on world2 with delay 2, P2 deviating from step 3, 233 of 1000 episodes ran to the
+    horizon against 56 now."""
+    from hg2prism.analyses.successor import Hypergame
+    from hg2prism.model.product import product_state
+    from hg2prism.opponent.perceptual_games import TurnBasedGame
+
+    result = pipeline.check(load_world(WORLD2).replace(delay=2), tmp_path)
+    analysis = result.analysis
+    model = Hypergame(analysis.ts, analysis.task, analysis.games, analysis.inference)
+    q_lead = TurnBasedGame(analysis.ts, analysis.task).q_values(
+        analysis.leader.values.reshape(-1))                              # [G, A1, A2]
+    n_q = analysis.task.n_states
+
+    def slot_order(ts_state: int, q: int, memory) -> int:
+        g = product_state(ts_state, q, n_q)
+        return int(np.argmax(q_lead[g, :, model.predicted(ts_state, memory)]))
+
+    fallback = leader_fallback(analysis)
+
+    def naive(ts_state: int, q: int, memory) -> int:
+        move = fallback(ts_state, q, memory)
+        g = product_state(ts_state, q, n_q)
+        best = q_lead[g, :, model.predicted(ts_state, memory)]
+        assert best[move] >= best.max() - 1e-9           # optimal in the leader game
+        return move
+
+    truncated = {}
+    for name, rule in (("naive", naive), ("slot order", slot_order)):
+        summary, _ = detect.detection_batch(
+            analysis, Strategy.from_records(result.records, analysis.ts, fallback=rule),
+            400, 200, 0, alpha=0.05, epsilon=0.01, p2_policy=deviating_policy(analysis.ts, 2))
+        assert summary.off_record_steps > 1000
+        truncated[name] = summary.truncated
+    assert truncated["naive"] < 0.1 * 400 and truncated["slot order"] > 0.15 * 400, truncated

@@ -37,7 +37,7 @@ from scipy.stats import norm
 from hg2prism.analyses.successor import (FAIL, GOAL, Hypergame, HypergameState,
                                          TrackedObserver)
 from hg2prism.model.automata import DFA
-from hg2prism.model.product import product, product_state
+from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.numeric import bounded_reach
 from hg2prism.progress import Bar
@@ -209,24 +209,17 @@ class _Uniforms:
 
 def leader_fallback(analysis: Analysis) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
-    predicts (pi2_xh(v)) with the move that is best in the leader game G(phi) of docs/semantics.md §7,
-    ``argmax_a1 Q_lead(v, q, a1, pi2_xh(v))`` over the actions at v (first best in slot order).
+    predicts (pi2_xh(v)) with its naive answer (docs/semantics.md §11): the move optimal in the
+    leader game G(phi) of §7 against that set, the fastest of them (`NaiveStrategy`, which
+    adaptive deception's committed strategies fall back on too).
 
     It is a heuristic for off-model experiments only; simulations report how many steps used it
     (SimulationSummary.off_record_steps)."""
-    from hg2prism.opponent.perceptual_games import TurnBasedGame
+    from hg2prism.analyses.deception_value import NaiveStrategy, naive_answers
 
-    ts, task = analysis.ts, analysis.task
-    values = analysis.leader.values
-    q_values = TurnBasedGame(ts, task).q_values(values.reshape(-1))          # [G, A1, A2]
-    n_q = task.n_states
-    model = Hypergame(ts, task, analysis.games, analysis.inference)
-
-    def fallback(ts_state: int, q: int, memory: Memory) -> int:
-        a2 = model.predicted(ts_state, memory)
-        return int(np.argmax(q_values[product_state(ts_state, q, n_q), :, a2]))
-
-    return fallback
+    model = Hypergame(analysis.ts, analysis.task, analysis.games, analysis.inference)
+    return NaiveStrategy(naive_answers(analysis.ts, analysis.task, analysis.leader),
+                         model).action
 
 
 class LeaderStrategy(ProductPolicy):

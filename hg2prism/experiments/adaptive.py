@@ -19,7 +19,8 @@ from pathlib import Path
 
 from hg2prism import __version__
 from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
-from hg2prism.analyses.deception_value import NaiveStrategy, induced_chain, naive_answers
+from hg2prism.analyses.deception_value import induced_chain
+from hg2prism.analyses.simulation import leader_fallback
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
 from hg2prism.engines.engine import BuiltModel, ModelChecker
@@ -64,15 +65,13 @@ class AdaptiveResult:
 def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[float]]:
     """value[j][k]: type j's deceptive strategy when P2 is of type k; where the strategy has no
     record P1 plays the leader-game move of docs/semantics.md §11 (the naive answer to the
-    action type j predicts, with its tie rules)."""
+    action type j predicts, with its tie rules: `leader_fallback`, as detection does)."""
     games = [Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games, c.analysis.inference)
              for c in checks]
     values = []
     for j, check in enumerate(checks):
-        naive = NaiveStrategy(naive_answers(check.analysis.ts, check.analysis.task,
-                                            check.analysis.leader), games[j])
         strategy = Strategy.from_records(check.records, check.analysis.ts,
-                                         fallback=naive.action)
+                                         fallback=leader_fallback(check.analysis))
         row = []
         for k in range(len(checks)):
             if weights[k] == 0:
