@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import numpy as np
 
-from hg2prism import __version__, memory
+from hg2prism import memory
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
@@ -38,7 +38,8 @@ from hg2prism.opponent import registry
 from hg2prism.outputs import write_bytes, write_chunks, write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (Analysis, CheckResult, CheckResults, DrawnEpisode, Parameters,
-                              RunResult, RunResults, SimulatedRow, Simulations, StrategyObjective)
+                              RunResult, RunResults, SimulatedRow, Simulations, StrategyObjective,
+                              provenance)
 
 if TYPE_CHECKING:
     from hg2prism.analyses.baselines import NashBaseline
@@ -270,10 +271,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
         warn(f"the exported strategy reaches the goal with probability "
              f"{steps.goal_probability:.9f}, not the {objective} value {objective_value:.9f}")
     results = CheckResults(
-        world=world.name,
-        world_file=str(world.path),
-        world_digest=world.digest(),
-        hg2prism_version=__version__,
+        **provenance(world),
         deceptive_value=checked.value,
         storm_method=storm_method,
         sound=storm_method in engine.sound_methods,

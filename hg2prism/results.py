@@ -35,9 +35,19 @@ if TYPE_CHECKING:
     from hg2prism.strategy.records import RecordExtras
 
 __all__ = ["Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObjective", "CheckResults",
-           "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults"]
+           "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults", "provenance"]
 
 TIMING_DIGITS = 4
+
+
+def provenance(world: World) -> dict[str, str]:
+    """The keys every record (results.json, robust.json, detection.json, sweep.json, the
+    adaptive results) starts with: the world (its name, file and `World.digest`, by which
+    hg2prism.outputs tells whose outputs a folder holds) and the hg2prism that wrote it."""
+    from hg2prism import __version__
+
+    return {"world": world.name, "world_file": str(world.path),
+            "world_digest": world.digest(), "hg2prism_version": __version__}
 """Timings are written to results.json rounded to this many decimals (0.1 ms)."""
 
 

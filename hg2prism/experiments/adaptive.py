@@ -17,7 +17,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from hg2prism import __version__
 from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
 from hg2prism.analyses.deception_value import induced_chain
 from hg2prism.analyses.simulation import leader_fallback
@@ -26,11 +25,11 @@ from hg2prism.engines import default as default_engine
 from hg2prism.engines.engine import BuiltModel, ModelChecker
 from hg2prism.errors import probability
 from hg2prism.model.world import World
-from hg2prism.outputs import write_json, write_text
+from hg2prism.outputs import write_csv, write_json, write_text
 from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
 from hg2prism.prism.hypergame import PROPERTY
 from hg2prism.progress import say, warn
-from hg2prism.results import CheckResult
+from hg2prism.results import CheckResult, provenance
 from hg2prism.strategy.adaptive import AdaptiveStrategy, adaptive_strategy
 from hg2prism.strategy.records import Strategy
 from hg2prism.worldfile.types import world_of_type
@@ -128,8 +127,7 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
         warn(f"V_adapt {v_adapt:.9f} is not between max V_commit {best:.9f} and V_oracle "
              f"{v_oracle:.9f}")
     results = {
-        "world": world.name, "world_file": str(world.path), "world_digest": world.digest(),
-        "hg2prism_version": __version__, "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
+        **provenance(world), "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
         "value_of_adaptivity": v_adapt - best, "cost_of_not_knowing": v_oracle - v_adapt,
         "storm_method": storm_method, "sound": storm_method in engine.sound_methods,
         "states": strategy.size[0], "transitions": strategy.size[1],
@@ -439,16 +437,13 @@ def sweep_weights(world: World, weights: list[float], out: Path,
                      "value_of_adaptivity": r["value_of_adaptivity"],
                      "cost_of_not_knowing": r["cost_of_not_knowing"]})
     write_json(out / "sweep.json", {
-        "world": world.name, "world_file": str(world.path), "world_digest": world.digest(),
-        "parameter": "weight",
+        **provenance(world), "parameter": "weight",
         "values": weights, "parameters": ["weight"], "type": names[0],
         "storm_method": storm_method, "sound": results_sound(storm_method), "rows": rows,
         "failed": failed, "seconds": round(time.perf_counter() - start, 3)})
-    header = ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names]
-    lines = [",".join(header)] + [",".join(repr(x) for x in [
-        row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()])
-        for row in rows]
-    write_text(out / "sweep.csv", "\n".join(lines) + "\n")
+    write_csv(out / "sweep.csv", ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names],
+              ([row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()]
+               for row in rows))
     if rows:
         weight_sweep_figure(world.name, names, rows, out / "sweep")
     table = [f"{world.name}: adaptive deception against the prior weight of {names[0]}", "",

@@ -21,8 +21,6 @@ seeded random attack-graph-like arena (`random_arena_world`) of about 1e6 canoni
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import multiprocessing
 import os
@@ -323,14 +321,9 @@ def _format(value: object) -> str:
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
-    from hg2prism.outputs import write_text
+    from hg2prism import outputs
 
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for row in rows:
-        writer.writerow([_format(row.get(c)) for c in COLUMNS])
-    write_text(path, buffer.getvalue())
+    outputs.write_csv(path, COLUMNS, ([_format(row.get(c)) for c in COLUMNS] for row in rows))
 
 
 def grids(rows: list[dict]) -> list[dict]:

@@ -32,6 +32,7 @@ from hg2prism.errors import InputError
 from hg2prism.model.world import World
 from hg2prism import progress
 from hg2prism.outputs import write_json
+from hg2prism.results import provenance
 
 if TYPE_CHECKING:   # annotations only: the pipeline and the simulation import much more
     from hg2prism.strategy.policy import Policy
@@ -346,9 +347,7 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
     from hg2prism.opponent.registry import observer_kind
 
     return {
-        "world": world.name,
-        "world_file": str(world.path),
-        "world_digest": world.digest(),
+        **provenance(world),
         "alpha": batches.alpha,
         "epsilon": batches.epsilon,
         "deviate_after": deviate_after,

@@ -19,8 +19,6 @@ Writes ``OUT/robust.json``, ``OUT/robust.csv``, ``OUT/robust.png`` and ``OUT/rob
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import tempfile
 import time
@@ -36,8 +34,9 @@ from hg2prism.engines import default
 from hg2prism.engines.engine import ModelChecker
 from hg2prism.errors import InputError, probability
 from hg2prism.model.world import World
-from hg2prism.outputs import write_bytes, write_json, write_text
+from hg2prism.outputs import write_bytes, write_csv, write_json
 from hg2prism.strategy.policy import Policy
+from hg2prism.results import provenance
 
 if TYPE_CHECKING:
     from hg2prism.prism.hypergame import Layout
@@ -327,9 +326,7 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
             f"({seconds:.1f} s)")
 
     result = {
-        "world": world.name,
-        "world_file": str(world.path),
-        "world_digest": world.digest(),
+        **provenance(world),
         "deceptive_value": check_result.results.deceptive_value,
         "v_lead": check_result.results.v_lead,
         "deltas": parsed,
@@ -342,18 +339,17 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
         "rows": rows,
         "seconds": round(time.perf_counter() - start_all, 3),
     }
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(("delta",) + _CSV_COLUMNS)
-    for row in rows:
-        check = row["storm_check"] or {}
-        values = {**row, "storm_robust_value_eps": check.get("storm_robust_value_eps", "")}
-        writer.writerow([repr(row["delta"])] + [repr(values[c]) if isinstance(values[c], float)
-                                                 else values[c] for c in _CSV_COLUMNS])
     write_json(out / "robust.json", result)
-    write_text(out / "robust.csv", buffer.getvalue())
+    write_csv(out / "robust.csv", ("delta",) + _CSV_COLUMNS, map(_csv_row, rows))
     plots.robust_figure(result, out / "robust.png")
     return result
+
+
+def _csv_row(row: dict) -> list:
+    """robust.csv's line of a robust.json row: delta, then _CSV_COLUMNS."""
+    check = row["storm_check"] or {}
+    values = {**row, "storm_robust_value_eps": check.get("storm_robust_value_eps", "")}
+    return [row["delta"]] + [values[c] for c in _CSV_COLUMNS]
 
 
 def robust_summary_lines(result: dict) -> list[str]:

@@ -37,8 +37,6 @@ traps.
 
 from __future__ import annotations
 
-import csv
-import io
 import itertools
 import math
 import os
@@ -57,8 +55,8 @@ from hg2prism.model.world import World
 from hg2prism.opponent.bayes import normalise_prior
 from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
 from hg2prism import progress
-from hg2prism.outputs import write_bytes, write_json, write_text
-from hg2prism.results import Parameters
+from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
+from hg2prism.results import Parameters, provenance
 
 __all__ = ["SweepParameter", "SWEEP_PARAMETERS", "OWNED_PATTERN", "parse_sweep_values",
            "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
@@ -747,14 +745,9 @@ def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
     if rows and all("v_static" in row for row in rows):
         at = columns.index("v_ne_p1_guaranteed") + 1
         columns = columns[:at] + _DECEPTION_COLUMNS + columns[at:]
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(tuple(names) + columns)
-    for row in rows:
-        writer.writerow([_value_text(row[n]) if isinstance(row[n], list) else row[n] for n in names]
-                        + [repr(row[c]) if isinstance(row[c], float) else row[c]
-                           for c in columns])
-    return buffer.getvalue()
+    return csv_text(tuple(names) + columns,
+                    ([_value_text(row[n]) if isinstance(row[n], list) else row[n]
+                      for n in names] + [row[c] for c in columns] for row in rows))
 
 
 def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
@@ -765,8 +758,7 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
     fixed = Parameters.of(world).to_json()
     for name in names:
         fixed.pop(name, None)
-    summary: dict[str, object] = {"world": world.name, "world_file": str(world.path),
-                                  "world_digest": world.digest()}
+    summary: dict[str, object] = provenance(world)
     if len(names) == 1:        # the one-parameter format, as before grids existed
         summary.update(parameter=names[0], values=[_json_value(v) for v in run.parameters[0][1]])
     else:
