@@ -380,3 +380,23 @@ def test_simulation_agrees_with_exact(tmp_path, seed):
     assert all(0 <= step <= horizon for step in run.identification_steps)
     # unbounded, the chain's completion is V_adapt
     assert chain.within(100_000) == pytest.approx(result.results["v_adapt"], abs=1e-6)
+    if seed is None:
+        _bad_adaptive_records_are_strategy_errors(records, game, result)
+
+
+def _bad_adaptive_records_are_strategy_errors(records, game, result) -> None:
+    """A bad strategy.json record of the adaptive strategy is a StrategyError naming the
+    record (an unknown action name was a ValueError from list.index, an unknown type a
+    KeyError)."""
+    from hg2prism.analyses.adaptive import adaptive_policy
+    from hg2prism.strategy.records import StrategyError
+
+    names = [t["name"] for t in result.results["types"]]
+    one = records[0]
+    some_type = next(iter(one["types"]))
+    for bad, word in (({**one, "action": "fly"}, "action 'fly'"),
+                      ({**one, "types": {"nobody": one["types"][some_type]}}, "nobody"),
+                      ({**one, "types": {some_type: {"window": []}}}, "hypothesis")):
+        with pytest.raises(StrategyError, match="adaptive strategy record 0") as err:
+            adaptive_policy([bad, *records[1:]], game, names)
+        assert word in str(err.value)

@@ -187,22 +187,26 @@ def adaptive_policy(records: Sequence[Mapping], game: AdaptiveGame, names: Seque
                     ) -> AdaptivePolicy:
     """P1's adaptive strategy from its strategy.json records (strategy/adaptive.py): each
     consistent type's memory read as that type's records are (strategy/records.py)."""
-    from hg2prism.strategy.records import StrategyError, _record_key
+    from hg2prism.strategy.records import StrategyError, read_record
 
     ts = game.games[0].ts
     index = {name: k for k, name in enumerate(names)}
     table: dict[AdaptiveState, int] = {}
     for i, record in enumerate(records):
         where = f"adaptive strategy record {i}"
-        types = tuple(sorted(index[name] for name in record["types"]))
-        memories = []
-        for k in types:
-            memory = record["types"][names[k]]
-            v, q, m = _record_key(ts, {**record, "hypothesis": memory["hypothesis"],
-                                       "window": memory["window"]}, where)
-            memories.append(m)
-        action = ts.action_names(v).index(record["action"])
-        table[(v, q, types, tuple(memories))] = action
+        try:
+            types = tuple(sorted(index[name] for name in record["types"]))
+            read = [read_record(ts, {**record, "hypothesis": record["types"][names[k]][
+                "hypothesis"], "window": record["types"][names[k]]["window"]}, where)
+                for k in types]
+        except (KeyError, TypeError) as err:
+            raise StrategyError(f"{where}: bad or missing field ({err})") from None
+        if not read:
+            raise StrategyError(f"{where}: no consistent type")
+        (v, q, _), action = read[0]
+        key = (v, q, types, tuple(m for (_, _, m), _ in read))
+        if table.setdefault(key, action) != action:
+            raise StrategyError(f"{where}: conflicting actions for the same state")
 
     def policy(state: AdaptiveState) -> int:
         try:

@@ -301,6 +301,14 @@ def _action_index(ts: TransitionSystem, v: int, name: object, where: str) -> int
     return names.index(name)
 
 
+def read_record(ts: TransitionSystem, record: Mapping, where: str
+                ) -> tuple[tuple[int, int, Memory], int]:
+    """A strategy.json record read: the hypergame state ``(ts_state, q, Memory)`` it is for and
+    P1's action slot there (StrategyError naming `where` for a bad record)."""
+    key = _record_key(ts, record, where)
+    return key, _action_index(ts, key[0], record.get("action"), where)
+
+
 Fallback = Callable[[int, int, Memory], int]
 
 
@@ -331,8 +339,7 @@ class Strategy:
         records = tuple(records)
         for i, record in enumerate(records):
             where = f"strategy record {i}"
-            key = _record_key(ts, record, where)
-            action = _action_index(ts, key[0], record.get("action"), where)
+            key, action = read_record(ts, record, where)
             if table.setdefault(key, action) != action:
                 names = ts.action_names(key[0])
                 raise StrategyError(f"{where}: conflicting actions {names[table[key]]} and "
