@@ -117,14 +117,11 @@ def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative:
     """The choice of every state of the interval model `game` when P1 plays `policy`: its move
     in the hypergame state of each canonical state (read off the representative's decoded
     state), and the one choice of the intermediate states (not `decides`)."""
-    from hg2prism.opponent.inference import Memory
-
     wanted = np.full(int(canonical.max()) + 1, -1, dtype=np.int64)
-    ts_state = ts.state(decoded.place, decoded.traps, decoded.countdown)
-    for s in representative[~game.stop[representative]].tolist():
-        window = tuple(tuple(entry) for entry in decoded.window[s].tolist() if entry[0] >= 0)
-        memory = Memory(int(decoded.hypothesis[s]), window)
-        wanted[canonical[s]] = policy.action(int(ts_state[s]), int(decoded.q[s]), memory)
+    rows = representative[~game.stop[representative]]
+    for s, v, q, memory in zip(rows.tolist(), decoded.ts_states(ts, rows).tolist(),
+                               decoded.q[rows].tolist(), decoded.memories(rows)):
+        wanted[canonical[s]] = policy.action(v, q, memory)
     return _choices_of(game, moves.action, wanted[canonical], decides)
 
 

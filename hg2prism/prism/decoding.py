@@ -16,6 +16,7 @@ import numpy as np
 from hg2prism.engines.engine import BuiltModel, Transitions
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.opponent.observer import Memory
 from hg2prism.prism.hypergame import Layout
 
 
@@ -34,6 +35,18 @@ class DecodedStates:
     fail: np.ndarray          # bool
     canonical: np.ndarray     # canonical id; goal states share one id, failure states another
     n_canonical: int
+
+    def ts_states(self, ts: TransitionSystem, rows: np.ndarray | None = None) -> np.ndarray:
+        """The TS state of each state (of `rows`), meaningful where it is not trapped."""
+        at = slice(None) if rows is None else rows
+        return ts.state(self.place[at], self.traps[at], self.countdown[at])
+
+    def memories(self, rows: np.ndarray | None = None) -> list[Memory]:
+        """P2's memory in each state (of `rows`): her hypothesis and her window, empty slots
+        left out (the key strategy.json's records are read back to, strategy/records.py)."""
+        at = slice(None) if rows is None else rows
+        return [Memory(h, tuple(tuple(entry) for entry in window if entry[0] >= 0))
+                for h, window in zip(self.hypothesis[at].tolist(), self.window[at].tolist())]
 
 
 def decode_states(model: BuiltModel, layout: Layout, ts: TransitionSystem, task: DFA,

@@ -19,7 +19,6 @@ import numpy as np
 from hg2prism.engines.engine import BuiltModel
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
-from hg2prism.opponent.observer import Memory
 from hg2prism.prism.adaptive import AdaptiveModel, type_view
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states, row_keys
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
@@ -51,11 +50,9 @@ class AdaptiveStates:
         """Per engine state its key as analyses/adaptive.AdaptiveGame writes it: (v, q, C,
         memories of C) with each memory an observer's Memory, or "goal" / "fail"."""
         base, n = self.joint, len(self.alive)
-        v = ts.state(base.place, base.traps, base.countdown).tolist()
+        v = base.ts_states(ts).tolist()
         q = base.q.tolist()
-        memories = [[Memory(h, tuple(tuple(e) for e in w if e[0] >= 0))
-                     for h, w in zip(d.hypothesis.tolist(), d.window.tolist())]
-                    for d in self.per_type]
+        memories = [d.memories() for d in self.per_type]
         keys = []
         for s in range(n):
             if base.goal[s] or base.fail[s]:
