@@ -153,3 +153,41 @@ def test_configure_refuses_what_the_observer_does_not_have() -> None:
     with pytest.raises(InputError, match="no observer of kind 'psychic'"):
         configure(world, "psychic")
     assert dict(configure(world, threshold=2.0).settings)["threshold"] == 2.0
+
+
+def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An observer's setting with `swept` is a parameter of `hg2prism sweep` without an edit of
+    the sweep: its parameters are read off the registry (threshold, prior and decision too),
+    parsed as `swept` says and applied through registry.configure, a value the observer refuses
+    for the world being a --values error."""
+    from dataclasses import replace
+
+    from hg2prism.experiments import sweep
+    from hg2prism.opponent.observer import Setting, Swept
+
+    patience = Setting("patience", "an integer >= 1",
+                       lambda checks, value, n: checks.integer(value, "inference.patience", 1,
+                                                               10),
+                       default=lambda n: 1, swept=Swept("number", "an integer >= 1", int, 1,
+                                                        exclusive=False))
+    monkeypatch.setitem(registry.KINDS, "patient",
+                        replace(NEVER, name="patient", title="patient", settings=(patience,)))
+    found = {p.name: p for p in sweep._observer_parameters()}
+    assert list(found) == ["threshold", "prior", "decision", "patience"]
+    assert found["patience"].parse("3") == 3 and found["patience"].expected == "an integer >= 1"
+    for bad in ("0", "x", "1.5"):
+        with pytest.raises(ValueError):
+            found["patience"].parse(bad)
+    text = (MODELS / "world3.toml").read_text().replace("[inference]\n",
+                                                        '[inference]\nkind = "patient"\n')
+    world = world_from_toml("\n".join(line for line in text.splitlines()
+                                      if not line.startswith("threshold")), "patient.toml")
+    assert world.setting("patience") == 1
+    assert found["patience"].apply(world, 4).setting("patience") == 4
+    with pytest.raises(InputError) as err:
+        found["patience"].apply(world, 11)
+    assert (err.value.file, err.value.key) == ("command line", "--values")
+    assert "patience 11" in err.value.reason and "<= 10" in err.value.reason
+    cusum = world_from_toml((MODELS / "world3.toml").read_text(), "cusum.toml")
+    with pytest.raises(InputError, match="observer has no patience"):
+        found["patience"].apply(cusum, 2)

@@ -52,7 +52,6 @@ from hg2prism.errors import InputError
 from hg2prism import frontends
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
-from hg2prism.opponent.bayes import normalise_prior
 from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
 from hg2prism import progress
 from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
@@ -138,16 +137,19 @@ def _observer_kind(value: object) -> str:
     return str(value)
 
 
-def _prior(value: object) -> tuple[float, ...]:
-    """A prior as typed (``0.5,0.25,0.25``) or given in Python (a sequence), normalised."""
-    parts = value.split(",") if isinstance(value, str) else value
-    try:
-        numbers = [float(p) for p in parts]           # type: ignore[union-attr]
-    except (TypeError, ValueError):
-        raise ValueError("is not") from None
-    if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
-        raise ValueError("must be")
-    return normalise_prior(numbers)
+def _numbers(normalise: Callable[[list[float]], object] | None) -> Callable[[object], object]:
+    """A parser of positive numbers as typed (``0.5,0.25,0.25``) or given in Python (a
+    sequence), then `normalise`d (a prior)."""
+    def parse(value: object) -> object:
+        parts = value.split(",") if isinstance(value, str) else value
+        try:
+            numbers = [float(p) for p in parts]           # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            raise ValueError("is not") from None
+        if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
+            raise ValueError("must be")
+        return tuple(numbers) if normalise is None else normalise(numbers)
+    return parse
 
 
 def _with_observer(world: World, kind: str) -> World:
@@ -166,21 +168,34 @@ def _with_observer(world: World, kind: str) -> World:
 
 
 def _with_setting(name: str) -> Callable[[World, Value], World]:
-    """Sets the observer's setting `name`, when the world's kind of observer has it."""
+    """Sets the observer's setting `name`, when the world's kind of observer has it; a value
+    the observer refuses for this world (a prior of the wrong length) is a --values error."""
     def apply(world: World, value: Value) -> World:
         kind = observer_kind(world.inference)
         if name not in kind.keys():
             raise InputError(_CLI, "--param", f"the {kind.title} observer has no {name}; "
                              f'sweeping {name} needs [inference] kind = "{owner(name).name}"')
-        return configure(world, **{name: value})
+        try:
+            return configure(world, **{name: value})
+        except InputError as err:
+            shown = _value_text(value) if isinstance(value, (list, tuple)) else value
+            raise InputError(_CLI, "--values", f"{name} {shown}: {err.reason}") from None
     return apply
 
 
-def _with_prior(world: World, prior: tuple[float, ...]) -> World:
-    if len(prior) != len(world.hypotheses) and "prior" in observer_kind(world.inference).keys():
-        raise InputError(_CLI, "--values", f"prior {_value_text(prior)} has {len(prior)} "
-                         f"numbers; expected one per hypothesis ({len(world.hypotheses)})")
-    return _with_setting("prior")(world, prior)
+def _observer_parameters() -> list[SweepParameter]:
+    """The settings of the registered observers that a sweep may vary (Setting.swept), each
+    once (a key two kinds share is swept by the first)."""
+    parsers = {"number": lambda s: _number(s.kind, s.minimum, s.exclusive),
+               "word": lambda s: _word, "numbers": lambda s: _numbers(s.normalise)}
+    found: dict[str, SweepParameter] = {}
+    for kind in KINDS.values():
+        for setting in kind.settings:
+            if setting.swept is not None and setting.key not in found:
+                found[setting.key] = SweepParameter(
+                    setting.key, setting.swept.expected, parsers[setting.swept.form](
+                        setting.swept), _with_setting(setting.key))
+    return list(found.values())
 
 
 def _word(value: object) -> str:
@@ -223,8 +238,7 @@ SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
     SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
                    moves_traps=True),
     SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
-    SweepParameter("threshold", "a number > 0", _number(float, 0.0, True),
-                   _with_setting("threshold")),
+    *_observer_parameters(),       # the observers' own: threshold, prior, decision
     SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
                    _field("rationality")),
     *(SweepParameter(setting.name, setting.expected,
@@ -232,10 +246,6 @@ SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
                      setting.apply, front_end=kind) for kind, setting in frontends.sweep_settings()),
     SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
                    _number(int, 1, False), _with_traps, moves_traps=True),
-    SweepParameter("prior", "comma-separated positive numbers, one per hypothesis", _prior,
-                   _with_prior),
-    SweepParameter("decision", '"map" or "sample" (a Bayesian observer\'s)', _word,
-                   _with_setting("decision")),
     SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
                    _number(int, 0, False), _with_first_guess),
 )}

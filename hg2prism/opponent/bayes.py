@@ -22,7 +22,7 @@ import numpy as np
 
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
-                                        ObserverKind, Setting, p2_action_count,
+                                        ObserverKind, Setting, Swept, p2_action_count,
                                         window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
 
@@ -247,8 +247,11 @@ def _mismatches(world: World, max_score: float, vary: Callable[..., World]
 KIND = ObserverKind(
     name="bayes", title="Bayesian",
     settings=(Setting("prior", "an array of positive numbers, one per hypothesis", _read_prior,
-                      uniform_prior),
-              Setting("decision", '"map" or "sample"', _read_decision, lambda n: "map")),
+                      uniform_prior,
+                      swept=Swept("numbers", "comma-separated positive numbers, one per "
+                                             "hypothesis", normalise=normalise_prior)),
+              Setting("decision", '"map" or "sample"', _read_decision, lambda n: "map",
+                      swept=Swept("word", '"map" or "sample" (a Bayesian observer\'s)'))),
     build=_build, memory=_memory, solved_memory=_solved_memory, mismatches=_mismatches,
     report=lambda world: {"inference": "bayes", "window": world.window, "threshold": None,
                           "decision": world.setting("decision"),

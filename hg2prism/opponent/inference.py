@@ -15,7 +15,7 @@ import numpy as np
 
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
-                                        ObserverKind, Setting, window_mismatches)
+                                        ObserverKind, Setting, Swept, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
 
 __all__ = ["Memory", "InferenceModel", "build_inference", "KIND"]
@@ -165,6 +165,7 @@ def _mismatches(world: World, max_score: float, vary: Callable[..., World]
 
 KIND = ObserverKind(
     name="cusum", title="CUSUM",
-    settings=(Setting("threshold", "a number > 0", _read_threshold),),
+    settings=(Setting("threshold", "a number > 0", _read_threshold,
+                      swept=Swept("number", "a number > 0")),),
     build=_build, memory=_memory, mismatches=_mismatches,
     report=lambda world: {"window": world.window, "threshold": world.setting("threshold")})

@@ -119,6 +119,24 @@ class Setting:
     read: Callable[[Any, object, int], object]
     # the value when the key is absent, from the number of hypotheses; None: the key is required
     default: Callable[[int], object] | None = None
+    # how `hg2prism sweep` reads its values (experiments/sweep.py); None: it cannot be swept
+    swept: Swept | None = None
+
+
+@dataclass(frozen=True)
+class Swept:
+    """How `hg2prism sweep --param KEY` reads a setting's values, typed on the command line or
+    given in Python (experiments/sweep.py parses them; `Setting.read` then checks them against
+    the world): a number (of `kind`, above `minimum`, or at least it unless `exclusive`), a
+    word, or positive numbers (comma-separated when typed), turned by `normalise` into the
+    value kept (a prior: normalised)."""
+
+    form: str                  # "number", "word" or "numbers"
+    expected: str              # what a swept value must be, for messages
+    kind: type = float
+    minimum: float = 0.0
+    exclusive: bool = True
+    normalise: Callable[[list[float]], object] | None = None
 
 
 @dataclass(frozen=True)
