@@ -24,7 +24,7 @@ from pathlib import Path
 from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, MAX_SEED, Checks
 from hg2prism.model.world import World, plain
 
-from hg2prism.errors import InputError
+from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
@@ -99,7 +99,7 @@ def _as_arguments(verb: str, renamed: dict[str, str] | None = None):
     try:
         yield
     except InputError as err:
-        if err.file != "command line":
+        if err.file != COMMAND_LINE:
             raise
         option, _, rest = err.key.partition(" ")
         key = (renamed or {}).get(option, option.lstrip("-").replace("-", "_"))

@@ -13,7 +13,7 @@ from typing import Callable
 
 from hg2prism import __version__, memory, progress
 from hg2prism.engines import default as default_engine
-from hg2prism.errors import InputError, SolverError, StormError
+from hg2prism.errors import COMMAND_LINE, InputError, SolverError, StormError
 from hg2prism.strategy.records import StrategyError
 from hg2prism.model import sizeguard
 from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
@@ -221,18 +221,18 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
     from hg2prism.experiments import sweep
 
     if len(args.param) != len(args.values):
-        raise InputError("command line", "--values", "each --param needs its own "
+        raise InputError(COMMAND_LINE, "--values", "each --param needs its own "
                          "--values, right after it")
     if args.workers is not None and args.workers < 1:
-        raise InputError("command line", "--workers", "must be at least 1")
+        raise InputError(COMMAND_LINE, "--workers", "must be at least 1")
     if args.workers is not None and args.scheduler is not None:
-        raise InputError("command line", "--scheduler", "the cluster at --scheduler has "
+        raise InputError(COMMAND_LINE, "--scheduler", "the cluster at --scheduler has "
                          "its own workers; leave out --workers")
     if world.types:         # adaptive deception: the prior is swept (docs/adaptive.md)
         from hg2prism.experiments.adaptive import parse_weights
 
         if args.param != ["weight"]:
-            raise InputError("command line", "--param", "a world with P2's types sweeps "
+            raise InputError(COMMAND_LINE, "--param", "a world with P2's types sweeps "
                              "--param weight (the first type's prior weight) only")
         parse_weights(args.values[0])
         return
@@ -263,14 +263,14 @@ def _simulation_options(args: argparse.Namespace, world: object) -> None:
     for option, most in (("episodes", world_mod.MAX_EPISODES), ("horizon", world_mod.MAX_HORIZON)):
         given = getattr(args, option)
         if given is not None and given < 1:
-            raise InputError("command line", f"--{option}", "must be at least 1")
+            raise InputError(COMMAND_LINE, f"--{option}", "must be at least 1")
         if given is not None and given > most:
-            raise InputError("command line", f"--{option}", f"must be at most {most:,} "
+            raise InputError(COMMAND_LINE, f"--{option}", f"must be at most {most:,} "
                              f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
     if args.seed is not None and args.seed < 0:
-        raise InputError("command line", "--seed", "must be at least 0")
+        raise InputError(COMMAND_LINE, "--seed", "must be at least 0")
     if args.seed is not None and args.seed > world_mod.MAX_SEED:
-        raise InputError("command line", "--seed", f"must be at most {world_mod.MAX_SEED:,} "
+        raise InputError(COMMAND_LINE, "--seed", f"must be at most {world_mod.MAX_SEED:,} "
                          f"({world_mod.LIMIT_REASON['--seed']}), got {args.seed:,}")
 
 
@@ -280,13 +280,13 @@ def _bound_option(args: argparse.Namespace, world: object) -> None:
     if args.bound is None:
         return
     if args.objective != "bounded":
-        raise InputError("command line", "--bound", "needs --objective bounded")
+        raise InputError(COMMAND_LINE, "--bound", "needs --objective bounded")
     if args.bound < 1:
-        raise InputError("command line", "--bound", "must be at least 1")
+        raise InputError(COMMAND_LINE, "--bound", "must be at least 1")
     if args.bound > MAX_HORIZON:
-        raise InputError("command line", "--bound", f"must be at most {MAX_HORIZON:,}, got {args.bound:,}")
+        raise InputError(COMMAND_LINE, "--bound", f"must be at most {MAX_HORIZON:,}, got {args.bound:,}")
     if args.command == "run" and args.bound != (args.horizon or world.simulation.horizon):
-        raise InputError("command line", "--bound", "with run, the bound is the "
+        raise InputError(COMMAND_LINE, "--bound", "with run, the bound is the "
                          "simulation horizon; use --horizon instead")
 
 
@@ -417,7 +417,7 @@ def _convert(args: argparse.Namespace, world: object) -> int:
         return 0
     out = Path(args.out)
     if out.is_dir():
-        raise InputError("command line", "--out", f"{out} is a folder; expected a file name")
+        raise InputError(COMMAND_LINE, "--out", f"{out} is a folder; expected a file name")
     check_writable(out.parent)
     write_text(out, text)
     print(f"{out}: written, the arena form of {world.name} ({arena_of(world).n_states} states)")
@@ -533,14 +533,14 @@ def _perform(args: argparse.Namespace) -> int:
                          + (f" --objective {args.objective}" if args.command in ("check", "run")
                             else ""))
     if getattr(args, "prism_pomdp", False) and not world.types:
-        raise InputError("command line", "--prism-pomdp", "PRISM's POMDP engine runs on the "
+        raise InputError(COMMAND_LINE, "--prism-pomdp", "PRISM's POMDP engine runs on the "
                          "POMDP form of a world with P2's types ([[type]], docs/semantics.md "
                          "§16); this world has one [inference]")
     if command.alone is not None:
         return command.alone(args, world)
     out = _out_dir(Path(args.world), args.out)
     if args.max_states is not None and args.max_states < 1:
-        raise InputError("command line", "--max-states", "must be at least 1")
+        raise InputError(COMMAND_LINE, "--max-states", "must be at least 1")
     command.guard(args, world)
     check_writable(out)
     command.options(args, world)

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 
+COMMAND_LINE = "command line"   # the InputError "file" of a bad option or option value
+
+
 class InputError(Exception):
     """Bad user input. The CLI prints it as one line and exits with status 2."""
 

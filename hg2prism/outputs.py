@@ -14,7 +14,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from hg2prism.errors import InputError
+from hg2prism.errors import COMMAND_LINE, InputError
 
 
 _UMASK = os.umask(0)
@@ -88,19 +88,19 @@ def check_writable(out: Path, what: str = "--out") -> None:
     that a command fails before its work rather than after it."""
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise InputError("command line", what, f"{out} exists and is not a folder")
+        raise InputError(COMMAND_LINE, what, f"{out} exists and is not a folder")
     existing = out
     while not existing.exists():
         if existing.parent == existing:
             break
         existing = existing.parent
     if not existing.is_dir():
-        raise InputError("command line", what, f"{existing} is not a folder, so {out} cannot be made")
+        raise InputError(COMMAND_LINE, what, f"{existing} is not a folder, so {out} cannot be made")
     try:    # os.access says yes to root on read-only file systems: try it
         tempfile.TemporaryDirectory(dir=existing, prefix=".hg2prism-probe-").cleanup()
     except OSError as err:
         made = "" if existing == out else f", so {out} cannot be made"
-        raise InputError("command line", what, f"cannot write in {existing} "
+        raise InputError(COMMAND_LINE, what, f"cannot write in {existing} "
                          f"({err.strerror or err}){made}") from None
 
 

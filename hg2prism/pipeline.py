@@ -21,7 +21,7 @@ from hg2prism.frontends import transition_system as build_transition_system
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.opponent.perceptual_games import (PerceptualGame, SharedParts, perceptual_game,
                                                 solve_game)
-from hg2prism.errors import InputError, probability
+from hg2prism.errors import COMMAND_LINE, InputError, probability
 from hg2prism.progress import say, warn
 from hg2prism.strategy.canonical import CanonicalMDP, canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import StormChoices, deceptive_actions, storm_choices
@@ -190,7 +190,7 @@ def _objective_strategy(objective: str, bound: int | None, structure: ModelStruc
         dtmc = functools.partial(stationary_dtmc, mdp, action, decoded, ts, initial)
         return strategy, RecordExtras(move_values), dtmc, None, checked.value
     if mdp.n * bound > MAX_BOUNDED_PAIRS:
-        raise InputError("command line", "--bound",
+        raise InputError(COMMAND_LINE, "--bound",
                          f"{mdp.n:,} hypergame states x {bound:,} steps is more than the "
                          f"{MAX_BOUNDED_PAIRS:,} (state, step) pairs the bounded objective keeps")
     bounded = bounded_actions(mdp, action, initial, bound)
@@ -201,7 +201,7 @@ def _objective_strategy(objective: str, bound: int | None, structure: ModelStruc
             return unfolded_dtmc(mdp, bounded.action_at, decoded, ts, initial, bound,
                                  MAX_BOUNDED_PAIRS)
         except ValueError as err:
-            raise InputError("command line", "--bound", str(err)) from None
+            raise InputError(COMMAND_LINE, "--bound", str(err)) from None
 
     extras = RecordExtras(move_values, bounded.schedules(), bounded.move_values)
     return strategy, extras, dtmc, bounded, bounded.value
@@ -211,13 +211,13 @@ def _objective_bound(world: World, objective: str, bound: int | None) -> int | N
     """The bound of the bounded objective (by default the world's simulation horizon), None for
     the others; an unknown objective or a bound below 1 is refused."""
     if objective not in OBJECTIVES:
-        raise InputError("command line", "--objective",
+        raise InputError(COMMAND_LINE, "--objective",
                          f"must be one of {', '.join(OBJECTIVES)}, got {objective!r}")
     if objective != "bounded":
         return None
     bound = world.simulation.horizon if bound is None else bound
     if bound < 1:
-        raise InputError("command line", "--bound", "must be at least 1")
+        raise InputError(COMMAND_LINE, "--bound", "must be at least 1")
     return bound
 
 
@@ -319,7 +319,7 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     rule = parse_episode_rule(episode)     # before any work: a bad rule is one line
     if objective == "bounded":
         if bound is not None and bound != horizon:
-            raise InputError("command line", "--bound",
+            raise InputError(COMMAND_LINE, "--bound",
                              f"with run, the bound is the simulation horizon ({horizon}); "
                              f"got {bound}")
         bound = horizon

@@ -21,7 +21,7 @@ import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from hg2prism.errors import InputError
+from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism.model.validation import MAX_SEED
 from hg2prism.strategy.policy import Policy
 
@@ -62,7 +62,7 @@ def parse_episode_rule(text: str | EpisodeRule | None) -> EpisodeRule:
     match = _SEED_RULE.fullmatch(value)
     if match and int(match.group(1)) <= MAX_SEED:
         return EpisodeRule("seed", int(match.group(1)))
-    raise InputError("command line", "--episode", "expected median, shortest or seed=N with N "
+    raise InputError(COMMAND_LINE, "--episode", "expected median, shortest or seed=N with N "
                      f"an integer in [0, {MAX_SEED:,}], got {value!r}")
 
 

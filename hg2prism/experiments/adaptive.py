@@ -23,7 +23,7 @@ from hg2prism.analyses.simulation import leader_fallback
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
 from hg2prism.engines.engine import BuiltModel, ModelChecker
-from hg2prism.errors import probability
+from hg2prism.errors import COMMAND_LINE, probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_csv, write_json, write_text
 from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
@@ -402,7 +402,7 @@ def parse_weights(values: list[str]) -> list[float]:
         except ValueError:
             weight = float("nan")
         if not 0.0 <= weight <= 1.0:
-            raise InputError("command line", "--values", f"a weight is a number in [0, 1], "
+            raise InputError(COMMAND_LINE, "--values", f"a weight is a number in [0, 1], "
                              f"got {value!r}")
         weights.append(weight)
     return weights

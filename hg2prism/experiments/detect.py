@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from hg2prism.errors import InputError
+from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism.model.world import World
 from hg2prism import progress
 from hg2prism.outputs import write_json
@@ -49,7 +49,6 @@ STEPS_AFTER_DEVIATION = 3
 SEED_SEARCH = 1000
 MAX_DETECTION_EPISODES = 2000
 
-_CLI = "command line"
 FALLBACKS = ("robust", "leader")
 DEFAULT_FALLBACK_DELTA = 0.1
 
@@ -59,13 +58,13 @@ def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | No
     DEFAULT_FALLBACK_DELTA); InputError (key --fallback or --fallback-delta)."""
     if fallback is None:
         if delta is not None:
-            raise InputError(_CLI, "--fallback-delta", "needs --fallback robust")
+            raise InputError(COMMAND_LINE, "--fallback-delta", "needs --fallback robust")
         return None, None
     if fallback not in FALLBACKS:
-        raise InputError(_CLI, "--fallback", f"{fallback!r} is not one of {', '.join(FALLBACKS)}")
+        raise InputError(COMMAND_LINE, "--fallback", f"{fallback!r} is not one of {', '.join(FALLBACKS)}")
     if fallback == "leader":
         if delta is not None:
-            raise InputError(_CLI, "--fallback-delta", "only the robust fallback has a budget")
+            raise InputError(COMMAND_LINE, "--fallback-delta", "only the robust fallback has a budget")
         return fallback, None
     if delta is None:
         return fallback, DEFAULT_FALLBACK_DELTA
@@ -74,7 +73,7 @@ def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | No
     try:
         (parsed,) = parse_deltas([delta])
     except InputError as err:
-        raise InputError(_CLI, "--fallback-delta", err.reason) from None
+        raise InputError(COMMAND_LINE, "--fallback-delta", err.reason) from None
     return fallback, parsed
 
 
@@ -223,7 +222,7 @@ _OUTCOME = {0: "failed", 1: "task completed", 2: "cut by the horizon"}
 def _check_positive(value: int | None, key: str, minimum: int) -> None:
     if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                               or value < minimum):
-        raise InputError(_CLI, key, f"must be an integer >= {minimum}, got {value!r}")
+        raise InputError(COMMAND_LINE, key, f"must be an integer >= {minimum}, got {value!r}")
 
 
 def _replanning_rates(summary: SimulationSummary) -> dict:

@@ -32,7 +32,7 @@ import numpy as np
 from hg2prism import progress
 from hg2prism.engines import default
 from hg2prism.engines.engine import ModelChecker
-from hg2prism.errors import InputError, probability
+from hg2prism.errors import COMMAND_LINE, InputError, probability
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes, write_csv, write_json
 from hg2prism.strategy.policy import Policy
@@ -45,7 +45,6 @@ if TYPE_CHECKING:
 __all__ = ["parse_deltas", "RobustSolved", "solve_budget", "solve_budgets", "robust_strategy_for",
            "robust", "robust_summary_lines"]
 
-_CLI = "command line"
 WORST_CASE_TOLERANCE = 1e-9    # the exported strategy must guarantee R_delta within this
 _CSV_COLUMNS = ("robust_value", "nominal_worst_case", "robust_strategy_nominal_value", "states",
                 "storm_states", "storm_robust_value_eps", "seconds")
@@ -54,7 +53,7 @@ _CSV_COLUMNS = ("robust_value", "nominal_worst_case", "robust_strategy_nominal_v
 def parse_deltas(values: Sequence[object]) -> list[float]:
     """Distinct budgets in [0, 1), as typed on the command line; InputError (key --deltas)."""
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(_CLI, "--deltas", "expected at least one deviation budget in [0, 1)")
+        raise InputError(COMMAND_LINE, "--deltas", "expected at least one deviation budget in [0, 1)")
     parsed: list[float] = []
     for value in values:
         try:
@@ -62,9 +61,9 @@ def parse_deltas(values: Sequence[object]) -> list[float]:
         except (TypeError, ValueError):
             number = math.nan
         if not (math.isfinite(number) and 0.0 <= number < 1.0):
-            raise InputError(_CLI, "--deltas", f"{value!r} is not a deviation budget in [0, 1)")
+            raise InputError(COMMAND_LINE, "--deltas", f"{value!r} is not a deviation budget in [0, 1)")
         if number in parsed:
-            raise InputError(_CLI, "--deltas", f"{value} is repeated; expected distinct budgets")
+            raise InputError(COMMAND_LINE, "--deltas", f"{value} is repeated; expected distinct budgets")
         parsed.append(number)
     return parsed
 
@@ -267,7 +266,7 @@ def _check_cross_checkable(world: World, deltas: list[float], eps: float) -> Non
     least = eps * (p2_action_count(world) - 1)
     for delta in deltas:
         if 0 < delta < least:
-            raise InputError(_CLI, "--deltas", f"{delta:g} is below {least:g}, the least budget "
+            raise InputError(COMMAND_LINE, "--deltas", f"{delta:g} is below {least:g}, the least budget "
                              f"the cross-check's model can give each of P2's other sets "
                              f"eps = {eps:g}; use 0, a larger budget, or --no-cross-check")
 

@@ -48,7 +48,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from hg2prism.errors import InputError
+from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism import frontends
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
@@ -61,7 +61,6 @@ __all__ = ["SweepParameter", "SWEEP_PARAMETERS", "OWNED_PATTERN", "parse_sweep_v
            "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
            "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
-_CLI = "command line"
 
 Value = Any     # int | float today; a parameter's parser decides (e.g. a name, later)
 
@@ -88,10 +87,10 @@ class SweepParameter:
         """InputError (one line) when this parameter does not apply to `world`."""
         kind = frontends.kind_of(world)
         if self.front_end is not None and self.front_end != kind:
-            raise InputError(_CLI, f"--param {self.name}", f"applies to {self.front_end} "
+            raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to {self.front_end} "
                              f"worlds only; {world.name} is an {kind} world")
         if self.name == "traps" and world.arena is not None and not world.arena.traps_mode:
-            raise InputError(_CLI, f"--param {self.name}", f"applies to worlds whose P2 sets "
+            raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to worlds whose P2 sets "
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
@@ -162,7 +161,7 @@ def _with_observer(world: World, kind: str) -> World:
     try:
         return configure(world, kind)
     except ValueError as missing:
-        raise InputError(_CLI, "--values", f"switching a {observer_kind(world.inference).title} "
+        raise InputError(COMMAND_LINE, "--values", f"switching a {observer_kind(world.inference).title} "
                          f"world to {kind} "
                          f"needs a {missing}; sweep inference from a {kind} world") from None
 
@@ -173,13 +172,13 @@ def _with_setting(name: str) -> Callable[[World, Value], World]:
     def apply(world: World, value: Value) -> World:
         kind = observer_kind(world.inference)
         if name not in kind.keys():
-            raise InputError(_CLI, "--param", f"the {kind.title} observer has no {name}; "
+            raise InputError(COMMAND_LINE, "--param", f"the {kind.title} observer has no {name}; "
                              f'sweeping {name} needs [inference] kind = "{owner(name).name}"')
         try:
             return configure(world, **{name: value})
         except InputError as err:
             shown = _value_text(value) if isinstance(value, (list, tuple)) else value
-            raise InputError(_CLI, "--values", f"{name} {shown}: {err.reason}") from None
+            raise InputError(COMMAND_LINE, "--values", f"{name} {shown}: {err.reason}") from None
     return apply
 
 
@@ -211,10 +210,10 @@ def _with_first_guess(world: World, first: int) -> World:
     the world's (a Bayesian one's follows her prior)."""
     kind = observer_kind(world.inference)
     if kind.first_guess is not None:
-        raise InputError(_CLI, "--param", f"the {kind.title} observer's first guess follows "
+        raise InputError(COMMAND_LINE, "--param", f"the {kind.title} observer's first guess follows "
                          f"her prior; sweep prior instead of initial_hypothesis")
     if first >= len(world.hypotheses):
-        raise InputError(_CLI, "--values", f"initial_hypothesis value {first} must be an "
+        raise InputError(COMMAND_LINE, "--values", f"initial_hypothesis value {first} must be an "
                          f"index into the world's {len(world.hypotheses)} hypotheses")
     return replace(world, initial_hypothesis=first)
 
@@ -222,7 +221,7 @@ def _with_first_guess(world: World, first: int) -> World:
 def _check_traps(world: World, traps: int) -> None:
     candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
-        raise InputError(_CLI, "--values", f"traps value {traps} must be at most the world's "
+        raise InputError(COMMAND_LINE, "--values", f"traps value {traps} must be at most the world's "
                                            f"{candidates} trap candidates")
 
 
@@ -264,9 +263,9 @@ def _parse_value(parameter: str, value: object) -> Value:
         return spec.parse(value)
     except ValueError as err:
         if str(err) == "is not":
-            raise InputError(_CLI, "--values",
+            raise InputError(COMMAND_LINE, "--values",
                              f"{parameter} value {shown!r} is not {spec.expected}") from None
-        raise InputError(_CLI, "--values",
+        raise InputError(COMMAND_LINE, "--values",
                          f"{parameter} value {shown} must be {spec.expected}") from None
 
 
@@ -275,15 +274,15 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     (strings as typed on the command line are parsed). Raises InputError (key --param or
     --values)."""
     if parameter not in SWEEP_PARAMETERS:
-        raise InputError(_CLI, "--param", f"unknown parameter {parameter!r}; expected one of "
+        raise InputError(COMMAND_LINE, "--param", f"unknown parameter {parameter!r}; expected one of "
                          + ", ".join(SWEEP_PARAMETERS) + " (weight: for a world with P2's types)")
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(_CLI, "--values", f"expected at least one value of {parameter} "
+        raise InputError(COMMAND_LINE, "--values", f"expected at least one value of {parameter} "
                                            f"({SWEEP_PARAMETERS[parameter].expected})")
     parsed = [_parse_value(parameter, v) for v in values]
     for i, v in enumerate(parsed):
         if v in parsed[:i]:
-            raise InputError(_CLI, "--values", f"{parameter} value {v} is repeated; expected "
+            raise InputError(COMMAND_LINE, "--values", f"{parameter} value {v} is repeated; expected "
                                                "distinct values")
     return parsed
 
@@ -293,11 +292,11 @@ def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
     """Validate several (parameter, values) pairs: each as in :func:`parse_sweep_values`, and
     no parameter twice."""
     if not grid:
-        raise InputError(_CLI, "--param", "expected at least one parameter to sweep")
+        raise InputError(COMMAND_LINE, "--param", "expected at least one parameter to sweep")
     parsed: list[tuple[str, list[Value]]] = []
     for parameter, values in grid:
         if any(parameter == seen for seen, _ in parsed):
-            raise InputError(_CLI, "--param", f"{parameter} is given twice; give all its values "
+            raise InputError(COMMAND_LINE, "--param", f"{parameter} is given twice; give all its values "
                                               "after one --values")
         parsed.append((parameter, parse_sweep_values(parameter, values)))
     return parsed
@@ -604,7 +603,7 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
                 try:
                     client = Client(scheduler, timeout="10s")
                 except (OSError, TimeoutError, ValueError) as err:
-                    raise InputError(_CLI, "--scheduler", f"cannot reach a Dask scheduler at "
+                    raise InputError(COMMAND_LINE, "--scheduler", f"cannot reach a Dask scheduler at "
                                                           f"{scheduler}: {err}") from None
         try:
             # largest first (by the size estimate), so that a big point does not start last
@@ -701,7 +700,7 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     guard, as any program starting processes by spawning does.
     """
     if workers < 1:
-        raise InputError(_CLI, "--workers", f"must be at least 1, got {workers}")
+        raise InputError(COMMAND_LINE, "--workers", f"must be at least 1, got {workers}")
     parsed, points = check_grid(world, grid, max_states)
     tasks = _tasks(world, points, storm_method, max_states, deception)
     out = Path(out)
