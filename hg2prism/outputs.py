@@ -125,8 +125,24 @@ def _join_pool_workers(timeout: float = 10.0) -> None:
                     time.sleep(0.001)
 
 
-# The record files whose "world" names the world a folder's outputs are of.
+# The record files whose "world" names the world a folder's outputs are of, and the models
+# whose header gives its digest (`emit` writes no record).
 _RECORDS = ("results.json", "robust.json", "detection.json", "sweep.json")
+_MODELS = ("hypergame.prism", "adaptive.prism")
+_DIGEST_LINE = re.compile(r"// digest {7}(sha256:[0-9a-f]+)$")
+
+
+def _model_digest(path: Path) -> str | None:
+    """The world digest in the header of a model hg2prism wrote (its first lines)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as handle:
+            for _, line in zip(range(12), handle):
+                found = _DIGEST_LINE.match(line.rstrip("\n"))
+                if found:
+                    return found.group(1)
+    except OSError:
+        pass
+    return None
 
 
 def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
@@ -146,6 +162,8 @@ def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
             return True
         if digest is not None and isinstance(digested, str) and digested != digest:
             return True
+    if digest is not None:
+        return any(_model_digest(out / name) not in (None, digest) for name in _MODELS)
     return False
 
 

@@ -419,6 +419,26 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path) -> None:
     assert json.loads((out / "results.json").read_text())["world_digest"] != digest
 
 
+def test_emits_model_is_judged_by_the_digest_in_its_header(tmp_path: Path) -> None:
+    """`emit` writes no record, only the model: its header's digest says whose it is. A sweep of
+    another world into the folder left the emitted model beside its own outputs (analysis
+    stress test); now it removes it, and keeps the model of the same world."""
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    world = small_world(tmp_path, {"window = 2": "window = 1"})
+    for out, other in ((tmp_path / "same", WORLD1), (tmp_path / "other", str(world))):
+        with quiet():
+            assert main(["emit", WORLD1, "--out", str(out)]) == 0
+            assert main(["sweep", other, "--param", "rationality", "--values", "1",
+                         "--out", str(out)]) == 0
+        names = {p.name for p in out.iterdir()}
+        assert "sweep.json" in names
+        assert ("hypergame.prism" in names) == (other == WORLD1), (other, names)
+    assert f"// digest       {load_world(WORLD1).digest()}\n" in (
+        tmp_path / "same" / "hypergame.prism").read_text()
+
+
 def test_the_digest_is_the_worlds_content() -> None:
     """World.digest(): equal for equal worlds (another path, a list for a tuple, numpy's
     numbers), different for any change (a setting, the map, an arena's table)."""
