@@ -242,6 +242,15 @@ def test_explorer_in_chromium(name: str, runs: dict[str, Path], browser, tmp_pat
     other = page.evaluate(READ_STATE)
     assert other["step"] == 0 and other["episode"]["seed"] == str(
         drawn["seed"] + 1 if drawn["seed"] < drawn["seed_set"][1] else drawn["seed_set"][0])
+    # with the focus on the episode list (after choosing from it), the arrows still step
+    page.select_option("#seed", index=0)
+    page.focus("#seed")
+    chosen = page.evaluate(READ_STATE)
+    page.keyboard.press("ArrowRight")
+    stepped = page.evaluate(READ_STATE)
+    assert stepped["step"] == chosen["step"] + 1 and stepped["episode"] == chosen["episode"]
+    page.keyboard.press("ArrowDown")             # the list's own key: the next episode
+    assert page.evaluate(READ_STATE)["episode"] != chosen["episode"]
     if name == "world3":       # the feint: she changes her mind during the drawn episode
         assert changes
     shot = tmp_path / f"{name}.png"
