@@ -130,7 +130,7 @@ def _run_parser(sub: Subparsers) -> None:
                         "replay of one episode (replay.gif) and explorer.html, a self-contained "
                         "page stepping through it and its candidate episodes.")
     _episode_options(p, "simulated episodes (default: the world's)")
-    p.add_argument("--episode", metavar="RULE", default="median",
+    p.add_argument("--episode", metavar="RULE", default=None,
                    help="the episode world.png, belief.png, replay.gif and explorer.html draw: median "
                         "(default: a median-length completed episode of the seeds "
                         "SEED..SEED+49), shortest (the shortest of them) or seed=N "
@@ -532,6 +532,10 @@ def _perform(args: argparse.Namespace) -> int:
                          f"objective and by sweep --param weight only, not by {args.command}"
                          + (f" --objective {args.objective}" if args.command in ("check", "run")
                             else ""))
+    if world.types and getattr(args, "episode", None) is not None:
+        raise InputError(COMMAND_LINE, "--episode", "a world with P2's types draws the episode "
+                         "of adaptive_belief.png with --seed (its type too, from the prior); "
+                         "--episode picks the figures' episode of a world with one [inference]")
     if getattr(args, "prism_pomdp", False) and not world.types:
         raise InputError(COMMAND_LINE, "--prism-pomdp", "PRISM's POMDP engine runs on the "
                          "POMDP form of a world with P2's types ([[type]], docs/semantics.md "

@@ -71,6 +71,28 @@ def quiet() -> Iterator[None]:
 
 
 @contextmanager
+def each_warning_once() -> Iterator[None]:
+    """Inside, a warning given again word for word is not shown again (adaptive deception checks
+    each of P2's types alike: "Storm method 'fast' is not sound" came once per type)."""
+    seen: set[str] = set()
+
+    def first(record: logging.LogRecord) -> bool:
+        if record.levelno < logging.WARNING:
+            return True
+        message = record.getMessage()
+        if message in seen:
+            return False
+        seen.add(message)
+        return True
+
+    LOGGER.addFilter(first)
+    try:
+        yield
+    finally:
+        LOGGER.removeFilter(first)
+
+
+@contextmanager
 def collected_warnings() -> Iterator[list[str]]:
     """Warnings given inside are collected into the yielded list instead of shown (a sweep's
     point, possibly in another process, hands them back to be shown with `replay_warning`)."""

@@ -338,7 +338,18 @@ def test_prism_pomdp_not_asked_or_not_found(tmp_path, monkeypatch):
     r = check_adaptive(world, tmp_path / "b", prism=True)
     assert r.results["prism_pomdp"] == {"status": adaptive.NOT_FOUND}
     assert adaptive.NOT_FOUND in r.table and "v_adapt" in r.results
+    # $PRISM naming no executable (it was "error: [Errno 2] No such file or directory")
+    monkeypatch.setenv("PRISM", str(tmp_path / "nowhere" / "prism"))
+    r = check_adaptive(world, tmp_path / "c", prism=True, storm_method="fast")
+    assert r.results["prism_pomdp"]["status"].startswith(
+        f"not run: PRISM not found: {tmp_path / 'nowhere' / 'prism'} is not an executable")
     monkeypatch.undo()
+    # --episode picks the figures' episode of a world with one [inference]; a world with types
+    # ignored it silently
+    done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(path), "--episode",
+                           "seed=3", "--out", str(tmp_path / "e")], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+    assert ": --episode: " in done.stderr and not (tmp_path / "e").exists()
     plain = tmp_path / "plain.toml"
     plain.write_text(typegen.worldgen.make_world(3, window=1, traps=1))
     done = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(plain), "--prism-pomdp",
@@ -400,3 +411,26 @@ def _bad_adaptive_records_are_strategy_errors(records, game, result) -> None:
         with pytest.raises(StrategyError, match="adaptive strategy record 0") as err:
             adaptive_policy([bad, *records[1:]], game, names)
         assert word in str(err.value)
+
+
+def test_a_warning_every_type_gives_is_shown_once(tmp_path, caplog):
+    """`check --storm-method fast` on a world with two types warned "not sound" once per type:
+    a warning repeated word for word within one adaptive check is shown once (others are not
+    merged)."""
+    import logging
+
+    from hg2prism import progress
+
+    path = tmp_path / "typed.toml"
+    path.write_text(typegen.typed_world(3))
+    with caplog.at_level(logging.WARNING, logger="hg2prism"):
+        check_adaptive(load_world(path), tmp_path / "a", storm_method="fast")
+        with progress.each_warning_once():
+            progress.warn("one")
+            progress.warn("two")
+            progress.warn("one")
+        progress.warn("one")            # outside: shown again
+    unsound = [r for r in caplog.records if "is not sound" in r.getMessage()]
+    assert len(unsound) == 1
+    assert [r.getMessage() for r in caplog.records if "sound" not in r.getMessage()
+            ][-3:] == ["warning: one", "warning: two", "warning: one"]

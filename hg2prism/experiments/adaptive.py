@@ -28,7 +28,7 @@ from hg2prism.model.world import World
 from hg2prism.outputs import write_csv, write_json, write_text
 from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
 from hg2prism.prism.hypergame import PROPERTY
-from hg2prism.progress import say, warn
+from hg2prism.progress import each_warning_once, say, warn
 from hg2prism.results import CheckResult, provenance
 from hg2prism.strategy.adaptive import AdaptiveStrategy, adaptive_strategy
 from hg2prism.strategy.records import Strategy
@@ -90,7 +90,15 @@ def check_adaptive(world: World, out: Path, storm_method: str = "sound",
     (True: the PRISM that find_prism finds; or the path of a PRISM executable) also PRISM's
     POMDP bounds on the POMDP form (grid resolution `prism_resolution`); with
     `simulation` (episodes, horizon, seed) the adaptive strategy's simulated episodes beside
-    the exact within-horizon numbers."""
+    the exact within-horizon numbers. A warning each type's check gives alike is shown once."""
+    with each_warning_once():
+        return _check_adaptive(world, out, storm_method, engine, prism, simulation,
+                               prism_resolution)
+
+
+def _check_adaptive(world: World, out: Path, storm_method: str, engine: ModelChecker | None,
+                    prism: bool | str, simulation: tuple[int, int, int] | None,
+                    prism_resolution: int) -> AdaptiveResult:
     from hg2prism import pipeline
 
     engine = engine or default_engine()
@@ -243,10 +251,14 @@ def prism_pomdp(asked: bool | str, path: Path, v_adapt: float,
     bracket V_adapt, or why it was not run."""
     if not asked:
         return {"status": NOT_ASKED}
+    import shutil
+
     prism = asked if isinstance(asked, str) else find_prism()
-    if prism is None:
-        warn("PRISM's POMDP engine: " + NOT_FOUND)
-        return {"status": NOT_FOUND}
+    if prism is None or shutil.which(prism) is None:
+        status = NOT_FOUND if prism is None else NOT_FOUND.replace(
+            "not found", f"not found: {prism} is not an executable", 1)
+        warn("PRISM's POMDP engine: " + status)
+        return {"status": status}
     found = prism_pomdp_bounds(prism, path, seconds, resolution)
     if "error" in found:
         warn(f"PRISM's POMDP engine: {found['error']}")
