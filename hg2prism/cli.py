@@ -480,7 +480,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:      # not the main thread: leave signals alone
         previous = None
     try:
-        with progress.on_stderr():
+        with progress.on_stderr(), progress.each_warning_once():
             return _command(args)
     finally:
         if previous is not None:

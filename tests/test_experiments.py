@@ -451,3 +451,23 @@ def test_the_off_record_fallback_is_the_fastest_leader_answer_and_does_not_stall
         assert summary.off_record_steps > 1000
         truncated[name] = summary.truncated
     assert truncated["naive"] < 0.1 * 400 and truncated["slot order"] > 0.15 * 400, truncated
+
+
+def test_sweeping_the_observer_says_when_p2s_first_guess_changes(tmp_path: Path,
+                                                                  caplog) -> None:
+    """mir100's P2 first guesses x1; a Bayesian P2 with the uniform prior first guesses x0, so
+    `--param inference` compared first guesses as well as observers without a word (analysis
+    stress test): it now warns, once, and not for the world's own observer."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="hg2prism"):
+        rows = sweep.sweep(load_world(MODELS / "mir100.toml"), "inference", ["cusum", "bayes"],
+                           tmp_path / "out", show_progress=False)
+    said = [r.getMessage() for r in caplog.records if "first guess" in r.getMessage()]
+    assert said == ["warning: inference bayes: P2's first guess is x0 (the prior's most "
+                    "probable hypothesis), not the world's x1: the point compares first "
+                    "guesses as well as observers"]
+    first = {row["inference"]: json.loads((tmp_path / "out" / f"inference_{row['inference']}" /
+                                           "results.json").read_text())["parameters"]
+             for row in rows}
+    assert {k: v["initial_hypothesis"] for k, v in first.items()} == {"cusum": 1, "bayes": 0}

@@ -154,16 +154,23 @@ def _numbers(normalise: Callable[[list[float]], object] | None) -> Callable[[obj
 def _with_observer(world: World, kind: str) -> World:
     """The world with P2's observer switched (docs/semantics.md §12), window and rationality
     kept, each of the new kind's settings at its default (to "bayes": a uniform prior and the
-    "map" decision, so P2's first guess is hypothesis 0). Refused when the new kind has a
-    required setting (switching to "cusum" needs a threshold)."""
+    "map" decision, so P2's first guess is hypothesis 0: a warning says so where the world's
+    was another). Refused when the new kind has a required setting (switching to "cusum"
+    needs a threshold)."""
     if kind == world.inference:
         return world
     try:
-        return configure(world, kind)
+        switched = configure(world, kind)
     except ValueError as missing:
-        raise InputError(COMMAND_LINE, "--values", f"switching a {observer_kind(world.inference).title} "
-                         f"world to {kind} "
-                         f"needs a {missing}; sweep inference from a {kind} world") from None
+        raise InputError(COMMAND_LINE, "--values", f"switching a "
+                         f"{observer_kind(world.inference).title} world to {kind} needs a "
+                         f"{missing}; sweep inference from a {kind} world") from None
+    if switched.initial_hypothesis != world.initial_hypothesis:
+        rule = observer_kind(kind).first_guess_rule or "its own"
+        progress.warn(f"inference {kind}: P2's first guess is x{switched.initial_hypothesis} "
+                      f"({rule}), not the world's x{world.initial_hypothesis}: the point "
+                      f"compares first guesses as well as observers")
+    return switched
 
 
 def _with_setting(name: str) -> Callable[[World, Value], World]:
@@ -697,10 +704,19 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     stderr, with the count of points done. Raises InputError for a bad parameter or value, or
     when the size guard (`max_states`) refuses every point; other failures are per point.
     A script that calls this with ``workers > 1`` needs the ``if __name__ == "__main__":``
-    guard, as any program starting processes by spawning does.
+    guard, as any program starting processes by spawning does. A warning repeated word for word
+    (by the check of the grid and by the point's solve) is shown once.
     """
     if workers < 1:
         raise InputError(COMMAND_LINE, "--workers", f"must be at least 1, got {workers}")
+    with progress.each_warning_once():
+        return _sweep_grid(world, grid, out, show_progress, storm_method, workers, scheduler,
+                           max_states, deception)
+
+
+def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: Path,
+                show_progress: bool, storm_method: str, workers: int, scheduler: str | None,
+                max_states: int | None, deception: bool) -> SweepRun:
     parsed, points = check_grid(world, grid, max_states)
     tasks = _tasks(world, points, storm_method, max_states, deception)
     out = Path(out)
