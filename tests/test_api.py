@@ -658,3 +658,28 @@ def test_move_says_what_it_expected() -> None:
     with pytest.raises(KeyError, match=r"window entry \('x2_y4', 'E'\): expected \(state, "
                                        r"action, standing, countdown\)"):
         strategy.move(hypothesis=0, window=[("x2_y4", "E")], **start)
+
+
+@pytest.mark.parametrize("name, changes", [("world2", {"delay": 2}), ("world3_bayes", {}),
+                                           ("mir100", {"delay": 1})])
+def test_move_of_every_record_is_its_action(name: str, changes: dict) -> None:
+    """Strategy.move_of(record) reads a strategy.json record's state (window entries as the
+    file writes them: dicts): it gives the record's action on every record of a delayed grid
+    world, a Bayesian world and a delayed attack graph. Before, a record's window had to be
+    turned by hand into move()'s tuples, in another order (analysis stress test)."""
+    world = hg2prism.load_world(MODELS / f"{name}.toml")
+    if changes:
+        world = world.replace(**changes)
+    strategy = hg2prism.solve(world).strategy
+    assert len(strategy.records) > 30
+    assert all(strategy.move_of(record) == record["action"] for record in strategy.records)
+    one = strategy.records[-1]
+    assert strategy.move(**{k: one[k] for k in ("state", "q", "hypothesis", "window",
+                                                "standing", "countdown") if k in one}) \
+        == one["action"]
+    with pytest.raises(KeyError, match="a strategy.json record"):
+        strategy.move_of([one])
+    if one["window"]:
+        broken = {**one, "window": [{"state": one["window"][0]["state"]}]}
+        with pytest.raises(KeyError, match="no 'action'"):
+            strategy.move_of(broken)

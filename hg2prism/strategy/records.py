@@ -311,6 +311,18 @@ def read_record(ts: TransitionSystem, record: Mapping, where: str
 
 Fallback = Callable[[int, int, Memory], int]
 
+# The keys of a strategy.json record that name its hypergame state: Strategy.move's arguments.
+MOVE_KEYS = ("state", "q", "hypothesis", "window", "standing", "countdown")
+
+
+def _entry_tuple(entry: Mapping) -> tuple:
+    """A window entry as strategy.json writes it (a dict) as Strategy.move's tuple."""
+    try:
+        return ((entry["state"], entry["action"], entry.get("standing"), entry.get("countdown"))
+                + ((entry["played"],) if "played" in entry else ()))
+    except KeyError as missing:
+        raise StrategyError(f"window entry {dict(entry)!r}: no {missing}") from None
+
 
 class Strategy:
     """P1's memoryless deterministic strategy on hypergame states ``(ts_state, q, Memory)``.
@@ -380,7 +392,9 @@ class Strategy:
         (state, action, standing, countdown). For the Bayesian observer each entry is (state,
         action, standing, countdown, played), `played` the name of P2's action in force
         (standing and countdown None when delay is 0), and `hypothesis` the window's MAP
-        hypothesis. `step` is the number of steps taken so far: the action of a step-bounded
+        hypothesis. A window entry may also be given as strategy.json writes it, a dict with
+        the keys state, action (and standing, countdown, played); `move_of` takes a record.
+        `step` is the number of steps taken so far: the action of a step-bounded
         strategy (records with a ``schedule``) depends on it, from the bound on it stays the
         last step's; the other strategies ignore it.
         Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
@@ -403,6 +417,8 @@ class Strategy:
             v = at(state, standing, countdown)
             observed = []
             for entry in window:
+                if isinstance(entry, Mapping):
+                    entry = _entry_tuple(entry)
                 if len(entry) < (2 if ts.delay == 0 else 4):
                     raise StrategyError(f"window entry {tuple(entry)!r}: expected {shape} "
                                         "(and the action played, for a Bayesian observer)")
@@ -424,6 +440,14 @@ class Strategy:
                 if int(first) <= min(step, last) <= int(end):
                     return str(move)
         return ts.action_names(v)[self.table[key]]
+
+    def move_of(self, record: Mapping, step: int = 0) -> str:
+        """`move` in the hypergame state a strategy.json record names (its keys MOVE_KEYS; the
+        record may come from another strategy of the world, e.g. a robust one's)."""
+        if not isinstance(record, Mapping):
+            raise KeyError(f"move_of(): expected a strategy.json record (a dict), got "
+                           f"{type(record).__name__}")
+        return self.move(**{key: record[key] for key in MOVE_KEYS if key in record}, step=step)
 
     def record(self, ts_state: int, q: int, memory: Memory) -> Mapping | None:
         """The record (strategy.json's) of the hypergame state, None when there is none (or
