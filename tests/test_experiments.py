@@ -5,6 +5,7 @@ Fig. 5). The LRT statistic itself is tested in test_detection.py."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from pathlib import Path
 
@@ -401,6 +402,20 @@ def test_detection_experiment_rejects_bad_options(world2, tmp_path: Path) -> Non
     with pytest.raises(InputError):
         detect.detect(world, tmp_path / "out", episodes=0, show_progress=False)
     assert not (tmp_path / "out").exists()
+    # a horizon of at most deviate_after (4): P2 never deviates, every batch the compliant one
+    # (analysis stress test: all-zero bars, no word); deviate_after + 1 is accepted
+    after = world.detection.deviate_after
+    for run in (detect.detect, lambda *a, **k: detect.detection_experiment(a[0], world2, *a[1:],
+                                                                          **k)):
+        with pytest.raises(InputError, match=f"expected a horizon above {after}") as caught:
+            run(world, tmp_path / "out", horizon=after, show_progress=False)
+        assert caught.value.key == "--horizon"
+    short = world.replace(simulation=dataclasses.replace(world.simulation, horizon=after))
+    with pytest.raises(InputError, match=r"the world's \[simulation\] horizon"):
+        detect.detect(short, tmp_path / "out", show_progress=False)
+    assert not (tmp_path / "out").exists()
+    detect.detection_experiment(world, world2, tmp_path / "out", episodes=5, horizon=after + 1,
+                                show_progress=False)
 
 
 def test_detect_checks_elsewhere_and_writes_only_the_detection_files(tmp_path: Path) -> None:

@@ -295,6 +295,7 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     _check_positive(episodes, "--episodes", 1)
     _check_positive(seed, "--seed", 0)
     _check_positive(horizon, "--horizon", 1)
+    _check_deviation_fits(world, horizon)
     fallback, fallback_delta = parse_fallback(fallback, fallback_delta)
     out = Path(out)
     start_time = time.perf_counter()
@@ -532,6 +533,7 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
     _check_positive(episodes, "--episodes", 1)
     _check_positive(seed, "--seed", 0)
     _check_positive(horizon, "--horizon", 1)
+    _check_deviation_fits(world, horizon)
     parse_fallback(fallback, fallback_delta)
     with tempfile.TemporaryDirectory(prefix="hg2prism-detect-") as scratch:
         quiet = contextlib.nullcontext() if show_progress else progress.quiet()
@@ -539,6 +541,20 @@ def detect(world: World, out: Path, episodes: int | None = None, seed: int | Non
             checked = pipeline.check(world, Path(scratch), storm_method)
         return detection_experiment(world, checked, out, episodes, seed, show_progress, horizon,
                                     fallback, fallback_delta)
+
+
+def _check_deviation_fits(world: World, horizon: int | None) -> None:
+    """InputError when no episode can last past the steps P2 follows the model: with a horizon
+    of at most deviate_after P2 never deviates, and every batch is the compliant one."""
+    given = horizon is not None
+    horizon = horizon or world.simulation.horizon
+    after = world.detection.deviate_after
+    if horizon <= after:
+        raise InputError(COMMAND_LINE, "--horizon", f"a horizon of {horizon}"
+                         + ("" if given else " (the world's [simulation] horizon)")
+                         + f" ends every episode before P2 deviates: she follows the model "
+                         f"for {after} steps ([detection] deviate_after); expected a horizon "
+                         f"above {after}")
 
 
 def _setting(threshold: float | None, decision: str | None) -> str:

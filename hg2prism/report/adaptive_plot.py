@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from hg2prism.report.plots import BELIEF_INCHES, _axes, _done
 from hg2prism.report.style import hypothesis_colour
@@ -34,6 +35,7 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
         ax.axvline(singled, color="black", lw=0.8, alpha=0.6)
     ax.set_ylim(-0.03, 1.03)
     ax.set_xlim(0, max(len(values) - 1, 1))
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))      # steps (a short episode: 0.5)
     ax.set_xlabel("step n" + ("" if singled is None else
                               f" (P1's belief singles out P2's type at step {singled})"),
                   fontsize=8)

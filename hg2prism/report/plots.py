@@ -318,7 +318,9 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
                       world_name: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
     """A sweep over several parameters: the deceptive value (solid) and V_lead (dashed) against
     the first parameter, one colour per combination of the others' values; the same axis and
-    legend rules as :func:`sweep_figure`."""
+    legend rules as :func:`sweep_figure`. Each series' markers are smaller than the one's
+    before, so that series that coincide (traps 1 and 2 on mir100) show as rings around dots
+    rather than one hiding the other."""
     given = ax
     fig, ax = _axes(ax, SWEEP_INCHES)
     first, others = parameters[0], list(parameters[1:])
@@ -332,9 +334,10 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
         xs = [x_of(r[first]) for r in members]
         label = ", ".join(f"{p}={_value_text(v)}" for p, v in zip(others, key))
         colour = colours[n % len(colours)]
-        ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour,
-                label=f"deceptive, {label}")
-        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5,
+        size = max(3.0, 9.0 - 2.0 * n)
+        ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour, ms=size,
+                lw=max(0.8, 2.4 - 0.5 * n), label=f"deceptive, {label}")
+        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5, ms=size,
                 label=f"V_lead, {label}")
     return _finish_sweep(fig, ax, path, " x ".join(parameters), world_name, ncol=2, fontsize=7,
                          given=given)
