@@ -47,7 +47,7 @@ from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
 from hg2prism.numeric import ExplicitModel
-from hg2prism.numeric.tables import fold, outcome_sum
+from hg2prism.numeric.tables import fold, outcome_sum, ranges
 
 VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
 MAX_SWEEPS = 1_000_000
@@ -313,9 +313,8 @@ def _entered(entering: sp.csr_matrix, states: np.ndarray) -> np.ndarray:
     enter one of them."""
     start, stop = entering.indptr[states], entering.indptr[states + 1]
     lengths = stop - start
-    gather = np.arange(lengths.sum()) + np.repeat(start - np.cumsum(lengths) + lengths, lengths)
     hit = np.zeros(entering.shape[1], dtype=bool)
-    hit[entering.indices[gather]] = True
+    hit[entering.indices[ranges(start, lengths)]] = True
     return np.flatnonzero(hit)
 
 

@@ -26,6 +26,7 @@ from hg2prism.engines import certify
 from hg2prism.engines.engine import (BuiltModel, CheckedModel, PomdpValue, Transitions,
                                     slot_of_label)
 from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric.chains import CONVERGED
 from hg2prism.errors import StormError, probability
 
 PRECISION = "1/10000000000"   # 1e-10, docs/semantics.md §10
@@ -332,7 +333,6 @@ def induced_probability(checked: StormChecked, choice: np.ndarray,
     return _dtmc_value(_induced_dtmc(checked, choice), prop)
 
 
-CONVERGED = 1e-12   # a bounded probability this close to the unbounded one is taken as final
 
 
 def induced_within(checked: StormChecked, choice: np.ndarray, horizon: int) -> float:

@@ -8,6 +8,7 @@ import scipy.sparse as sp
 import scipy.sparse.csgraph as csgraph
 
 from hg2prism.numeric.model import ExplicitModel
+from hg2prism.numeric.tables import ranges
 
 
 def backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
@@ -79,9 +80,7 @@ def attractor(model: ExplicitModel, target: np.ndarray, every: bool | np.ndarray
     while frontier.size:
         level += 1
         lengths = start[frontier + 1] - start[frontier]
-        gather = np.arange(lengths.sum()) + np.repeat(start[frontier] - np.cumsum(lengths)
-                                                      + lengths, lengths)
-        found = choice_of[gather]
+        found = choice_of[ranges(start[frontier], lengths)]
         found = found[fresh[found]]
         fresh[found] = False
         states = owner[found]
@@ -224,8 +223,7 @@ def alternating_attractor(predecessors: tuple[np.ndarray, np.ndarray], shape: tu
     while frontier.size:
         level += 1
         lengths = start[frontier + 1] - start[frontier]
-        offsets = np.repeat(start[frontier] - np.cumsum(lengths) + lengths, lengths)
-        found = moves[np.arange(lengths.sum()) + offsets]
+        found = moves[ranges(start[frontier], lengths)]
         if allowed_moves is not None:
             found = found[allowed_moves[found]]
         reach[found] = True

@@ -7,6 +7,13 @@ from __future__ import annotations
 import numpy as np
 
 
+def ranges(start: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The indices start[i], ..., start[i] + lengths[i] - 1 of every i, concatenated in order:
+    the entries of some rows of a CSR-like table (rows given by their first entry and their
+    length), without a Python loop."""
+    return np.arange(lengths.sum()) + np.repeat(start - np.cumsum(lengths) + lengths, lengths)
+
+
 def outcome_sum(prob: np.ndarray, v: np.ndarray, nxt: np.ndarray) -> np.ndarray:
     """sum_k prob[..., k] * v[nxt[..., k]], added left to right one outcome slot at a time:
     bit-identical to (prob * v[nxt]).sum(-1) below 8 slots (numpy adds fewer than 8 terms left

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from hg2prism.report.plots import BELIEF_INCHES, _axes, _done
+from hg2prism.report.plots import BELIEF_INCHES, figure_axes, figure_done
 from hg2prism.report.style import hypothesis_colour
 
 __all__ = ["adaptive_belief_figure"]
@@ -22,7 +22,7 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
     step of the episode, P2's true type drawn bold (into `ax` when given, then writing
     nothing)."""
     given = ax
-    fig, ax = _axes(ax, BELIEF_INCHES)
+    fig, ax = figure_axes(ax, BELIEF_INCHES)
     values = np.asarray(beliefs, dtype=float)
     steps = np.arange(len(values))
     for k, name in enumerate(names):
@@ -45,7 +45,7 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world_name}: P1's belief over P2's types along the drawn episode "
                  f"(seed {seed}, {len(values) - 1} steps, {outcome})", fontsize=9)
-    return _done(fig, path, given)
+    return figure_done(fig, path, given)
 
 
 def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[dict],
@@ -53,7 +53,7 @@ def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[di
     """V_adapt, V_oracle and every V_commit(j) against the first type's prior weight (into
     `ax` when given, then writing nothing)."""
     given = ax
-    fig, ax = _axes(ax, BELIEF_INCHES)
+    fig, ax = figure_axes(ax, BELIEF_INCHES)
     weights = [row["weight"] for row in rows]
     ax.plot(weights, [row["v_oracle"] for row in rows], "k:", lw=1.2, label="V_oracle")
     ax.plot(weights, [row["v_adapt"] for row in rows], "k-o", ms=3, lw=1.8, label="V_adapt")
@@ -67,4 +67,4 @@ def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[di
     ax.tick_params(labelsize=7)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1), frameon=False)
     ax.set_title(f"{world_name}: adaptive deception against the prior", fontsize=9)
-    return _done(fig, path, given)
+    return figure_done(fig, path, given)

@@ -73,8 +73,8 @@ def _save(fig: Figure, path: Path) -> list[Path]:
     return written
 
 
-def _axes(ax: plt.Axes | None, inches: tuple[float, float], dpi: float | None = None
-          ) -> tuple[Figure, plt.Axes]:
+def figure_axes(ax: plt.Axes | None, inches: tuple[float, float], dpi: float | None = None
+                ) -> tuple[Figure, plt.Axes]:
     """The caller's axes (a figure function then draws into them and saves nothing), or a new
     figure of `inches` with constrained layout and its axes."""
     if ax is not None:
@@ -83,7 +83,7 @@ def _axes(ax: plt.Axes | None, inches: tuple[float, float], dpi: float | None = 
     return fig, fig.add_subplot()
 
 
-def _done(fig: Figure, path: Path | None, given: object) -> list[Path]:
+def figure_done(fig: Figure, path: Path | None, given: object) -> list[Path]:
     """Save a figure function's own figure to `path`; nothing when it drew into given axes."""
     return [] if given is not None or path is None else _save(fig, path)
 
@@ -122,7 +122,7 @@ def world_picture(world: World, ts: TransitionSystem, episode, trace,
     from hg2prism.report.style import STEP_RULE
 
     drawer = world_drawer(world, ts)
-    fig, ax = _axes(ax, drawer.world_inches(), FIGURE_DPI)
+    fig, ax = figure_axes(ax, drawer.world_inches(), FIGURE_DPI)
     handles = drawer.draw_world(ax, episode_steps(ts, episode.steps), trace.changes)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
@@ -141,7 +141,7 @@ def world_figure(world: World, ts: TransitionSystem, episode, trace, path: Path 
     where P2 changed her mind ("n=k: P2 now x": observing step k made her switch). Returns
     the files written (PNG and SVG); into the given `ax` it draws and writes nothing."""
     fig, _ = world_picture(world, ts, episode, trace, ax)
-    return _done(fig, path, ax)
+    return figure_done(fig, path, ax)
 
 
 BELIEF_MARKERS = ("o", "s", "^", "D", "v", "P")
@@ -152,7 +152,7 @@ def belief_picture(world: World, trace, episode, ax: plt.Axes | None = None):
     of mind (BeliefTrace.changes: the step whose observation made P2 switch)."""
     from hg2prism.report.style import STEP_RULE
 
-    fig, ax = _axes(ax, BELIEF_INCHES, FIGURE_DPI)
+    fig, ax = figure_axes(ax, BELIEF_INCHES, FIGURE_DPI)
     n = len(trace.after)
     steps = np.arange(1, n + 1)
     for i, x in enumerate(trace.after):
@@ -200,7 +200,7 @@ def belief_figure(world: World, trace, episode, path: Path | None,
     hypothesis she holds after each step; red lines where she changed her mind (into `ax`
     when given, then writing nothing)."""
     fig, _ = belief_picture(world, trace, episode, ax)
-    return _done(fig, path, ax)
+    return figure_done(fig, path, ax)
 
 
 COMPLETION_STYLES = (("-", "o"), ("--", "s"), (":", "^"), ("-.", "P"), ((0, (6, 2, 1, 2)), "v"))
@@ -214,7 +214,7 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
     from hg2prism.analyses.simulation import GOAL, wilson_band
 
     given = ax
-    fig, ax = _axes(ax, COMPLETION_INCHES, FIGURE_DPI)
+    fig, ax = figure_axes(ax, COMPLETION_INCHES, FIGURE_DPI)
     horizon = 1
     episodes = sorted({summary.episodes for _, summary, _ in rows})
     for i, (label, summary, exact) in enumerate(rows):
@@ -255,7 +255,7 @@ def completion_figure(world_name: str, rows: Sequence[tuple[str, object, float |
     the completion table (tables.COMPLETION_ROWS). Each curve is the share of episodes
     completed within n steps with its 95 % Wilson band; the exact value at the horizon is
     marked (into `ax` when given, then writing nothing)."""
-    return _done(completion_picture(world_name, rows, ax), path, ax)
+    return figure_done(completion_picture(world_name, rows, ax), path, ax)
 
 
 def _value_text(value: object) -> str:
@@ -300,7 +300,7 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path | None,
     axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes (into `ax`
     when given, then writing nothing)."""
     given = ax
-    fig, ax = _axes(ax, SWEEP_INCHES)
+    fig, ax = figure_axes(ax, SWEEP_INCHES)
     x_of = _parameter_axis(ax, parameter, [row[parameter] for row in rows])
     xs = [x_of(row[parameter]) for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
@@ -322,7 +322,7 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
     before, so that series that coincide (traps 1 and 2 on mir100) show as rings around dots
     rather than one hiding the other."""
     given = ax
-    fig, ax = _axes(ax, SWEEP_INCHES)
+    fig, ax = figure_axes(ax, SWEEP_INCHES)
     first, others = parameters[0], list(parameters[1:])
     series: dict[tuple, list[dict]] = {}
     for row in rows:     # a prior is a list: keyed by its text
@@ -353,7 +353,7 @@ def _finish_sweep(fig, ax, path: Path | None, against: str, world_name: str | No
     _legend(fig, ax, given, ncol=ncol, fontsize=fontsize, frameon=False)
     title = f"completion probability at the initial state against {against}"
     ax.set_title(f"{world_name}: {title}" if world_name else title, fontsize=9)
-    return _done(fig, path, given)
+    return figure_done(fig, path, given)
 
 
 def _detection_panels(ax, replanning: dict | None) -> tuple[Figure, list]:
@@ -412,7 +412,7 @@ def detection_figure(statistics: Sequence[float], thresholds: Sequence[float | N
     else:
         full.set_title(title if zoom is None else f"{title}\n(grey: the steps shown beside)",
                        fontsize=8)
-    return _done(fig, path, ax)
+    return figure_done(fig, path, ax)
 
 
 def _statistic_panel(ax: plt.Axes, steps, statistics, limits, deviate_after: int,
@@ -472,7 +472,7 @@ def scaling_picture(rows: Sequence[dict], stages: Sequence[str], title: str | No
     states, log-log, of the worlds without delay (a line each, ordered by states) with a
     slope-1 guide through the largest one's total; each delay's worlds as a separate series of
     their total time (its own marker, "delay d" in the legend)."""
-    fig, ax = _axes(ax, SCALING_INCHES, FIGURE_DPI)
+    fig, ax = figure_axes(ax, SCALING_INCHES, FIGURE_DPI)
     by_delay: dict[int, list[dict]] = {}
     for row in rows:
         by_delay.setdefault(int(row.get("delay") or 0), []).append(row)
@@ -505,7 +505,7 @@ def scaling_figure(rows: Sequence[dict], stages: Sequence[str], path: Path | Non
                    title: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
     """`scaling_picture` written as PNG and SVG (into `ax` when given, then writing
     nothing)."""
-    return _done(scaling_picture(rows, stages, title, ax), path, ax)
+    return figure_done(scaling_picture(rows, stages, title, ax), path, ax)
 
 
 def robust_figure(result: dict, path: Path | None, ax: plt.Axes | None = None) -> list[Path]:
@@ -515,7 +515,7 @@ def robust_figure(result: dict, path: Path | None, ax: plt.Axes | None = None) -
     rows = sorted(result["rows"], key=lambda row: row["delta"])
     deltas = [row["delta"] for row in rows]
     given = ax
-    fig, ax = _axes(ax, ROBUST_INCHES)
+    fig, ax = figure_axes(ax, ROBUST_INCHES)
     ax.plot(deltas, [row["robust_value"] for row in rows], "o-",
             label="robust value $R_\\delta$ (robust strategy, worst case)")
     ax.plot(deltas, [row["nominal_worst_case"] for row in rows], "s--",
@@ -532,4 +532,4 @@ def robust_figure(result: dict, path: Path | None, ax: plt.Axes | None = None) -
     ax.set_title(f"{result['world']}: robust deception", fontsize=9)
     ax.grid(alpha=0.3)
     _legend(fig, ax, given, ncol=2, fontsize=7, frameon=False)
-    return _done(fig, path, given)
+    return figure_done(fig, path, given)

@@ -23,7 +23,7 @@ from hg2prism.prism.adaptive import AdaptiveModel, type_view
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states, row_keys
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import deceptive_actions, storm_choices
-from hg2prism.strategy.records import _start_first, strategy_records
+from hg2prism.strategy.records import start_first, strategy_records
 
 __all__ = ["AdaptiveStrategy", "AdaptiveStates", "adaptive_strategy", "decode_adaptive"]
 
@@ -132,5 +132,5 @@ def _joint(decoded: DecodedStates, joint: DecodedStates) -> DecodedStates:
 
 def _states_written(joint: DecodedStates, choices, initial: int) -> list[int]:
     """The engine states strategy_records writes, in its order."""
-    states, _ = _start_first(joint, choices, initial)
+    states, _ = start_first(joint, choices, initial)
     return states.tolist()

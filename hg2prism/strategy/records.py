@@ -39,7 +39,7 @@ def describe_state(ts: TransitionSystem, state: int) -> dict:
     return {"state": name, "standing": ts.a2_names[standing], "countdown": countdown}
 
 
-def _start_first(decoded: DecodedStates, choices: StormChoices, initial: int | None
+def start_first(decoded: DecodedStates, choices: StormChoices, initial: int | None
                  ) -> tuple[np.ndarray, int]:
     """The engine states whose records are written (the representatives of the non-absorbing
     canonical states), the initial state's first, and how many of them are marked initial
@@ -69,7 +69,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
             described[state] = describe_state(ts, state)
         return dict(described[state])
 
-    states, marked = _start_first(decoded, choices, initial)
+    states, marked = start_first(decoded, choices, initial)
     cells, traps, countdowns = decoded.place.tolist(), decoded.traps.tolist(), decoded.countdown.tolist()
     qs, hypotheses = decoded.q.tolist(), decoded.hypothesis.tolist()
     windows = decoded.window.tolist()
@@ -185,7 +185,7 @@ def strategy_json_chunks(decoded: DecodedStates, choices: StormChoices, moves: T
     Built column-wise from JSON fragments per TS state (and per observed move), because a few
     hundred TS states describe millions of records: the same text as json.dumps of each record,
     without creating the records."""
-    states, marked = _start_first(decoded, choices, initial)
+    states, marked = start_first(decoded, choices, initial)
     compact = {"separators": (",", ":")}
     ts_state = ts.state(decoded.place[states], decoded.traps[states], decoded.countdown[states])
     first = Field(Vocabulary.of(['{"initial":true,', "{"]),

@@ -39,6 +39,7 @@ from hg2prism.engines.engine import Transitions
 from hg2prism.errors import PROBABILITY_SLACK, SolverError
 from hg2prism.numeric import ExplicitModel, solve_m_matrix
 from hg2prism.numeric.graph import stable_order
+from hg2prism.numeric.tables import ranges
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
 P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 states)
@@ -134,7 +135,7 @@ class IntervalGame:
         numbers as on the whole game."""
         first = self.row_start[choices]
         counts = self.row_start[choices + 1] - first
-        branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+        branches = ranges(first, counts)
         per_state = np.bincount(self.choice_state[choices], minlength=self.n_states)
         return IntervalGame.build(choice_start=np.r_[0, np.cumsum(per_state)],
                                   row_start=np.r_[0, np.cumsum(counts)],
@@ -271,8 +272,7 @@ def positive_states(game: IntervalGame, fixed: np.ndarray | None = None
         first_branch = game.row_start[candidates]
         counts = game.row_start[candidates + 1] - first_branch
         owner = np.repeat(np.arange(candidates.size), counts)
-        branches = np.arange(counts.sum()) + np.repeat(first_branch - (np.cumsum(counts) - counts),
-                                                       counts)
+        branches = ranges(first_branch, counts)
         inside = positive[game.target[branches]]
         forced = np.bincount(owner, weights=(inside & (game.lower[branches] > 0)).astype(float),
                              minlength=candidates.size) > 0
@@ -287,8 +287,7 @@ def positive_states(game: IntervalGame, fixed: np.ndarray | None = None
         positive[states] = True
         added = states[first]
         lengths = start[added + 1] - start[added]
-        into = entering[np.arange(lengths.sum()) + np.repeat(start[added] - (np.cumsum(lengths)
-                                                                              - lengths), lengths)]
+        into = entering[ranges(start[added], lengths)]
         touched = np.zeros(game.n_choices, dtype=bool)
         touched[game.branch_choice[into]] = True
         candidates = np.flatnonzero(touched & allowed)
@@ -308,7 +307,7 @@ def adversary_response(game: IntervalGame, strategy: np.ndarray,
     first, last = game.row_start[rows], game.row_start[rows + 1]
     counts = last - first
     row_of = np.repeat(np.arange(live.size), counts)
-    branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+    branches = ranges(first, counts)
     position = np.full(game.n_states, -1, dtype=np.int64)
     position[live] = np.arange(live.size)
     targets = game.target[branches]
@@ -345,7 +344,7 @@ def _chance_elimination(game: IntervalGame, live: np.ndarray, strategy: np.ndarr
     rows = strategy[live[chance]]
     first, last = game.row_start[rows], game.row_start[rows + 1]
     counts = last - first
-    branches = np.arange(counts.sum()) + np.repeat(first - (np.cumsum(counts) - counts), counts)
+    branches = ranges(first, counts)
     if game.chance[game.target[branches]].any():
         return None
     return np.flatnonzero(chance)
