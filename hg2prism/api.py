@@ -510,18 +510,11 @@ def _played(solution: Solution, horizon: int | None):
     """What plays the solution's strategy: the analysis (P2's inference), P1's policy and the
     horizon (by default the world's, or a step-bounded solution's bound). A step-bounded
     strategy's move depends on the steps taken: P1 counts them beside P2's memory."""
-    import dataclasses
-
-    from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
-
     checked = solution.check
-    analysis, strategy, bounded = checked.analysis, solution.strategy, checked.bounded
     if horizon is None:
-        horizon = bounded.bound if bounded is not None else solution.world.simulation.horizon
-    if bounded is not None:
-        strategy = SteppedStrategy(strategy.records, analysis.ts, bounded.bound)
-        analysis = dataclasses.replace(analysis, inference=StepCounter(analysis.inference,
-                                                                       bounded.bound - 1))
+        horizon = (checked.bounded.bound if checked.bounded is not None
+                   else solution.world.simulation.horizon)
+    analysis, strategy = checked.player(solution.strategy)
     return analysis, strategy, horizon
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -30,7 +29,7 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, goal_pr
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
 from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json_chunks
-from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
+from hg2prism.strategy.stepped import SteppedStrategy
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
 from hg2prism.opponent.observer import Observer
@@ -408,17 +407,10 @@ def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValue
 
     analysis = checked.analysis
     ts, task = analysis.ts, analysis.task
-    played = analysis
-    if checked.bounded is None:
-        strategy = Strategy.from_records(checked.records, ts)
-        deceptive_within = checked.engine.induced_within(checked.checked,
-                                                         checked.strategy.choice, horizon)
-    else:
-        # P1's move depends on the steps taken: P1 tracks them beside P2's memory.
-        strategy = SteppedStrategy(checked.records, ts, checked.bounded.bound)
-        played = dataclasses.replace(analysis, inference=StepCounter(
-            analysis.inference, checked.bounded.bound - 1))
-        deceptive_within = checked.results.objective.goal_probability
+    played, strategy = checked.player()
+    deceptive_within = (checked.engine.induced_within(checked.checked, checked.strategy.choice,
+                                                      horizon) if checked.bounded is None
+                        else checked.results.objective.goal_probability)
     pairs = {"nash": (nash.p1.reshape(-1, ts.n_actions), nash.p2.reshape(ts.n_states * task.n_states, -1)),
              "leader": _leader_strategies(analysis),
              "static": (worth.static.policy.mixed(), np.eye(ts.n_sets)[worth.static.p2])}

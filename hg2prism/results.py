@@ -32,7 +32,8 @@ if TYPE_CHECKING:
     from hg2prism.strategy.deceptive import StormChoices
     from hg2prism.strategy.exports import InducedDTMC
     from hg2prism.strategy.objectives import Bounded
-    from hg2prism.strategy.records import RecordExtras
+    from hg2prism.strategy.policy import Policy
+    from hg2prism.strategy.records import RecordExtras, Strategy
 
 __all__ = ["Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObjective", "CheckResults",
            "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults", "provenance"]
@@ -343,6 +344,23 @@ class CheckResult:
         built = self.engine.explicit(self.checked.model)
         return strategy_records(self.decoded, self.strategy, built.transitions, self.analysis.ts,
                                 self.extras, built.initial)
+
+    def player(self, strategy: Strategy | None = None) -> tuple[Analysis, Policy]:
+        """What plays P1's exported strategy in simulations: the analysis (P2's inference) and
+        P1's policy, `strategy` or the one its records give. A step-bounded strategy's move
+        depends on the steps taken: P1 counts them beside P2's memory (strategy/stepped.py)."""
+        import dataclasses
+
+        from hg2prism.strategy.records import Strategy
+        from hg2prism.strategy.stepped import StepCounter, SteppedStrategy
+
+        ts = self.analysis.ts
+        if self.bounded is None:
+            return self.analysis, strategy or Strategy.from_records(self.records, ts)
+        records = strategy.records if strategy is not None else self.records
+        return (dataclasses.replace(self.analysis, inference=StepCounter(
+                    self.analysis.inference, self.bounded.bound - 1)),
+                SteppedStrategy(records, ts, self.bounded.bound))
 
 
 @dataclass(frozen=True, eq=False)
