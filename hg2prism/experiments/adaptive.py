@@ -177,9 +177,9 @@ def _simulation(checks: list[CheckResult], weights: list[float], world: World,
 
     from hg2prism.analyses.adaptive import (AdaptiveGame, adaptive_chain, adaptive_policy,
                                             belief, play_episode, simulate_adaptive)
-    from hg2prism.analyses.successor import GOAL
+    from hg2prism.analyses.episodes import outcome_text
     from hg2prism.report.adaptive_plot import adaptive_belief_figure
-    from hg2prism.analyses.simulation import wilson_interval
+    from hg2prism.analyses.simulation import TRUNCATED, wilson_interval
 
     game = AdaptiveGame([Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games,
                                    c.analysis.inference) for c in checks], weights)
@@ -189,8 +189,7 @@ def _simulation(checks: list[CheckResult], weights: list[float], world: World,
     rng = np.random.default_rng(seed)
     drawn = int(rng.choice(len(weights), p=np.array(weights) / sum(weights)))
     trace = play_episode(game, policy, drawn, horizon, rng)
-    outcome = "goal" if game.status(trace[-1]) == GOAL else (
-        "failed" if not game.running(trace[-1]) else "unfinished")
+    outcome = outcome_text(game.status(trace[-1]) if not game.running(trace[-1]) else TRUNCATED)
     adaptive_belief_figure(world.name, [t.name for t in world.types],
                            [belief(game, s) for s in trace], drawn, seed, outcome,
                            out / "adaptive_belief")

@@ -216,7 +216,6 @@ def _find_seeded_episode(analysis: Analysis, strategy: Policy, horizon: int, see
     return best
 
 
-_OUTCOME = {0: "failed", 1: "task completed", 2: "cut by the horizon"}
 
 
 def _check_positive(value: int | None, key: str, minimum: int) -> None:
@@ -379,6 +378,8 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
 def _seeded_episode(batches: _Batches, deviate_after: int, deviating: P2Policy,
                     say: Callable[[str], None]) -> tuple[dict, list]:
     """(a) One seeded episode, for the picture: its record and its detector steps."""
+    from hg2prism.analyses.episodes import outcome_text
+
     ts = batches.analysis.ts
     chosen, summary, batch = _find_seeded_episode(
         batches.analysis, batches.strategy, batches.horizon, batches.seed, batches.alpha,
@@ -408,7 +409,7 @@ def _seeded_episode(batches: _Batches, deviate_after: int, deviating: P2Policy,
         "rule": (f"the first seed from {batches.seed} upward whose episode lasts more than "
                  f"deviate_after + {STEPS_AFTER_DEVIATION} steps"),
         "steps": int(summary.lengths[0]),
-        "outcome": _OUTCOME[int(summary.outcomes[0])],
+        "outcome": outcome_text(int(summary.outcomes[0])),
         "detected_at": detected_at,
         "per_step": per_step,
     }

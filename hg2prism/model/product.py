@@ -23,8 +23,8 @@ class Product:
 
     ts: TransitionSystem
     dfa: DFA
-    next: np.ndarray          # [G, 4, A2, K] successor product state of each outcome
-    prob: np.ndarray          # [G, 4, A2, K] its probability
+    next: np.ndarray          # [G, A1, A2, K] successor product state of each outcome
+    prob: np.ndarray          # [G, A1, A2, K] its probability
     allowed: np.ndarray       # [G, A2] P2's available trap sets
     goal: np.ndarray          # [G] q final and the robot not trapped
     fail: np.ndarray          # [G] trapped, or q a sink (and not goal)
@@ -56,7 +56,7 @@ def product(ts: TransitionSystem, dfa: DFA) -> Product:
     # The DFA reads the label of the state being entered: q' = delta(q, L(v')). Written one
     # DFA state at a time into [S, n_q, ...] (a transposed copy of the whole table was several
     # times slower).
-    letter = label[ts.succ]                                           # [S, 4, A2, K]
+    letter = label[ts.succ]                                           # [S, A1, A2, K]
     nxt = np.empty((ts.n_states, n_q) + ts.succ.shape[1:],
                    dtype=np.result_type(ts.succ, dfa.delta))
     for q in range(n_q):

@@ -168,7 +168,7 @@ def trap_parts(world: World) -> int:
     return p2_action_count(world) * (world.delay + 1)
 
 
-def _cells(world: World) -> tuple[Arena, np.ndarray, sp.csr_matrix]:
+def _arena_walks(world: World) -> tuple[Arena, np.ndarray, sp.csr_matrix]:
     """The arena, Q(c) per arena state and the adjacency A of the walks."""
     arena = arena_of(world)
     classes, label = arena.label_classes()
@@ -222,7 +222,7 @@ def estimate_states(world: World, games: list[PerceptualGame] | None = None,
     given P2's solved perceptual `games` (`solved_games`). `deviations`: of the memories
     where P2 may also play sets her hypotheses do not choose (robust deception's interval
     model), which an observer that records the set played then holds."""
-    arena, q_count, adjacency = _cells(world)
+    arena, q_count, adjacency = _arena_walks(world)
     memories = _memories(world, adjacency, arena.n_states, games, deviations)
     if memories is None:
         return BEYOND
@@ -252,7 +252,7 @@ def _independent_types(world: World) -> int:
     """
     from hg2prism.worldfile.types import world_of_type
 
-    arena, q_count, adjacency = _cells(world)
+    arena, q_count, adjacency = _arena_walks(world)
     parts = trap_parts(world)
     product = np.ones(arena.n_states)
     for k in range(len(world.types)):
@@ -282,7 +282,7 @@ def _shared_run(world: World) -> int:
                      * (prod_k (1 + X_k (min(L, L_k) + 1)) - 1)  +  2."""
     from hg2prism.worldfile.types import world_of_type
 
-    arena, q_count, adjacency = _cells(world)
+    arena, q_count, adjacency = _arena_walks(world)
     bounds = []
     for k in range(len(world.types)):
         typed = world_of_type(world, k)
