@@ -222,3 +222,29 @@ def test_figures_are_written_headless(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip().lower() == "agg"
     assert (tmp_path / "robust.svg").is_file()
+
+
+def test_robust_budgets_close_together_keep_their_ticks_not_their_labels() -> None:
+    """`robust --deltas 0 1e-6 0.5 0.99` printed "0" and "1e-06" on top of each other: a budget
+    within 4 % of the axis from the last labelled one keeps its tick without a label; budgets
+    apart keep matplotlib's own labels."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hg2prism.report import plots
+
+    def labels(deltas: tuple[float, ...]) -> list[str]:
+        rows = [{"delta": d, "robust_value": 0.9, "nominal_worst_case": 0.8,
+                 "robust_strategy_nominal_value": 0.85} for d in deltas]
+        fig, ax = plt.subplots()
+        plots.robust_figure({"world": "w", "deceptive_value": 0.9, "v_lead": 0.7,
+                             "rows": rows}, None, ax=ax)
+        fig.canvas.draw()
+        shown = [t.get_text() for t in ax.get_xticklabels()]
+        plt.close(fig)
+        return shown
+
+    assert labels((0.0, 1e-6, 0.5, 0.99)) == ["0", "", "0.5", "0.99"]
+    assert labels((0.0, 0.01, 0.02, 0.5)) == ["0", "", "0.02", "0.5"]
+    assert "" not in labels((0.0, 0.05, 0.1, 0.2))

@@ -529,6 +529,15 @@ def robust_figure(result: dict, path: Path | None, ax: plt.Axes | None = None) -
     ax.set_xlabel("deviation budget $\\delta$ (P2 leaves her predicted action with probability ≤ δ)")
     ax.set_ylabel("P1's completion probability")
     ax.set_xticks(deltas)
+    # a budget within 4 % of the axis from the last labelled one keeps its tick, not its label
+    # (0 and 1e-6 printed on top of each other)
+    span, last, labels = (deltas[-1] - deltas[0]) or 1.0, None, []
+    for delta in deltas:
+        near = last is not None and delta - last < 0.04 * span
+        labels.append("" if near else f"{delta:g}")
+        last = last if near else delta
+    if "" in labels:
+        ax.set_xticks(deltas, labels)
     ax.set_title(f"{result['world']}: robust deception", fontsize=9)
     ax.grid(alpha=0.3)
     _legend(fig, ax, given, ncol=2, fontsize=7, frameon=False)
