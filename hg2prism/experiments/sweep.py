@@ -184,7 +184,10 @@ def _with_setting(name: str) -> Callable[[World, Value], World]:
         try:
             return configure(world, **{name: value})
         except InputError as err:
+            setting = next(s for s in kind.settings if s.key == name)
             shown = _value_text(value) if isinstance(value, (list, tuple)) else value
+            if setting.swept is not None and setting.swept.normalise is not None:
+                shown = f"{shown} (normalised)"
             raise InputError(COMMAND_LINE, "--values", f"{name} {shown}: {err.reason}") from None
     return apply
 
