@@ -28,7 +28,7 @@ from hg2prism.analyses.successor import GOAL, RUNNING, Hypergame
 from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.policy import Policy
 
-__all__ = ["AdaptiveState", "AdaptiveKey", "AdaptiveMDP", "AdaptiveGame", "Committed", "CommittedPolicy", "committed_game",
+__all__ = ["AdaptiveState", "AdaptiveKey", "AdaptiveGame", "Committed", "CommittedPolicy", "committed_game",
            "adaptive_policy", "AdaptiveChain", "adaptive_chain", "AdaptiveRun",
            "simulate_adaptive", "play_episode", "belief"]
 
@@ -91,43 +91,8 @@ class AdaptiveGame:
         status = self.status(state)
         return state if status == RUNNING else ("goal" if status == GOAL else "fail")
 
-    def reachable(self) -> AdaptiveMDP:
-        """The adaptive hypergame's states reachable from the initial one (breadth-first) and,
-        for each running state and each action P1 has there, the distribution over the
-        successors' keys (equal keys merged)."""
-        ts = self.games[0].ts
-        start = self.key(self.initial())
-        order, seen, moves = [start], {start}, {}
-        i = 0
-        while i < len(order):
-            state = order[i]
-            i += 1
-            if isinstance(state, str):
-                continue
-            moves[state] = {}
-            for a1 in np.flatnonzero(ts.enabled[state[0]]).tolist():
-                merged: dict[AdaptiveKey, float] = {}
-                for successor, p in self.successors(state, a1):
-                    key = self.key(successor)
-                    merged[key] = merged.get(key, 0.0) + p
-                    if key not in seen:
-                        seen.add(key)
-                        order.append(key)
-                moves[state][a1] = merged
-        return AdaptiveMDP(order, moves)
-
 
 AdaptiveKey = AdaptiveState | str       # a running state, or "goal" / "fail"
-
-
-@dataclass(frozen=True, eq=False)
-class AdaptiveMDP:
-    """The reachable adaptive hypergame in Python (AdaptiveGame.reachable): its canonical
-    states (running states, then "goal" and "fail" where reached) in breadth-first order, and
-    moves[state][a1] = {successor key: probability} for every running state and action."""
-
-    states: list[AdaptiveKey]
-    moves: dict[AdaptiveState, dict[int, dict[AdaptiveKey, float]]]
 
 
 @dataclass(frozen=True, eq=False)
