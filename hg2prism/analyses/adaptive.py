@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from hg2prism import numeric
-from hg2prism.analyses.successor import GOAL, RUNNING, Hypergame
+from hg2prism.analyses.successor import GOAL, RUNNING, Hypergame, explore_chain
 from hg2prism.opponent.observer import Observation, Observer
 from hg2prism.strategy.policy import Policy
 
@@ -204,27 +204,11 @@ class AdaptiveChain:
 
 
 def adaptive_chain(game: AdaptiveGame, policy: AdaptivePolicy) -> AdaptiveChain:
-    start = game.initial()
-    states, index = [start], {start: 0}
-    rows, cols, values = [], [], []
-    i = 0
-    while i < len(states):
-        state = states[i]
-        if game.running(state):
-            merged: dict[int, float] = {}
-            for successor, p in game.successors(state, policy(state)):
-                j = index.get(successor)
-                if j is None:
-                    j = index[successor] = len(states)
-                    states.append(successor)
-                merged[j] = merged.get(j, 0.0) + p
-            rows += [i] * len(merged)
-            cols += list(merged)
-            values += list(merged.values())
-        i += 1
-    n = len(states)
+    explored = explore_chain(game.initial(), lambda state: game.successors(state, policy(state))
+                             if game.running(state) else None)
+    states = explored.states
     status = np.array([game.status(s) for s in states])
-    return AdaptiveChain(states, sp.csr_matrix((values, (rows, cols)), shape=(n, n)),
+    return AdaptiveChain(states, explored.matrix,
                          goal=status == GOAL, stop=status != RUNNING,
                          identified=np.array([len(s[2]) == 1 for s in states]))
 

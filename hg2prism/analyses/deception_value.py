@@ -20,7 +20,7 @@ only the states the naive pair reaches, and its solve is exact up to rounding.
 
 from __future__ import annotations
 
-from collections.abc import Hashable
+from collections.abc import Hashable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -29,7 +29,8 @@ import scipy.sparse as sp
 
 from hg2prism import numeric
 from hg2prism.analyses.baselines import ConcurrentGame, best_response_value, concurrent_game
-from hg2prism.analyses.successor import GOAL as REACHED, RUNNING, Hypergame, HypergameState
+from hg2prism.analyses.successor import (GOAL as REACHED, RUNNING, Hypergame, HypergameState,
+                                         explore_chain)
 from hg2prism.errors import SolverError, probability
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
@@ -210,39 +211,24 @@ def induced_chain(game: Hypergame, strategy: Policy) -> InducedChain:
     plays strategy.action(v, q, M), P2 pi2 of her hypothesis (with a Bayesian "sample"
     observer, of each hypothesis with its probability). Goal and failure are merged into the
     states GOAL and FAIL; the probabilities of the transitions into one state are summed."""
-    states: list[HypergameState | None] = [None, None]
-    index: dict[HypergameState, int] = {}
+    ended = ("goal", "fail")            # the keys of GOAL and FAIL (no hypergame state's)
 
-    def node(state: HypergameState) -> int:
+    def key(state: HypergameState) -> Hashable:
         status = game.status(state[0], state[1])
-        if status != RUNNING:
-            return GOAL if status == REACHED else FAIL
-        i = index.get(state)
-        if i is None:
-            i = index[state] = len(states)
-            states.append(state)
-        return i
+        return state if status == RUNNING else ended[0 if status == REACHED else 1]
 
-    start = node(game.initial())
-    rows, cols, values = [], [], []
     hypothesis, action = [-1, -1], [-1, -1]
-    i = FAIL + 1
-    while i < len(states):          # states grows as successors are found: breadth-first
-        v, q, memory = state = states[i]
+
+    def moves(state: HypergameState) -> Iterator[tuple[Hashable, float]]:
+        v, q, memory = state
         a1 = int(strategy.action(v, q, memory))
-        merged: dict[int, float] = {}
-        for successor, p in game.successors(state, a1):
-            j = node(successor)
-            merged[j] = merged.get(j, 0.0) + p
-        for j, p in merged.items():
-            rows.append(i)
-            cols.append(j)
-            values.append(p)
         hypothesis.append(game.observer.hypothesis(memory))
         action.append(a1)
-        i += 1
-    n = len(states)
-    matrix = sp.csr_matrix((values, (rows, cols)), shape=(n, n))
+        return ((key(successor), p) for successor, p in game.successors(state, a1))
+
+    explored = explore_chain(key(game.initial()), moves, fixed=ended)
+    states: list[HypergameState | None] = [None, None] + explored.states[2:]
+    start, matrix, n = explored.start, explored.matrix, len(states)
     return InducedChain(states=states, chain=ExplicitModel(matrix, np.arange(n + 1)),
                         hypothesis=np.array(hypothesis),
                         action=np.array(action), start=start)

@@ -18,14 +18,17 @@ observer, so that the same successor function serves it.
 
 from __future__ import annotations
 
-from collections.abc import Hashable, Iterator
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
+
+import scipy.sparse as sp
 
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.opponent.observer import Observation, Observer
 
-__all__ = ["FAIL", "GOAL", "RUNNING", "HypergameState", "Hypergame", "TrackedObserver"]
+__all__ = ["FAIL", "GOAL", "RUNNING", "HypergameState", "Hypergame", "TrackedObserver",
+           "ExploredChain", "explore_chain"]
 
 # The status of a hypergame state (the simulation's episode outcome codes share them).
 FAIL, GOAL, RUNNING = 0, 1, -1
@@ -156,3 +159,54 @@ class TrackedObserver:
         if self.real is None and modelled == a2:
             return n1, n1
         return n1, self.p2.update(m2, observation)
+
+
+# ---------------------------------------------------------------------------------------------
+# The Markov chain a strategy induces, explored
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class ExploredChain:
+    """A Markov chain explored breadth-first (`explore_chain`)."""
+
+    states: list[Hashable]      # in the order found: `fixed` first, then from the start
+    matrix: sp.csr_matrix       # one-step probabilities, those into one state summed
+    start: int                  # the start's index
+
+
+def explore_chain(start: Hashable, moves: Callable[[Hashable], Iterable[tuple[Hashable, float]]
+                                                   | None],
+                  fixed: Sequence[Hashable] = ()) -> ExploredChain:
+    """The chain reachable from `start`, breadth-first: `moves(state)` gives its (successor,
+    probability) pairs, or None for a state that stays (absorbing); `fixed` states come first
+    in that order (the induced chain's merged failure and goal). moves is called once per
+    state, in the states' order (a caller may record what it decided beside them)."""
+    states = list(fixed)
+    index = {state: i for i, state in enumerate(states)}
+
+    def node(state: Hashable) -> int:
+        i = index.get(state)
+        if i is None:
+            i = index[state] = len(states)
+            states.append(state)
+        return i
+
+    first = node(start)
+    rows: list[int] = []
+    cols: list[int] = []
+    values: list[float] = []
+    i = 0
+    while i < len(states):          # states grows as successors are found
+        out = moves(states[i]) if i >= len(fixed) else None
+        if out is not None:
+            merged: dict[int, float] = {}
+            for successor, p in out:
+                j = node(successor)
+                merged[j] = merged.get(j, 0.0) + p
+            rows += [i] * len(merged)
+            cols += list(merged)
+            values += list(merged.values())
+        i += 1
+    n = len(states)
+    return ExploredChain(states, sp.csr_matrix((values, (rows, cols)), shape=(n, n)), first)
+
