@@ -322,3 +322,57 @@ def test_explorer_shows_a_change_of_mind_at_the_step_of_the_belief_trace(runs: d
     assert changes and shown == changes
     assert [s["belief"]["hypothesis"] for s in episode["states"][1:]] == list(trace.after)
     assert [s["belief"]["belief"] for s in episode["states"][1:]] == [list(v) for v in trace.values]
+
+
+READ_EDGES = """() => {
+  const boxes = [...document.querySelectorAll('#base > rect')].map((r) =>
+    [r.x.baseVal.value, r.y.baseVal.value, r.width.baseVal.value, r.height.baseVal.value]);
+  const edges = [...document.querySelectorAll('#base > line.edge')].map((e) => ({
+    edge: e.dataset.edge, at: [e.x1, e.y1, e.x2, e.y2].map((a) => a.baseVal.value)}));
+  return {boxes: boxes, edges: edges, states: JSON.parse(document.getElementById('data').textContent).states};
+}"""
+
+
+def test_arena_edges_show_their_direction(browser, tmp_path: Path) -> None:
+    """An arena world's explorer draws each edge from box border to box border, so that its
+    arrowhead is not hidden under the target's box (it was: the edges showed no direction),
+    and the two edges of a 2-cycle side by side (they were drawn one over the other)."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.frontends.arena import to_toml
+
+    graph = nx.DiGraph()
+    for u, v, p in ((1, 2, 0.5), (2, 1, 0.5), (2, 3, 0.4), (1, 4, 0.3)):
+        graph.add_edge(u, v, p=p)
+    world = hg2prism.world_from_graph(graph, entries=[1], task="F asset3", trap_candidates=[2],
+                                      name="cycle")
+    path = tmp_path / "cycle.toml"
+    path.write_text(to_toml(world))
+    out = tmp_path / "out"
+    assert cli.main(["run", str(path), "--out", str(out), "--episodes", "20"]) == 0
+    page = browser.new_page(viewport=VIEWPORT)
+    errors: list[str] = []
+    page.on("pageerror", lambda err: errors.append(str(err)))
+    page.goto((out / "explorer.html").as_uri())
+    shown = page.evaluate(READ_EDGES)
+    page.close()
+    assert errors == []
+    index = {name: i for i, name in enumerate(shown["states"])}
+    boxes = shown["boxes"]
+    assert len(boxes) == len(index)
+
+    def inside(point: list[float], box: list[float]) -> bool:
+        x, y, w, h = box
+        return x < point[0] < x + w and y < point[1] < y + h
+
+    drawn = {}
+    for edge in shown["edges"]:
+        u, v = edge["edge"].split(">")
+        x1, y1, x2, y2 = edge["at"]
+        assert not inside([x2, y2], boxes[index[v]]), edge      # the arrowhead is visible
+        assert not inside([x1, y1], boxes[index[u]]), edge
+        drawn[(u, v)] = ((x1 + x2) / 2, (y1 + y2) / 2)
+    assert {("n1", "n2"), ("n2", "n1"), ("outside", "n1")} <= set(drawn)
+    (ax, ay), (bx, by) = drawn[("n1", "n2")], drawn[("n2", "n1")]
+    assert ((ax - bx) ** 2 + (ay - by) ** 2) ** 0.5 >= 6      # side by side
