@@ -367,3 +367,28 @@ def test_the_trapped_cross_leaves_the_state_name_readable() -> None:
         x, y = cross.get_transform().transform((cross.get_xdata()[0], cross.get_ydata()[0]))
         half = cross.get_markersize() / 2 * ax.figure.dpi / 72
         assert x - half > box.x1 or y - half > box.y1 or x + half < box.x0 or y + half < box.y0
+
+
+def test_the_layered_layout_of_an_attack_graph_with_unreachable_nodes() -> None:
+    """Reachable states by their distance from the start; the states no entry leads to by
+    their distance from the unreachable states nothing unreachable leads to, from column 1,
+    below the reachable states of their column (they all went to one last column, their edges
+    crossing the whole figure); a cycle no root reaches starts at column 1 too."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.report.arena_graph import _layers, graph_edges
+
+    graph = nx.DiGraph()
+    for u, v in ((1, 2), (2, 9), (5, 6), (6, 7), (7, 9), (3, 4), (4, 3), (4, 9)):
+        graph.add_edge(u, v, p=0.5)
+    world = hg2prism.world_from_graph(graph, entries=[1], task="F asset9", name="g")
+    arena = world.arena
+    layers = _layers(arena, graph_edges(arena))
+    column = {arena.states[s]: x for x, layer in enumerate(layers) for s in layer}
+    assert column == {"outside": 0, "n1": 1, "n2": 2, "n9": 3,      # from the start
+                      "n5": 1, "n6": 2, "n7": 3,                     # from the root n5
+                      "n3": 1, "n4": 2}                              # the cycle, from n3
+    for layer in layers:                    # the unreachable ones below the reachable ones
+        reachable = [arena.states[s] in ("outside", "n1", "n2", "n9") for s in layer]
+        assert reachable == sorted(reachable, reverse=True), layer

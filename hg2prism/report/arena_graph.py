@@ -8,8 +8,10 @@ are loops over their state.
 
 Positions: the arena's `positions` when given (scaled so that the closest two states are
 SPACING_INCHES apart), else a layered layout: the states by their distance from the initial
-state (unreachable ones last), each layer a column ordered by the mean row of its
-predecessors, then by number. Both are deterministic. One data unit is one inch of the map.
+state, each layer a column ordered by the mean row of its predecessors, then by number; the
+states unreachable from it by their distance from the unreachable states no other
+unreachable state leads to, one column further right, below the reachable ones of their
+column. Both are deterministic. One data unit is one inch of the map.
 
 Arrows and labels are placed after the figure is laid out, when the boxes' sizes are known:
 every label (actions, step numbers, traps, changes of mind) goes to the first of a list of
@@ -64,29 +66,47 @@ def graph_edges(arena: Arena) -> dict[tuple[int, int], list[str]]:
     return edges
 
 
-def _layers(arena: Arena, edges) -> list[list[int]]:
-    """States by BFS distance from the initial state (unreachable ones in a last layer), each
-    layer ordered by the mean row of its predecessors in earlier layers, then by number."""
-    succ: dict[int, list[int]] = {}
-    for u, v in edges:
-        succ.setdefault(u, []).append(v)
-    depth = {arena.initial: 0}
-    queue = deque([arena.initial])
+def _depths(succ: dict[int, list[int]], roots: list[int], first: int) -> dict[int, int]:
+    """BFS depth (from `first`) of every state the roots reach."""
+    depth = {root: first for root in roots}
+    queue = deque(roots)
     while queue:
         u = queue.popleft()
         for v in succ.get(u, []):
             if v not in depth:
                 depth[v] = depth[u] + 1
                 queue.append(v)
-    last = max(depth.values()) + 1
-    layers: list[list[int]] = [[] for _ in range(last + 1)]
+    return depth
+
+
+def _layers(arena: Arena, edges) -> list[list[int]]:
+    """States by BFS distance from the initial state, each layer ordered by the mean row of its
+    predecessors in earlier layers, then by number. The unreachable states (an attack graph's
+    nodes no entry leads to) by their own BFS distance, from column 1, from those no other
+    unreachable state leads to, below the reachable states of their column (they were all in
+    one last column, their edges crossing the whole figure)."""
+    succ: dict[int, list[int]] = {}
+    for u, v in edges:
+        succ.setdefault(u, []).append(v)
+    depth = _depths(succ, [arena.initial], 0)
+    rest = [s for s in range(arena.n_states) if s not in depth]
+    entered = {v for u, v in edges if u not in depth and v not in depth}
+    roots = [s for s in rest if s not in entered] or rest[:1]
+    only = {u: [v for v in vs if v not in depth] for u, vs in succ.items() if u not in depth}
+    apart = _depths(only, roots, 1)
+    for s in rest:                  # on a cycle no root reaches: from column 1
+        if s not in apart:
+            for t, d in _depths(only, [s], 1).items():
+                apart.setdefault(t, d)
+    column = {**depth, **apart}
+    layers: list[list[int]] = [[] for _ in range(max(column.values()) + 1)]
     for s in range(arena.n_states):
-        layers[depth.get(s, last)].append(s)
+        layers[column[s]].append(s)
     row: dict[int, float] = {}
     for layer in layers:
-        def key(s: int) -> tuple[float, int]:
+        def key(s: int) -> tuple[bool, float, int]:
             above = [row[u] for u, v in edges if v == s and u in row]
-            return (float(np.mean(above)) if above else float("inf"), s)
+            return (s not in depth, float(np.mean(above)) if above else float("inf"), s)
         layer.sort(key=key)
         row.update({s: i - (len(layer) - 1) / 2 for i, s in enumerate(layer)})
     return [layer for layer in layers if layer]
