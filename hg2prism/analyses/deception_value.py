@@ -36,6 +36,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.product import product, product_state
 from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric.fastest import DISCOUNT, EXACT_SLACK, RELATIVE_TIE
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
 from hg2prism.strategy.policy import Policy, ProductPolicy
@@ -49,9 +50,9 @@ WORTH_TOLERANCE = 1e-12
 __all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
            "induced_chain", "DeceptionValues", "deception_values"]
 
-ANSWER_TIE = 1e-9       # leader-game moves this close to the best answer to a2 are maximising
-DISCOUNT = 0.9          # the fastest-first rule's discount (docs/semantics.md §6, §7)
-SCORE_TIE = 1e-12       # relative tie between discounted scores (docs/semantics.md §6)
+# the fastest-first rule's constants (numeric/fastest.py): leader-game moves within
+# ANSWER_TIE of the best answer to a2 are maximising; scores within a relative SCORE_TIE tie
+ANSWER_TIE, SCORE_TIE = EXACT_SLACK, RELATIVE_TIE
 RESIDUAL = 1e-11        # accepted residual of a solved value vector (docs/semantics.md §10)
 STRICT = 1e-12          # policy iteration switches a move only when it gains more than this
 

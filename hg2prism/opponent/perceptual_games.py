@@ -34,6 +34,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.numeric import (alternating_attractor, backward_reach, downstream_first,
                               move_predecessors, solve_plain)
+from hg2prism.numeric.fastest import DISCOUNT, EXACT_SCORE_STOP, EXACT_SLACK
 from hg2prism.numeric.tables import fold, outcome_sum
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
@@ -618,7 +619,7 @@ def is_certified(game: TurnBasedGame, p1: np.ndarray, x: np.ndarray) -> bool:
 
 
 def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
-                    discount: float = 0.9) -> np.ndarray:
+                    discount: float = DISCOUNT) -> np.ndarray:
     """P1's answer at every game state to P2's strategy (docs/semantics.md §4's rule on the exact values,
     optimal up to its 1e-6 ties): among P1's value-optimal moves,
     the one maximising the discounted probability of reaching the goal, so that P1 never
@@ -637,7 +638,7 @@ class FastestMoves:
 
 
 def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.ndarray,
-                  discount: float = 0.9) -> FastestMoves:
+                  discount: float = DISCOUNT) -> FastestMoves:
     """P1's fastest optimal moves on TS x DFA when P2 plays the trap set p2[g] at every game
     state g and `values` [G] are P1's optimal values there (the leader pair of
     docs/semantics.md §7 when p2 is P2's leader strategy and `values` V_lead).
@@ -652,12 +653,12 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
     rows = np.arange(game.size)
     nxt = game.next[rows, :, p2]                                      # [G, A1, K]
     prob = game.prob[rows, :, p2]
-    optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - 1e-9
+    optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - EXACT_SLACK
     w = np.zeros(game.size)
     for _ in range(MAX_SWEEPS):
         gain = (prob * np.where(game.goal[nxt], 1.0, discount * w[nxt])).sum(-1)
         new = np.where(game.free, np.where(optimal, gain, 0.0).max(axis=1), 0.0)
-        if np.abs(new - w).max() < 1e-12:
+        if np.abs(new - w).max() < EXACT_SCORE_STOP:
             break
         w = new
     return FastestMoves(answers=np.where(optimal, gain, -1.0).argmax(axis=1), scores=w)

@@ -11,6 +11,8 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.numeric import argmax_by_group, first_best
+from hg2prism.numeric.fastest import (DISCOUNT, MAX_SCORE_SWEEPS, RELATIVE_TIE, SCORE_STOP,
+                                      STORM_SLACK)
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.strategy.canonical import CanonicalMDP
 
@@ -23,9 +25,8 @@ class StormChoices:
     choice: np.ndarray           # [n_storm_states] global choice index P1 takes in each Storm state
 
 
-OPTIMAL_SLACK = 1e-8   # Storm's values are sound to 1e-10; choices within this are optimal
-DISCOUNT = 0.9         # how strongly P1 prefers finishing soon among optimal moves
-MAX_DISCOUNT_SWEEPS = 1000
+# the fastest-first rule's constants (numeric/fastest.py)
+OPTIMAL_SLACK, MAX_DISCOUNT_SWEEPS = STORM_SLACK, MAX_SCORE_SWEEPS
 
 
 def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
@@ -81,13 +82,13 @@ def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
             change = max(pool.map(lambda half: sweep(half, w, new), halves),  # noqa: B023
                          default=0.0)
             w = new
-            if change < 1e-9:      # enough to rank the moves
+            if change < SCORE_STOP:      # enough to rank the moves
                 break
     score = np.full(len(choice_state), -1.0)
     score[opt_choices] = reached + onward @ w
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
-    best = first_best(score, choice_state, relative_tie=1e-12)
+    best = first_best(score, choice_state, relative_tie=RELATIVE_TIE)
     action = np.full(mdp.n, -1, dtype=np.int64)
     action[choice_state[best]] = mdp.choice_action[best]
     return action

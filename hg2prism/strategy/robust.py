@@ -39,6 +39,8 @@ from hg2prism.engines.engine import Transitions
 from hg2prism.errors import PROBABILITY_SLACK, SolverError
 from hg2prism.numeric import ExplicitModel, solve_m_matrix
 from hg2prism.numeric.graph import stable_order
+from hg2prism.numeric.fastest import (DISCOUNT, MAX_SCORE_SWEEPS, RELATIVE_TIE, SCORE_STOP,
+                                      STORM_SLACK)
 from hg2prism.numeric.tables import ranges
 
 SWITCH = 1e-12          # the adversary switches only on an improvement above this
@@ -46,10 +48,8 @@ P1_SWITCH = 1e-11       # P1 too (above the solves' rounding on models of 1e5 st
 MAX_P1_ROUNDS = 500
 RESIDUAL = 1e-10        # the certified fixed point's largest residual
 MAX_ROUNDS = 10_000
-OPTIMAL_SLACK = 1e-8    # as the deceptive strategy: choices this close to the value are optimal
-DISCOUNT = 0.9          # as the deceptive strategy: among optimal moves, the fastest
-DISCOUNT_STOP = 1e-9
-MAX_DISCOUNT_SWEEPS = 1000
+# as the deceptive strategy: the fastest-first rule's constants (numeric/fastest.py)
+OPTIMAL_SLACK, DISCOUNT_STOP, MAX_DISCOUNT_SWEEPS = STORM_SLACK, SCORE_STOP, MAX_SCORE_SWEEPS
 
 
 @dataclass(frozen=True, eq=False)
@@ -483,7 +483,7 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
     score = worst(np.where(game.goal, 1.0, later), 0, 1)
     score = np.where(optimal, score, -1.0)
     score[action < 0] = np.where(decides[game.choice_state], -2.0, score)[action < 0]
-    return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=1e-12)
+    return argmax_by_group(score, game.choice_state, game.n_states, relative_tie=RELATIVE_TIE)
 
 
 def move_values(game: IntervalGame, solution: RobustSolution, states: np.ndarray,
