@@ -27,8 +27,10 @@ def adaptive_belief_figure(world_name: str, names: Sequence[str], beliefs: Seque
     steps = np.arange(len(values))
     for k, name in enumerate(names):
         true = k == true_type
+        # the true type's bold line under the others' dashes: equal beliefs (1/2 each until
+        # P2's actions differ) show both, not the bold line alone
         ax.step(steps, values[:, k], where="post", color=hypothesis_colour(k),
-                lw=2.2 if true else 1.1, ls="-" if true else "--",
+                lw=2.2 if true else 1.4, ls="-" if true else "--", zorder=2 if true else 3,
                 label=f"{name}" + (" (P2's type)" if true else ""))
     singled = next((i for i, row in enumerate(values) if row.max() >= 1.0 - 1e-12), None)
     if singled is not None:
