@@ -35,8 +35,8 @@ def csv_text(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(header)
-    writer.writerows([repr(cell) if isinstance(cell, float) else cell for cell in row]
-                     for row in rows)
+    writer.writerows([repr(float(cell)) if isinstance(cell, float) else cell for cell in row]
+                     for row in rows)      # float(): numpy's repr is np.float64(0.5)
     return buffer.getvalue()
 
 

@@ -70,6 +70,9 @@ def quiet() -> Iterator[None]:
         LOGGER.setLevel(level)
 
 
+_COLLECTING = [0]       # collected_warnings is active (nested: a count)
+
+
 @contextmanager
 def each_warning_once() -> Iterator[None]:
     """Inside, a warning given again word for word is not shown again (adaptive deception checks
@@ -77,7 +80,9 @@ def each_warning_once() -> Iterator[None]:
     seen: set[str] = set()
 
     def first(record: logging.LogRecord) -> bool:
-        if record.levelno < logging.WARNING:
+        # a warning being collected is not shown yet: it counts when it is replayed (a sweep's
+        # points', run on one process, were dropped as seen when replayed)
+        if record.levelno < logging.WARNING or _COLLECTING[0]:
             return True
         message = record.getMessage()
         if message in seen:
@@ -106,9 +111,11 @@ def collected_warnings() -> Iterator[list[str]]:
     handlers, propagate = LOGGER.handlers[:], LOGGER.propagate
     LOGGER.handlers = [handler]
     LOGGER.propagate = False
+    _COLLECTING[0] += 1
     try:
         yield collected
     finally:
+        _COLLECTING[0] -= 1
         LOGGER.handlers = handlers
         LOGGER.propagate = propagate
 

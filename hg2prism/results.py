@@ -39,6 +39,7 @@ __all__ = ["Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObject
            "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults", "provenance"]
 
 TIMING_DIGITS = 4
+"""Timings are written to results.json rounded to this many decimals (0.1 ms)."""
 
 
 def provenance(world: World) -> dict[str, str]:
@@ -49,7 +50,6 @@ def provenance(world: World) -> dict[str, str]:
 
     return {"world": world.name, "world_file": str(world.path),
             "world_digest": world.digest(), "hg2prism_version": __version__}
-"""Timings are written to results.json rounded to this many decimals (0.1 ms)."""
 
 
 @dataclass(frozen=True)
@@ -356,7 +356,8 @@ class CheckResult:
 
         ts = self.analysis.ts
         if self.bounded is None:
-            return self.analysis, strategy or Strategy.from_records(self.records, ts)
+            return self.analysis, (strategy if strategy is not None
+                                   else Strategy.from_records(self.records, ts))
         records = strategy.records if strategy is not None else self.records
         return (dataclasses.replace(self.analysis, inference=StepCounter(
                     self.analysis.inference, self.bounded.bound - 1)),

@@ -683,3 +683,12 @@ def test_move_of_every_record_is_its_action(name: str, changes: dict) -> None:
         broken = {**one, "window": [{"state": one["window"][0]["state"]}]}
         with pytest.raises(KeyError, match="no 'action'"):
             strategy.move_of(broken)
+
+
+def test_move_of_a_record_without_its_state_is_a_key_error(world1_solution) -> None:
+    """move_of on a record that lacks the keys naming its state: a KeyError naming them (a
+    TypeError about move()'s arguments before, the review found)."""
+    record = dict(world1_solution.strategy.records[0])
+    del record["state"], record["q"]
+    with pytest.raises(KeyError, match="has no state, q"):
+        world1_solution.strategy.move_of(record)

@@ -549,3 +549,15 @@ def test_long_games_say_how_they_go(monkeypatch, caplog) -> None:
     assert solved == sorted(["games: the leader game"] +
                             [f"games: the game of hypothesis x{i}" for i in range(3)])
     assert lines[5].startswith("games: 3 perceptual game(s) and the leader game solved")
+
+
+def test_the_csv_writer_writes_every_digit_of_python_and_numpy_floats() -> None:
+    """outputs.csv_text, the one CSV writer (bench, robust, sweep, the adaptive weight sweep): a
+    float as repr, numpy's as Python's (numpy 2 reprs np.float64(0.5)), None empty, text
+    quoted where needed."""
+    import numpy as np
+
+    from hg2prism.outputs import csv_text
+
+    text = csv_text(["a", "b", "c", "d"], [[0.1, np.float64(1 / 3), None, "x,y"], [1, 2, 3, 4]])
+    assert text == 'a,b,c,d\n0.1,0.3333333333333333,,"x,y"\n1,2,3,4\n'

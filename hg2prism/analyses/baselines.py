@@ -121,7 +121,8 @@ class NashBaseline:
 
     game: ConcurrentGame
     solution: NashSolution
-    values: np.ndarray        # [n_ts, n_q] V_NE
+    values: np.ndarray        # [n_ts, n_q] value iteration's last iterate: V_NE where it converged
+                              # (a lower bound where it stopped at a point bracket, §7)
     guaranteed: np.ndarray    # [n_ts, n_q] what P1's extracted strategy guarantees
     p1: np.ndarray            # [n_ts, n_q, A1max] (0 on slots not enabled at the state)
     p2: np.ndarray            # [n_ts, n_q, n_a2]

@@ -207,7 +207,7 @@ class _Uniforms:
 # P1's strategy
 # ---------------------------------------------------------------------------------------------
 
-def leader_fallback(analysis: Analysis) -> Fallback:
+def leader_fallback(analysis: Analysis, model: Hypergame | None = None) -> Fallback:
     """A fallback for states the records do not cover: P1 answers the trap set its model
     predicts (pi2_xh(v)) with its naive answer (docs/semantics.md §11): the move optimal in the
     leader game G(phi) of §7 against that set, the fastest of them (`NaiveStrategy`, which
@@ -217,7 +217,8 @@ def leader_fallback(analysis: Analysis) -> Fallback:
     (SimulationSummary.off_record_steps)."""
     from hg2prism.analyses.deception_value import NaiveStrategy, naive_answers
 
-    model = Hypergame(analysis.ts, analysis.task, analysis.games, analysis.inference)
+    if model is None:       # the hypergame P1's model of P2 predicts with (given: shared)
+        model = Hypergame(analysis.ts, analysis.task, analysis.games, analysis.inference)
     return NaiveStrategy(naive_answers(analysis.ts, analysis.task, analysis.leader),
                          model).action
 

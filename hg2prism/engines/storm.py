@@ -333,8 +333,6 @@ def induced_probability(checked: StormChecked, choice: np.ndarray,
     return _dtmc_value(_induced_dtmc(checked, choice), prop)
 
 
-
-
 def induced_within(checked: StormChecked, choice: np.ndarray, horizon: int) -> float:
     """P(goal within `horizon` steps) when P1 takes choice[state] (global choice indices). Storm's bounded reachability costs
     one sweep per step, so the bound doubles from 1024 and stops at the horizon or as soon as

@@ -70,7 +70,7 @@ def _committed(checks: list[CheckResult], weights: list[float]) -> list[list[flo
     values = []
     for j, check in enumerate(checks):
         strategy = Strategy.from_records(check.records, check.analysis.ts,
-                                         fallback=leader_fallback(check.analysis))
+                                         fallback=leader_fallback(check.analysis, games[j]))
         row = []
         for k in range(len(checks)):
             if weights[k] == 0:

@@ -216,8 +216,6 @@ def _find_seeded_episode(analysis: Analysis, strategy: Policy, horizon: int, see
     return best
 
 
-
-
 def _check_positive(value: int | None, key: str, minimum: int) -> None:
     if value is not None and (isinstance(value, bool) or not isinstance(value, int)
                               or value < minimum):

@@ -154,9 +154,9 @@ def _numbers(normalise: Callable[[list[float]], object] | None) -> Callable[[obj
 def _with_observer(world: World, kind: str) -> World:
     """The world with P2's observer switched (docs/semantics.md §12), window and rationality
     kept, each of the new kind's settings at its default (to "bayes": a uniform prior and the
-    "map" decision, so P2's first guess is hypothesis 0: a warning says so where the world's
-    was another). Refused when the new kind has a required setting (switching to "cusum"
-    needs a threshold)."""
+    "map" decision, so P2's first guess is hypothesis 0: the sweep warns where the world's was
+    another, `_first_guess_notes`). Refused when the new kind has a required setting
+    (switching to "cusum" needs a threshold)."""
     if kind == world.inference:
         return world
     try:
@@ -165,12 +165,24 @@ def _with_observer(world: World, kind: str) -> World:
         raise InputError(COMMAND_LINE, "--values", f"switching a "
                          f"{observer_kind(world.inference).title} world to {kind} needs a "
                          f"{missing}; sweep inference from a {kind} world") from None
-    if switched.initial_hypothesis != world.initial_hypothesis:
-        rule = observer_kind(kind).first_guess_rule or "its own"
-        progress.warn(f"inference {kind}: P2's first guess is x{switched.initial_hypothesis} "
-                      f"({rule}), not the world's x{world.initial_hypothesis}: the point "
-                      f"compares first guesses as well as observers")
     return switched
+
+
+def _first_guess_notes(world: World, tasks: Sequence[PointTask]) -> None:
+    """A warning for each point whose observer, swept, first guesses another hypothesis than
+    the world's P2 (a uniform Bayesian prior first guesses x0: mir100's x1 became x0 without a
+    word): the point compares first guesses as well as observers."""
+    for task in tasks:
+        assignment = dict(task.assignment)
+        if "inference" not in assignment or "initial_hypothesis" in assignment:
+            continue
+        first = dict(task.changes).get("initial_hypothesis", world.initial_hypothesis)
+        if first != world.initial_hypothesis:
+            kind = observer_kind(assignment["inference"])
+            progress.warn(f"sweep {point_label(assignment)}: P2's first guess is x{first} "
+                          f"({kind.first_guess_rule or 'her observer'}), not the world's "
+                          f"x{world.initial_hypothesis}: the point compares first guesses as "
+                          "well as observers")
 
 
 def _with_setting(name: str) -> Callable[[World, Value], World]:
@@ -722,6 +734,7 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
                 max_states: int | None, deception: bool) -> SweepRun:
     parsed, points = check_grid(world, grid, max_states)
     tasks = _tasks(world, points, storm_method, max_states, deception)
+    _first_guess_notes(world, tasks)
     out = Path(out)
     total_start = time.perf_counter()
     serial = workers == 1 and scheduler is None
@@ -738,8 +751,8 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
         task = tasks[outcome.index]
         for name, data in outcome.files:
             write_bytes(out / task.folder / name, data)
-        for message in outcome.warnings:
-            progress.replay_warning(message)
+        for message in outcome.warnings:        # which point says it (points may say alike)
+            progress.replay_warning(f"sweep {label_of(task)}: {message}")
         if show_progress:
             done = len(outcomes)
             head = f"sweep {label_of(task)} ({done}/{len(tasks)}) [{_bar(done, len(tasks))}]"

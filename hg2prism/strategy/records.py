@@ -447,6 +447,9 @@ class Strategy:
         if not isinstance(record, Mapping):
             raise KeyError(f"move_of(): expected a strategy.json record (a dict), got "
                            f"{type(record).__name__}")
+        missing = [key for key in ("state", "q", "hypothesis") if key not in record]
+        if missing:
+            raise KeyError(f"move_of(): the record has no {', '.join(missing)}")
         return self.move(**{key: record[key] for key in MOVE_KEYS if key in record}, step=step)
 
     def record(self, ts_state: int, q: int, memory: Memory) -> Mapping | None:
