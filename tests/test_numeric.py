@@ -410,3 +410,17 @@ def test_fold_is_the_reduction(axis: int) -> None:
     table[3, 2, 5] = np.inf
     for ufunc in (np.minimum, np.maximum):
         assert np.array_equal(fold(ufunc, table, axis), ufunc.reduce(table, axis=axis))
+
+
+def test_backward_distance_counts_edges_into_the_sources() -> None:
+    """numeric.graph.backward_distance (the certification's first strategy ranks moves by it):
+    0 -> 1 -> 2, 3 -> 1, 4 alone, 2 -> 0 (a cycle back): from the source 2 the fewest edges are
+    2, 1, 0, 2, inf; with sources 2 and 4 the same but 0 at 4; no source: inf everywhere."""
+    import math
+
+    from hg2prism.numeric.graph import backward_distance
+
+    rows, columns = np.array([0, 1, 3, 2]), np.array([1, 2, 1, 0])
+    assert backward_distance(rows, columns, np.array([2]), 5).tolist() == [2, 1, 0, 2, math.inf]
+    assert backward_distance(rows, columns, np.array([2, 4]), 5).tolist() == [2, 1, 0, 2, 0]
+    assert np.isinf(backward_distance(rows, columns, np.array([], dtype=int), 5)).all()

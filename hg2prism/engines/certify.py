@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.csgraph as csgraph
 
 from hg2prism.numeric import ExplicitModel, chain_reach, optimal_reach
+from hg2prism.numeric.graph import backward_distance
 
 BELLMAN_RESIDUAL = 1e-11   # max_a Q(s, a) - x(s) on every state: x is a fixed point of T
 LINEAR_ERROR = 1e-11       # bound on the error of the chain's solve: x is the strategy's value
@@ -84,21 +84,10 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
 def _distance_to_target(matrix: sp.csr_matrix, source: np.ndarray, entries: np.ndarray,
                         target: np.ndarray) -> np.ndarray:
     """[states] the fewest steps to the target along `entries` (edges source -> successor of
-    the matrix's entries), inf where there is none: breadth first from an extra node n,
-    linked to every target state, over the reversed edges."""
-    n = len(target)
+    the matrix's entries), inf where there is none (numeric.graph.backward_distance)."""
     columns = matrix.indices[entries]
     rows = source[np.searchsorted(matrix.indptr, entries, side="right") - 1]
-    targets = np.flatnonzero(target)
-    index = np.int32 if n < 2 ** 31 - 1 else np.int64
-    reverse = sp.coo_matrix(
-        (np.ones(rows.size + targets.size),
-         (np.concatenate([columns, np.full(targets.size, n)]).astype(index, copy=False),
-          np.concatenate([rows, targets]).astype(index, copy=False))),
-        shape=(n + 1, n + 1))
-    del columns, rows
-    reverse = reverse.tocsr()
-    return csgraph.dijkstra(reverse, directed=True, indices=n, unweighted=True)[:n]
+    return backward_distance(rows, columns, np.flatnonzero(target), len(target))
 
 
 def certify_reachability(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.ndarray,

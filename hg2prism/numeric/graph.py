@@ -11,15 +11,32 @@ from hg2prism.numeric.model import ExplicitModel
 from hg2prism.numeric.tables import ranges
 
 
+def _reversed(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
+              ) -> sp.csr_matrix:
+    """The edges rows[i] -> columns[i] reversed, and an extra node n with an edge to every
+    source: a search from n along it goes backwards from all the sources at once (32-bit
+    indices where they fit: Storm-sized graphs)."""
+    index = np.int32 if n < 2 ** 31 - 1 else np.int64
+    return sp.csr_matrix(
+        (np.ones(rows.size + sources.size, dtype=np.int8),
+         (np.concatenate([columns, np.full(sources.size, n)]).astype(index, copy=False),
+          np.concatenate([rows, sources]).astype(index, copy=False))),
+        shape=(n + 1, n + 1))
+
+
+def backward_distance(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
+                      ) -> np.ndarray:
+    """[n] the fewest edges (rows[i] -> columns[i]) from each state into `sources` (indices),
+    inf where there is no path."""
+    return csgraph.dijkstra(_reversed(rows, columns, sources, n), directed=True, indices=n,
+                            unweighted=True)[:n] - 1.0
+
+
 def backward_reach(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
                    ) -> np.ndarray:
     """[n] bool: the states with a path (along the edges rows[i] -> columns[i]) into `sources`
-    (indices): a breadth-first search from an extra node n, linked to every source, along
-    reversed edges."""
-    reverse = sp.csr_matrix(
-        (np.ones(rows.size + sources.size, dtype=np.int8),
-         (np.concatenate([columns, np.full(sources.size, n)]), np.concatenate([rows, sources]))),
-        shape=(n + 1, n + 1))
+    (indices): a breadth-first search along the reversed edges from all the sources at once."""
+    reverse = _reversed(rows, columns, sources, n)
     found = np.zeros(n + 1, dtype=bool)
     found[csgraph.breadth_first_order(reverse, n, directed=True,
                                       return_predecessors=False)] = True
