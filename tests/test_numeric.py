@@ -424,3 +424,24 @@ def test_backward_distance_counts_edges_into_the_sources() -> None:
     assert backward_distance(rows, columns, np.array([2]), 5).tolist() == [2, 1, 0, 2, math.inf]
     assert backward_distance(rows, columns, np.array([2, 4]), 5).tolist() == [2, 1, 0, 2, 0]
     assert np.isinf(backward_distance(rows, columns, np.array([], dtype=int), 5)).all()
+
+
+def test_min_expected_steps_against_closed_forms() -> None:
+    """numeric.min_expected_steps (the lexicographic objective's): state 0 ends with
+    probability 1/2 per step by its first choice (2 steps expected) or moves to state 1, which
+    ends with probability 1/4 per step (4, so 5 from 0); from the proper second choice it
+    switches to the first: [2, 4, 0]. With the first choice not allowed, it keeps [5, 4, 0]."""
+    import scipy.sparse as sp
+
+    from hg2prism.numeric import ExplicitModel, min_expected_steps
+
+    matrix = sp.csr_matrix(np.array([[0.5, 0.0, 0.5],      # state 0, choice 0
+                                     [0.0, 1.0, 0.0],      # state 0, choice 1
+                                     [0.0, 0.75, 0.25]]))  # state 1
+    model = ExplicitModel(matrix=matrix, group_start=np.array([0, 2, 3, 3]))
+    states, start = np.array([0, 1]), np.array([1, 2, -1])
+    found = min_expected_steps(model, states, np.ones(3, dtype=bool), start)
+    assert found.converged and found.values.tolist() == pytest.approx([2.0, 4.0, 0.0])
+    assert found.choice[:2].tolist() == [0, 2] and found.rounds == 2
+    kept = min_expected_steps(model, states, np.array([False, True, True]), start)
+    assert kept.values.tolist() == pytest.approx([5.0, 4.0, 0.0]) and kept.rounds == 1

@@ -12,9 +12,9 @@ from hg2prism.numeric.graph import (alternating_attractor, attractor, backward_d
                                     downstream_first, end_components, move_predecessors,
                                     progress_choices)
 from hg2prism.numeric.model import ExplicitModel, argmax_by_group, first_best
-from hg2prism.numeric.policy import OptimalReach, optimal_reach
+from hg2prism.numeric.policy import ExpectedSteps, OptimalReach, min_expected_steps, optimal_reach
 
 __all__ = ["ChainValue", "Steps", "bounded_reach", "chain_reach", "expected_steps",
            "solve_m_matrix", "solve_plain", "attractor", "alternating_attractor", "move_predecessors", "backward_distance", "backward_reach", "can_reach", "downstream_first", "end_components", "progress_choices", "ExplicitModel",
            "argmax_by_group", "first_best",
-           "OptimalReach", "optimal_reach"]
+           "OptimalReach", "optimal_reach", "ExpectedSteps", "min_expected_steps"]

@@ -58,7 +58,7 @@ import numpy as np
 
 import scipy.sparse as sp
 
-from hg2prism.numeric.chains import chain_reach
+from hg2prism.numeric.chains import chain_reach, solve_plain
 from hg2prism.numeric.graph import attractor, end_components, progress_choices
 from hg2prism.numeric.model import ExplicitModel
 
@@ -118,6 +118,44 @@ def _iterate(model: ExplicitModel, target: np.ndarray, choice: np.ndarray, maxim
             return OptimalReach(values, choice, residual, error, rounds, True)
         choice[improve] = model.first_best(q, sense)[improve]
     return OptimalReach(values, choice, residual, error, max_rounds, False)
+
+
+@dataclass(frozen=True, eq=False)
+class ExpectedSteps:
+    """The outcome of `min_expected_steps`."""
+
+    values: np.ndarray      # [n] the least expected steps to the end on `states`, 0 elsewhere
+    choice: np.ndarray      # [n] the last strategy (global choice indices) on `states`
+    rounds: int
+    converged: bool
+
+
+def min_expected_steps(model: ExplicitModel, states: np.ndarray, allowed: np.ndarray,
+                       choice: np.ndarray, max_rounds: int = 1000) -> ExpectedSteps:
+    """The least expected number of steps until an absorbing state, on `states`, using only the
+    `allowed` choices (a mask over choices), which must never leave `states` but for absorbing
+    states, from a proper strategy `choice` (a global choice index for each of `states`: it
+    ends the play with probability 1). Policy iteration with an exact evaluation (one sparse
+    solve) per round; a state switches to its first best allowed choice when that beats its
+    current one by more than 1e-12 relative: every switch of a proper strategy to a cheaper
+    choice keeps it proper and lowers the values (stochastic shortest paths: Bertsekas and
+    Tsitsiklis 1991), so it stops; `converged` False after `max_rounds` rounds."""
+    matrix = model.matrix
+    choice = np.asarray(choice, dtype=np.int64).copy()
+    expected = np.zeros(model.n_states)
+    per_choice = np.empty(0)
+    for rounds in range(1, max_rounds + 1):
+        system = sp.identity(len(states), format="csc") - matrix[choice[states]][:, states].tocsc()
+        expected[:] = 0.0
+        expected[states] = solve_plain(system, np.ones(len(states))) if len(states) else []
+        per_choice = np.where(allowed, 1.0 + matrix @ expected, np.inf)
+        current = per_choice[choice[states]]
+        best = -model.best(per_choice, -1.0)[states]
+        improve = best < current - 1e-12 * np.maximum(1.0, current)
+        if not improve.any():
+            return ExpectedSteps(expected, choice, rounds, True)
+        choice[states[improve]] = model.first_best(per_choice, -1.0)[states[improve]]
+    return ExpectedSteps(expected, choice, max_rounds, False)
 
 
 def _on_quotient(model: ExplicitModel, target: np.ndarray, choice: np.ndarray,

@@ -14,9 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 
-from hg2prism.numeric import solve_plain
+from hg2prism.numeric import min_expected_steps
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
 
@@ -101,35 +100,20 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     allowed = optimal & finite[mdp.choice_state] & (np.bincount(
         mdp.entry_choice, weights=~inside[mdp.entry_target], minlength=len(optimal)) == 0)
 
-    # Policy iteration for the expected steps on the finite states, from the proper strategy
-    # of the backward search (each move gets one level closer with positive probability).
+    # Policy iteration for the expected steps on the finite states (numeric core), from the
+    # proper strategy of the backward search (each move gets one level closer with positive
+    # probability).
     states = np.flatnonzero(finite)
-    where = np.full(mdp.n, -1, dtype=np.int64)
-    where[states] = np.arange(len(states))
-    matrix = mdp.matrix()
     choice_of = np.full((mdp.n, mdp.n_actions), -1, dtype=np.int64)
     choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
-    policy = first_move.copy()
-    expected = np.zeros(mdp.n)
-    for _ in range(MAX_POLICY_ITERATIONS):
-        rows = matrix[choice_of[states, policy[states]]][:, states]
-        system = sp.identity(len(states), format="csc") - rows.tocsc()
-        solution = solve_plain(system, np.ones(len(states))) if len(states) else []
-        expected[:] = 0.0
-        expected[states] = solution
-        q = 1.0 + matrix @ expected
-        table = mdp.by_state(np.where(allowed, q, np.nan))
-        current = table[states, policy[states]]
-        best = np.nanmin(table[states], axis=1) if len(states) else current
-        improve = best < current - 1e-12 * np.maximum(1.0, current)
-        if not improve.any():
-            break
-        better = np.nanargmin(table[states], axis=1)
-        policy[states[improve]] = better[improve]
+    first = np.full(mdp.n, -1, dtype=np.int64)
+    first[states] = choice_of[states, first_move[states]]
+    expected = min_expected_steps(mdp.model, states, allowed, first,
+                                  MAX_POLICY_ITERATIONS).values.copy()
     # Final moves: the first of the (numerically) best, so that exact ties follow move order.
     action = default_action.copy()
     if len(states):
-        table = mdp.by_state(np.where(allowed, 1.0 + matrix @ expected, np.nan))
+        table = mdp.by_state(np.where(allowed, 1.0 + mdp.matrix() @ expected, np.nan))
         action[states] = _pick(table[states], np.full(len(states), -1), 1e-9, lowest=True)
     expected[~finite & ~absorbing] = np.inf
     return Lexicographic(action=action, finite=finite, expected=expected)
