@@ -258,20 +258,17 @@ def _guard_detect(args: argparse.Namespace, world: object) -> None:
 
 
 def _simulation_options(args: argparse.Namespace, world: object) -> None:
+    """--episodes, --horizon and --seed within the limits a world file's [simulation] has (one
+    rule and one wording: model/validation.py's)."""
     from hg2prism import worldfile as world_mod
+    from hg2prism.model.validation import Checks
 
-    for option, most in (("episodes", world_mod.MAX_EPISODES), ("horizon", world_mod.MAX_HORIZON)):
-        given = getattr(args, option)
-        if given is not None and given < 1:
-            raise InputError(COMMAND_LINE, f"--{option}", "must be at least 1")
-        if given is not None and given > most:
-            raise InputError(COMMAND_LINE, f"--{option}", f"must be at most {most:,} "
-                             f"({world_mod.LIMIT_REASON['--' + option]}), got {given:,}")
-    if args.seed is not None and args.seed < 0:
-        raise InputError(COMMAND_LINE, "--seed", "must be at least 0")
-    if args.seed is not None and args.seed > world_mod.MAX_SEED:
-        raise InputError(COMMAND_LINE, "--seed", f"must be at most {world_mod.MAX_SEED:,} "
-                         f"({world_mod.LIMIT_REASON['--seed']}), got {args.seed:,}")
+    checks = Checks(COMMAND_LINE)
+    for option, least, most in (("episodes", 1, world_mod.MAX_EPISODES),
+                                ("horizon", 1, world_mod.MAX_HORIZON),
+                                ("seed", 0, world_mod.MAX_SEED)):
+        if getattr(args, option) is not None:
+            checks.integer(getattr(args, option), f"--{option}", least, most)
 
 
 def _bound_option(args: argparse.Namespace, world: object) -> None:

@@ -187,7 +187,7 @@ def test_huge_simulation_is_refused_by_the_validator(tmp_path: Path, key: str, l
 
 def test_huge_horizon_on_the_command_line_is_refused(tmp_path: Path) -> None:
     proc = run_cli(["run", WORLD1, "--out", str(tmp_path / "o"), "--horizon", "1000000000"], tmp_path)
-    assert_one_line_error(proc, "--horizon", "at most 100,000")
+    assert_one_line_error(proc, "--horizon", "must be <= 100,000")
     assert not (tmp_path / "o").exists()
 
 

@@ -217,9 +217,11 @@ def _find_seeded_episode(analysis: Analysis, strategy: Policy, horizon: int, see
 
 
 def _check_positive(value: int | None, key: str, minimum: int) -> None:
-    if value is not None and (isinstance(value, bool) or not isinstance(value, int)
-                              or value < minimum):
-        raise InputError(COMMAND_LINE, key, f"must be an integer >= {minimum}, got {value!r}")
+    """An option's integer (None: not given), by model/validation.py's rule."""
+    from hg2prism.model.validation import Checks
+
+    if value is not None:
+        Checks(COMMAND_LINE).integer(value, key, minimum)
 
 
 def _replanning_rates(summary: SimulationSummary) -> dict:

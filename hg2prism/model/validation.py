@@ -143,12 +143,13 @@ class Checks:
                 maximum: int | None = None) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.fail(key, f"must be an integer, got {shown(value)}")
-        name = key.rsplit(".", 1)[-1]
+        # a world file's key is named again in the reason, an option (--episodes) is not
+        name = "" if key.startswith("--") else key.rsplit(".", 1)[-1] + " "
         if minimum is not None and value < minimum:
-            raise self.fail(key, f"{name} must be >= {minimum}, got {value}")
+            raise self.fail(key, f"{name}must be >= {minimum}, got {value}")
         if maximum is not None and value > maximum:
             reason = f" ({LIMIT_REASON[key]})" if key in LIMIT_REASON else ""
-            raise self.fail(key, f"{name} must be <= {maximum:,}{reason}, got {value:,}")
+            raise self.fail(key, f"{name}must be <= {maximum:,}{reason}, got {value:,}")
         return value
 
     def array(self, value: object, key: str, expected: str) -> list:
