@@ -278,10 +278,9 @@ def _bound_option(args: argparse.Namespace, world: object) -> None:
         return
     if args.objective != "bounded":
         raise InputError(COMMAND_LINE, "--bound", "needs --objective bounded")
-    if args.bound < 1:
-        raise InputError(COMMAND_LINE, "--bound", "must be at least 1")
-    if args.bound > MAX_HORIZON:
-        raise InputError(COMMAND_LINE, "--bound", f"must be at most {MAX_HORIZON:,}, got {args.bound:,}")
+    from hg2prism.model.validation import Checks
+
+    Checks(COMMAND_LINE).integer(args.bound, "--bound", 1, MAX_HORIZON)
     if args.command == "run" and args.bound != (args.horizon or world.simulation.horizon):
         raise InputError(COMMAND_LINE, "--bound", "with run, the bound is the "
                          "simulation horizon; use --horizon instead")

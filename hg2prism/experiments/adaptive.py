@@ -452,7 +452,8 @@ def sweep_weights(world: World, weights: list[float], out: Path,
         "values": weights, "parameters": ["weight"], "type": names[0],
         "storm_method": storm_method, "sound": results_sound(storm_method), "rows": rows,
         "failed": failed, "seconds": round(time.perf_counter() - start, 3)})
-    write_csv(out / "sweep.csv", ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names],
+    write_csv(out / "sweep.csv",
+              ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names],
               ([row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()]
                for row in rows))
     if rows:

@@ -61,10 +61,12 @@ def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | No
             raise InputError(COMMAND_LINE, "--fallback-delta", "needs --fallback robust")
         return None, None
     if fallback not in FALLBACKS:
-        raise InputError(COMMAND_LINE, "--fallback", f"{fallback!r} is not one of {', '.join(FALLBACKS)}")
+        raise InputError(COMMAND_LINE, "--fallback",
+                         f"{fallback!r} is not one of {', '.join(FALLBACKS)}")
     if fallback == "leader":
         if delta is not None:
-            raise InputError(COMMAND_LINE, "--fallback-delta", "only the robust fallback has a budget")
+            raise InputError(COMMAND_LINE, "--fallback-delta",
+                             "only the robust fallback has a budget")
         return fallback, None
     if delta is None:
         return fallback, DEFAULT_FALLBACK_DELTA

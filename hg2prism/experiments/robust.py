@@ -53,7 +53,8 @@ _CSV_COLUMNS = ("robust_value", "nominal_worst_case", "robust_strategy_nominal_v
 def parse_deltas(values: Sequence[object]) -> list[float]:
     """Distinct budgets in [0, 1), as typed on the command line; InputError (key --deltas)."""
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(COMMAND_LINE, "--deltas", "expected at least one deviation budget in [0, 1)")
+        raise InputError(COMMAND_LINE, "--deltas",
+                         "expected at least one deviation budget in [0, 1)")
     parsed: list[float] = []
     for value in values:
         try:
@@ -61,9 +62,11 @@ def parse_deltas(values: Sequence[object]) -> list[float]:
         except (TypeError, ValueError):
             number = math.nan
         if not (math.isfinite(number) and 0.0 <= number < 1.0):
-            raise InputError(COMMAND_LINE, "--deltas", f"{value!r} is not a deviation budget in [0, 1)")
+            raise InputError(COMMAND_LINE, "--deltas",
+                             f"{value!r} is not a deviation budget in [0, 1)")
         if number in parsed:
-            raise InputError(COMMAND_LINE, "--deltas", f"{value} is repeated; expected distinct budgets")
+            raise InputError(COMMAND_LINE, "--deltas",
+                             f"{value} is repeated; expected distinct budgets")
         parsed.append(number)
     return parsed
 
@@ -266,7 +269,8 @@ def _check_cross_checkable(world: World, deltas: list[float], eps: float) -> Non
     least = eps * (p2_action_count(world) - 1)
     for delta in deltas:
         if 0 < delta < least:
-            raise InputError(COMMAND_LINE, "--deltas", f"{delta:g} is below {least:g}, the least budget "
+            raise InputError(COMMAND_LINE, "--deltas",
+                             f"{delta:g} is below {least:g}, the least budget "
                              f"the cross-check's model can give each of P2's other sets "
                              f"eps = {eps:g}; use 0, a larger budget, or --no-cross-check")
 

@@ -90,7 +90,8 @@ class SweepParameter:
             raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to {self.front_end} "
                              f"worlds only; {world.name} is an {kind} world")
         if self.name == "traps" and world.arena is not None and not world.arena.traps_mode:
-            raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to worlds whose P2 sets "
+            raise InputError(COMMAND_LINE, f"--param {self.name}",
+                             f"applies to worlds whose P2 sets "
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
@@ -232,7 +233,8 @@ def _with_first_guess(world: World, first: int) -> World:
     the world's (a Bayesian one's follows her prior)."""
     kind = observer_kind(world.inference)
     if kind.first_guess is not None:
-        raise InputError(COMMAND_LINE, "--param", f"the {kind.title} observer's first guess follows "
+        raise InputError(COMMAND_LINE, "--param",
+                         f"the {kind.title} observer's first guess follows "
                          f"her prior; sweep prior instead of initial_hypothesis")
     if first >= len(world.hypotheses):
         raise InputError(COMMAND_LINE, "--values", f"initial_hypothesis value {first} must be an "
@@ -243,8 +245,9 @@ def _with_first_guess(world: World, first: int) -> World:
 def _check_traps(world: World, traps: int) -> None:
     candidates = len(arena_of(world).trap_candidates)
     if traps > candidates:
-        raise InputError(COMMAND_LINE, "--values", f"traps value {traps} must be at most the world's "
-                                           f"{candidates} trap candidates")
+        raise InputError(COMMAND_LINE, "--values",
+                         f"traps value {traps} must be at most the world's "
+                         f"{candidates} trap candidates")
 
 
 def _with_traps(world: World, traps: int) -> World:
@@ -296,7 +299,8 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     (strings as typed on the command line are parsed). Raises InputError (key --param or
     --values)."""
     if parameter not in SWEEP_PARAMETERS:
-        raise InputError(COMMAND_LINE, "--param", f"unknown parameter {parameter!r}; expected one of "
+        raise InputError(COMMAND_LINE, "--param",
+                         f"unknown parameter {parameter!r}; expected one of "
                          + ", ".join(SWEEP_PARAMETERS) + " (weight: for a world with P2's types)")
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(COMMAND_LINE, "--values", f"expected at least one value of {parameter} "
@@ -304,8 +308,9 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     parsed = [_parse_value(parameter, v) for v in values]
     for i, v in enumerate(parsed):
         if v in parsed[:i]:
-            raise InputError(COMMAND_LINE, "--values", f"{parameter} value {v} is repeated; expected "
-                                               "distinct values")
+            raise InputError(COMMAND_LINE, "--values",
+                             f"{parameter} value {v} is repeated; expected "
+                             "distinct values")
     return parsed
 
 
@@ -318,8 +323,9 @@ def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
     parsed: list[tuple[str, list[Value]]] = []
     for parameter, values in grid:
         if any(parameter == seen for seen, _ in parsed):
-            raise InputError(COMMAND_LINE, "--param", f"{parameter} is given twice; give all its values "
-                                              "after one --values")
+            raise InputError(COMMAND_LINE, "--param",
+                             f"{parameter} is given twice; give all its values "
+                             "after one --values")
         parsed.append((parameter, parse_sweep_values(parameter, values)))
     return parsed
 
@@ -625,8 +631,9 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
                 try:
                     client = Client(scheduler, timeout="10s")
                 except (OSError, TimeoutError, ValueError) as err:
-                    raise InputError(COMMAND_LINE, "--scheduler", f"cannot reach a Dask scheduler at "
-                                                          f"{scheduler}: {err}") from None
+                    raise InputError(COMMAND_LINE, "--scheduler",
+                                     f"cannot reach a Dask scheduler at "
+                                     f"{scheduler}: {err}") from None
         try:
             # largest first (by the size estimate), so that a big point does not start last
             # and leave the other workers idle; the scheduler hands out tasks as they arrive
