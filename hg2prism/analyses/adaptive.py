@@ -99,7 +99,9 @@ AdaptiveKey = AdaptiveState | str       # a running state, or "goal" / "fail"
 class Committed:
     """P1's model of type j and P2's real type k run side by side as one observer: the memory
     is (M_j, M_k), both updated with what was observed (v, a1, the action P2 played); P2 plays
-    from M_k."""
+    from M_k. (successor.TrackedObserver pairs memories too, for detection's mismatches: there
+    P1's model records the set it predicted wherever it takes P2 to be deterministic, §9; here
+    it records the set played, which P1 sees, §16.)"""
 
     model: Observer
     real: Observer
