@@ -456,7 +456,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _printable_streams() -> None:
+    """stdout and stderr replace what their encoding cannot write (the tables' π under
+    PYTHONIOENCODING=latin-1 ended a run that had written every file with a traceback)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="replace")
+        except (AttributeError, ValueError, OSError):     # not a text stream we may change
+            pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    _printable_streams()
     parser = build_parser()
     argv = sys.argv[1:] if argv is None else argv
     memory.release_large_arrays()

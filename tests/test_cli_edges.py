@@ -561,3 +561,15 @@ def test_the_csv_writer_writes_every_digit_of_python_and_numpy_floats() -> None:
 
     text = csv_text(["a", "b", "c", "d"], [[0.1, np.float64(1 / 3), None, "x,y"], [1, 2, 3, 4]])
     assert text == 'a,b,c,d\n0.1,0.3333333333333333,,"x,y"\n1,2,3,4\n'
+
+
+def test_a_terminal_that_cannot_print_pi_gets_the_tables_with_a_replacement(tmp_path: Path
+                                                                            ) -> None:
+    """PYTHONIOENCODING=latin-1: `run` wrote every file, then ended with a UnicodeEncodeError
+    traceback printing its table (π); the streams now replace what they cannot encode."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONIOENCODING="latin-1")
+    proc = subprocess.run([sys.executable, "-m", "hg2prism", "run", str(MODELS / "world3.toml"),
+                           "--episodes", "20", "--out", str(tmp_path / "o")], env=env,
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 0 and b"Traceback" not in proc.stderr, proc.stderr
+    assert b"deceptive ?1*" in proc.stdout and (tmp_path / "o" / "results.json").exists()

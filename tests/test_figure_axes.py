@@ -248,3 +248,31 @@ def test_robust_budgets_close_together_keep_their_ticks_not_their_labels() -> No
     assert labels((0.0, 1e-6, 0.5, 0.99)) == ["0", "", "0.5", "0.99"]
     assert labels((0.0, 0.01, 0.02, 0.5)) == ["0", "", "0.02", "0.5"]
     assert "" not in labels((0.0, 0.05, 0.1, 0.2))
+
+
+def test_a_sweep_figure_draws_its_values_in_axis_order() -> None:
+    """sweep.png of `--values 2 0 1` drew its curves 2 -> 0 -> 1 (a line from 2 to 0, none from
+    1 to 2; reproducibility check): the rows are drawn along the axis whatever their order, the
+    same picture as for `--values 0 1 2`; the adaptive weight sweep too."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from hg2prism.report import adaptive_plot, plots
+
+    def row(d: int) -> dict:
+        return {"delay": d, "deceptive_value": [0.9, 0.5, 0.7][d], "v_lead": 0.3, "v_ne": 0.2,
+                "weight": d / 2, "v_adapt": [0.9, 0.5, 0.7][d], "v_oracle": 1.0,
+                "v_commit": {"a": 0.4}}
+
+    def lines(draw, order) -> list:
+        fig, ax = plt.subplots()
+        draw([row(d) for d in order], ax)
+        drawn = [line.get_xydata().tolist() for line in ax.get_lines()]
+        plt.close(fig)
+        return drawn
+
+    for draw in (lambda rows, ax: plots.sweep_figure("delay", rows, None, ax=ax),
+                 lambda rows, ax: adaptive_plot.weight_sweep_figure("w", ["a"], rows, None,
+                                                                    ax=ax)):
+        assert lines(draw, (2, 0, 1)) == lines(draw, (0, 1, 2))

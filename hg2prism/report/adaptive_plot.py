@@ -56,6 +56,7 @@ def weight_sweep_figure(world_name: str, names: Sequence[str], rows: Sequence[di
     `ax` when given, then writing nothing)."""
     given = ax
     fig, ax = figure_axes(ax, BELIEF_INCHES)
+    rows = sorted(rows, key=lambda row: row["weight"])      # the given order may be any
     weights = [row["weight"] for row in rows]
     ax.plot(weights, [row["v_oracle"] for row in rows], "k:", lw=1.2, label="V_oracle")
     ax.plot(weights, [row["v_adapt"] for row in rows], "k-o", ms=3, lw=1.8, label="V_adapt")

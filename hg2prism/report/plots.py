@@ -302,6 +302,8 @@ def sweep_figure(parameter: str, rows: Sequence[dict], path: Path | None,
     given = ax
     fig, ax = figure_axes(ax, SWEEP_INCHES)
     x_of = _parameter_axis(ax, parameter, [row[parameter] for row in rows])
+    # along the axis, whatever order the values were given in (--values 2 0 1 drew 2 -> 0 -> 1)
+    rows = sorted(rows, key=lambda row: x_of(row[parameter]))
     xs = [x_of(row[parameter]) for row in rows]
     for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
                               ("v_lead", "symmetric, leader", "s--"),
