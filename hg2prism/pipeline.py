@@ -270,7 +270,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
         warn(f"the exported strategy reaches the goal with probability "
              f"{steps.goal_probability:.9f}, not the {objective} value {objective_value:.9f}")
     results = CheckResults(
-        **provenance(world),
+        **provenance(world, engine),
         deceptive_value=checked.value,
         storm_method=storm_method,
         sound=storm_method in engine.sound_methods,

@@ -42,14 +42,57 @@ TIMING_DIGITS = 4
 """Timings are written to results.json rounded to this many decimals (0.1 ms)."""
 
 
-def provenance(world: World) -> dict[str, str]:
+def provenance(world: World, engine: ModelChecker | None = None) -> dict[str, object]:
     """The keys every record (results.json, robust.json, detection.json, sweep.json, the
     adaptive results) starts with: the world (its name, file and `World.digest`, by which
-    hg2prism.outputs tells whose outputs a folder holds) and the hg2prism that wrote it."""
+    hg2prism.outputs tells whose outputs a folder holds), the hg2prism that wrote it and the
+    software it ran on (`software`; `engine`: the model checker, default Storm)."""
     from hg2prism import __version__
 
     return {"world": world.name, "world_file": str(world.path),
-            "world_digest": world.digest(), "hg2prism_version": __version__}
+            "world_digest": world.digest(), "hg2prism_version": __version__,
+            "software": software(engine)}
+
+
+def software(engine: ModelChecker | None = None) -> dict[str, str]:
+    """What a record was computed with: hg2prism (and, run from a git checkout, its commit,
+    "+edits" when the tracked files differ from it), Python, numpy, scipy, Spot and the model
+    checker (its `version`, when it says)."""
+    from hg2prism.engines import default
+
+    engine = engine or default()
+    return {**_libraries(), "model_checker": str(getattr(engine, "version", type(engine).__name__))}
+
+
+@functools.lru_cache(maxsize=1)
+def _libraries() -> dict[str, str]:
+    import importlib.metadata
+    import platform
+    import subprocess
+
+    from hg2prism import __version__
+
+    found = {"hg2prism": __version__}
+    root = Path(__file__).resolve().parent.parent
+    if (root / ".git").exists():
+        try:
+            def git(*args: str) -> str:
+                return subprocess.run(["git", "-C", str(root), *args], capture_output=True,
+                                      text=True, timeout=10, check=True).stdout.strip()
+            found["hg2prism_commit"] = git("rev-parse", "HEAD") + (
+                "+edits" if git("status", "--porcelain", "--untracked-files=no") else "")
+        except (OSError, subprocess.SubprocessError):
+            pass
+    found["python"] = platform.python_version()
+    for package in ("numpy", "scipy"):
+        found[package] = importlib.metadata.version(package)
+    try:
+        import spot
+
+        found["spot"] = spot.version()
+    except ImportError:
+        pass
+    return found
 
 
 @dataclass(frozen=True)
@@ -132,6 +175,7 @@ class CheckResults:
     world_file: str                 # the world file as given (may be relative)
     world_digest: str               # World.digest(): which world exactly (not where its file is)
     hg2prism_version: str
+    software: dict[str, str]        # the versions it ran on (results.software)
     deceptive_value: float          # Pmax=? [F "goal"] at the hypergame's initial state (§6), by Storm
     storm_method: str               # "sound", "storm-sound", "sound-ovi" or "fast" (§10)
     sound: bool                     # False only for "fast": deceptive_value is then not certified (§10)
@@ -156,6 +200,7 @@ class CheckResults:
             "world_file": self.world_file,
             "world_digest": self.world_digest,
             "hg2prism_version": self.hg2prism_version,
+            "software": self.software,
             "deceptive_value": self.deceptive_value,
             "storm_method": self.storm_method,
             "sound": self.sound,

@@ -3,7 +3,8 @@
 `produce(root)` runs `hg2prism run` on world1, world2 (delay 0 and 2), world3, world3_bayes and
 ten generated worlds, plus `hg2prism robust` and `hg2prism detect` on world2, each in a process
 of its own, and returns {case: {file: digest}}. A digest is the SHA-256 of the file with what
-legitimately varies masked: timings (`timings`, `seconds`, in JSON and CSV), the package version, and the path of
+legitimately varies masked: timings (`timings`, `seconds`, in JSON and CSV), the package version and the
+software versions (`software`), and the path of
 the world file and of the output folder (written into headers and results.json).
 
 tests/snapshots/outputs.json holds the digests the code produced when the snapshot was taken;
@@ -36,7 +37,7 @@ import worldgen  # noqa: E402
 GENERATED = ["fam00_d0_l1_w1_x2", "fam02_d2_l1_w1_x4", "fam05_d2_l1_w2_x3",
              "fam09_d0_l2_w1_x3", "fam13_d1_l2_w2_x2", "fam24_d0_l1_w3_x3",
              "fam36_eq_d0_w2", "fam40_tx_d0_l1_w2", "fam46_d3_l1_w1_x3", "fam48_d3_l1_w2_x2"]
-MASKED_KEYS = {"timings", "seconds", "hg2prism_version"}
+MASKED_KEYS = {"timings", "seconds", "hg2prism_version", "software"}
 
 
 def _world_files(folder: Path) -> dict[str, Path]:

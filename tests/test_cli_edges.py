@@ -8,6 +8,7 @@ The CLI runs as a subprocess, so a traceback reaching the terminal would be seen
 from __future__ import annotations
 
 import json
+import re
 import os
 import signal
 import subprocess
@@ -573,3 +574,32 @@ def test_a_terminal_that_cannot_print_pi_gets_the_tables_with_a_replacement(tmp_
                           capture_output=True, timeout=300)
     assert proc.returncode == 0 and b"Traceback" not in proc.stderr, proc.stderr
     assert b"deceptive ?1*" in proc.stdout and (tmp_path / "o" / "results.json").exists()
+
+
+def test_every_record_says_what_software_computed_it(tmp_path: Path) -> None:
+    """results.json, sweep.json (and robust.json, detection.json, the adaptive results, through
+    results.provenance) carry `software`: hg2prism, Python, numpy, scipy, Spot and the model
+    checker's versions (reproducibility check: "0.1.0" alone named no code, and no Storm or
+    library version was kept), and hg2prism's git commit where it runs from a checkout."""
+    import platform
+
+    import numpy as np
+    import scipy
+    import spot
+
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    with quiet():
+        assert main(["check", WORLD1, "--out", str(tmp_path / "c")]) == 0
+        assert main(["sweep", WORLD1, "--param", "window", "--values", "1",
+                     "--out", str(tmp_path / "s")]) == 0
+    for record in (tmp_path / "c" / "results.json", tmp_path / "s" / "sweep.json"):
+        software = json.loads(record.read_text())["software"]
+        assert {k: software[k] for k in ("python", "numpy", "scipy", "spot")} == {
+            "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "spot": spot.version()}
+        checker = software["model_checker"]
+        assert checker.startswith("Storm ") and "stormpy" in checker
+        if (ROOT / ".git").exists():
+            assert re.fullmatch(r"[0-9a-f]{40}(\+edits)?", software["hg2prism_commit"])

@@ -100,6 +100,7 @@ class ModelChecker(Protocol):
 
     methods: tuple[str, ...]         # how Pmax may be solved; the first is the default
     sound_methods: tuple[str, ...]   # those certified to 1e-10 (docs/semantics.md §10)
+    # (optional) its name and version, for the records' `software` (results.software)
 
     def check(self, prism_path: Path, prop: str, method: str,
               alongside: Callable[[BuiltModel], object] | None = None) -> CheckedModel:

@@ -410,6 +410,16 @@ class StormEngine:
     methods = STORM_METHODS
     sound_methods = SOUND_METHODS
 
+    @property
+    def version(self) -> str:
+        """Which Storm, for the records (results.software)."""
+        import importlib.metadata
+
+        import stormpy.info
+
+        return (f"Storm {stormpy.info.storm_version()} (stormpy "
+                f"{importlib.metadata.version('stormpy')})")
+
     def check(self, prism_path: Path, prop: str, method: str = "sound",
               alongside: Callable[[BuiltModel], object] | None = None) -> StormChecked:
         return check(prism_path, prop, method, alongside)

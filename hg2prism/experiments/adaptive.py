@@ -135,7 +135,7 @@ def _check_adaptive(world: World, out: Path, storm_method: str, engine: ModelChe
         warn(f"V_adapt {v_adapt:.9f} is not between max V_commit {best:.9f} and V_oracle "
              f"{v_oracle:.9f}")
     results = {
-        **provenance(world), "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
+        **provenance(world, engine), "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
         "value_of_adaptivity": v_adapt - best, "cost_of_not_knowing": v_oracle - v_adapt,
         "storm_method": storm_method, "sound": storm_method in engine.sound_methods,
         "states": strategy.size[0], "transitions": strategy.size[1],

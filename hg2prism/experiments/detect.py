@@ -348,7 +348,7 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
     from hg2prism.opponent.registry import observer_kind
 
     return {
-        **provenance(world),
+        **provenance(world, check_result.engine),
         "alpha": batches.alpha,
         "epsilon": batches.epsilon,
         "deviate_after": deviate_after,

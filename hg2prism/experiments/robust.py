@@ -326,7 +326,7 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
             f"({seconds:.1f} s)")
 
     result = {
-        **provenance(world),
+        **provenance(world, check_result.engine),
         "deceptive_value": check_result.results.deceptive_value,
         "v_lead": check_result.results.v_lead,
         "deltas": parsed,

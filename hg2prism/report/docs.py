@@ -72,7 +72,7 @@ FIGURES: dict[str, str] = {
 }
 # and the benchmark's plot, from the repository's bench/ (make bench)
 ROOT_FIGURES: dict[str, str] = {"scaling.png": "bench/scaling.png"}
-VOLATILE = {"timings", "seconds", "hg2prism_version", "world_file", "world_digest"}
+VOLATILE = {"timings", "seconds", "hg2prism_version", "software", "world_file", "world_digest"}
 # the explorer's candidate episodes docs/data keeps step by step, besides the drawn one (each
 # candidate's path is kept): hand-picked examples the documents describe
 EXPLORER_SEEDS = {"world3": (44,)}
