@@ -327,6 +327,8 @@ def robust(world: World, deltas: Sequence[object], out: Path, show_progress: boo
 
     result = {
         **provenance(world, check_result.engine),
+        "parameters": check_result.results.parameters.to_json(),
+        "storm_method": check_result.results.storm_method, "sound": check_result.results.sound,
         "deceptive_value": check_result.results.deceptive_value,
         "v_lead": check_result.results.v_lead,
         "deltas": parsed,
