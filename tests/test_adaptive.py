@@ -328,6 +328,10 @@ def test_run_reports_prism_pomdp_bounds(tmp_path):
     assert found["within_prism_precision"] and found["seconds"] > 0
     assert found["outside_by"] == pytest.approx(max(found["lower"] - v, v - found["upper"], 0))
     assert found["brackets_v_adapt"] == (found["outside_by"] == 0)
+    # which PRISM gave the bounds, as its banner says ("PRISM-games" and "Version: ...")
+    banner = subprocess.run([prism, "-version"], capture_output=True, text=True, timeout=120)
+    assert r["software"]["prism"].split()[0] == banner.stdout.split()[0]
+    assert r["software"]["prism"].split()[1] in banner.stdout and "prism_version" not in found
     row = f"[{found['lower']:.6f}, {found['upper']:.6f}]"
     assert row in done.stdout and row in (out / "table.md").read_text()
     assert "PRISM's POMDP engine on adaptive_pomdp.prism" in done.stderr

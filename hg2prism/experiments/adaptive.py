@@ -156,6 +156,8 @@ def _check_adaptive(world: World, out: Path, storm_method: str, engine: ModelChe
     results["pomdp"] = _pomdp(engine, out / "adaptive_pomdp.prism", v_adapt)
     results["prism_pomdp"] = prism_pomdp(prism, out / "adaptive_pomdp.prism", v_adapt,
                                          prism_resolution)
+    if "prism_version" in results["prism_pomdp"]:      # which PRISM gave the bounds
+        results["software"]["prism"] = results["prism_pomdp"].pop("prism_version")
     if simulation is not None:
         results["simulation"] = _simulation(checks, weights, world, strategy.records, out,
                                             *simulation)
@@ -271,7 +273,8 @@ def prism_pomdp(asked: bool | str, path: Path, v_adapt: float,
              f"{PRISM_PRECISION:g}: its bounds are not certified)")
     return {"status": "run", "lower": lower, "upper": upper, "brackets_v_adapt": outside == 0,
             "outside_by": outside, "within_prism_precision": precise,
-            "resolution": resolution, "seconds": found["seconds"]}
+            "resolution": resolution, "seconds": found["seconds"],
+            **({"prism_version": found["version"]} if found.get("version") else {})}
 
 
 def prism_pomdp_bounds(prism: str, path: Path, seconds: int = PRISM_SECONDS,
@@ -308,8 +311,11 @@ def prism_pomdp_bounds(prism: str, path: Path, seconds: int = PRISM_SECONDS,
         lines = [ln for ln in stdout.splitlines() + stderr.splitlines()
                  if "rror" in ln] or ["no bounds in PRISM's output"]
         return {"error": lines[0].strip()}
+    title = stdout.lstrip().split("\n", 1)[0].strip()          # "PRISM-games" or "PRISM"
+    version = re.search(r"^Version: (.+)$", stdout, re.M)
     return {"lower": float(found[1]), "upper": float(found[2]),
-            "seconds": time.perf_counter() - start}
+            "seconds": time.perf_counter() - start,
+            "version": f"{title} {version[1].strip()}" if version else None}
 
 
 def adaptivity_table(results: dict) -> str:
