@@ -21,7 +21,7 @@ from hg2prism.opponent import registry
 
 
 def arena_form(world: World) -> World:
-    return dataclasses.replace(world, arena=grid.to_arena(world), grid=None)
+    return dataclasses.replace(world, front=grid.to_arena(world))
 
 
 def tables(n_states: int, entries: dict[tuple[int, int, int], dict[int, float]],
@@ -61,10 +61,10 @@ def lateral(delay: int = 0, kind: str = "cusum", traps_mode: bool = False) -> Wo
                   actions=actions, dest=dest, prob=prob,
                   p2_actions=() if traps_mode else p2,
                   trap_candidates=(web, mail) if traps_mode else ())
-    world = World(path=Path("lateral.toml"), name="lateral", description="", grid=None,
+    world = World(path=Path("lateral.toml"), name="lateral", description="", front=arena,
                   formula="F crown", traps=1 if traps_mode else 0, delay=delay,
                   hypotheses=("F crown", "F payroll"), initial_hypothesis=1,
-                  window=2, rationality=1.0, arena=arena, initial_standing=0,
+                  window=2, rationality=1.0, initial_standing=0,
                   settings=(("threshold", 0.6),))
     settings = {"threshold": 0.6} if kind == "cusum" else {}
     return registry.configure(world, kind, **settings)

@@ -159,7 +159,7 @@ def chain(n: int, kind: str = "cusum", delay: int = 1):
     world = arenas.lateral(delay=delay, kind=kind)
     import dataclasses
 
-    return dataclasses.replace(world, arena=arena, name=f"chain{n}")
+    return dataclasses.replace(world, front=arena, name=f"chain{n}")
 
 
 @pytest.mark.parametrize("kind", ["cusum", "bayes"])

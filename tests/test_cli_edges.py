@@ -463,9 +463,9 @@ def test_the_digest_is_the_worlds_content() -> None:
     first, second = np.flatnonzero(rows[split] > 0.01)
     rows[split, first] += 0.005
     rows[split, second] -= 0.005
-    moved = dataclasses.replace(arena, arena=dataclasses.replace(arena.arena, prob=prob))
+    moved = dataclasses.replace(arena, front=dataclasses.replace(arena.arena, prob=prob))
     assert moved.digest() != arena.digest()
-    assert dataclasses.replace(moved, arena=arena.arena).digest() == arena.digest()
+    assert dataclasses.replace(moved, front=arena.arena).digest() == arena.digest()
 
 
 def _many_trap_sets_world(candidates: int) -> object:

@@ -359,7 +359,7 @@ def test_arena_trapped_step_and_given_positions(tmp_path: Path) -> None:
 
     world = lateral(traps_mode=True)
     positions = ((0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (2.0, 1.0), (2.0, 0.0), (1.0, 0.0))
-    world = dataclasses.replace(world, arena=dataclasses.replace(world.arena, positions=positions))
+    world = dataclasses.replace(world, front=dataclasses.replace(world.arena, positions=positions))
     ts = transition_system(world)
     # phish while P2 traps mail: trapped with probability 0.6
     episode, trace = hand_episode(ts, [(0, 1, 0)], pick=lambda s: s[-1].next_state == ts.trapped)

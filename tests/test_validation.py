@@ -55,7 +55,7 @@ INVALID = [
     (GRID, "detection", hg2prism.model.world.DetectionSettings(epsilon=0.0), "detection.epsilon"),
     (GRID, "detection", hg2prism.model.world.DetectionSettings(deviate_after=-2),
      "detection.deviate_after"),
-    (GRID, "arena", ARENA.arena, "grid"),
+    (GRID, "front", "8x8", "front"),                               # no front end's value
     (ARENA, "traps", 13, "adversary.traps"),
     (ARENA, "formula", "F asset99", "task.formula"),
     (ARENA, "initial_standing", -1, "adversary.initial_traps"),
@@ -71,8 +71,8 @@ INVALID = [
 def test_every_way_to_make_a_variant_validates(world: World, name: str, value: object,
                                                key: str) -> None:
     # a grid world's own settings (its robot's slip) live in its Grid (the grid front end):
-    # dataclasses.replace and the constructor reach them through the `grid` field
-    change = ({"grid": dataclasses.replace(world.grid, **{name: value})}
+    # dataclasses.replace and the constructor reach them through the `front` field
+    change = ({"front": dataclasses.replace(world.grid, **{name: value})}
               if name in GRID_SETTINGS else {name: value})
     _every_way_refuses(world, {name: value}, change, key)
 

@@ -89,7 +89,7 @@ class SweepParameter:
         if self.front_end is not None and self.front_end != kind:
             raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to {self.front_end} "
                              f"worlds only; {world.name} is an {kind} world")
-        if self.name == "traps" and world.arena is not None and not world.arena.traps_mode:
+        if self.name == "traps" and not arena_of(world).traps_mode:
             raise InputError(COMMAND_LINE, f"--param {self.name}",
                              f"applies to worlds whose P2 sets "
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
@@ -690,11 +690,7 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
 
 def _standing_rule(world: World, traps_swept: bool) -> str:
     """How a point's standing action (traps) at the start is chosen (the module docstring)."""
-    if world.arena is not None:
-        rule = "delay > 0: the world's standing action ([adversary] initial_action or initial_traps)"
-    else:
-        rule = ("delay > 0: the world's initial_traps, else the file's [adversary] "
-                "initial_traps, else the first `traps` candidates")
+    rule = frontends.standing_rule(world)
     return rule + ("; traps = k keeps the first k of them, then the first other candidates"
                    if traps_swept else "")
 

@@ -1,16 +1,63 @@
-"""Front ends: each kind of world file compiles to the arena (model/arena.py) that the
-pipeline plays on. `grid` compiles grid worlds; arena worlds carry their arena already."""
+"""Front ends: one module per kind of world file. Each reads its kind's own tables into the
+world's front-end value (`World.front`, a model.world.Front) and compiles a world of its kind to
+the arena (model/arena.py) that the pipeline plays on; nothing below the front ends sees more
+than the arena. `grid` compiles grid worlds; an arena world's value is its arena.
+
+A new kind of world is one module with the names below and one line in FRONT_ENDS
+(docs/architecture.md, "Adding a kind of world"):
+
+  KIND                 its name: the `kind` of its front-end value
+  FILE_TABLES          its files' own top-level tables, {table: required?}; the first marks a
+                       file of this kind
+  TABLE_KEYS           {table: {key: required?}} of those tables
+  ADVERSARY_KEYS       its [adversary] keys, {key: required?} (hypotheses and
+                       initial_hypothesis are every world's)
+  MISSING_HINT         {"table.key": what a missing required key expects}
+  DESCRIBED            its files in a message ("a grid world ([grid] and [robot])")
+  read(ld, root)       the front-end value of a parsed file (`ld`: worldfile/loader.py's reader,
+                       whose typed getters raise the one-line errors)
+  read_adversary(ld, adv, front)   the World fields traps, delay, initial_standing
+  to_arena(world)      the world's arena
+  describe(world)      the world in a few words (`hg2prism validate`)
+  outcome_name(action, outcome)    how an outcome of P1's action is named
+  standing_candidates(world)       trap candidates standing at the start of a re-solved world
+  parameters(world)    its own parameters, as results.json echoes them
+  SETTINGS             its own sweep parameters (frontends/settings.py: Setting)
+  STANDING_RULE        how a sweep point's standing action at the start is chosen
+and optionally
+  DRAWER               "module.Class" of what draws its worlds, made with (world, ts)
+                       (default: the arena as a graph, report/arena_graph.py)
+"""
 
 from __future__ import annotations
+
+import importlib
+from types import ModuleType
 
 from hg2prism.model.arena import Arena
 from hg2prism.model.dynamics import TransitionSystem, build_transition_system
 from hg2prism.model.world import World
 
+# The front ends by kind, in the order a world file's tables are tried and messages list them.
+FRONT_ENDS = {
+    "grid": "hg2prism.frontends.grid",
+    "arena": "hg2prism.frontends.arena",
+}
+
+
+def front_ends() -> tuple[ModuleType, ...]:
+    """Every front end's module, in FRONT_ENDS order."""
+    return tuple(importlib.import_module(name) for name in FRONT_ENDS.values())
+
+
+def front_end(world: World) -> ModuleType:
+    """The module of the world's front end."""
+    return importlib.import_module(FRONT_ENDS[kind_of(world)])
+
 
 def kind_of(world: World) -> str:
-    """The world's kind: "grid" or "arena"."""
-    return "arena" if world.arena is not None else "grid"
+    """The world's kind: its front end's name ("grid", "arena")."""
+    return world.front.kind
 
 
 def counted(n: int, thing: str) -> str:
@@ -20,37 +67,24 @@ def counted(n: int, thing: str) -> str:
 
 def describe(world: World) -> str:
     """What the world is made of, in a few words (`hg2prism validate`)."""
-    if world.arena is None:
-        return world.grid.describe()
-    arena = world.arena
-    p2 = (counted(len(arena.trap_candidates), "trap candidate") if arena.traps_mode
-          else counted(len(arena.p2_actions), "P2 action"))
-    return f"arena of {arena.n_states} states, {p2}"
+    return front_end(world).describe(world)
 
 
 def outcome_name(world: World, action: str, outcome: int) -> str:
     """How the world's front end names outcome `outcome` of P1's action `action` (a grid: the
-    direction the robot went); "outcome k" for an arena world."""
-    if world.arena is None:
-        from hg2prism.frontends import grid
-
-        return grid.outcome_name(action, outcome)
-    return f"outcome {outcome}"
+    direction the robot went; an arena: "outcome k")."""
+    return front_end(world).outcome_name(action, outcome)
 
 
 def sweep_settings():
     """(kind, Setting) for every front end's own sweep parameters."""
-    from hg2prism.frontends import grid
-
-    return tuple(("grid", setting) for setting in grid.SETTINGS)
+    return tuple((module.KIND, setting) for module in front_ends()
+                 for setting in module.SETTINGS)
 
 
 def arena_of(world: World) -> Arena:
-    if world.arena is not None:
-        return world.arena
-    from hg2prism.frontends import grid
-
-    return grid.to_arena(world)
+    """The arena the world plays on (docs/semantics.md §15)."""
+    return front_end(world).to_arena(world)
 
 
 def transition_system(world: World) -> TransitionSystem:
@@ -63,21 +97,24 @@ def standing_candidates(world: World) -> tuple[int, ...]:
     """In trap mode, the trap candidates (numbers) a re-solved world with a positive delay keeps
     standing at the start: the world's own standing set when its delay is positive; a grid world
     with delay 0 may name them in its file (frontends/grid.py); otherwise none."""
-    if world.arena is None:
-        from hg2prism.frontends import grid
+    return front_end(world).standing_candidates(world)
 
-        return grid.standing_candidates(world)
-    if not world.delay:
-        return ()
-    from hg2prism.model.dynamics import a2_actions
 
-    return tuple(a2_actions(world.arena, world.traps)[1][world.initial_standing])
+def standing_rule(world: World) -> str:
+    """How a sweep point's standing action at the start is chosen, in the front end's words."""
+    return front_end(world).STANDING_RULE
 
 
 def parameters(world: World) -> dict[str, object]:
     """The front end's own parameters, as results.json echoes them (frontends/grid.py: parameters)."""
-    if world.arena is None:
-        from hg2prism.frontends import grid
+    return front_end(world).parameters(world)
 
-        return grid.parameters(world)
-    return {}
+
+def drawer(world: World, ts: TransitionSystem):
+    """The front end's drawer of the world (its DRAWER, such as frontends/grid_drawing.py's),
+    or None: the caller draws the arena as a graph."""
+    name = getattr(front_end(world), "DRAWER", None)
+    if name is None:
+        return None
+    module, _, cls = name.rpartition(".")
+    return getattr(importlib.import_module(module), cls)(world, ts)

@@ -41,7 +41,7 @@ or () (traps); `trap_candidates` the candidates' state numbers in the order writ
 `positions` when given. The World's fields from here: `traps` (l, 0 for general actions),
 `delay`, `initial_standing` (with delay > 0 the index into A2 of initial_action, or of the
 sorted initial trap set among the l-subsets in itertools.combinations order; 0 when delay is 0) and
-`arena`; the loader sets `grid=None`.
+`front` (the arena itself).
 
 Writing (`to_toml`, `hg2prism convert`): a world's arena (a grid world compiled by
 frontends/grid.py) with every other setting, as a world file that reads back to the same
@@ -59,7 +59,7 @@ import re
 
 import numpy as np
 
-from hg2prism.model.arena import Arena
+from hg2prism.model.arena import TRAPS_BEYOND, Arena
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 RESERVED_STATES = ("trapped",)
@@ -305,7 +305,7 @@ class _Reader:
             raise self.fail(key, "missing required key with traps; expected "
                             + MISSING_HINT[key])
         candidates = self.state_list(adv["trap_candidates"], key, "trap candidate")
-        self.ld.traps(traps, len(candidates), grid=False)
+        self.ld.traps(traps, len(candidates), TRAPS_BEYOND)
         standing = 0
         key = "adversary.initial_traps"
         if "initial_traps" in adv and delay == 0:   # as for grids: only its type is checked
@@ -460,9 +460,9 @@ class _Reader:
         return cover
 
 
-def read(ld, root: dict) -> tuple[Arena, dict]:
-    """The arena of an arena world and its World fields traps, delay and initial_standing.
-    `ld` is the world loader (worldfile/loader.py): its typed getters and `fail`."""
+def read(ld, root: dict) -> Arena:
+    """The arena of an arena world file. `ld` is the world loader (worldfile/loader.py): its
+    typed getters and `fail`."""
     reader = _Reader(ld)
     table = ld.table(root, "arena", ARENA_KEYS)
     reader.read_states(table)
@@ -471,12 +471,63 @@ def read(ld, root: dict) -> tuple[Arena, dict]:
     positions = reader.positions(table)
     p2 = reader.adversary(ld.table(root, "adversary", ADVERSARY_KEYS))
     actions, dest, prob = reader.transitions(table["transition"], p2["p2_actions"])
-    arena = Arena(states=reader.states, initial=initial, propositions=propositions,
-                  labels=labels, actions=actions, dest=dest, prob=prob,
-                  p2_actions=p2["p2_actions"], trap_candidates=p2["trap_candidates"],
-                  positions=positions)
-    return arena, dict(traps=p2["traps"], delay=p2["delay"],
-                       initial_standing=p2["initial_standing"])
+    return Arena(states=reader.states, initial=initial, propositions=propositions,
+                 labels=labels, actions=actions, dest=dest, prob=prob,
+                 p2_actions=p2["p2_actions"], trap_candidates=p2["trap_candidates"],
+                 positions=positions)
+
+
+def read_adversary(ld, adv: dict, arena: Arena) -> dict:
+    """The World fields traps, delay and initial_standing of an arena world's [adversary]
+    (`read` checked it, reading P2's actions)."""
+    reader = _Reader(ld)
+    reader.states, reader.number = arena.states, {name: i for i, name in enumerate(arena.states)}
+    p2 = reader.adversary(adv)
+    return dict(traps=p2["traps"], delay=p2["delay"], initial_standing=p2["initial_standing"])
+
+
+# ---------------------------------------------------------------------------------------------
+# The front end (frontends/__init__.py): an arena world's value is its arena
+# ---------------------------------------------------------------------------------------------
+
+KIND = Arena.kind
+FILE_TABLES = {"arena": True}
+TABLE_KEYS = {"arena": ARENA_KEYS}
+DESCRIBED = "an arena world ([arena])"
+SETTINGS = ()
+STANDING_RULE = ("delay > 0: the world's standing action ([adversary] initial_action or "
+                 "initial_traps)")
+
+
+def to_arena(world) -> Arena:
+    return world.front
+
+
+def describe(world) -> str:
+    from hg2prism.frontends import counted
+
+    arena = world.front
+    p2 = (counted(len(arena.trap_candidates), "trap candidate") if arena.traps_mode
+          else counted(len(arena.p2_actions), "P2 action"))
+    return f"arena of {arena.n_states} states, {p2}"
+
+
+def outcome_name(action: str, outcome: int) -> str:
+    return f"outcome {outcome}"
+
+
+def standing_candidates(world) -> tuple[int, ...]:
+    """The trap candidates standing at the start: the world's standing set when its delay is
+    positive, else none."""
+    if not world.delay:
+        return ()
+    from hg2prism.model.dynamics import a2_actions
+
+    return tuple(a2_actions(world.front, world.traps)[1][world.initial_standing])
+
+
+def parameters(world) -> dict[str, object]:
+    return {}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -18,12 +18,15 @@ candidate cells. Everything below this module sees only the arena.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, replace
+import math
+from dataclasses import dataclass, fields, replace
+from typing import ClassVar
 
 import numpy as np
 
 from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
+from hg2prism.model.validation import Vocabulary
 from hg2prism.model.world import World
 
 Cell = tuple[int, int]
@@ -39,11 +42,18 @@ MISSING_HINT = {
     "robot.slip": "a number in [0, 0.5)",
 }
 SLIP_EXPECTED = "a number in [0, 0.5)"
+# Why P2 cannot set more traps than the map has candidates (Checks.traps)
+TRAPS_BEYOND = ("the map has only {n} trap candidate cells 't'; expected traps <= the number "
+                "of 't' cells")
 
 
 @dataclass(frozen=True)
 class Grid:
-    """A grid world's map (docs/semantics.md §1) and its robot's slip (§2)."""
+    """A grid world's map (docs/semantics.md §1) and its robot's slip (§2): a grid world's
+    front-end value (model.world.Front: `World.front`)."""
+
+    kind: ClassVar[str] = "grid"
+    replaceable: ClassVar[frozenset[str]]      # every field (below the class)
 
     rows: tuple[str, ...]                 # the map as written, top row first
     width: int
@@ -66,10 +76,21 @@ class Grid:
         """What validation (model/validation.py) checks of a grid World's own values."""
         check_slip(checks, self.slip)
 
+    def vocabulary(self) -> Vocabulary:
+        return Vocabulary(self.propositions(), "obs and the region letters of the map ("
+                          + (", ".join(self.region_letters()) or "none") + ")")
+
+    def count_p2_actions(self, checks, traps: object) -> tuple[int, str]:
+        """|A2| (the traps-subsets of the candidate cells) and the key of the standing set."""
+        traps = checks.traps(traps, len(self.trap_candidates), TRAPS_BEYOND)
+        return math.comb(len(self.trap_candidates), traps), "adversary.initial_traps"
+
     def describe(self) -> str:
         from hg2prism.frontends import counted
 
         return f"{self.width}x{self.height} grid, {counted(len(self.trap_candidates), 'trap candidate')}"
+
+Grid.replaceable = frozenset(f.name for f in fields(Grid))
 
 ACTIONS = ("N", "E", "S", "W")
 # LEGACY: action labels in generated PRISM (E, S and W are PRISM keywords)
@@ -171,11 +192,25 @@ def initial_trap_cells(world: World) -> tuple[Cell, ...]:
 
 def with_slip(world: World, slip: float) -> World:
     """The grid world with another slip (checked by the caller)."""
-    return replace(world, grid=replace(world.grid, slip=slip))
+    return replace(world, front=replace(world.grid, slip=slip))
 
 
 # What sweeps may vary in a grid world only
 SETTINGS = (Setting("slip", SLIP_EXPECTED, float, 0.0, False, 0.5, with_slip),)
+
+# The front end (frontends/__init__.py)
+KIND = Grid.kind
+FILE_TABLES = {"grid": True, "robot": True}
+DESCRIBED = "a grid world ([grid] and [robot])"
+STANDING_RULE = ("delay > 0: the world's initial_traps, else the file's [adversary] "
+                 "initial_traps, else the first `traps` candidates")
+
+
+def describe(world: World) -> str:
+    return world.front.describe()
+
+# What draws a grid world (frontends/grid_drawing.py, which reads this module)
+DRAWER = "hg2prism.frontends.grid_drawing.GridDrawer"
 
 
 def parameters(world: World) -> dict[str, object]:
@@ -257,7 +292,7 @@ def check_slip(checks, value: object) -> float:
 def read_adversary(ld, adv: dict, grid: Grid) -> dict:
     """The World fields of [adversary] that depend on the grid: traps, delay and
     initial_standing (from initial_traps)."""
-    traps = ld.traps(adv["traps"], len(grid.trap_candidates), grid=True)
+    traps = ld.traps(adv["traps"], len(grid.trap_candidates), TRAPS_BEYOND)
     delay = ld.delay(adv.get("delay", 0))
     cells = initial_traps(ld, adv, grid, traps, delay)
     standing = trap_sets(grid, traps).index(_numbers(grid, cells)) if delay else 0

@@ -18,13 +18,26 @@ j runs over P2's actions when some transition depends on them, else has length 1
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
+
+from hg2prism.model.validation import Checks, Vocabulary
+
+# Why an arena world's P2 cannot set more traps than it has candidates (Checks.traps)
+TRAPS_BEYOND = ("there are only {n} trap candidates; expected traps <= the number of "
+                "trap_candidates")
 
 
 @dataclass(frozen=True, eq=False)
 class Arena:
+    """The arena; also an arena world's front-end value (model.world.Front: `World.front`)."""
+
+    kind: ClassVar[str] = "arena"
+    replaceable: ClassVar[frozenset[str]] = frozenset()
+
     states: tuple[str, ...]                   # S, in order: the state numbering
     initial: int                              # s0
     propositions: tuple[str, ...]             # AP
@@ -80,6 +93,26 @@ class Arena:
 
     def index(self, name: str) -> int:
         return self.states.index(name)
+
+    # -- as an arena world's front (model.world.Front) ------------------------------------------
+
+    def vocabulary(self) -> Vocabulary:
+        return Vocabulary(self.propositions, "the arena's propositions ("
+                          + (", ".join(self.propositions) or "none") + ")")
+
+    def check(self, checks: Checks) -> None:
+        """Nothing of its own: the arena file's reader (frontends/arena.py) checked it."""
+
+    def count_p2_actions(self, checks: Checks, traps: object) -> tuple[int, str]:
+        """|A2| and the key of P2's standing action: the traps-subsets of the candidates, or
+        the general actions (traps must then be 0)."""
+        if self.traps_mode:
+            traps = checks.traps(traps, len(self.trap_candidates), TRAPS_BEYOND)
+            return math.comb(len(self.trap_candidates), traps), "adversary.initial_traps"
+        if traps != 0:
+            raise checks.fail("adversary.traps", "P2 has general actions (adversary.actions): "
+                                                 f"traps must be 0, got {traps!r}")
+        return len(self.p2_actions), "adversary.initial_action"
 
     def label_classes(self) -> tuple[tuple[frozenset[str], ...], np.ndarray]:
         """The label classes and each state's class: class 0 is the empty label, then one

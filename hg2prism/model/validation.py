@@ -109,17 +109,6 @@ class Vocabulary:
     described: str
 
 
-def grid_vocabulary(grid: Any) -> Vocabulary:
-    """A grid world's propositions (frontends/grid.py: Grid.propositions)."""
-    return Vocabulary(grid.propositions(), "obs and the region letters of the map ("
-                      + (", ".join(grid.region_letters()) or "none") + ")")
-
-
-def arena_vocabulary(arena: Any) -> Vocabulary:
-    return Vocabulary(arena.propositions, "the arena's propositions ("
-                      + (", ".join(arena.propositions) or "none") + ")")
-
-
 class Checks:
     """The value rules, failing with InputError(file, key, reason). The world loader is one
     (reading a file), `validate` makes one for a World (its path as the file)."""
@@ -188,15 +177,14 @@ class Checks:
                                  f"generated models' comments), got {value!r}")
         return value
 
-    def traps(self, value: object, candidates: int, grid: bool) -> int:
-        """adversary.traps of a world whose P2 sets traps on `candidates` cells of a grid's map
-        or states of an arena."""
+    def traps(self, value: object, candidates: int, beyond: str) -> int:
+        """adversary.traps of a world whose P2 sets traps on `candidates` places (a grid's
+        cells, an arena's states); `beyond` says, with {n} for `candidates`, why more are
+        refused (the front end's words)."""
         traps = self.integer(value, "adversary.traps", 1)
         if traps > candidates:
-            where = (f"the map has only {candidates} trap candidate cells 't'; expected traps "
-                     "<= the number of 't' cells" if grid else f"there are only {candidates} "
-                     "trap candidates; expected traps <= the number of trap_candidates")
-            raise self.fail("adversary.traps", f"traps = {traps} but {where}")
+            raise self.fail("adversary.traps",
+                            f"traps = {traps} but " + beyond.format(n=candidates))
         return traps
 
     def delay(self, value: object) -> int:
@@ -446,13 +434,14 @@ def validate(world: Any) -> None:
     checks = Checks(str(world.path))
     checks.name(world.name)
     checks.one_line(checks.string(world.description, "description"), "description")
-    if (world.grid is None) == (world.arena is None):
-        raise checks.fail("grid", "a world has a grid (grid, arena=None) or an arena (arena, "
-                                  "grid=None), not both nor neither")
-    if world.grid is not None:
-        world.grid.check(checks)        # the front end's own values (a grid's robot)
-    vocabulary = (grid_vocabulary(world.grid) if world.grid is not None
-                  else arena_vocabulary(world.arena))
+    front = world.front
+    if not all(callable(getattr(front, verb, None))
+               for verb in ("vocabulary", "check", "count_p2_actions")):
+        raise checks.fail("front", "must be a front end's value (model.world.Front: a grid "
+                                   "world's frontends.grid.Grid, an arena world's "
+                                   f"model.arena.Arena), got {type(front).__name__}")
+    front.check(checks)                 # the front end's own values (a grid's robot)
+    vocabulary = front.vocabulary()
     checks.formula(world.formula, "task.formula", vocabulary)
     if not isinstance(world.hypotheses, tuple):
         raise checks.fail("adversary.hypotheses", "must be a tuple of formulas, got "
@@ -483,18 +472,7 @@ def _adversary(checks: Checks, world: Any) -> None:
     """traps, delay, and what stands at the start when delay > 0: P2's standing action, an
     index into her actions (the trap sets in combinations order, or an arena's P2 actions)."""
     delay = checks.delay(world.delay)
-    arena = world.arena
-    if arena is None or arena.traps_mode:
-        candidates = len(world.grid.trap_candidates if arena is None else arena.trap_candidates)
-        checks.traps(world.traps, candidates, grid=arena is None)
-        n_actions = math.comb(candidates, world.traps)
-        key = "adversary.initial_traps"
-    else:
-        if world.traps != 0:
-            raise checks.fail("adversary.traps", "P2 has general actions (adversary.actions): "
-                                                 f"traps must be 0, got {world.traps!r}")
-        n_actions = len(arena.p2_actions)
-        key = "adversary.initial_action"
+    n_actions, key = world.front.count_p2_actions(checks, world.traps)
     standing = checks.integer(world.initial_standing, key, 0)
     if delay == 0 and standing != 0:
         raise checks.fail(key, "must be 0 when delay is 0 (nothing stands at the start), got "

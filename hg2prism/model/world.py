@@ -1,8 +1,8 @@
-"""The world (docs/semantics.md §1) as an immutable value: what its front end reads (a grid
-world's `Grid`, an arena world's `Arena`), the task, P2's traps, delay, hypotheses and observer,
-and the simulation and detection settings. hg2prism/worldfile/ reads and validates the TOML world
-files that make one; hg2prism/frontends/ turns either kind into the arena the pipeline plays on;
-every World is validated when made (model/validation.py).
+"""The world (docs/semantics.md §1) as an immutable value: what its front end reads (`front`: a
+grid world's `Grid`, an arena world's `Arena`, any `Front`), the task, P2's traps, delay,
+hypotheses and observer, and the simulation and detection settings. hg2prism/worldfile/ reads and
+validates the TOML world files that make one; hg2prism/frontends/ turns each kind into the arena
+the pipeline plays on; every World is validated when made (model/validation.py).
 """
 
 from __future__ import annotations
@@ -10,12 +10,34 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 from hg2prism.model import validation
 
 if TYPE_CHECKING:
     from hg2prism.model.arena import Arena
+    from hg2prism.model.validation import Checks, Vocabulary
+
+
+class Front(Protocol):
+    """What the model asks of a world's front-end value (`World.front`): the part of the world
+    only its kind's files say (a grid's map and robot, an arena world's arena). The front end
+    (hg2prism/frontends/, one module per kind) reads it from a file and compiles it with the
+    rest of the world to the arena; the model only validates it through these."""
+
+    kind: ClassVar[str]                   # the front end's name (frontends/__init__.py: FRONT_ENDS)
+    # the value's fields World.replace may change by name (a grid's robot); none for an arena
+    replaceable: ClassVar[frozenset[str]]
+
+    def vocabulary(self) -> Vocabulary:
+        """The atomic propositions formulas may use, and how messages describe them."""
+
+    def check(self, checks: Checks) -> None:
+        """Raise checks.fail(key, reason) at the first own value no world file could give."""
+
+    def count_p2_actions(self, checks: Checks, traps: object) -> tuple[int, str]:
+        """Check P2's `traps` for this front (checks.fail on a bad one) and give the number of
+        P2's actions A2 with the key naming her standing action in a world file."""
 
 
 @dataclass(frozen=True)
@@ -52,9 +74,9 @@ class World:
     path: Path
     name: str
     description: str
-    # a grid world's map and robot: a frontends.grid.Grid (the model does not import the front
-    # ends); None for an arena world
-    grid: object | None
+    # what the world's front end reads (a `Front`: a frontends.grid.Grid, a model.arena.Arena;
+    # the model does not import the front ends)
+    front: Front
     formula: str
     traps: int
     delay: int
@@ -68,8 +90,6 @@ class World:
     # the observer's own [inference] keys as its kind read them, in its kind's order: CUSUM's
     # threshold (§5), the Bayesian prior (normalised) and decision (§12)
     settings: tuple[tuple[str, object], ...] = ()
-    # an arena world (docs/semantics.md §15) carries its arena (and `grid` is None)
-    arena: "Arena | None" = None
     # P2's action standing at the start when delay > 0, an index into A2 (the trap sets in
     # combinations order, or the arena's P2 actions); 0 when delay is 0
     initial_standing: int = 0
@@ -92,15 +112,27 @@ class World:
         own = {name: value for name, value in changes.items() if name in _FIELDS}
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
-            if self.grid is None or not all(name in _fields(self.grid) for name in front):
+            replaceable = getattr(self.front, "replaceable", frozenset())
+            if not set(front) <= replaceable:
                 from hg2prism.errors import InputError
 
-                known = _FIELDS | (_fields(self.grid) if self.grid is not None else frozenset())
+                known = _FIELDS | replaceable
                 unknown = sorted(set(front) - known)[0]
                 raise InputError(str(self.path), unknown, "not a setting of this world; expected "
                                  "one of " + ", ".join(sorted(known)))
-            own["grid"] = dataclasses.replace(own.get("grid", self.grid), **front)
+            own["front"] = dataclasses.replace(own.get("front", self.front), **front)
         return dataclasses.replace(self, **own)
+
+    @property
+    def grid(self) -> object | None:
+        """A grid world's map and robot (frontends/grid.py: Grid); None for another kind."""
+        return self.front if getattr(self.front, "kind", None) == "grid" else None
+
+    @property
+    def arena(self) -> "Arena | None":
+        """An arena world's arena (docs/semantics.md §15); None for another kind (the arena a
+        world of any kind plays on is frontends.arena_of(world))."""
+        return self.front if getattr(self.front, "kind", None) == "arena" else None
 
     def digest(self) -> str:
         """"sha256:<hex>" of everything the world says but where its file is (its path): two
@@ -116,10 +148,8 @@ class World:
         return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
 
     def atomic_propositions(self) -> tuple[str, ...]:
-        """AP: an arena world's are its arena's; a grid's are its map's (frontends/grid.py)."""
-        if self.arena is not None:
-            return self.arena.propositions
-        return self.grid.propositions()
+        """AP, as the front end gives them: an arena's own, a grid map's obs and region letters."""
+        return self.front.vocabulary().propositions
 
     def setting(self, key: str, default: object = None) -> object:
         """The observer's setting `key` (default when its kind has no such key)."""

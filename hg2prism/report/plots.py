@@ -98,12 +98,13 @@ def _legend(fig: Figure, ax: plt.Axes, given: object, **style) -> None:
 
 
 def world_drawer(world: World, ts: TransitionSystem):
-    """What draws `world` (docs/semantics.md §15 "Figures"): the grid front end's drawer for a
-    grid world (frontends/grid_drawing.py), else the arena as a graph (report/arena_graph.py)."""
-    if world.grid is not None:
-        from hg2prism.frontends.grid_drawing import GridDrawer
+    """What draws `world` (docs/semantics.md §15 "Figures"): its front end's drawer when it has
+    one (a grid's: frontends/grid_drawing.py), else the arena as a graph (report/arena_graph.py)."""
+    from hg2prism import frontends
 
-        return GridDrawer(world, ts)
+    own = frontends.drawer(world, ts)
+    if own is not None:
+        return own
     from hg2prism.report.arena_graph import ArenaDrawer
 
     return ArenaDrawer(world, ts)

@@ -12,43 +12,45 @@ from __future__ import annotations
 from pathlib import Path
 
 from hg2prism.errors import InputError
-from hg2prism.model.validation import Checks, Vocabulary, arena_vocabulary, grid_vocabulary
+from hg2prism.model.validation import Checks, Vocabulary
 from hg2prism.model.validation import key_part as _key_part
 from hg2prism.model.validation import toml_repr as _toml_repr
 from hg2prism.model.validation import toml_type as _toml_type
-from hg2prism.frontends import arena as arena_files
-from hg2prism.frontends import grid as grid_files
+from hg2prism.frontends import front_ends
 from hg2prism.worldfile import types as player_types
 # the registry checks every World's observer settings (model/validation.py) once imported
 from hg2prism.opponent.registry import KINDS, owner
 from hg2prism.model.world import DetectionSettings, SimulationSettings, World
 
 
-# Keys allowed in each table: key -> required?
-_TOP_KEYS = {"name": False, "description": False, "grid": True, "robot": True, "task": True,
-             "adversary": True, "inference": True, "simulation": False, "detection": False}
-# An arena world (docs/semantics.md §15) has [arena] instead of [grid] and [robot]
-_ARENA_TOP_KEYS = {"name": False, "description": False, "arena": True, "task": True,
-                   "adversary": True, "inference": True, "simulation": False,
-                   "detection": False}
+# Keys allowed in each table: key -> required? A front end adds its files' own tables (between
+# description and task) and its [adversary] keys (frontends/__init__.py).
+_TOP_KEYS = {"name": False, "description": False, "task": True, "adversary": True,
+             "inference": True, "simulation": False, "detection": False}
+_ADVERSARY_KEYS = {"hypotheses": True, "initial_hypothesis": False}
 _TABLE_KEYS: dict[str, dict[str, bool]] = {
-    **grid_files.TABLE_KEYS,
     "task": {"formula": True},
-    "adversary": {**grid_files.ADVERSARY_KEYS, "hypotheses": True, "initial_hypothesis": False},
+    "adversary": _ADVERSARY_KEYS,
     # and the keys of the observers' kinds (`_Loader.inference` asks opponent/registry.py)
     "inference": {"kind": False, "window": True, "rationality": True},
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
 _MISSING_HINT = {
-    **grid_files.MISSING_HINT,
     "task.formula": "a syntactically co-safe LTL formula in Spot syntax",
     "adversary.traps": "an integer >= 1",
     "adversary.hypotheses": "a non-empty array of co-safe LTL formulas",
     "inference.window": "an integer >= 1",
     "inference.rationality": "a number > 0",
-    **arena_files.MISSING_HINT,
 }
+
+
+def _file_keys(front) -> tuple[dict[str, bool], dict[str, dict[str, bool]]]:
+    """The top-level tables and every table's keys of a world file of front end `front`."""
+    top = {"name": False, "description": False, **front.FILE_TABLES, **_TOP_KEYS}
+    tables = {**_TABLE_KEYS, **front.TABLE_KEYS,
+              "adversary": {**front.ADVERSARY_KEYS, **_ADVERSARY_KEYS}}
+    return top, tables
 
 
 class _Loader(Checks):
@@ -109,8 +111,10 @@ class _Loader(Checks):
                     raise self.fail(key, f"missing required table [{name}] (with "
                                          + ", ".join(k for k, r in tables[name].items() if r)
                                          + ")")
+                hints = {key: hint for module in front_ends()
+                         for key, hint in module.MISSING_HINT.items()} | _MISSING_HINT
                 raise self.fail(key, "missing required key; expected "
-                                     + _MISSING_HINT.get(key, "a value"))
+                                     + hints.get(key, "a value"))
 
     def table(self, root: dict, name: str, allowed: dict[str, bool] | None = None) -> dict:
         value = root.get(name, {})
@@ -130,29 +134,37 @@ class _Loader(Checks):
         root = self.read()
         if not isinstance(root, dict):
             raise self.fail("-", "expected the tables of a world file")
-        if "arena" in root:
-            if "grid" in root:
-                raise self.fail("arena", "a world is a grid world ([grid] and [robot]) or an "
-                                         "arena world ([arena]), not both; remove one")
-            return self.load_arena(root)
-        if "grid" not in root:
-            raise self.fail("grid", "missing required table: a world is a grid world ([grid] "
-                                    "with map, and [robot]) or an arena world ([arena], "
-                                    "docs/semantics.md §15)")
-        self.check_keys(root, player_types.top_keys(root, _TOP_KEYS), "")
+        front_end = self.front_end(root)
+        top, tables = _file_keys(front_end)
+        self.check_keys(root, player_types.top_keys(root, top), "", tables)
         name, description = self.header(root)
-        grid = grid_files.read(self, root)
-        vocabulary = grid_vocabulary(grid)
+        front = front_end.read(self, root)
+        vocabulary = front.vocabulary()
         formula = self.table(root, "task")["formula"]
         self.formula(formula, "task.formula", vocabulary)
-        adv = self.table(root, "adversary")
-        adversary = {**grid_files.read_adversary(self, adv, grid),
+        adv = self.table(root, "adversary", tables["adversary"])
+        adversary = {**front_end.read_adversary(self, adv, front),
                      **self.guesses(adv, vocabulary)}
         observer = player_types.observer_fields(self, root, adv, adversary)
-        return World(path=self.path, name=name, description=description, grid=grid,
+        return World(path=self.path, name=name, description=description, front=front,
                      formula=formula, **{**adversary, **observer},
                      simulation=self.simulation(self.table(root, "simulation")),
                      detection=self.detection(self.table(root, "detection")))
+
+    def front_end(self, root: dict):
+        """The front end of the file's kind (frontends/__init__.py), by the table that marks
+        it (a grid world's [grid], an arena world's [arena])."""
+        modules = front_ends()
+        kinds = [module for module in modules if next(iter(module.FILE_TABLES)) in root]
+        described = " or ".join(module.DESCRIBED for module in modules)
+        if len(kinds) > 1:
+            raise self.fail(next(iter(kinds[1].FILE_TABLES)),
+                            f"a world is {described}, not both; remove one")
+        if not kinds:
+            raise self.fail(next(iter(modules[0].FILE_TABLES)),
+                            f"missing required table: a world is {described} "
+                            "(docs/semantics.md §§1, 15)")
+        return kinds[0]
 
     def header(self, root: dict) -> tuple[str, str]:
         """The world's name (default: the file's stem) and description."""
@@ -162,26 +174,6 @@ class _Loader(Checks):
         description = (self.string(root["description"], "description")
                        if "description" in root else "")
         return name, description
-
-    def load_arena(self, root: dict) -> World:
-        """An arena world (docs/semantics.md §15; frontends/arena.py reads [arena] and P2's
-        actions)."""
-        tables = {**_TABLE_KEYS, "arena": arena_files.ARENA_KEYS,
-                  "adversary": arena_files.ADVERSARY_KEYS}
-        self.check_keys(root, player_types.top_keys(root, _ARENA_TOP_KEYS), "", tables)
-        name, description = self.header(root)
-        arena, p2 = arena_files.read(self, root)
-        vocabulary = arena_vocabulary(arena)
-        formula = self.table(root, "task")["formula"]
-        self.formula(formula, "task.formula", vocabulary)
-        adv = self.table(root, "adversary", arena_files.ADVERSARY_KEYS)
-        adversary = {**p2, **self.guesses(adv, vocabulary)}
-        observer = player_types.observer_fields(self, root, adv, adversary)
-        return World(path=self.path, name=name, description=description, grid=None,
-                     formula=formula, arena=arena,
-                     **{**adversary, **observer},
-                     simulation=self.simulation(self.table(root, "simulation")),
-                     detection=self.detection(self.table(root, "detection")))
 
     def guesses(self, adv: dict, vocabulary: Vocabulary) -> dict:
         """[adversary]: the World fields hypotheses and initial_hypothesis (which P2's

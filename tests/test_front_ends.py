@@ -1,0 +1,99 @@
+"""The front-end registry (frontends/__init__.py): a third kind of world, the corridor of
+tests/frontend_line.py, defined there alone and registered from the test, loads, validates and
+solves with no edit to the package, and gives what its arena form (the same world written as an
+arena world file by `hg2prism convert`'s writer) gives.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import hg2prism
+from hg2prism import cli, frontends
+from hg2prism.errors import InputError
+from hg2prism.frontends.arena import to_toml
+
+TEXT = """
+name = "corridor"
+[line]
+cells = ["B", "", "", "", "", "A"]
+start = 2
+advance = 0.8
+[task]
+formula = "F A"
+[adversary]
+traps = 1
+candidates = [1, 4]
+hypotheses = ["F A", "F B"]
+initial_hypothesis = 1
+[inference]
+window = 1
+threshold = 0.5
+rationality = 4.0
+"""
+
+
+@pytest.fixture
+def corridors(monkeypatch):
+    """The corridor kind registered: one line, as a kind of the package is."""
+    monkeypatch.setitem(frontends.FRONT_ENDS, "line", "frontend_line")
+
+
+def test_a_kind_unregistered_is_no_world() -> None:
+    with pytest.raises(InputError) as caught:
+        hg2prism.world_from_toml(TEXT, "corridor.toml")
+    assert caught.value.key == "grid" and "missing required table" in str(caught.value)
+
+
+def test_a_registered_kind_loads_and_is_described(corridors, tmp_path, capsys) -> None:
+    world = hg2prism.world_from_toml(TEXT, "corridor.toml")
+    assert world.front.kind == "line" and world.grid is None and world.arena is None
+    assert world.atomic_propositions() == ("A", "B")
+    assert frontends.describe(world) == "corridor of 6 cells"
+    assert frontends.parameters(world) == {"advance": 0.8}
+    path = tmp_path / "corridor.toml"
+    path.write_text(TEXT)
+    assert cli.main(["validate", str(path)]) == 0
+    assert "corridor of 6 cells" in capsys.readouterr().out
+    # its own settings through World.replace, checked by its own rule; others' refused
+    assert world.replace(advance=0.5).front.advance == 0.5
+    assert world.replace(advance=0.5).digest() != world.digest()
+    with pytest.raises(InputError) as caught:
+        world.replace(advance=1.5)
+    assert caught.value.key == "line.advance" and "(0, 1]" in str(caught.value)
+    with pytest.raises(InputError) as caught:
+        world.replace(slip=0.1)
+    assert caught.value.key == "slip"
+
+
+@pytest.mark.parametrize("change, key, words", [
+    (("advance = 0.8", "advance = 2.0"), "line.advance", "(0, 1]"),
+    (('cells = ["B", "", "", "", "", "A"]', 'cells = ["A"]'), "line.cells", "at least two"),
+    (("candidates = [1, 4]\n", ""), "adversary.candidates", "missing required key"),
+    (("traps = 1", "traps = 3"), "adversary.traps", "only 2 candidates"),
+    (('formula = "F A"', 'formula = "F C"'), "task.formula", "the corridor's letters (A, B)"),
+    (("[line]", "[grid]\nmap = '.'\n[robot]\nslip = 0.0\n[line]"), "line", "not both"),
+])
+def test_its_files_get_one_line_errors(corridors, change, key, words) -> None:
+    with pytest.raises(InputError) as caught:
+        hg2prism.world_from_toml(TEXT.replace(*change), "corridor.toml")
+    assert caught.value.key == key and words in str(caught.value), str(caught.value)
+    assert caught.value.file == "corridor.toml" and "\n" not in str(caught.value)
+
+
+def test_it_solves_as_its_arena_form(corridors, tmp_path) -> None:
+    """Through the whole pipeline (the games, the PRISM model, Storm, the strategy and its
+    files): the corridor and its arena-world form have the same values and strategy."""
+    world = hg2prism.world_from_toml(TEXT, "corridor.toml")
+    twin = hg2prism.world_from_toml(to_toml(world), "corridor_arena.toml")
+    assert twin.arena is not None
+    mine, theirs = hg2prism.solve(world, out=tmp_path / "line"), hg2prism.solve(twin)
+    assert mine.deceptive_value > mine.v_lead       # 0.64 > 0: her first guess is B
+    assert mine.deceptive_value == pytest.approx(theirs.deceptive_value, abs=1e-12)
+    assert mine.v_lead == pytest.approx(theirs.v_lead, abs=1e-12)
+    assert (mine.states, mine.transitions) == (theirs.states, theirs.transitions)
+    assert mine.strategy.records == theirs.strategy.records
+    results = json.loads((tmp_path / "line" / "results.json").read_text())
+    assert results["parameters"]["advance"] == 0.8
