@@ -392,3 +392,80 @@ def test_the_layered_layout_of_an_attack_graph_with_unreachable_nodes() -> None:
     for layer in layers:                    # the unreachable ones below the reachable ones
         reachable = [arena.states[s] in ("outside", "n1", "n2", "n9") for s in layer]
         assert reachable == sorted(reachable, reverse=True), layer
+
+
+def _layered_attack_graph(layers: int, width: int, seed: int = 3):
+    """An attack graph of `layers` layers of `width` nodes (each node attacks two of the next
+    layer at random), the last layer going to two targets 9000 and 9001: some nodes no entry
+    leads to, as in published graphs."""
+    import random
+
+    import networkx as nx
+
+    rng = random.Random(seed)
+    graph = nx.DiGraph()
+    rows = [list(range(i * width, (i + 1) * width)) for i in range(layers)]
+    for here, there in zip(rows, rows[1:]):
+        for u in here:
+            for v in rng.sample(there, 2):
+                graph.add_edge(u, v, p=round(rng.uniform(0.5, 0.95), 2))
+    for u in rows[-1]:
+        graph.add_edge(u, 9000 + u % 2, p=0.9)
+    return graph, rows
+
+
+def test_a_large_attack_graph_is_drawn_apart() -> None:
+    """162 states, 320 arrows (the world picture shrank a layered layout to 12 x 9 inches, so
+    its boxes covered one another and the arrows' names covered everything): the map grows
+    instead (rows at least 0.5 in apart), the arrows of P1's actions go unnamed above
+    MAX_NAMED_ARROWS (the legend says so), and no text overlaps another: every state's name
+    and the episode's labels are readable."""
+    import hg2prism
+    from hg2prism.report.arena_graph import MAX_NAMED_ARROWS
+
+    graph, rows = _layered_attack_graph(8, 20)
+    world = hg2prism.world_from_graph(graph, entries=rows[0], task="F asset9000",
+                                      trap_candidates=rows[4][:6], name="big")
+    solution = hg2prism.solve(world)
+    ts = solution.check.analysis.ts
+    episode = episodes.choose_episode(solution.check.analysis, solution.strategy,
+                                      world.simulation.horizon, world.simulation.seed)
+    trace = episodes.belief_trace(solution.check.analysis.inference, episode.steps)
+    fig, drawer = plots.world_picture(world, ts, episode, trace)
+    try:
+        found = problems(fig, fig.axes[0])
+        texts = [t for t, _ in texts_of(fig)]
+    finally:
+        plots.plt.close(fig)
+    assert len(drawer.edges) > MAX_NAMED_ARROWS and not drawer.names_arrows
+    assert not found, found[:5]
+    assert all(name in texts for name in world.arena.states if not name.startswith("n90"))
+    assert any("arrows, unnamed" in t for t in texts)
+    assert not any(t.startswith("to_") for t in texts)          # no arrow carries a name
+    labelled = {n for t in texts for n in _step_numbers(t)}
+    assert {1, episode.n_steps} <= labelled
+
+
+@pytest.mark.parametrize("extra, named", [(0, True), (1, False)])
+def test_arrows_are_named_up_to_the_limit(extra: int, named: bool) -> None:
+    """A star: `outside` to n0, n0 to n1 ... n(k): exactly MAX_NAMED_ARROWS arrows are named,
+    one more are not."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.report.arena_graph import MAX_NAMED_ARROWS, ArenaDrawer
+
+    graph = nx.DiGraph()
+    for v in range(1, MAX_NAMED_ARROWS + extra):
+        graph.add_edge(0, v, p=0.5)
+    world = hg2prism.world_from_graph(graph, entries=[0], task="F goal", labels={1: "goal"},
+                                      name="star")
+    drawer = ArenaDrawer(world, transition_system(world))
+    assert len(drawer.edges) == MAX_NAMED_ARROWS + extra
+    assert drawer.names_arrows is named
+    fig = plots.plt.figure()
+    try:
+        legend = [h.get_label() for h in drawer.draw_map(fig.add_subplot())]
+    finally:
+        plots.plt.close(fig)
+    assert any(("unnamed" in text) is not named and "u → v" in text for text in legend)

@@ -11,7 +11,9 @@ SPACING_INCHES apart), else a layered layout: the states by their distance from 
 state, each layer a column ordered by the mean row of its predecessors, then by number; the
 states unreachable from it by their distance from the unreachable states no other
 unreachable state leads to, one column further right, below the reachable ones of their
-column. Both are deterministic. One data unit is one inch of the map.
+column; shrunk to fit MAP_MAX_INCHES, but never below MIN_SHRINK (a large arena's map grows).
+Both are deterministic. One data unit is one inch of the map. Above MAX_NAMED_ARROWS arrows,
+those of P1's actions carry no names.
 
 Arrows and labels are placed after the figure is laid out, when the boxes' sizes are known:
 every label (actions, step numbers, traps, changes of mind) goes to the first of a list of
@@ -38,6 +40,12 @@ LAYER_INCHES = 2.0        # between the columns of the layered layout
 ROW_INCHES = 1.1          # between the states of a column
 SPACING_INCHES = 1.4      # the closest two given positions
 MAP_MAX_INCHES = (12.0, 9.0)
+# A layered layout is shrunk to MAP_MAX_INCHES, but never below this (columns 0.9 in, rows
+# 0.5 in apart: a state's box is about 0.3 in high): a large arena's map grows instead.
+MIN_SHRINK = 0.45
+# Above this many arrows the arrows of P1's actions carry no names (the explorer lists them):
+# on a large attack graph they cover the states and the episode.
+MAX_NAMED_ARROWS = 60
 MARGIN_INCHES = 0.8       # around the states
 LEGEND_INCHES = 4.2
 MIN_HEIGHT = 5.0
@@ -127,6 +135,8 @@ def layout(arena: Arena, edges=None) -> np.ndarray:
     points = points - points.min(axis=0)
     span = points.max(axis=0)
     shrink = min([1.0] + [m / s for m, s in zip(MAP_MAX_INCHES, span) if s > m])
+    if arena.positions is None:
+        shrink = max(shrink, MIN_SHRINK)
     return points * shrink
 
 
@@ -249,9 +259,15 @@ class ArenaDrawer:
         if self.arena.terminal.any():
             handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="white", edgecolor="black",
                                          ls="--", label="terminal state (the episode ends)"))
+        named = "" if self.names_arrows else f"; {len(self.edges)} arrows, unnamed"
         handles.append(plt.Line2D([], [], color="0.6", lw=1.0, marker=">",
-                                  label="P1's actions u → v (self-loops not drawn)"))
+                                  label=f"P1's actions u → v (self-loops not drawn{named})"))
         return handles
+
+    @property
+    def names_arrows(self) -> bool:
+        """Whether the arrows of P1's actions carry their names (MAX_NAMED_ARROWS)."""
+        return len(self.edges) <= MAX_NAMED_ARROWS
 
     # ---- the world figure ----
     def draw_world(self, ax: plt.Axes, steps, changes) -> list:
@@ -297,8 +313,9 @@ class ArenaDrawer:
         for (u, v), names in self.edges.items():
             p0, p2 = self._ends(u, v, BASE_RAD)
             self._curve(ax, p0, p2, BASE_RAD, "0.6", 1.0, zorder=1)
-            placer.place(_spots(p0, p2, BASE_RAD, (0, -0.1, 0.1, -0.2, 0.2, -0.3, 0.3)),
-                         ", ".join(names), fontsize=edge_font, color="0.35", style="italic")
+            if self.names_arrows:
+                placer.place(_spots(p0, p2, BASE_RAD, (0, -0.1, 0.1, -0.2, 0.2, -0.3, 0.3)),
+                             ", ".join(names), fontsize=edge_font, color="0.35", style="italic")
 
     # ---- arrows ----
     def _ends(self, u: int, v: int, rad: float) -> tuple[np.ndarray, np.ndarray]:
