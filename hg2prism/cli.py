@@ -16,12 +16,9 @@ from hg2prism.engines import default as default_engine
 from hg2prism.errors import COMMAND_LINE, InputError, SolverError, StormError
 from hg2prism.strategy.records import StrategyError
 from hg2prism.model import sizeguard
-from hg2prism.experiments.sweep import OWNED_PATTERN as SWEEP_OWNED
-from hg2prism.experiments.sweep import SWEEP_PARAMETERS
+from hg2prism.experiments.sweep import owned_pattern, sweep_parameters
 from hg2prism.outputs import OWNED, check_writable, staged
 from hg2prism.strategy.objectives import OBJECTIVES
-
-SWEEP_PARAMETER_NAMES = tuple(SWEEP_PARAMETERS)
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
@@ -143,7 +140,7 @@ def _sweep_parser(sub: Subparsers) -> None:
              "sweep.png/.svg and a folder per point (its model and strategy). Points run in "
              "parallel on Dask (docs/semantics.md §7, Sweeps).")
     p.add_argument("--param", required=True, action="append", metavar="NAME",
-                   help="a parameter to sweep: " + ", ".join(SWEEP_PARAMETER_NAMES)
+                   help="a parameter to sweep: " + ", ".join(sweep_parameters())
                         + "; repeat --param NAME --values V... to sweep the grid of several; "
                         "a world with P2's types ([[type]]) sweeps weight (its first type's "
                         "prior weight) only")
@@ -555,8 +552,8 @@ def _perform(args: argparse.Namespace) -> int:
     command.guard(args, world)
     check_writable(out)
     command.options(args, world)
-    owns = SWEEP_OWNED if args.command == "sweep" else OWNED[args.command]
-    every = "|".join(f"(?:{pattern})" for pattern in (*OWNED.values(), SWEEP_OWNED))
+    owns = owned_pattern() if args.command == "sweep" else OWNED[args.command]
+    every = "|".join(f"(?:{pattern})" for pattern in (*OWNED.values(), owned_pattern()))
     with staged(out, owns=owns, world=world.name, every=every,
                 digest=world.digest()) as stage:
         outcome = command.act(args, world, stage)

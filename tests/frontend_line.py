@@ -22,6 +22,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
 from hg2prism.model.validation import Vocabulary
 
@@ -64,12 +65,12 @@ ADVERSARY_KEYS = {"traps": True, "candidates": True}
 MISSING_HINT = {"line.cells": "an array of the cells' letters (\"\" for none)",
                 "adversary.candidates": "an array of cell numbers"}
 DESCRIBED = "a corridor world ([line])"
-SETTINGS = ()
+SETTINGS = ()                          # set below: Setting("advance", ...)
 STANDING_RULE = "none: a corridor world has no delay"
 
 
 def read(ld, root: dict) -> Line:
-    table = ld.table(root, "line", TABLE_KEYS["line"])
+    table = ld.table(root, "line")          # its keys: TABLE_KEYS["line"]
     cells = tuple(ld.string(c, f"line.cells[{i}]")
                   for i, c in enumerate(ld.array(table["cells"], "line.cells", "an array")))
     if len(cells) < 2:
@@ -77,7 +78,7 @@ def read(ld, root: dict) -> Line:
     start = ld.integer(table.get("start", 0), "line.start", 0)
     if start >= len(cells):
         raise ld.fail("line.start", f"must be a cell number below {len(cells)}, got {start}")
-    adv = root.get("adversary", {})
+    adv = root["adversary"]                 # a table (the loader checked it)
     candidates = tuple(ld.integer(c, f"adversary.candidates[{i}]", 0)
                        for i, c in enumerate(ld.array(adv.get("candidates", []),
                                                       "adversary.candidates", "an array")))
@@ -127,3 +128,7 @@ def parameters(world) -> dict[str, object]:
 
 def with_advance(world, advance: float):
     return replace(world, front=replace(world.front, advance=advance))
+
+
+# what sweeps may vary in a corridor world only (values above 1: the world refuses them)
+SETTINGS = (Setting("advance", "a number in (0, 1]", float, 0.0, True, None, with_advance),)

@@ -13,6 +13,7 @@ import pytest
 import hg2prism
 from hg2prism import cli, frontends
 from hg2prism.errors import InputError
+from conftest import MODELS
 from hg2prism.frontends.arena import to_toml
 
 TEXT = """
@@ -74,7 +75,9 @@ def test_a_registered_kind_loads_and_is_described(corridors, tmp_path, capsys) -
     (("candidates = [1, 4]\n", ""), "adversary.candidates", "missing required key"),
     (("traps = 1", "traps = 3"), "adversary.traps", "only 2 candidates"),
     (('formula = "F A"', 'formula = "F C"'), "task.formula", "the corridor's letters (A, B)"),
-    (("[line]", "[grid]\nmap = '.'\n[robot]\nslip = 0.0\n[line]"), "line", "not both"),
+    (("[line]", "[grid]\nmap = '.'\n[robot]\nslip = 0.0\n[line]"), "line",
+     "a grid world ([grid] and [robot]), an arena world ([arena]) or a corridor world ([line]), "
+     "only one of them; remove one"),
 ])
 def test_its_files_get_one_line_errors(corridors, change, key, words) -> None:
     with pytest.raises(InputError) as caught:
@@ -97,3 +100,49 @@ def test_it_solves_as_its_arena_form(corridors, tmp_path) -> None:
     assert mine.strategy.records == theirs.strategy.records
     results = json.loads((tmp_path / "line" / "results.json").read_text())
     assert results["parameters"]["advance"] == 0.8
+
+
+def test_its_own_setting_is_swept(corridors, tmp_path) -> None:
+    """The kind's SETTINGS are sweep parameters, though it was registered after the sweep was
+    imported; refused on other kinds of world with the kind named."""
+    from hg2prism.experiments import sweep
+
+    assert "advance" in sweep.sweep_parameters()
+    world = hg2prism.world_from_toml(TEXT, "corridor.toml")
+    table = hg2prism.sweep(world, "advance", [0.5, 1.0])
+    values = [row.deceptive_value for row in table.rows]
+    assert len(values) == 2 and values[1] > values[0]       # surer steps, surer to the goal
+    for advance, value in zip((0.5, 1.0), values):
+        assert value == pytest.approx(hg2prism.solve(world.replace(advance=advance))
+                                      .deceptive_value, abs=1e-12)
+    grid_world = hg2prism.load_world(MODELS / "world1.toml")
+    with pytest.raises(InputError) as caught:
+        hg2prism.sweep(grid_world, "advance", [0.5])
+    assert "applies to line worlds only; world1 is a grid world" in str(caught.value)
+
+
+def test_a_bad_adversary_table_is_one_line(corridors) -> None:
+    """The kind's `read` looks at [adversary]: the loader has checked it is a table."""
+    text = "adversary = 3\n" + TEXT[:TEXT.index("[adversary]")] + TEXT[TEXT.index("[inference]"):]
+    with pytest.raises(InputError) as caught:
+        hg2prism.world_from_toml(text, "corridor.toml")
+    assert caught.value.key == "adversary" and "must be a table" in str(caught.value)
+
+
+def test_a_world_of_a_kind_no_longer_registered(monkeypatch) -> None:
+    monkeypatch.setitem(frontends.FRONT_ENDS, "line", "frontend_line")
+    world = hg2prism.world_from_toml(TEXT, "corridor.toml")
+    monkeypatch.delitem(frontends.FRONT_ENDS, "line")
+    with pytest.raises(InputError) as caught:
+        hg2prism.solve(world)
+    assert caught.value.key == "front" and "no front end of kind 'line'" in str(caught.value)
+
+
+def test_replace_checks_the_new_fronts_settings() -> None:
+    """A setting of the old front given with a new one is the new one's to accept: an arena
+    has no slip (it was applied to the Arena, a TypeError)."""
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    with pytest.raises(InputError) as caught:
+        world.replace(front=frontends.arena_of(world), slip=0.2)
+    assert caught.value.key == "slip" and "not a setting of this world" in str(caught.value)
+    assert world.replace(front=frontends.arena_of(world)).arena is not None

@@ -11,6 +11,7 @@ value the package computes independently of the hypergame as V_static
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,11 +159,10 @@ def test_configure_refuses_what_the_observer_does_not_have() -> None:
 def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPatch) -> None:
     """An observer's setting with `swept` is a parameter of `hg2prism sweep` without an edit of
     the sweep: its parameters are read off the registry (threshold, prior and decision too, as
-    the table SWEEP_PARAMETERS holds them), parsed as `swept` says and applied through
+    the table `sweep_parameters()` holds them), parsed as `swept` says and applied through
     registry.configure, a value the observer refuses for the world being a --values error. The
-    table is built when experiments.sweep is imported: a kind registered as the registry's own
-    (one `register` line in opponent/registry.py) is in it; one registered later, as here, is
-    read by `_observer_parameters` but not in the table."""
+    table follows the registry: a kind registered after experiments.sweep was imported, as
+    here, has its setting in it (it was left out when the table was built at import)."""
     from dataclasses import replace
 
     from hg2prism.experiments import sweep
@@ -177,9 +177,11 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
                         replace(NEVER, name="patient", title="patient", settings=(patience,)))
     found = {p.name: p for p in sweep._observer_parameters()}
     assert list(found) == ["threshold", "prior", "decision", "patience"]
-    assert [name for name in sweep.SWEEP_PARAMETERS if name in found] == ["threshold", "prior",
-                                                                          "decision"]
+    assert [name for name in sweep.sweep_parameters() if name in found] == [
+        "threshold", "prior", "decision", "patience"]
     assert sweep.parse_sweep_values("prior", ["1,3"]) == [(0.25, 0.75)]
+    assert sweep.parse_sweep_values("patience", ["3"]) == [3]
+    assert re.fullmatch(sweep.owned_pattern(), "patience_3")    # its point folders are owned
     assert found["patience"].parse("3") == 3 and found["patience"].expected == "an integer >= 1"
     for bad in ("0", "x", "1.5"):
         with pytest.raises(ValueError):

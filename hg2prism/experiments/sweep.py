@@ -1,9 +1,9 @@
 """Parameter sweeps (the paper's Fig. 4): the world re-solved at every point of a parameter grid.
 
 :func:`sweep_grid` re-solves the world at every point of the cartesian product of one or more
-parameters' values (the table :data:`SWEEP_PARAMETERS`: ``delay``, ``window``, ``threshold``,
-``rationality``, ``traps``, ``prior``, ``decision``, ``initial_hypothesis``, ``inference`` and
-each front end's own) and records the deceptive value, V_lead and V_NE at the initial state
+parameters' values (the table :func:`sweep_parameters`, as the observer and front-end
+registries stand: ``delay``, ``window``, ``threshold``, ``rationality``, ``traps``, ``prior``,
+``decision``, ``initial_hypothesis``, ``inference`` and each front end's own) and records the deceptive value, V_lead and V_NE at the initial state
 (docs/semantics.md §§6-7; the sweep itself: §7, Sweeps), with ``deception`` also V_static and
 V_naive (§11). :func:`sweep` is the
 one-parameter case. Writes ``OUT/sweep.json``, ``OUT/sweep.csv``, ``OUT/sweep.{png,svg}``; each
@@ -57,7 +57,7 @@ from hg2prism import progress
 from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
 from hg2prism.results import Parameters, provenance
 
-__all__ = ["SweepParameter", "SWEEP_PARAMETERS", "OWNED_PATTERN", "parse_sweep_values",
+__all__ = ["SweepParameter", "sweep_parameters", "owned_pattern", "parse_sweep_values",
            "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
            "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
@@ -88,7 +88,7 @@ class SweepParameter:
         kind = frontends.kind_of(world)
         if self.front_end is not None and self.front_end != kind:
             raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to {self.front_end} "
-                             f"worlds only; {world.name} is an {kind} world")
+                             f"worlds only; {world.name} is {frontends.kind_words(world)}")
         if self.name == "traps" and not arena_of(world).traps_mode:
             raise InputError(COMMAND_LINE, f"--param {self.name}",
                              f"applies to worlds whose P2 sets "
@@ -255,34 +255,69 @@ def _with_traps(world: World, traps: int) -> World:
     return replace(world, traps=traps)
 
 
-SWEEP_PARAMETERS: dict[str, SweepParameter] = {p.name: p for p in (
-    # first: the other parameters apply to the observer it chooses
-    SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
-                   _with_observer),
-    SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
-                   moves_traps=True),
-    SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
-    *_observer_parameters(),       # the observers' own: threshold, prior, decision
-    SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
-                   _field("rationality")),
-    *(SweepParameter(setting.name, setting.expected,
-                     _number(setting.kind, setting.minimum, setting.exclusive, setting.below),
-                     setting.apply, front_end=kind) for kind, setting in frontends.sweep_settings()),
-    SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
-                   _number(int, 1, False), _with_traps, moves_traps=True),
-    SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
-                   _number(int, 0, False), _with_first_guess),
-)}
+def _built_table() -> dict[str, SweepParameter]:
+    """The sweep parameters, in the order `--help` lists them: every world's, the observers'
+    own (opponent/registry.py) and the front ends' own (frontends/__init__.py)."""
+    table: dict[str, SweepParameter] = {}
+    for parameter in (
+        # first: the other parameters apply to the observer it chooses
+        SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
+                       _with_observer),
+        SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
+                       moves_traps=True),
+        SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
+        *_observer_parameters(),       # the observers' own: threshold, prior, decision
+        SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
+                       _field("rationality")),
+        *(SweepParameter(setting.name, setting.expected,
+                         _number(setting.kind, setting.minimum, setting.exclusive,
+                                 setting.below),
+                         setting.apply, front_end=kind)
+          for kind, setting in frontends.sweep_settings()),
+        SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
+                       _number(int, 1, False), _with_traps, moves_traps=True),
+        SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
+                       _number(int, 0, False), _with_first_guess),
+    ):
+        if parameter.name in table:
+            raise ValueError(f"sweep parameter {parameter.name!r} is defined twice (a front "
+                             "end's or an observer's own setting takes another's name)")
+        table[parameter.name] = parameter
+    return table
 
-# The per-point folders a sweep owns in its output folder (outputs.staged removes stale ones):
-# <name>_<value> joined by "__", names from the table.
-_NAME = "(?:" + "|".join(SWEEP_PARAMETERS) + ")"
-_POINT = _NAME + r"_[0-9A-Za-z][0-9A-Za-z.,+-]*"
-OWNED_PATTERN = r"sweep\.(json|csv|png|svg|pdf)|" + _POINT + "(?:__" + _POINT + ")*"
+
+_TABLES: dict[tuple, dict[str, SweepParameter]] = {}
+
+
+def sweep_parameters() -> dict[str, SweepParameter]:
+    """The table of sweep parameters as the observer and front-end registries stand now (a
+    kind registered after this module was imported has its settings here too)."""
+    key = (tuple(KINDS), tuple(frontends.FRONT_ENDS.items()))
+    if key not in _TABLES:
+        _TABLES[key] = _built_table()
+    return _TABLES[key]
+
+
+def owned_pattern() -> str:
+    """The names a sweep owns in its output folder (outputs.staged removes stale ones):
+    sweep.json/.csv/figures and the per-point folders <name>_<value>, joined by "__", names
+    from the table."""
+    name = "(?:" + "|".join(sweep_parameters()) + ")"
+    point = name + r"_[0-9A-Za-z][0-9A-Za-z.,+-]*"
+    return r"sweep\.(json|csv|png|svg|pdf)|" + point + "(?:__" + point + ")*"
+
+
+def __getattr__(name: str):
+    """SWEEP_PARAMETERS and OWNED_PATTERN, read as the registries stand now."""
+    if name == "SWEEP_PARAMETERS":
+        return sweep_parameters()
+    if name == "OWNED_PATTERN":
+        return owned_pattern()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _parse_value(parameter: str, value: object) -> Value:
-    spec = SWEEP_PARAMETERS[parameter]
+    spec = sweep_parameters()[parameter]
     shown = repr(value) if not isinstance(value, str) else value
     try:
         return spec.parse(value)
@@ -298,13 +333,13 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
     """Validate a sweep: a known parameter and a non-empty list of distinct valid values
     (strings as typed on the command line are parsed). Raises InputError (key --param or
     --values)."""
-    if parameter not in SWEEP_PARAMETERS:
+    if parameter not in sweep_parameters():
         raise InputError(COMMAND_LINE, "--param",
                          f"unknown parameter {parameter!r}; expected one of "
-                         + ", ".join(SWEEP_PARAMETERS) + " (weight: for a world with P2's types)")
+                         + ", ".join(sweep_parameters()) + " (weight: for a world with P2's types)")
     if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
         raise InputError(COMMAND_LINE, "--values", f"expected at least one value of {parameter} "
-                                           f"({SWEEP_PARAMETERS[parameter].expected})")
+                                           f"({sweep_parameters()[parameter].expected})")
     parsed = [_parse_value(parameter, v) for v in values]
     for i, v in enumerate(parsed):
         if v in parsed[:i]:
@@ -348,13 +383,13 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
     the number of traps is swept."""
     point = world
     moved = {}      # delay and traps, set with the standing traps in one (validated) World
-    for name in SWEEP_PARAMETERS:
+    for name in sweep_parameters():
         if name in assignment:
-            SWEEP_PARAMETERS[name].refuse_unless_applies(world)
-            if SWEEP_PARAMETERS[name].moves_traps:
+            sweep_parameters()[name].refuse_unless_applies(world)
+            if sweep_parameters()[name].moves_traps:
                 moved[name] = assignment[name]
             else:
-                point = SWEEP_PARAMETERS[name].apply(point, assignment[name])
+                point = sweep_parameters()[name].apply(point, assignment[name])
     if moved:
         traps, delay = moved.get("traps", point.traps), moved.get("delay", point.delay)
         if "traps" in moved:
@@ -674,7 +709,7 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
     parsed = parse_sweep_grid(grid)
     names = [name for name, _ in parsed]
     for name in names:
-        SWEEP_PARAMETERS[name].refuse_unless_applies(world)
+        sweep_parameters()[name].refuse_unless_applies(world)
     points = [dict(zip(names, combination))
               for combination in itertools.product(*(values for _, values in parsed))]
     refusals = []
@@ -813,7 +848,7 @@ def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
         "storm_method": storm_method,
         "sound": results_sound(storm_method),
         "initial_traps_rule": (_standing_rule(world, "traps" in names)
-                               if any(SWEEP_PARAMETERS[n].moves_traps for n in names) else None),
+                               if any(sweep_parameters()[n].moves_traps for n in names) else None),
         "rows": list(run.rows),
         "failed": list(run.failed),
         "seconds": round(seconds, 3),

@@ -3,8 +3,8 @@ world's front-end value (`World.front`, a model.world.Front) and compiles a worl
 the arena (model/arena.py) that the pipeline plays on; nothing below the front ends sees more
 than the arena. `grid` compiles grid worlds; an arena world's value is its arena.
 
-A new kind of world is one module with the names below and one line in FRONT_ENDS
-(docs/architecture.md, "Adding a kind of world"):
+A new kind of world is one module (any importable one, by its dotted name) with the names
+below and one line in FRONT_ENDS (docs/architecture.md, "How to add …", "A world kind"):
 
   KIND                 its name: the `kind` of its front-end value
   FILE_TABLES          its files' own top-level tables, {table: required?}; the first marks a
@@ -15,7 +15,11 @@ A new kind of world is one module with the names below and one line in FRONT_END
   MISSING_HINT         {"table.key": what a missing required key expects}
   DESCRIBED            its files in a message ("a grid world ([grid] and [robot])")
   read(ld, root)       the front-end value of a parsed file (`ld`: worldfile/loader.py's reader,
-                       whose typed getters raise the one-line errors)
+                       a model.validation.Checks whose typed getters string, integer, number,
+                       array, traps, delay and fail raise the one-line errors, and whose
+                       table(root, name) reads one of its tables with its keys checked; the
+                       file's [adversary] is a table by then, for a kind whose own value needs
+                       some of it, such as its trap candidates)
   read_adversary(ld, adv, front)   the World fields traps, delay, initial_standing
   to_arena(world)      the world's arena
   describe(world)      the world in a few words (`hg2prism validate`)
@@ -51,13 +55,25 @@ def front_ends() -> tuple[ModuleType, ...]:
 
 
 def front_end(world: World) -> ModuleType:
-    """The module of the world's front end."""
-    return importlib.import_module(FRONT_ENDS[kind_of(world)])
+    """The module of the world's front end; InputError when no front end of its kind is
+    registered (a World made while one was)."""
+    kind = kind_of(world)
+    if kind not in FRONT_ENDS:
+        from hg2prism.errors import InputError
+
+        raise InputError(str(world.path), "front", f"no front end of kind {kind!r} is registered "
+                         "(hg2prism.frontends.FRONT_ENDS: " + ", ".join(FRONT_ENDS) + ")")
+    return importlib.import_module(FRONT_ENDS[kind])
 
 
 def kind_of(world: World) -> str:
     """The world's kind: its front end's name ("grid", "arena")."""
     return world.front.kind
+
+
+def kind_words(world: World) -> str:
+    """The world's kind in a sentence: "a grid world", "an arena world" (its DESCRIBED)."""
+    return front_end(world).DESCRIBED.split(" (")[0]
 
 
 def counted(n: int, thing: str) -> str:

@@ -112,7 +112,7 @@ class World:
         own = {name: value for name, value in changes.items() if name in _FIELDS}
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
-            replaceable = getattr(self.front, "replaceable", frozenset())
+            replaceable = getattr(own.get("front", self.front), "replaceable", frozenset())
             if not set(front) <= replaceable:
                 from hg2prism.errors import InputError
 

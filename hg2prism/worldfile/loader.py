@@ -120,7 +120,10 @@ class _Loader(Checks):
         value = root.get(name, {})
         if not isinstance(value, dict):
             raise self.fail(name, f"must be a table [{name}], got {_toml_type(value)}")
-        self.check_keys(value, _TABLE_KEYS[name] if allowed is None else allowed, name)
+        if allowed is None:         # a table every world has, or one of a front end's own
+            allowed = _TABLE_KEYS.get(name) or next(
+                module.TABLE_KEYS[name] for module in front_ends() if name in module.TABLE_KEYS)
+        self.check_keys(value, allowed, name)
         return value
 
     @staticmethod
@@ -138,6 +141,8 @@ class _Loader(Checks):
         top, tables = _file_keys(front_end)
         self.check_keys(root, player_types.top_keys(root, top), "", tables)
         name, description = self.header(root)
+        if not isinstance(root["adversary"], dict):      # what a kind's `read` may look at
+            self.table(root, "adversary", tables["adversary"])
         front = front_end.read(self, root)
         vocabulary = front.vocabulary()
         formula = self.table(root, "task")["formula"]
@@ -156,10 +161,13 @@ class _Loader(Checks):
         it (a grid world's [grid], an arena world's [arena])."""
         modules = front_ends()
         kinds = [module for module in modules if next(iter(module.FILE_TABLES)) in root]
-        described = " or ".join(module.DESCRIBED for module in modules)
+        named = [module.DESCRIBED for module in modules]
+        described = " or ".join(filter(None, (", ".join(named[:-1]), named[-1])))
         if len(kinds) > 1:
             raise self.fail(next(iter(kinds[1].FILE_TABLES)),
-                            f"a world is {described}, not both; remove one")
+                            f"a world is {described}, "
+                            + ("not both" if len(modules) == 2 else "only one of them")
+                            + "; remove one")
         if not kinds:
             raise self.fail(next(iter(modules[0].FILE_TABLES)),
                             f"missing required table: a world is {described} "
