@@ -69,7 +69,7 @@ def write_chunks(path: Path, chunks: Iterable[bytes]) -> None:
 # did not write this time are stale (emit after run: the old strategy.json, results.json and
 # world.png would describe another model) and are removed. Commands with different outputs share
 # a folder (`make world2`: run, then sweep, then detect), so only the command's own kinds go.
-# The sweep's pattern is built from its parameter table: experiments.sweep.OWNED_PATTERN.
+# The sweep's pattern is built from its parameter table: experiments.sweep.owned_pattern().
 _MODEL = (r"hypergame\.(prism|props)|strategy\.json|results\.json|table\.md"
           r"|(world|belief|completion)\.(png|svg|pdf)|replay\.gif|explorer\.html"
           r"|task\.(hoa|dot|svg)|hypothesis_\d+\.(hoa|dot|svg)|induced\.(tra|sta|lab|drn)|goal\.props"
