@@ -376,3 +376,90 @@ def test_arena_edges_show_their_direction(browser, tmp_path: Path) -> None:
     assert {("n1", "n2"), ("n2", "n1"), ("outside", "n1")} <= set(drawn)
     (ax, ay), (bx, by) = drawn[("n1", "n2")], drawn[("n2", "n1")]
     assert ((ax - bx) ** 2 + (ay - by) ** 2) ** 0.5 >= 6      # side by side
+
+
+READ_NODES = """() => {
+  const rects = [...document.querySelectorAll('#base > rect')].map((r) =>
+    [r.x.baseVal.value + r.width.baseVal.value / 2, r.y.baseVal.value + r.height.baseVal.value / 2]);
+  const svg = document.getElementById('map'), box = svg.getBoundingClientRect();
+  const view = svg.viewBox.baseVal, robot = document.getElementById('robot');
+  // the map's own units (its viewBox) are the pixels it was laid out at
+  const unit = Math.min(box.width / view.width, box.height / view.height);
+  return {centres: rects, width: view.width, height: view.height, unit: unit,
+          left: box.left + (box.width - view.width * unit) / 2,
+          top: box.top + (box.height - view.height * unit) / 2,
+          robot: [robot.cx.baseVal.value, robot.cy.baseVal.value], at: robot.dataset.state,
+          states: JSON.parse(document.getElementById('data').textContent).states};
+}"""
+
+
+def test_a_large_graph_is_explored_zoomed_in(browser, tmp_path: Path) -> None:
+    """A 122-state attack graph crowds the map fitted whole (its states overlapped): the page
+    starts zoomed in, the closest two states NODE_PITCH = 26 px apart and the start state in the
+    middle; the wheel zooms about the pointer, dragging moves the map, a double-click shows it
+    whole, and the keys still step the episode on the moved map."""
+    import random
+
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.frontends.arena import to_toml
+
+    rng = random.Random(5)
+    graph = nx.DiGraph()
+    rows = [list(range(i * 20, (i + 1) * 20)) for i in range(6)]
+    for here, there in zip(rows, rows[1:]):
+        for u in here:
+            for v in rng.sample(there, 2):
+                graph.add_edge(u, v, p=0.8)
+    for u in rows[-1]:
+        graph.add_edge(u, 900, p=0.9)
+    world = hg2prism.world_from_graph(graph, entries=rows[0], task="F asset900",
+                                      trap_candidates=rows[3][:4], name="layers")
+    path = tmp_path / "layers.toml"
+    path.write_text(to_toml(world))
+    out = tmp_path / "out"
+    assert cli.main(["run", str(path), "--out", str(out), "--episodes", "20"]) == 0
+    page = browser.new_page(viewport=VIEWPORT)
+    errors: list[str] = []
+    page.on("pageerror", lambda err: errors.append(str(err)))
+    page.goto((out / "explorer.html").as_uri())
+
+    def closest(centres) -> float:
+        return min(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5
+                   for i, a in enumerate(centres) for b in centres[i + 1:])
+
+    first = page.evaluate(READ_NODES)
+    start = first["centres"][first["states"].index("outside")]
+    assert closest(first["centres"]) == pytest.approx(26, abs=0.01)
+    assert start == pytest.approx([first["width"] / 2, first["height"] / 2], abs=0.5)
+    # the wheel, over the start state: it stays under the pointer, the others move apart
+    unit = first["unit"]
+    page.mouse.move(first["left"] + start[0] * unit, first["top"] + start[1] * unit)
+    page.mouse.wheel(0, -300)
+    zoomed = page.evaluate(READ_NODES)
+    assert zoomed["centres"][first["states"].index("outside")] == pytest.approx(start, abs=0.5)
+    assert closest(zoomed["centres"]) > 26 * 1.2
+    # dragging moves every state by the drag
+    page.mouse.down()
+    page.mouse.move(first["left"] + start[0] * unit + 100 * unit,
+                    first["top"] + start[1] * unit + 40 * unit, steps=4)
+    page.mouse.up()
+    moved = page.evaluate(READ_NODES)
+    shifts = {(round(b[0] - a[0], 3), round(b[1] - a[1], 3))
+              for a, b in zip(zoomed["centres"], moved["centres"])}
+    assert shifts == {(100.0, 40.0)}
+    # the keys step on the moved map: the ring is on the state the step reached
+    page.keyboard.press("ArrowRight")
+    stepped = page.evaluate(READ_NODES)
+    assert stepped["robot"] == pytest.approx(
+        stepped["centres"][stepped["states"].index(stepped["at"])], abs=0.5)
+    assert stepped["at"] != "outside"
+    # a double-click shows the whole map: crowded, inside the frame
+    page.mouse.dblclick(first["left"] + 20, first["top"] + 20)
+    whole = page.evaluate(READ_NODES)
+    page.close()
+    assert errors == []
+    assert closest(whole["centres"]) < 26
+    assert all(0 <= x <= whole["width"] and 0 <= y <= whole["height"]
+               for x, y in whole["centres"])

@@ -259,7 +259,7 @@ class ArenaDrawer:
         if self.arena.terminal.any():
             handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="white", edgecolor="black",
                                          ls="--", label="terminal state (the episode ends)"))
-        named = "" if self.names_arrows else f"; {len(self.edges)} arrows, unnamed"
+        named = "" if self.names_arrows else f";\n{len(self.edges)} arrows, unnamed"
         handles.append(plt.Line2D([], [], color="0.6", lw=1.0, marker=">",
                                   label=f"P1's actions u → v (self-loops not drawn{named})"))
         return handles
