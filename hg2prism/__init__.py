@@ -28,7 +28,9 @@ from hg2prism.api import (AdaptiveSolution, Baselines, DeceptionValues, Episode,
                           draw_world, episode, load_world, robust, simulate, solve, sweep,
                           world_from_graph, world_from_toml)
 
-__all__ = ["__version__", "load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
+from hg2prism.errors import InputError  # noqa: E402  (except hg2prism.InputError)
+
+__all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
            "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
            "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]

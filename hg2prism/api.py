@@ -116,8 +116,8 @@ def _node_name(node: object, file: str) -> str:
     if isinstance(node, str) and re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", node):
         return node
     raise InputError(file, f"node {node!r}", "has no state name: nodes are integers >= 0 "
-                     "(state n<v>) or identifiers (the state of that name; "
-                     "networkx.relabel_nodes renames the others)")
+                     "(state n<v>) or ASCII identifiers, [A-Za-z_][A-Za-z0-9_]* (the state "
+                     "of that name; networkx.relabel_nodes renames the others)")
 
 
 def _asset(node: object, name: str) -> str:
@@ -240,7 +240,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     P2 (the defender) sets `traps` traps (honeypots) among `trap_candidates` (default: every
     node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0.
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
-    (default CUSUM, window 2, rationality 1, threshold 0.6); `simulation` and `detection` the
+    (keys not given: CUSUM, window 2, rationality 1 and, for CUSUM, threshold 0.6); `simulation` and `detection` the
     optional tables; `positions` (node -> [x, y], every node) where the figures draw the nodes,
     `outside` then one unit left of the entries (default: a layered layout). Every problem is
     an InputError naming `name`, the key and the reason."""
@@ -280,13 +280,22 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
         adversary["initial_hypothesis"] = initial_hypothesis
     data = {"name": name, "description": description, "arena": arena,
             "task": {"formula": task}, "adversary": adversary,
-            "inference": dict(inference) if inference is not None else
-            {"kind": "cusum", "window": 2, "rationality": 1.0, "threshold": 0.6}}
+            "inference": _inference_table(inference)}
     for key, table in (("simulation", simulation), ("detection", detection)):
         if table is not None:
             data[key] = dict(table)
     # as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was refused)
     return world_from_data(plain(data, list), name=name)
+
+
+def _inference_table(given) -> dict:
+    """world_from_graph's [inference]: the keys given over the defaults (CUSUM, window 2,
+    rationality 1 and, for CUSUM, threshold 0.6)."""
+    given = dict(given or {})
+    table = {"kind": "cusum", "window": 2, "rationality": 1.0}
+    if given.get("kind", "cusum") == "cusum":
+        table["threshold"] = 0.6
+    return {**table, **given}
 
 
 def _reported(name: str, doc: str) -> property:

@@ -400,8 +400,10 @@ def test_world_from_graph_small() -> None:
     (lambda g: g.add_edge(3, "n4", p=0.5), "nodes 4 and 'n4'", "would both be the state 'n4'"),
     # a negative node was reported as a state name "n-1" it never had
     (lambda g: g.add_edge(3, -1, p=0.5), "node -1", "has no state name"),
+    # Python calls it an identifier: the message says which (it said "identifiers")
+    (lambda g: g.add_edge(3, "сервер", p=0.5), "node 'сервер'", "ASCII identifiers"),
 ], ids=["above-1", "negative", "not-a-number", "missing", "self-loop", "bad-name",
-        "named-outside", "name-clash", "negative-node"])
+        "named-outside", "name-clash", "negative-node", "unicode-name"])
 def test_world_from_graph_errors(change, key: str, word: str) -> None:
     import hg2prism
     from hg2prism.errors import InputError
@@ -411,6 +413,26 @@ def test_world_from_graph_errors(change, key: str, word: str) -> None:
     with pytest.raises(InputError) as err:
         hg2prism.world_from_graph(graph, entries=[1], task="F asset4", name="g")
     assert (err.value.file, err.value.key) == ("g", key) and word in err.value.reason
+
+
+def test_world_from_graph_inference_keys_default_one_by_one() -> None:
+    """`inference` keys not given take the documented defaults (window 2, rationality 1, CUSUM's
+    threshold 0.6): {"kind": "bayes"} was "inference.window: missing required key", and so was
+    a misspelt kind, whose own error now comes first."""
+    import hg2prism
+
+    graph = _small_graph()
+    bayes = hg2prism.world_from_graph(graph, entries=[1], task="F asset4", name="g",
+                                      inference={"kind": "bayes"})
+    assert (bayes.inference, bayes.window, bayes.rationality) == ("bayes", 2, 1.0)
+    assert bayes.threshold is None
+    cusum = hg2prism.world_from_graph(graph, entries=[1], task="F asset4", name="g",
+                                      inference={"window": 3})
+    assert (cusum.inference, cusum.window, cusum.threshold) == ("cusum", 3, 0.6)
+    with pytest.raises(hg2prism.InputError) as err:        # the top level names it too
+        hg2prism.world_from_graph(graph, entries=[1], task="F asset4", name="g",
+                                  inference={"kind": "bayesian"})
+    assert err.value.key == "inference.kind" and "bayesian" in err.value.reason
 
 
 def test_world_from_graph_argument_errors() -> None:

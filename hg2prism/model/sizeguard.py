@@ -313,6 +313,10 @@ def check_size(world: World, limit: int | None = None) -> int:
     if not world.types:
         estimate = estimate_states(world)
         if estimate > limit and observer_kind(world.inference).solved_memory:
+            from hg2prism import progress
+
+            progress.say(f"size guard: {estimate:,} states at most from the world alone, above "
+                         f"the limit of {limit:,}; solving P2's games for a tighter bound")
             estimate = estimate_states(world, solved_games(world))
         return _refuse(world, "size", "hypergame", estimate, limit,
                        f"{len(world.hypotheses)} hypotheses and window {world.window}")
@@ -353,7 +357,8 @@ def check_robust_size(world: World, limit: int | None = None) -> int:
 def solved_games(world: World) -> list[PerceptualGame]:
     """P2's perceptual games of the world (the first stage of every command), for a bound an
     observer tightens with them: solved only where the bound from the world alone exceeds the
-    limit (the games are small: well under a second without delay, seconds with)."""
+    limit (well under a second without delay, seconds with; a minute and a few GB on a
+    delayed attack graph of 400 nodes with two traps)."""
     from hg2prism.frontends import transition_system
     from hg2prism.model.automata import translate
     from hg2prism.opponent.perceptual_games import perceptual_game
