@@ -144,3 +144,27 @@ def test_a_keyword_label_is_what_prism_rejects(tmp_path: Path) -> None:
     done = subprocess.run([PRISM, str(model), "-pf", 'Pmax=? [F "A"]'], capture_output=True,
                           text=True, timeout=120)
     assert "Error" in done.stdout + done.stderr
+
+
+def test_the_header_command_rechecks_an_attack_graph(tmp_path: Path) -> None:
+    """hypergame.prism's header says how to re-check it with PRISM: that command, run as
+    written in the model's folder, gives the deceptive value of world1's arena form (an arena
+    world, where PRISM's default symbolic engine can stall), 0.9498, to 1e-9."""
+    import shlex
+
+    from hg2prism.frontends.arena import to_toml
+    from hg2prism.worldfile import world_from_toml
+
+    out = tmp_path / "world1_arena"
+    world = world_from_toml(to_toml(load_world(MODELS / "world1.toml")), "world1_arena.toml")
+    checked = pipeline.check(world, out)
+    assert 0.9 < checked.results.deceptive_value < 1.0
+    header = (out / "hypergame.prism").read_text().splitlines()
+    line = next(text for text in header if text.startswith("// Re-check:"))
+    command = shlex.split(line.removeprefix("// Re-check:").split("(")[0])
+    assert command[:3] == ["prism", "hypergame.prism", "hypergame.props"] and "-ex" in command
+    done = subprocess.run([PRISM, *command[1:]], cwd=out, capture_output=True, text=True,
+                          timeout=300)
+    found = RESULT.findall(done.stdout)
+    assert done.returncode == 0 and len(found) == 1, done.stdout[-2000:]
+    assert abs(float(found[0]) - checked.results.deceptive_value) <= 1e-9
