@@ -110,6 +110,25 @@ def test_check_size_refuses_with_the_estimate_and_the_override() -> None:
     assert f"--max-states {estimate}" in err.reason
 
 
+def test_a_refusal_beyond_the_machine_says_what_makes_the_model_smaller(monkeypatch) -> None:
+    """Where the override would need more memory than the machine has, the refusal says so and
+    what makes the model smaller before the flag (a stress test took the flag, for 11.9e9
+    states, and ran out of memory); within the machine's memory, the flag alone, as before.
+    A limit given with --max-states is named as such (not "that fits in memory")."""
+    world = load_world(MODELS / "world1.toml")
+    estimate = sizeguard.estimate_states(world)
+    need = estimate * sizeguard.BYTES_PER_STATE
+    for memory, beyond in ((need - 1, True), (need, False), (None, False)):
+        monkeypatch.setattr(sizeguard, "machine_bytes", lambda memory=memory: memory)
+        with pytest.raises(InputError) as caught:
+            sizeguard.check_size(world, 1000)
+        reason = caught.value.reason
+        assert f"--max-states {estimate}" in reason and "the limit of 1,000 (--max-states)" in reason
+        assert ("more than this machine's" in reason) is beyond, (memory, reason)
+        assert ("fewer traps, trap candidates or hypotheses" in reason) is beyond
+        assert ("To build it anyway" in reason) is not beyond
+
+
 def test_guard_refuses_an_oversized_world_and_writes_nothing(tmp_path: Path, capsys) -> None:
     out = tmp_path / "out"
     world = MODELS / "world1.toml"

@@ -123,7 +123,9 @@ def check_games_size(world: World, limit: int | None = None) -> int:
     need = game_table_bytes(world)
     budget = max(limit, DEFAULT_LIMIT) * BYTES_PER_STATE
     if need > budget:
-        hint = (f"To solve them anyway, pass --max-states {-(-need // BYTES_PER_STATE)}"
+        flag = f"--max-states {-(-need // BYTES_PER_STATE)}"
+        hint = ((_beyond_machine(need, flag, "fewer trap candidates or traps, or a smaller "
+                                 "delay") or f"To solve them anyway, pass {flag}")
                 if need < BEYOND else "Reduce the trap candidates, traps or delay")
         raise InputError(
             str(world.path), "size",
@@ -368,17 +370,44 @@ def solved_games(world: World) -> list[PerceptualGame]:
             for h in world.hypotheses]
 
 
+def machine_bytes() -> int | None:
+    """This machine's physical memory in bytes (None where the system does not say)."""
+    import os
+
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _beyond_machine(need: int, flag: str, smaller: str) -> str | None:
+    """The hint when `need` bytes exceed this machine's memory: what makes the model smaller,
+    then the override (which would exhaust the memory: a stress test's robust model, refused
+    at 11.9e9 states, ran out of 24 GiB when forced)."""
+    memory = machine_bytes()
+    if memory is None or need <= memory:
+        return None
+    return (f"That is about {need / 2 ** 30:,.0f} GiB at {BYTES_PER_STATE // 1024} KiB a state, "
+            f"more than this machine's {memory / 2 ** 30:,.0f} GiB: {smaller} make it smaller "
+            f"({flag} would try anyway)")
+
+
 def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str) -> int:
     """`estimate`, or InputError(world, key) when it exceeds `limit`."""
     if estimate > limit:
         size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
         window = f"{key}.inference.window" if key.startswith("type[") else (
             "the types' windows" if key == "type" else "inference.window")
-        hint = (f"To build it anyway, pass --max-states {estimate}" if estimate < BEYOND
-                else f"Reduce {window} or the world")
+        hint = (_beyond_machine(estimate * BYTES_PER_STATE, f"--max-states {estimate}",
+                                f"fewer traps, trap candidates or hypotheses, a smaller {window} "
+                                "or delay")
+                or f"To build it anyway, pass --max-states {estimate}") if estimate < BEYOND \
+            else f"Reduce {window} or the world"
         raise InputError(
             str(world.path), key,
             f"the {what} may have {size} states (estimated from the arena, the "
             f"task's DFA, {made}), more than "
-            f"the limit of {limit:,} that fits in memory; nothing was written. {hint}")
+            + (f"the limit of {limit:,} that fits in memory" if limit == DEFAULT_LIMIT
+               else f"the limit of {limit:,} (--max-states)")
+            + f"; nothing was written. {hint}")
     return estimate
