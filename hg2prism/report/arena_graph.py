@@ -187,7 +187,9 @@ class ArenaDrawer:
     `draw_world` draws the states and returns the legend; `finish`, once the figure is laid
     out, draws the arrows, the episode and the labels."""
 
-    robot_style = {"ms": 13, "alpha": 0.6}
+    # the replay's P1: a ring around the state's box (ring_points), coloured by P2's
+    # hypothesis, so that the state's name shows (a dot over it hid it)
+    robot_style = {"ms": 13, "mfc": "none", "mew": 3.0}
 
     def __init__(self, world: World, ts) -> None:
         self.world, self.ts, self.arena = world, ts, ts.arena
@@ -219,6 +221,18 @@ class ArenaDrawer:
 
     def position(self, state: int) -> tuple[float, float]:
         return float(self.points[state][0]), float(self.points[state][1])
+
+    def ring_points(self, state: int) -> float:
+        """The replay's ring around the state's box: its diameter in points (one data unit is
+        an inch), once the boxes are measured (`finish`)."""
+        x0, y0, x1, y1 = self.boxes[state]
+        return float(np.hypot(x1 - x0, y1 - y0)) * 72 + 8
+
+    def trap_spot(self, state: int) -> tuple[float, float]:
+        """Where the replay marks a trap on the state: its box's top-left corner (the replay
+        moves the mark a little further out, as the world figure does)."""
+        x0, _, _, y1 = self.boxes[state]
+        return float(x0), float(y1)
 
     # ---- the states ----
     def _kind(self, s: int) -> str:

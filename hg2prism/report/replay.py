@@ -173,7 +173,8 @@ def replay_figure(world: World, ts: TransitionSystem, episode, trace) -> tuple[_
     map_ax, belief_ax = fig.subplots(1, 2, width_ratios=(drawer.replay_map_width, 3.2))
     drawer.draw_map(map_ax, REPLAY_MIN_FONT)
     trail, = map_ax.plot([], [], "-", color="0.3", alpha=0.35, lw=3, zorder=2)
-    robot, = map_ax.plot([], [], "o", mec="black", mew=1.2, zorder=6, **drawer.robot_style)
+    robot, = map_ax.plot([], [], "o", zorder=6, **{"mec": "black", "mew": 1.2,
+                                                   **drawer.robot_style})
     traps, = map_ax.plot([], [], "X", color="darkgreen", ms=14, ls="", zorder=4)
     caption = map_ax.set_title("", fontsize=REPLAY_FONT, loc="left")
     bars, values, believes, threshold = _belief_panel(belief_ax, world, trace, wrap_panel)
@@ -186,6 +187,10 @@ def replay_figure(world: World, ts: TransitionSystem, episode, trace) -> tuple[_
     fig.canvas.draw()
     fig.set_layout_engine("none")
     drawer.finish(map_ax)
+    if hasattr(drawer, "trap_spot"):        # beside the state's box, off its name
+        from matplotlib.transforms import offset_copy
+
+        traps.set_transform(offset_copy(map_ax.transData, fig=fig, x=-6, y=6, units="points"))
     replay = _Replay(fig, drawer, map_ax, trail, robot, traps, caption, believes, bars,
                      threshold, values, wrap_map)
     # Blitting: the map, axes and labels are drawn once; each frame restores them and draws
@@ -197,22 +202,26 @@ def replay_figure(world: World, ts: TransitionSystem, episode, trace) -> tuple[_
     return replay, notes
 
 
-def _frame(replay: _Replay, world: World, positions: list, steps: list, trace,
+def _frame(replay: _Replay, world: World, places: list, steps: list, trace,
            note: FrameNote) -> tuple[Image.Image, list]:
-    """Draw episode state `note.state` over the background; returns the image and the
-    artists added for it (removed before the next frame)."""
-    map_ax, n_x, state = replay.map_ax, len(world.hypotheses), note.state
-    xs, ys = zip(*positions[:state + 1])
-    replay.trail.set_data(xs, ys)
+    """Draw episode state `note.state` (P1 at `places[state]`) over the background; returns
+    the image and the artists added for it (removed before the next frame)."""
+    map_ax, n_x, state, drawer = replay.map_ax, len(world.hypotheses), note.state, replay.drawer
+    positions = [drawer.position(place) for place in places[:state + 1]]
+    replay.trail.set_data(*zip(*positions))
     step = steps[state - 1] if state else None
     hypothesis_after = trace.after[state - 1] if state else world.initial_hypothesis
     replay.robot.set_data([positions[state][0]], [positions[state][1]])
-    replay.robot.set_markerfacecolor(
-        "red" if step is not None and step.trapped
-        else hypothesis_colour(hypothesis_after))
+    colour = ("red" if step is not None and step.trapped
+              else hypothesis_colour(hypothesis_after))
+    if hasattr(drawer, "ring_points"):      # a ring around the state's box: its name shows
+        replay.robot.set_markersize(drawer.ring_points(places[state]))
+        replay.robot.set_markeredgecolor(colour)
+    else:
+        replay.robot.set_markerfacecolor(colour)
     before = set(map_ax.get_children())
     if step is not None:
-        trap_at = [replay.drawer.position(p) for p in step.traps]
+        trap_at = [getattr(drawer, "trap_spot", drawer.position)(p) for p in step.traps]
         replay.traps.set_data([c[0] for c in trap_at], [c[1] for c in trap_at])
         replay.drawer.draw_step(map_ax, step)
     else:
@@ -259,14 +268,13 @@ def replay_gif(world: World, ts: TransitionSystem, episode, trace, path: Path) -
     replay, notes = replay_figure(world, ts, episode, trace)
     steps = episode_steps(ts, episode.steps)
     start = ts.decode(ts.start_state)[0]
-    positions = [replay.drawer.position(start)] + [replay.drawer.position(s.landing)
-                                                   for s in steps]
+    places = [start] + [s.landing for s in steps]
     images: list[Image.Image] = []
     added: list = []
     for state in replay_frames(len(steps)):
         for artist in added:
             artist.remove()
-        image, added = _frame(replay, world, positions, steps, trace, notes[state])
+        image, added = _frame(replay, world, places, steps, trace, notes[state])
         images.append(image)
     write_bytes(path, _gif(images))
     return len(images)
