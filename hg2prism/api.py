@@ -134,7 +134,9 @@ def _edge_probability(graph, u: object, v: object, key: str, file: str) -> float
         raise InputError(file, where, f"has no {key!r} attribute (its success probability)")
     p = data[key]
     if isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p):
-        raise InputError(file, where, f"{key} = {p!r} is not a probability")
+        text = (" (text: a CSV reader gives strings, convert them with float)"
+                if isinstance(p, str) else "")
+        raise InputError(file, where, f"{key} = {p!r} is not a probability{text}")
     if not 0 <= p <= 1:
         raise InputError(file, where, f"{key} = {p!r} is outside [0, 1]")
     if u == v:

@@ -392,6 +392,8 @@ def test_world_from_graph_small() -> None:
     (lambda g: g.add_edge(3, 5, p=1.5), "edge (3, 5)", "outside [0, 1]"),
     (lambda g: g.add_edge(3, 5, p=-0.1), "edge (3, 5)", "outside [0, 1]"),
     (lambda g: g.add_edge(3, 5, p="high"), "edge (3, 5)", "not a probability"),
+    # what a CSV reader gives: the message says so
+    (lambda g: g.add_edge(3, 5, p="0.6"), "edge (3, 5)", "convert them with float"),
     (lambda g: g.add_edge(3, 5), "edge (3, 5)", "no 'p' attribute"),
     (lambda g: g.add_edge(3, 3, p=0.5), "edge (3, 3)", "self-loop"),
     (lambda g: g.add_edge(3, "a b", p=0.5), "node 'a b'", "no state name"),
@@ -402,7 +404,7 @@ def test_world_from_graph_small() -> None:
     (lambda g: g.add_edge(3, -1, p=0.5), "node -1", "has no state name"),
     # Python calls it an identifier: the message says which (it said "identifiers")
     (lambda g: g.add_edge(3, "сервер", p=0.5), "node 'сервер'", "ASCII identifiers"),
-], ids=["above-1", "negative", "not-a-number", "missing", "self-loop", "bad-name",
+], ids=["above-1", "negative", "not-a-number", "text", "missing", "self-loop", "bad-name",
         "named-outside", "name-clash", "negative-node", "unicode-name"])
 def test_world_from_graph_errors(change, key: str, word: str) -> None:
     import hg2prism

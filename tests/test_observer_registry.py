@@ -181,6 +181,13 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
         "threshold", "prior", "decision", "patience"]
     assert sweep.parse_sweep_values("prior", ["1,3"]) == [(0.25, 0.75)]
     assert sweep.parse_sweep_values("patience", ["3"]) == [3]
+    # values joined by a comma are one value: the message says to separate them (not for
+    # the prior, whose weights take commas)
+    with pytest.raises(InputError, match=r"separate the values with spaces \(--values 1 4\)"):
+        sweep.parse_sweep_values("rationality", ["1,4"])
+    with pytest.raises(InputError) as caught:
+        sweep.parse_sweep_values("rationality", ["x"])
+    assert "separate" not in caught.value.reason
     assert re.fullmatch(sweep.owned_pattern(), "patience_3")    # its point folders are owned
     assert found["patience"].parse("3") == 3 and found["patience"].expected == "an integer >= 1"
     for bad in ("0", "x", "1.5"):

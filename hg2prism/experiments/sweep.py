@@ -323,8 +323,11 @@ def _parse_value(parameter: str, value: object) -> Value:
         return spec.parse(value)
     except ValueError as err:
         if str(err) == "is not":
+            # "1,4" for 1 4: the values are separate arguments (a prior's weights take commas)
+            apart = ("; separate the values with spaces (--values 1 4)"
+                     if isinstance(value, str) and "," in value else "")
             raise InputError(COMMAND_LINE, "--values",
-                             f"{parameter} value {shown!r} is not {spec.expected}") from None
+                             f"{parameter} value {shown!r} is not {spec.expected}{apart}") from None
         raise InputError(COMMAND_LINE, "--values",
                          f"{parameter} value {shown} must be {spec.expected}") from None
 
