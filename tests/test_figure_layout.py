@@ -473,6 +473,16 @@ def test_a_large_attack_graph_is_drawn_apart() -> None:
     try:
         found = problems(fig, fig.axes[0])
         texts = [t for t, _ in texts_of(fig)]
+        # the last step's arrowhead, into the target, is under no label
+        last = drawer.steps[-1]
+        assert not last.stays
+        heads = drawer._head_boxes(last, 0)
+        inverse = fig.axes[0].transData.inverted()
+        for text, box in texts_of(fig):
+            if text.startswith("n="):
+                (x0, y0), (x1, y1) = inverse.transform([[box.x0, box.y0], [box.x1, box.y1]])
+                assert all(x1 <= h[0] or x0 >= h[2] or y1 <= h[1] or y0 >= h[3]
+                           for h in heads), text
     finally:
         plots.plt.close(fig)
     assert len(drawer.edges) > MAX_NAMED_ARROWS and not drawer.names_arrows

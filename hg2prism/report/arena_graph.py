@@ -372,6 +372,14 @@ class ArenaDrawer:
                     transform=ax.transData + beside)
         return _spots(p0, p2, rad, (0.12, -0.12, 0.24, -0.24, 0.36, -0.36, 0))
 
+    def _head_boxes(self, step, k: int, half: float = 0.06) -> list[Box]:
+        """Boxes along the last fifth of the k-th arrow of `step` (its head), for labels to
+        avoid."""
+        rad = BASE_RAD + 0.14 * k
+        p0, p2 = self._ends(step.start, step.landing, rad)
+        points = [_bezier(p0, p2, rad, t) for t in (0.8, 0.87, 0.94, 1.0)]
+        return [(x - half, y - half, x + half, y + half) for x, y in points]
+
     def _step_label(self, step, numbers) -> str:
         text = f"n={steps_text(numbers)}: {step.action_name}"
         return text + (f" (P2 {step.p2_action_name})" if self.general else "")
@@ -396,14 +404,20 @@ class ArenaDrawer:
                               transform=beside)
             placer.taken.append(placer.box_of(mark, 1.0))
         on_pair: dict[tuple[int, int], int] = {}
+        labels = []
         for members in groups.values():
             step = members[0]
             pair = (step.start, step.landing)
             k = on_pair[pair] = on_pair.get(pair, -1) + 1
             colour = TRAPPED_COLOUR if step.trapped else hypothesis_colour(step.hypothesis)
             spots = self._step_arrow(ax, step, k, colour)
-            placer.place(spots, self._step_label(step, [m.n for m in members]),
-                         fontsize=LABEL_FONT, color=colour)
+            labels.append((spots, self._step_label(step, [m.n for m in members]), colour))
+            if not step.stays:
+                placer.soft.extend(self._head_boxes(step, k))
+        # the labels after every arrow, avoiding the arrowheads where they can (a label over
+        # the head of the step into the target hid where the episode ended)
+        for spots, text, colour in labels:
+            placer.place(spots, text, fontsize=LABEL_FONT, color=colour)
         for s, count in traps.items():
             placer.place(_around(self.boxes[s]), f"trap {count}×", fontsize=LABEL_FONT,
                          color=TRAP_COLOUR, weight="bold")
