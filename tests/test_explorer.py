@@ -333,6 +333,22 @@ READ_EDGES = """() => {
 }"""
 
 
+def _explore(world, browser, folder: Path):
+    """`hg2prism run` on the world's arena-world file, and its explorer.html opened in Chromium:
+    (the page, the list its errors are collected in)."""
+    from hg2prism.frontends.arena import to_toml
+
+    path = folder / f"{world.name}.toml"
+    path.write_text(to_toml(world))
+    out = folder / "out"
+    assert cli.main(["run", str(path), "--out", str(out), "--episodes", "20"]) == 0
+    page = browser.new_page(viewport=VIEWPORT)
+    errors: list[str] = []
+    page.on("pageerror", lambda err: errors.append(str(err)))
+    page.goto((out / "explorer.html").as_uri())
+    return page, errors
+
+
 def test_arena_edges_show_their_direction(browser, tmp_path: Path) -> None:
     """An arena world's explorer draws each edge from box border to box border, so that its
     arrowhead is not hidden under the target's box (it was: the edges showed no direction),
@@ -340,21 +356,13 @@ def test_arena_edges_show_their_direction(browser, tmp_path: Path) -> None:
     import networkx as nx
 
     import hg2prism
-    from hg2prism.frontends.arena import to_toml
 
     graph = nx.DiGraph()
     for u, v, p in ((1, 2, 0.5), (2, 1, 0.5), (2, 3, 0.4), (1, 4, 0.3)):
         graph.add_edge(u, v, p=p)
     world = hg2prism.world_from_graph(graph, entries=[1], task="F asset3", trap_candidates=[2],
                                       name="cycle")
-    path = tmp_path / "cycle.toml"
-    path.write_text(to_toml(world))
-    out = tmp_path / "out"
-    assert cli.main(["run", str(path), "--out", str(out), "--episodes", "20"]) == 0
-    page = browser.new_page(viewport=VIEWPORT)
-    errors: list[str] = []
-    page.on("pageerror", lambda err: errors.append(str(err)))
-    page.goto((out / "explorer.html").as_uri())
+    page, errors = _explore(world, browser, tmp_path)
     shown = page.evaluate(READ_EDGES)
     page.close()
     assert errors == []
@@ -403,7 +411,6 @@ def test_a_large_graph_is_explored_zoomed_in(browser, tmp_path: Path) -> None:
     import networkx as nx
 
     import hg2prism
-    from hg2prism.frontends.arena import to_toml
 
     rng = random.Random(5)
     graph = nx.DiGraph()
@@ -416,14 +423,7 @@ def test_a_large_graph_is_explored_zoomed_in(browser, tmp_path: Path) -> None:
         graph.add_edge(u, 900, p=0.9)
     world = hg2prism.world_from_graph(graph, entries=rows[0], task="F asset900",
                                       trap_candidates=rows[3][:4], name="layers")
-    path = tmp_path / "layers.toml"
-    path.write_text(to_toml(world))
-    out = tmp_path / "out"
-    assert cli.main(["run", str(path), "--out", str(out), "--episodes", "20"]) == 0
-    page = browser.new_page(viewport=VIEWPORT)
-    errors: list[str] = []
-    page.on("pageerror", lambda err: errors.append(str(err)))
-    page.goto((out / "explorer.html").as_uri())
+    page, errors = _explore(world, browser, tmp_path)
 
     def closest(centres) -> float:
         return min(((a[0] - b[0]) ** 2 + (a[1] - b[1]) ** 2) ** 0.5
