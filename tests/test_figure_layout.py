@@ -328,6 +328,16 @@ def test_replay_marks_leave_the_state_names_readable() -> None:
             name = names[places[state]]
             corners = [(x, y) for x in (name.x0, name.x1) for y in (name.y0, name.y1)]
             assert all(np.hypot(x - centre[0], y - centre[1]) < inner for x, y in corners)
+            # ... and crosses no other state's name: the ring's outer circle misses their boxes
+            outer = (robot.get_markersize() + robot.get_markeredgewidth()) / 2 * pixels
+            for s, box in names.items():
+                if s != places[state]:
+                    nearest = (np.clip(centre[0], box.x0, box.x1), np.clip(centre[1], box.y0,
+                                                                            box.y1))
+                    far = max(np.hypot(x - centre[0], y - centre[1])
+                              for x in (box.x0, box.x1) for y in (box.y0, box.y1))
+                    assert not (np.hypot(nearest[0] - centre[0], nearest[1] - centre[1])
+                                <= outer and far >= inner - 1), (state, s)
             half = shown.traps.get_markersize() / 2 * pixels
             for point in zip(shown.traps.get_xdata(), shown.traps.get_ydata()):
                 x, y = shown.traps.get_transform().transform(point)
@@ -517,3 +527,22 @@ def test_arrows_are_named_up_to_the_limit(extra: int, named: bool) -> None:
     finally:
         plots.plt.close(fig)
     assert any(("unnamed" in text) is not named and "u → v" in text for text in legend)
+
+
+def test_a_huge_layer_is_capped() -> None:
+    """A star of 900 leaves, one column: the map grows with the graph (rows 0.5 in apart) but
+    not beyond MAP_CAP_INCHES (it was 447 in tall, a PNG past 2^16 pixels near 900 states)."""
+    import networkx as nx
+
+    import hg2prism
+    from hg2prism.report.arena_graph import MAP_CAP_INCHES, MIN_SHRINK, ROW_INCHES, layout
+
+    for leaves, capped in ((100, False), (900, True)):
+        graph = nx.DiGraph()
+        for v in range(1, leaves + 1):
+            graph.add_edge(0, v, p=0.5)
+        world = hg2prism.world_from_graph(graph, entries=[0], task="F goal", labels={1: "goal"},
+                                          name="star")
+        span = layout(world.arena).max(axis=0)
+        assert span[1] == pytest.approx(MAP_CAP_INCHES if capped
+                                        else (leaves - 1) * ROW_INCHES * MIN_SHRINK)

@@ -115,10 +115,13 @@ def test_its_own_setting_is_swept(corridors, tmp_path) -> None:
     for advance, value in zip((0.5, 1.0), values):
         assert value == pytest.approx(hg2prism.solve(world.replace(advance=advance))
                                       .deceptive_value, abs=1e-12)
+    # on worker processes too: each point's task carries the registry (it lacked the kind)
+    parallel = hg2prism.sweep(world, "advance", [0.5, 1.0], workers=2)
+    assert [row.deceptive_value for row in parallel.rows] == values
     grid_world = hg2prism.load_world(MODELS / "world1.toml")
     with pytest.raises(InputError) as caught:
         hg2prism.sweep(grid_world, "advance", [0.5])
-    assert "applies to line worlds only; world1 is a grid world" in str(caught.value)
+    assert "applies to corridor worlds only; world1 is a grid world" in str(caught.value)
 
 
 def test_a_bad_adversary_table_is_one_line(corridors) -> None:

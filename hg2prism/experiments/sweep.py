@@ -87,8 +87,9 @@ class SweepParameter:
         """InputError (one line) when this parameter does not apply to `world`."""
         kind = frontends.kind_of(world)
         if self.front_end is not None and self.front_end != kind:
-            raise InputError(COMMAND_LINE, f"--param {self.name}", f"applies to {self.front_end} "
-                             f"worlds only; {world.name} is {frontends.kind_words(world)}")
+            raise InputError(COMMAND_LINE, f"--param {self.name}", "applies to "
+                             f"{frontends.kind_words(self.front_end, plural=True)} only; {world.name} is "
+                             f"{frontends.kind_words(world)}")
         if self.name == "traps" and not arena_of(world).traps_mode:
             raise InputError(COMMAND_LINE, f"--param {self.name}",
                              f"applies to worlds whose P2 sets "
@@ -386,13 +387,13 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
     the number of traps is swept."""
     point = world
     moved = {}      # delay and traps, set with the standing traps in one (validated) World
-    for name in sweep_parameters():
+    for name, parameter in sweep_parameters().items():
         if name in assignment:
-            sweep_parameters()[name].refuse_unless_applies(world)
-            if sweep_parameters()[name].moves_traps:
+            parameter.refuse_unless_applies(world)
+            if parameter.moves_traps:
                 moved[name] = assignment[name]
             else:
-                point = sweep_parameters()[name].apply(point, assignment[name])
+                point = parameter.apply(point, assignment[name])
     if moved:
         traps, delay = moved.get("traps", point.traps), moved.get("delay", point.delay)
         if "traps" in moved:
@@ -476,6 +477,9 @@ class PointTask:
     max_states: int | None
     estimate: int = 0                       # the size guard's estimate: bigger starts earlier
     deception: bool = False                 # also V_static, V_naive (docs/semantics.md §11)
+    # the front ends registered where the sweep runs (kind -> module): a worker process
+    # registers those it lacks (a kind registered at run time, tests/frontend_line.py)
+    front_ends: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -525,6 +529,8 @@ def solve_point(task: PointTask) -> PointOutcome:
     from hg2prism.model import sizeguard
 
     assignment = dict(task.assignment)
+    for kind, module in task.front_ends:
+        frontends.FRONT_ENDS.setdefault(kind, module)
     with progress.collected_warnings() as warnings:
         try:
             world = _world_of(task)
@@ -609,7 +615,8 @@ def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
         tasks.append(PointTask(index, tuple(assignment.items()), text,
                                None if text is not None else world, str(world.path), changes,
                                _folder(assignment), storm_method, max_states,
-                               min(sizeguard.estimate_states(point), 2**62), deception))
+                               min(sizeguard.estimate_states(point), 2**62), deception,
+                               tuple(frontends.FRONT_ENDS.items())))
     return tasks
 
 

@@ -71,9 +71,13 @@ def kind_of(world: World) -> str:
     return world.front.kind
 
 
-def kind_words(world: World) -> str:
-    """The world's kind in a sentence: "a grid world", "an arena world" (its DESCRIBED)."""
-    return front_end(world).DESCRIBED.split(" (")[0]
+def kind_words(world: World | str, plural: bool = False) -> str:
+    """A world's kind (or a kind's name) in a sentence: "a grid world", "an arena world",
+    plural "grid worlds" (its front end's DESCRIBED)."""
+    module = (importlib.import_module(FRONT_ENDS[world]) if isinstance(world, str)
+              else front_end(world))
+    words = module.DESCRIBED.split(" (")[0]
+    return words.split(" ", 1)[1] + "s" if plural else words
 
 
 def counted(n: int, thing: str) -> str:

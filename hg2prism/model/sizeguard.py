@@ -125,7 +125,7 @@ def check_games_size(world: World, limit: int | None = None) -> int:
     if need > budget:
         flag = f"--max-states {-(-need // BYTES_PER_STATE)}"
         hint = ((_beyond_machine(need, flag, "fewer trap candidates or traps, or a smaller "
-                                 "delay") or f"To solve them anyway, pass {flag}")
+                                 "delay", per_state=False) or f"To solve them anyway, pass {flag}")
                 if need < BEYOND else "Reduce the trap candidates, traps or delay")
         raise InputError(
             str(world.path), "size",
@@ -380,16 +380,17 @@ def machine_bytes() -> int | None:
         return None
 
 
-def _beyond_machine(need: int, flag: str, smaller: str) -> str | None:
+def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) -> str | None:
     """The hint when `need` bytes exceed this machine's memory: what makes the model smaller,
     then the override (which would exhaust the memory: a stress test's robust model, refused
     at 11.9e9 states, ran out of 24 GiB when forced)."""
     memory = machine_bytes()
     if memory is None or need <= memory:
         return None
-    return (f"That is about {need / 2 ** 30:,.0f} GiB at {BYTES_PER_STATE // 1024} KiB a state, "
-            f"more than this machine's {memory / 2 ** 30:,.0f} GiB: {smaller} make it smaller "
-            f"({flag} would try anyway)")
+    what = (f"That is about {need / 2 ** 30:,.1f} GiB at {BYTES_PER_STATE // 1024} KiB a "
+            "state, more" if per_state else "That is more")
+    return (f"{what} than this machine's {memory / 2 ** 30:,.1f} GiB: {smaller} make it "
+            f"smaller ({flag} would try anyway)")
 
 
 def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str) -> int:

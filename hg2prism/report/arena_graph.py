@@ -11,7 +11,8 @@ SPACING_INCHES apart), else a layered layout: the states by their distance from 
 state, each layer a column ordered by the mean row of its predecessors, then by number; the
 states unreachable from it by their distance from the unreachable states no other
 unreachable state leads to, one column further right, below the reachable ones of their
-column; shrunk to fit MAP_MAX_INCHES, but never below MIN_SHRINK (a large arena's map grows).
+column; shrunk to fit MAP_MAX_INCHES, but never below MIN_SHRINK (a large arena's map grows,
+up to MAP_CAP_INCHES).
 Both are deterministic. One data unit is one inch of the map. Above MAX_NAMED_ARROWS arrows,
 those of P1's actions carry no names.
 
@@ -43,6 +44,9 @@ MAP_MAX_INCHES = (12.0, 9.0)
 # A layered layout is shrunk to MAP_MAX_INCHES, but never below this (columns 0.9 in, rows
 # 0.5 in apart: a state's box is about 0.3 in high): a large arena's map grows instead.
 MIN_SHRINK = 0.45
+# ... and at most this many inches either way (a PNG stays below matplotlib's 2^16 pixels; a
+# 900-state column would be 447 in tall): beyond it the map shrinks again, its boxes closer.
+MAP_CAP_INCHES = 60.0
 # Above this many arrows the arrows of P1's actions carry no names (the explorer lists them):
 # on a large attack graph they cover the states and the episode.
 MAX_NAMED_ARROWS = 60
@@ -137,6 +141,7 @@ def layout(arena: Arena, edges=None) -> np.ndarray:
     shrink = min([1.0] + [m / s for m, s in zip(MAP_MAX_INCHES, span) if s > m])
     if arena.positions is None:
         shrink = max(shrink, MIN_SHRINK)
+        shrink = min([shrink] + [MAP_CAP_INCHES / s for s in span if s * shrink > MAP_CAP_INCHES])
     return points * shrink
 
 
