@@ -546,3 +546,28 @@ def test_a_huge_layer_is_capped() -> None:
         span = layout(world.arena).max(axis=0)
         assert span[1] == pytest.approx(MAP_CAP_INCHES if capped
                                         else (leaves - 1) * ROW_INCHES * MIN_SHRINK)
+
+
+@pytest.mark.parametrize("name", ("mir100",))
+def test_a_trap_label_sits_beside_its_mark(name: str) -> None:
+    """Each "trap k×" of an arena world's picture is placed beside a trap mark (left of it or
+    above), not below or right of the state's box, where it read as a neighbour's (a stress
+    test's "trap 14×" sat between two states)."""
+    world, ts, episode, trace = showcase(name)
+    fig, _ = plots.world_picture(world, ts, episode, trace)
+    try:
+        ax = fig.axes[0]
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        marks = [line.get_window_extent(renderer) for line in ax.lines
+                 if line.get_marker() == "X" and len(line.get_xdata()) == 1]
+        labels = [(text, box) for text, box in texts_of(fig)
+                  if re.fullmatch(r"trap \d+×", text)]
+    finally:
+        plots.plt.close(fig)
+    assert labels and marks
+    near = 0.12 * fig.dpi            # pixels: 0.12 in
+    for text, box in labels:
+        gaps = [max(box.x0 - m.x1, m.x0 - box.x1, 0) + max(box.y0 - m.y1, m.y0 - box.y1, 0)
+                for m in marks]
+        assert min(gaps) <= near, (text, min(gaps) / fig.dpi)

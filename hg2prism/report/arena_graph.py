@@ -182,6 +182,14 @@ def _around(box: Box, step: float = 0.16) -> list[tuple[float, float]]:
     return spots
 
 
+def _beside_mark(box: Box, w: float, h: float) -> list[tuple[float, float]]:
+    """Spots for a trap's label (w x h) beside its mark, which sits 6 pt out from the box's
+    top-left corner: left of the mark, then above it (so that the label is read with its
+    state, not with a neighbour: a stress test's "trap 14×" sat between two states)."""
+    x, y = box[0] - 6 / 72, box[3] + 6 / 72
+    return [(x - 0.1 - w / 2, y), (x, y + 0.1 + h / 2), (x - 0.1 - w / 2, y + h / 2)]
+
+
 def _group_key(step, general: bool) -> tuple:
     return (step.start, step.landing, step.action_name, step.trapped, step.hypothesis,
             step.p2_action_name if general else None)
@@ -424,8 +432,9 @@ class ArenaDrawer:
         for spots, text, colour in labels:
             placer.place(spots, text, fontsize=LABEL_FONT, color=colour)
         for s, count in traps.items():
-            placer.place(_around(self.boxes[s]), f"trap {count}×", fontsize=LABEL_FONT,
-                         color=TRAP_COLOUR, weight="bold")
+            placer.place(lambda w, h, box=self.boxes[s]: _beside_mark(box, w, h) + _around(box),
+                         f"trap {count}×", fontsize=LABEL_FONT, color=TRAP_COLOUR,
+                         weight="bold")
         landing = {step.n: step.landing for step in self.steps}
         for n, x in self.changes_shown:
             placer.place(_around(self.boxes[landing[n]]), f"n={n}: P2 now x{x}",
