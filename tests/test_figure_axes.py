@@ -164,6 +164,27 @@ def test_the_apis_world_and_belief_draw_into_the_callers_axes(
     assert fig.axes == [ax] and _drawn(ax) > 0
 
 
+def test_the_world_leaves_the_callers_layout_to_the_callers_figure(world3) -> None:
+    """docs/api.md's two panels: the world drawn on the left must not freeze the figure's
+    constrained layout, or the belief drawn on the right after it is laid out by no one and
+    its legend and axis label fall outside the figure (they did)."""
+    solution, played = world3
+    fig = matplotlib.figure.Figure(figsize=(12, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    left, right = fig.subplots(1, 2)
+    engine = fig.get_layout_engine()
+    hg2prism.draw_world(solution, played, ax=left)
+    assert fig.get_layout_engine() is engine
+    hg2prism.draw_belief(solution, played, ax=right)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    frame = fig.bbox
+    for artist in (right.get_legend(), right.xaxis.label, left.title):
+        box = artist.get_window_extent(renderer)
+        assert (box.x0 >= frame.x0 - 1 and box.x1 <= frame.x1 + 1
+                and box.y0 >= frame.y0 - 1 and box.y1 <= frame.y1 + 1), (artist, box, frame)
+
+
 # ---- the backend ----
 
 def _python(code: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:

@@ -123,14 +123,20 @@ def world_picture(world: World, ts: TransitionSystem, episode, trace,
     from hg2prism.report.style import STEP_RULE
 
     drawer = world_drawer(world, ts)
+    given = ax
     fig, ax = figure_axes(ax, drawer.world_inches(), FIGURE_DPI)
+    engine = fig.get_layout_engine()
     handles = drawer.draw_world(ax, episode_steps(ts, episode.steps), trace.changes)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1),
               fontsize=7, frameon=False, handlelength=3.2)
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
                  f"task {world.formula}\n{STEP_RULE}", fontsize=8.5, loc="left")
-    drawer.finish(ax)
+    drawer.finish(ax)      # measures the laid-out map, then freezes the layout
+    if given is not None:
+        # the caller's figure is not ours to freeze: its other panels, drawn after this one,
+        # are laid out by its own engine (frozen, a belief panel beside it lost its legend)
+        fig.set_layout_engine(engine)
     return fig, drawer
 
 
