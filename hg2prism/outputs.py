@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from hg2prism.errors import COMMAND_LINE, InputError
+from hg2prism.progress import say
 
 
 _UMASK = os.umask(0)
@@ -167,6 +168,12 @@ def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
     return False
 
 
+def _some(names: list[str], shown: int = 6) -> str:
+    """`names` joined, the first `shown` of them and how many more."""
+    more = len(names) - shown
+    return ", ".join(names[:shown]) + (f" and {more} more" if more > 0 else "")
+
+
 @contextmanager
 def staged(out: Path, owns: str | None = None, world: str | None = None,
            every: str | None = None, digest: str | None = None) -> Iterator[Path]:
@@ -191,6 +198,7 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             raise
         out.mkdir(exist_ok=True)
         new_items = list(stage.iterdir())
+        own = owns
         if world is not None and every is not None and _of_another_world(out, world, digest):
             owns = every
         for item in new_items:
@@ -212,8 +220,15 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
         if owns is not None:
             written = {item.name for item in new_items}
             pattern = re.compile(owns)
-            for old in list(out.iterdir()):
+            others = []          # other commands' outputs, removed as another world's
+            for old in sorted(out.iterdir()):
                 if old.name not in written and pattern.fullmatch(old.name):
+                    if own is None or not re.fullmatch(own, old.name):
+                        others.append(old.name + ("/" if old.is_dir() else ""))
                     os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
+            if others:
+                say(f"outputs: {out} held the outputs of another world (or of this world "
+                    f"file before an edit); removed those of other commands too: "
+                    f"{_some(others)}")
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -395,10 +395,11 @@ def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
     assert json.loads((out / "results.json").read_text())["world"] == "one"
 
 
-def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path) -> None:
+def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> None:
     """The same world file edited between two commands is another world: its outputs do not
     stay beside the old version's (the folder kept world1's detection outputs when `check`
-    ran on an edited world1; records now carry World.digest())."""
+    ran on an edited world1; records now carry World.digest()). The other commands' outputs
+    removed are named in one line on stderr (they went in silence)."""
     from hg2prism.cli import main
     from hg2prism.progress import quiet
 
@@ -410,13 +411,18 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path) -> None:
     assert digest == load_world(world).digest()
     (out / "detection.json").write_text(json.dumps({"world": "world1", "world_digest": digest}))
     (out / "detection.png").write_bytes(b"")
-    with quiet():
-        assert main(["check", str(world), "--out", str(out)]) == 0         # unchanged: kept
+    removal = "held the outputs of another world"
+    capsys.readouterr()
+    assert main(["check", str(world), "--out", str(out)]) == 0         # unchanged: kept
     assert (out / "detection.png").exists()
+    assert removal not in capsys.readouterr().err
     world.write_text(world.read_text().replace("window = 2", "window = 1"))
-    with quiet():
-        assert main(["check", str(world), "--out", str(out)]) == 0         # edited: removed
+    assert main(["check", str(world), "--out", str(out)]) == 0         # edited: removed
     assert not (out / "detection.json").exists() and not (out / "detection.png").exists()
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if removal in x]
+    assert line == (f"outputs: {out} held the outputs of another world (or of this world file "
+                    f"before an edit); removed those of other commands too: detection.json, "
+                    f"detection.png"), line
     assert json.loads((out / "results.json").read_text())["world_digest"] != digest
 
 
