@@ -515,6 +515,11 @@ class Simulation:
     truncated: int
     rate: float                     # completed / episodes
     ci95: tuple[float, float]       # Wilson score interval of the rate
+    # P2's changes of hypothesis (docs/semantics.md §11): the share of episodes with one, the
+    # mean number per episode, and the share with one after which the episode went on
+    p2_switched: float
+    p2_switches_mean: float
+    p2_switched_in_play: float
 
 
 def _played(solution: Solution, horizon: int | None):
@@ -554,7 +559,10 @@ def simulate(solution: Solution, *, episodes: int | None = None, horizon: int | 
     summary = simulate_deceptive(analysis, strategy, episodes, horizon, seed, progress=False)
     return Simulation(episodes=summary.episodes, horizon=horizon, seed=seed,
                       completed=summary.completed, failed=summary.failed,
-                      truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95))
+                      truncated=summary.truncated, rate=summary.rate, ci95=tuple(summary.ci95),
+                      p2_switched=summary.p2_switched / summary.episodes,
+                      p2_switches_mean=summary.p2_switches / summary.episodes,
+                      p2_switched_in_play=summary.p2_switched_in_play / summary.episodes)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -226,6 +226,7 @@ class Summary(Protocol):
     truncated: int
     p2_switched: int
     p2_switches: int
+    p2_switched_in_play: int
 
 
 @dataclass(frozen=True)
@@ -239,8 +240,11 @@ class SimulatedRow:
     exact_within_horizon: float     # P(goal within `horizon` steps) for the pair simulated (§8)
     # Rows played against P2's inference (§11): the share of episodes in which her hypothesis
     # changed at least once, and the mean number of changes per episode; None for the others.
+    # `p2_switched_in_play`: the share with a change after which the episode went on (not at
+    # its last step, where reaching the goal often reveals it): a change P2 could act on.
     p2_switched: float | None = None
     p2_switches_mean: float | None = None
+    p2_switched_in_play: float | None = None
 
     @classmethod
     def of(cls, summary: Summary, exact_within_horizon: float,
@@ -249,7 +253,9 @@ class SimulatedRow:
         return cls(rate=summary.rate, ci95=tuple(summary.ci95), episodes=summary.episodes,
                    truncated=summary.truncated, exact_within_horizon=exact_within_horizon,
                    p2_switched=summary.p2_switched / summary.episodes if switches else None,
-                   p2_switches_mean=summary.p2_switches / summary.episodes if switches else None)
+                   p2_switches_mean=summary.p2_switches / summary.episodes if switches else None,
+                   p2_switched_in_play=(summary.p2_switched_in_play / summary.episodes
+                                        if switches else None))
 
     def to_json(self) -> dict:
         row = {"rate": self.rate, "ci95": list(self.ci95), "episodes": self.episodes,
@@ -257,6 +263,7 @@ class SimulatedRow:
         if self.p2_switched is not None:
             row["p2_switched"] = self.p2_switched
             row["p2_switches_mean"] = self.p2_switches_mean
+            row["p2_switched_in_play"] = self.p2_switched_in_play
         return row
 
 

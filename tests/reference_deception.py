@@ -264,10 +264,11 @@ def record_table(w: World, records) -> dict:
     return table
 
 
-def switch_probability(w: World, records, horizon: int) -> float:
+def switch_probability(w: World, records, horizon: int, in_play: bool = False) -> float:
     """P(P2's hypothesis changes at least once within `horizon` steps) when P1 plays the
     records: a step from (v, q, M) with move a changes it when eta(M, (v, a)) holds another
-    hypothesis than M (the episode's last step included)."""
+    hypothesis than M (the episode's last step included). `in_play`: only a change after which
+    the episode goes on counts, a step into a state that is neither the goal nor a failure."""
     table = record_table(w, records)
     s0 = w.initial()
     if s0 in ("goal", "fail"):
@@ -284,8 +285,9 @@ def switch_probability(w: World, records, horizon: int) -> float:
     succs = [[(index[t], p) for t, p in w.hyper_successors(s, table[s]).items()
               if t not in ("goal", "fail")] for s in order]
     # f_k(s): probability of a change within k steps from s; goal and failure end the episode.
+    # A change counts on every successor, or (in_play) on those where the episode goes on.
     f = np.zeros(len(order))
     for _ in range(horizon):
-        f = np.array([1.0 if switches[i] else sum(p * f[j] for j, p in succs[i])
-                      for i in range(len(order))])
+        f = np.array([(sum(p for _, p in succs[i]) if in_play else 1.0) if switches[i]
+                      else sum(p * f[j] for j, p in succs[i]) for i in range(len(order))])
     return float(f[0])

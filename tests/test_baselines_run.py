@@ -60,6 +60,8 @@ def test_run_simulations_agree_with_exact_bounded_probabilities(name: str, tmp_p
                                             "naive": r.v_naive}[row] + 1e-6
     assert 0.0 <= r.simulation.deceptive.p2_switched <= 1.0
     assert r.simulation.deceptive.p2_switches_mean >= r.simulation.deceptive.p2_switched
+    for row in (r.simulation.deceptive, r.simulation.naive):
+        assert 0.0 <= row.p2_switched_in_play <= row.p2_switched
     saved = json.loads((out / "results.json").read_text())
     if name == "world1":
         # V_NE by the independent reference (tests/reference_nash.py): a sound bracket

@@ -175,8 +175,14 @@ def test_simulated_switches_agree_with_exact(name: str, solved) -> None:
     exact = reference_deception.switch_probability(ref.w, checked.records, horizon)
     low, high = simulation.wilson_interval(sim.p2_switched, episodes, 0.999)
     assert low <= exact <= high, (sim.p2_switched, exact)
-    assert sim.p2_switches >= sim.p2_switched
+    assert sim.p2_switches >= sim.p2_switched >= sim.p2_switched_in_play
     assert 0.01 < exact < 0.99
+    # the changes P2 can act on: after them the episode goes on
+    in_play = reference_deception.switch_probability(ref.w, checked.records, horizon,
+                                                     in_play=True)
+    low, high = simulation.wilson_interval(sim.p2_switched_in_play, episodes, 0.999)
+    assert low <= in_play <= high, (sim.p2_switched_in_play, in_play)
+    assert in_play <= exact
 
 
 def test_world3_deception_steers_belief(solved) -> None:

@@ -136,8 +136,11 @@ class SimulationSummary:
     # Runs against P2's inference: episodes in which her hypothesis changed at least once, and
     # the number of changes over all episodes (docs/semantics.md §11). A change at an episode's
     # last step counts: P2 updates her memory from P1's move whatever the robot reached.
+    # `p2_switched_in_play` counts the episodes with a change after which the episode went on
+    # (not at its last step): a change P2 could act on.
     p2_switched: int = 0
     p2_switches: int = 0
+    p2_switched_in_play: int = 0
     replanned: int = 0               # with re-planning: episodes in which P1 switched strategy
 
     def interval(self, confidence: float = 0.95) -> tuple[float, float]:
@@ -164,7 +167,8 @@ class SimulationSummary:
 
 def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
              seconds: float, off_record_steps: int = 0, p2_switched: int = 0,
-             p2_switches: int = 0, replanned: int = 0) -> SimulationSummary:
+             p2_switches: int = 0, replanned: int = 0, p2_switched_in_play: int = 0
+             ) -> SimulationSummary:
     episodes = len(outcomes)
     completed = int((outcomes == GOAL).sum())
     return SimulationSummary(
@@ -172,7 +176,8 @@ def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
         truncated=int((outcomes == TRUNCATED).sum()), rate=completed / episodes,
         ci95=wilson_interval(completed, episodes, 0.95), horizon=horizon, seed=seed,
         seconds=seconds, lengths=lengths, outcomes=outcomes, off_record_steps=off_record_steps,
-        p2_switched=p2_switched, p2_switches=p2_switches, replanned=replanned)
+        p2_switched=p2_switched, p2_switches=p2_switches, replanned=replanned,
+        p2_switched_in_play=p2_switched_in_play)
 
 
 def _check_run(episodes: int, horizon: int) -> None:
@@ -387,6 +392,7 @@ class _DeceptiveRun:
         self.fallback_recorded = (None if replanning is None
                                   else getattr(replanning.fallback, "table", None))
         self.off_record_steps = self.p2_switched = self.p2_switches = self.replanned = 0
+        self.p2_switched_in_play = 0
 
     def episode(self, episode: int, horizon: int, rng: np.random.Generator,
                 uniforms: _Uniforms) -> tuple[int, int]:
@@ -394,7 +400,7 @@ class _DeceptiveRun:
         from hg2prism.analyses.detection import MismatchDetector, Mixture
 
         chain, plan = self.chain, self.replanning
-        node, steps, switches, switched = self.root, 0, 0, False
+        node, steps, switches, switched, in_play = self.root, 0, 0, False, False
         outcome = chain.status[node]
         detector = MismatchDetector(plan.alpha, plan.epsilon) if plan is not None else None
         while outcome < 0 and steps < horizon:
@@ -408,6 +414,7 @@ class _DeceptiveRun:
                 self._report(episode, steps, node, nxt, a1, a2, predicted)
             if chain.p2_hypothesis[nxt] != chain.p2_hypothesis[node]:
                 switches += 1
+                in_play |= bool(chain.status[nxt] < 0)       # the episode goes on
             if detector is not None and not switched:
                 # as the detection experiment predicts her: by the posterior mixture when
                 # she draws her hypothesis (docs/semantics.md §12)
@@ -420,6 +427,7 @@ class _DeceptiveRun:
             outcome = chain.status[node]
         self.p2_switches += switches
         self.p2_switched += switches > 0
+        self.p2_switched_in_play += in_play
         return (TRUNCATED if outcome < 0 else outcome), steps
 
     def _p1_move(self, node: int, switched: bool, episode: int, steps: int) -> int:
@@ -540,7 +548,7 @@ def simulate_deceptive(analysis: Analysis, strategy: Policy, episodes: int, hori
     seconds = time.perf_counter() - start_time
     bar.close(seconds)
     return _summary(outcomes, lengths, horizon, seed, seconds, run.off_record_steps,
-                    run.p2_switched, run.p2_switches, run.replanned)
+                    run.p2_switched, run.p2_switches, run.replanned, run.p2_switched_in_play)
 
 
 # ---------------------------------------------------------------------------------------------

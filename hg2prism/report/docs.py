@@ -277,7 +277,8 @@ def _changes(results: dict) -> str:
     deceptive = results["simulation"]["deceptive"]
     share = f"{deceptive['p2_switched']:.0%}"
     if deceptive["p2_switched"] > 0:
-        share += f" ({deceptive['p2_switches_mean']:.1f} changes per episode)"
+        share += (f" ({deceptive['p2_switches_mean']:.1f} changes per episode; "
+                  f"{deceptive['p2_switched_in_play']:.0%} before the last step)")
     return share
 
 
@@ -299,10 +300,11 @@ def world3_observers(out: Outputs) -> str:
         d = r["simulation"]["deceptive"]
         rows.append([against, _f(r["v_static"]), _f(r["v_naive"]), _f(r["deceptive_value"]),
                      _f(r["value_of_deception"]), f"{d['p2_switched']:.0%}",
-                     f"{d['p2_switches_mean']:.2f}", _f(d["rate"])])
+                     f"{d['p2_switched_in_play']:.0%}", f"{d['p2_switches_mean']:.2f}",
+                     _f(d["rate"])])
     return _table(["world3 against", "V_static", "V_naive", "deceptive value",
-                   "value of deception", "P2 changes her mind", "changes per episode",
-                   "simulated completion"], rows)
+                   "value of deception", "P2 changes her mind", "... before the last step",
+                   "changes per episode", "simulated completion"], rows)
 
 
 def mir100_values(out: Outputs) -> str:
