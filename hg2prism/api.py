@@ -754,10 +754,13 @@ class EpisodeStep:
     landing: str                          # the state reached ("trapped" when trapped)
     traps: tuple[str, ...]                # the states P2's trap set covered
     p2_action: str                        # P2's action by name
-    hypothesis: int                       # the hypothesis P2 acted on
+    hypothesis: int                       # the hypothesis P2 acted on during the step
     belief: tuple[float, ...] | None      # her observer's numbers per hypothesis (CUSUM
-    #                                       scores, Bayesian posteriors), None if unreported
+    #                                       scores, Bayesian posteriors) after observing the
+    #                                       step, None if unreported
     trapped: bool
+    hypothesis_after: int                 # hers after observing the step (the figures'
+    #                                       "hypothesis at step n"); another: she changed her mind
 
 
 @dataclass(frozen=True)
@@ -802,7 +805,7 @@ def episode(solution: Solution, seed: int | None = None, *, horizon: int | None 
         realised=_realised(solution.world, step),
         landing="trapped" if step.trapped else names[step.landing],
         traps=tuple(names[t] for t in step.traps), p2_action=step.p2_action_name,
-        hypothesis=trace.acted[i], trapped=step.trapped,
+        hypothesis=trace.acted[i], trapped=step.trapped, hypothesis_after=trace.after[i],
         belief=trace.values[i] if trace.values is not None else None)
         for i, step in enumerate(episode_steps(ts, drawn.steps)))
     return Episode(seed=drawn.seed, outcome=drawn.outcome, steps=steps,

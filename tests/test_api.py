@@ -361,6 +361,23 @@ def test_an_episode_step_by_step(world1_solution) -> None:
     assert hg2prism.episode(world1_solution, seed=3) == played
 
 
+def test_an_episode_step_says_what_p2_holds_after_it() -> None:
+    """`hypothesis` is what P2 acted on during a step, `hypothesis_after` what she holds after
+    observing it, which she acts on at the next step (a CUSUM observer decides
+    deterministically); on world3's episode of seed 0 she changes her mind (twice), and where
+    she does the belief after the step supports the new hypothesis (its score at the
+    threshold)."""
+    solution = hg2prism.solve(hg2prism.load_world(MODELS / "world3.toml"))
+    played = hg2prism.episode(solution)
+    for step, following in zip(played.steps, played.steps[1:]):
+        assert step.hypothesis_after == following.hypothesis
+    changes = [s.n for s in played.steps if s.hypothesis_after != s.hypothesis]
+    assert len(changes) >= 2, changes
+    for step in played.steps:
+        if step.hypothesis_after != step.hypothesis:     # a score reached the threshold
+            assert step.belief[step.hypothesis_after] >= played.threshold - 1e-9, step
+
+
 def test_figures_draw_into_the_axes_given(world1_solution, tmp_path: Path, monkeypatch) -> None:
     import matplotlib
 
