@@ -98,9 +98,10 @@ class SweepParameter:
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
-def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None
-            ) -> Callable[[object], int | float]:
-    """A parser of ints or floats >= minimum (> when exclusive), and < below when given."""
+def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None,
+            at_most: bool = False) -> Callable[[object], int | float]:
+    """A parser of ints or floats >= minimum (> when exclusive), and < below when given (<=
+    when `at_most`)."""
     def parse(value: object) -> int | float:
         if isinstance(value, bool):
             raise ValueError("must be")
@@ -124,7 +125,7 @@ def _number(kind: type, minimum: float, exclusive: bool, below: float | None = N
             if not math.isfinite(number):
                 raise ValueError("must be")
         if number < minimum or (exclusive and number == minimum) or (
-                below is not None and number >= below):
+                below is not None and (number > below if at_most else number >= below)):
             raise ValueError("must be")
         return number
     return parse
@@ -274,7 +275,7 @@ def _built_table() -> dict[str, SweepParameter]:
                        _field("rationality")),
         *(SweepParameter(setting.name, setting.expected,
                          _number(setting.kind, setting.minimum, setting.exclusive,
-                                 setting.below),
+                                 setting.below, setting.at_most),
                          setting.apply, front_end=kind)
           for kind, setting in frontends.sweep_settings()),
         SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
