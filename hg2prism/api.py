@@ -245,7 +245,9 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     (keys not given: CUSUM, window 2, rationality 1 and, for CUSUM, threshold 0.6); `simulation` and `detection` the
     optional tables; `positions` (node -> [x, y], every node) where the figures draw the nodes,
     `outside` then one unit left of the entries (default: a layered layout). Every problem is
-    an InputError naming `name`, the key and the reason."""
+    an InputError naming `name`, the key and the reason; what is likely a mistake but has a
+    meaning (an edge with probability 0, a target among the trap candidates or entries, a
+    target `labels` leaves unlabelled) a warning line (progress.warn)."""
     from collections.abc import Mapping
 
     from hg2prism.worldfile import world_from_data
@@ -287,7 +289,53 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
         if table is not None:
             data[key] = dict(table)
     # as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was refused)
-    return world_from_data(plain(data, list), name=name)
+    world = world_from_data(plain(data, list), name=name)
+    _graph_warnings(graph, entries, labels, trap_candidates, probability, name)
+    return world
+
+
+def _few(items: list[str]) -> str:
+    """Up to three names, then how many more."""
+    return ", ".join(items[:3]) + (f" and {len(items) - 3} more" if len(items) > 3 else "")
+
+
+def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
+                    file: str) -> None:
+    """What world_from_graph accepts that has a meaning (docs/semantics.md §15) but is likely
+    a mistake, one warning line each: edges with probability 0, targets (nodes without an
+    outgoing edge) among the trap candidates or the entries, and, with `labels` given, targets
+    without a label."""
+    from hg2prism import progress
+
+    nodes, names = _graph_nodes(graph, file, {})
+    targets = {v for v in nodes if graph.out_degree(v) == 0}
+    never = [f"({u!r}, {v!r})" for u in nodes for v in graph.successors(u)
+             if _edge_probability(graph, u, v, probability, file) == 0]
+    if never:
+        one = len(never) == 1
+        progress.warn(f"{file}: edge{'' if one else 's'} {_few(never)}: probability 0, so the "
+                      f"attacker's action along {'it' if one else 'each'} never succeeds (he "
+                      f"stays where he is); remove {'the edge' if one else 'them'} if the step "
+                      "is impossible")
+    for key, given, meaning in (
+            ("trap_candidates", trap_candidates or (), "a honeypot there catches the attacker "
+             "on reaching the target itself; leave it out unless the defender can guard a "
+             "target (the default candidates: the nodes with an outgoing edge)"),
+            ("entries", entries, "the attacker reaches that target from outside in one "
+             "step with probability 1 (unless trapped there); leave it out of entries unless "
+             "it is exposed so")):
+        odd = [names[v] for v in dict.fromkeys(given) if v in targets]
+        if odd:
+            progress.warn(f"{file}: {key}: {_few(odd)} {'has' if len(odd) == 1 else 'have'} "
+                          f"no outgoing edge (a target): {meaning}")
+    if labels is not None:
+        bare = [names[v] for v in nodes if v in targets and not labels.get(v)]
+        if bare:
+            progress.warn(f"{file}: labels: {_few(bare)} {'has' if len(bare) == 1 else 'have'} "
+                          "no outgoing edge and no label: reaching one ends the episode with "
+                          "nothing gained (won only if the task is already done); label "
+                          f"{'it' if len(bare) == 1 else 'them'} in labels= (by default every "
+                          "such node is labelled asset<v>) or give them outgoing edges")
 
 
 def _inference_table(given) -> dict:

@@ -130,5 +130,6 @@ def with_advance(world, advance: float):
     return replace(world, front=replace(world.front, advance=advance))
 
 
-# what sweeps may vary in a corridor world only (values above 1: the world refuses them)
-SETTINGS = (Setting("advance", "a number in (0, 1]", float, 0.0, True, None, with_advance),)
+# what sweeps may vary in a corridor world only (advance: at most 1, as the world allows)
+SETTINGS = (Setting("advance", "a number in (0, 1]", float, 0.0, True, 1.0, with_advance,
+                    at_most=True),)

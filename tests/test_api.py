@@ -43,7 +43,7 @@ def test_solve_a_world_from_text_writes_and_prints_nothing(tmp_path: Path, monke
     window = tuple((o["state"], o["action"]) for o in record["window"])
     assert solution.strategy.move(record["state"], record["q"], record["hypothesis"],
                                   window) == record["action"]
-    with pytest.raises(KeyError):
+    with pytest.raises(InputError, match="'x0_y0' is not a state of the world"):
         solution.strategy.move("x0_y0", 0, 0)
 
 
@@ -695,16 +695,19 @@ def test_graph_worlds_take_numpy_numbers_and_compare_by_value() -> None:
 
 def test_move_says_what_it_expected() -> None:
     """Strategy.move with a hypothesis given as a formula, or a window entry that lacks the
-    standing set and countdown of a delayed world: a KeyError saying what was expected (a raw
-    ValueError from int(), and a message about the state's standing/countdown, before)."""
+    standing set and countdown of a delayed world: an InputError naming the argument and saying
+    what was expected (a raw ValueError from int(), and a message about the state's
+    standing/countdown, before; a KeyError, before it was an InputError)."""
     world = hg2prism.load_world(MODELS / "world1.toml").replace(delay=1, initial_standing=0)
     strategy = hg2prism.solve(world).strategy
     start = dict(state="x2_y4", q=0, standing="x3_y4", countdown=0)
-    with pytest.raises(KeyError, match="as its index"):
+    with pytest.raises(InputError, match="hypothesis: expected .* as its index"):
         strategy.move(hypothesis="!obs U A", **start)
-    with pytest.raises(KeyError, match=r"window entry \('x2_y4', 'E'\): expected \(state, "
-                                       r"action, standing, countdown\)"):
+    with pytest.raises(InputError, match=r"window: window entry \('x2_y4', 'E'\): expected "
+                                         r"\(state, action, standing, countdown\)"):
         strategy.move(hypothesis=0, window=[("x2_y4", "E")], **start)
+    with pytest.raises(InputError, match="standing: 'x9_y9' is not a P2 action"):
+        strategy.move(hypothesis=0, **{**start, "standing": "x9_y9"})
 
 
 @pytest.mark.parametrize("name, changes", [("world2", {"delay": 2}), ("world3_bayes", {}),
@@ -724,18 +727,56 @@ def test_move_of_every_record_is_its_action(name: str, changes: dict) -> None:
     assert strategy.move(**{k: one[k] for k in ("state", "q", "hypothesis", "window",
                                                 "standing", "countdown") if k in one}) \
         == one["action"]
-    with pytest.raises(KeyError, match="a strategy.json record"):
+    with pytest.raises(InputError, match="a strategy.json record"):
         strategy.move_of([one])
     if one["window"]:
         broken = {**one, "window": [{"state": one["window"][0]["state"]}]}
-        with pytest.raises(KeyError, match="no 'action'"):
+        with pytest.raises(InputError, match="no 'action'"):
             strategy.move_of(broken)
 
 
-def test_move_of_a_record_without_its_state_is_a_key_error(world1_solution) -> None:
-    """move_of on a record that lacks the keys naming its state: a KeyError naming them (a
+def test_move_of_a_record_without_its_state_is_an_input_error(world1_solution) -> None:
+    """move_of on a record that lacks the keys naming its state: an InputError naming them (a
     TypeError about move()'s arguments before, the review found)."""
     record = dict(world1_solution.strategy.records[0])
     del record["state"], record["q"]
-    with pytest.raises(KeyError, match="has no state, q"):
+    with pytest.raises(InputError, match="has no state, q"):
         world1_solution.strategy.move_of(record)
+
+
+def test_move_on_a_state_it_cannot_answer_is_an_input_error(world1_solution) -> None:
+    """Strategy.move on a state name the world does not have (misspelt), on a state of the
+    world where the strategy has no record at all, and on a recorded state in a memory of P2
+    the strategy never has there: one InputError each (key "state"; a bare KeyError before),
+    naming the state and saying which of the three it is, with the world's states or the
+    strategy's records there counted (from the records) and some named."""
+    strategy = world1_solution.strategy
+    states = list(strategy.ts.arena.states)
+    with pytest.raises(InputError) as misspelt:
+        strategy.move("x1_y7", 0, 0)
+    assert (misspelt.value.file, misspelt.value.key) == ("move()", "state")
+    assert misspelt.value.reason.startswith(
+        f"'x1_y7' is not a state of the world, whose {len(states)} states are "
+        f"{', '.join(states[:5])}, ...; did you mean x1_y6")
+    recorded = [record["state"] for record in strategy.records]
+    never = sorted(set(states) - set(recorded))
+    assert never                             # world1's obstacle: the task fails there
+    with pytest.raises(InputError) as unrecorded:
+        strategy.move(never[0], 0, 0)
+    assert unrecorded.value.key == "state"
+    assert unrecorded.value.reason.startswith(f"the strategy has no record at {never[0]}: ")
+    assert f"records at {len(set(recorded))} of the world's {len(states)} states" in \
+        unrecorded.value.reason
+    first = strategy.records[0]
+    other = 1 - first["hypothesis"]
+    assert not any(r["state"] == first["state"] and r["q"] == first["q"]
+                   and r["hypothesis"] == other and not r["window"] for r in strategy.records)
+    with pytest.raises(InputError) as elsewhere:
+        strategy.move(first["state"], first["q"], other)
+    assert elsewhere.value.key == "state"
+    there = sum(record["state"] == first["state"] for record in strategy.records)
+    assert elsewhere.value.reason.startswith(
+        f"no record for {first['state']}, q={first['q']}, hypothesis={other}, window=[]: the "
+        f"strategy has records at {first['state']} only in {there} other hypergame states")
+    for error in (misspelt, unrecorded, elsewhere):
+        assert "\n" not in str(error.value) and not isinstance(error.value, KeyError)

@@ -388,6 +388,50 @@ def test_world_from_graph_small() -> None:
     assert_same_ts(transition_system(world), transition_system(again))
 
 
+def _graph_warnings(caplog, **arguments) -> list[str]:
+    """The warnings world_from_graph gives (the world is built all the same)."""
+    import logging
+
+    import hg2prism
+
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="hg2prism"):
+        world = hg2prism.world_from_graph(**{"task": "F asset3", "name": "g", **arguments})
+    assert world.arena.states[0] == "outside"
+    return [record.getMessage() for record in caplog.records]
+
+
+def test_world_from_graph_warns_of_likely_mistakes(caplog) -> None:
+    """Inputs that have a meaning (semantics §15) but are likely mistakes are built with one
+    warning line each, saying what they mean and how to avoid them (they passed silently): an
+    edge with probability 0, a target (no outgoing edge) among the trap candidates or the
+    entries, and with `labels` a target without a label. A graph without them: no warning."""
+    graph = _small_graph()
+    targets = sorted(v for v in graph if graph.out_degree(v) == 0)
+    assert targets == [3, 4]
+    graph.remove_edge(1, 3)
+    assert _graph_warnings(caplog, graph=graph, entries=[1], trap_candidates=[2],
+                           labels={3: "asset3", 4: ["asset4"]}) == []
+    zero = _graph_warnings(caplog, graph=_small_graph(), entries=[1], trap_candidates=[2])
+    assert zero == ["warning: g: edge (1, 3): probability 0, so the attacker's action along it "
+                    "never succeeds (he stays where he is); remove the edge if the step is "
+                    "impossible"]
+    guarded = _graph_warnings(caplog, graph=graph, entries=[1], trap_candidates=[2, 3, 4])
+    assert len(guarded) == 1 and guarded[0].startswith(
+        "warning: g: trap_candidates: n3, n4 have no outgoing edge (a target): a honeypot there "
+        "catches the attacker on reaching the target itself")
+    exposed = _graph_warnings(caplog, graph=graph, entries=[1, 4], trap_candidates=[2])
+    assert len(exposed) == 1 and exposed[0].startswith(
+        "warning: g: entries: n4 has no outgoing edge (a target): the attacker reaches that "
+        "target from outside in one step with probability 1")
+    bare = _graph_warnings(caplog, graph=graph, entries=[1], trap_candidates=[2],
+                           labels={3: "asset3", 4: []})
+    assert len(bare) == 1 and bare[0].startswith(
+        "warning: g: labels: n4 has no outgoing edge and no label: reaching one ends the "
+        "episode with nothing gained")
+    assert "label it in labels=" in bare[0]
+
+
 @pytest.mark.parametrize("change,key,word", [
     (lambda g: g.add_edge(3, 5, p=1.5), "edge (3, 5)", "outside [0, 1]"),
     (lambda g: g.add_edge(3, 5, p=-0.1), "edge (3, 5)", "outside [0, 1]"),

@@ -124,6 +124,33 @@ def test_its_own_setting_is_swept(corridors, tmp_path) -> None:
     assert "applies to corridor worlds only; world1 is a grid world" in str(caught.value)
 
 
+def test_its_setting_bounded_at_most_one_is_checked_by_the_sweep(corridors) -> None:
+    """advance is in (0, 1]: its Setting says so (`below` inclusive, `at_most`), so the sweep's
+    own parameter check accepts 1 and refuses 1.5 with the setting's one line (1.5 reached
+    the world, whose own check refused it under another key); the grid's slip keeps its
+    exclusive bound."""
+    from hg2prism.errors import COMMAND_LINE
+    from hg2prism.experiments import sweep
+    from hg2prism.frontends.grid import SLIP_EXPECTED
+
+    assert sweep.parse_sweep_values("advance", ["1", 1.0 - 1e-9]) == [1.0, 1.0 - 1e-9]
+    world = hg2prism.world_from_toml(TEXT, "corridor.toml")
+    assert sweep.sweep_world(world, "advance", 1).front.advance == 1.0
+    for bad in ("1.5", 1.5, "1.0000001"):
+        with pytest.raises(InputError) as caught:
+            sweep.parse_sweep_values("advance", [bad])
+        assert (caught.value.file, caught.value.key) == (COMMAND_LINE, "--values")
+        assert caught.value.reason == f"advance value {bad} must be a number in (0, 1]"
+    with pytest.raises(InputError) as caught:
+        hg2prism.sweep(world, "advance", [0.5, 1.5])
+    assert (caught.value.file, caught.value.key) == ("sweep()", "values")
+    assert caught.value.reason == "advance value 1.5 must be a number in (0, 1]"
+    with pytest.raises(InputError) as caught:
+        sweep.parse_sweep_values("slip", ["0.5"])
+    assert caught.value.reason == f"slip value 0.5 must be {SLIP_EXPECTED}"
+    assert sweep.parse_sweep_values("slip", ["0.49"]) == [0.49]
+
+
 def test_a_bad_adversary_table_is_one_line(corridors) -> None:
     """The kind's `read` looks at [adversary]: the loader has checked it is a table."""
     text = "adversary = 3\n" + TEXT[:TEXT.index("[adversary]")] + TEXT[TEXT.index("[inference]"):]

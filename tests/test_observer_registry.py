@@ -163,18 +163,9 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
     registry.configure, a value the observer refuses for the world being a --values error. The
     table follows the registry: a kind registered after experiments.sweep was imported, as
     here, has its setting in it (it was left out when the table was built at import)."""
-    from dataclasses import replace
-
     from hg2prism.experiments import sweep
-    from hg2prism.opponent.observer import Setting, Swept
 
-    patience = Setting("patience", "an integer >= 1",
-                       lambda checks, value, n: checks.integer(value, "inference.patience", 1,
-                                                               10),
-                       default=lambda n: 1, swept=Swept("number", "an integer >= 1", int, 1,
-                                                        exclusive=False))
-    monkeypatch.setitem(registry.KINDS, "patient",
-                        replace(NEVER, name="patient", title="patient", settings=(patience,)))
+    monkeypatch.setitem(registry.KINDS, "patient", _patient(NEVER))
     found = {p.name: p for p in sweep._observer_parameters()}
     assert list(found) == ["threshold", "prior", "decision", "patience"]
     assert [name for name in sweep.sweep_parameters() if name in found] == [
@@ -193,10 +184,7 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
     for bad in ("0", "x", "1.5"):
         with pytest.raises(ValueError):
             found["patience"].parse(bad)
-    text = (MODELS / "world3.toml").read_text().replace("[inference]\n",
-                                                        '[inference]\nkind = "patient"\n')
-    world = world_from_toml("\n".join(line for line in text.splitlines()
-                                      if not line.startswith("threshold")), "patient.toml")
+    world = _world_of_kind("patient")
     assert world.setting("patience") == 1
     assert found["patience"].apply(world, 4).setting("patience") == 4
     with pytest.raises(InputError) as err:
@@ -206,3 +194,76 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
     cusum = world_from_toml((MODELS / "world3.toml").read_text(), "cusum.toml")
     with pytest.raises(InputError, match="observer has no patience"):
         found["patience"].apply(cusum, 2)
+
+
+def _patient(never_kind: ObserverKind) -> ObserverKind:
+    """The never-revising observer with a setting a sweep may vary (patience, which changes
+    nothing she does)."""
+    from dataclasses import replace
+
+    from hg2prism.opponent.observer import Setting, Swept
+
+    patience = Setting("patience", "an integer >= 1",
+                       lambda checks, value, n: checks.integer(value, "inference.patience", 1,
+                                                               10),
+                       default=lambda n: 1, swept=Swept("number", "an integer >= 1", int, 1,
+                                                        exclusive=False))
+    return replace(never_kind, name="patient", title="patient", settings=(patience,))
+
+
+def _world_of_kind(kind: str) -> World:
+    """world3 with P2's observer of `kind` (registered, with no required setting)."""
+    text = (MODELS / "world3.toml").read_text().replace("[inference]\n",
+                                                        f'[inference]\nkind = "{kind}"\n')
+    return world_from_toml("\n".join(line for line in text.splitlines()
+                                     if not line.startswith("threshold")), f"{kind}.toml")
+
+
+def _locked(never_kind: ObserverKind) -> ObserverKind:
+    """A kind no process can be sent: its report holds a lock."""
+    import threading
+    from dataclasses import replace
+
+    lock = threading.Lock()
+    return replace(never_kind, name="locked", title="locked",
+                   report=lambda world: {"inference": "locked", "lock": lock})
+
+
+def test_a_parallel_sweep_carries_the_kind_to_its_workers(never, monkeypatch) -> None:
+    """A kind registered at run time reaches a parallel sweep's worker processes, which have
+    only the built-in kinds: a world of that kind, and a sweep of that kind's own setting, solve
+    on workers=2 as they do serially (every point failed with "unknown inference kind"). A
+    kind that cannot be sent and that no point uses stays behind without a word."""
+    import hg2prism
+
+    monkeypatch.setitem(registry.KINDS, "locked", _locked(NEVER))
+    world = _never_world("world3", 1)
+    serial = hg2prism.sweep(world, "window", [1, 2])
+    parallel = hg2prism.sweep(world, "window", [1, 2], workers=2)
+    assert not serial.failed and not parallel.failed
+    assert [row.deceptive_value for row in parallel] == [row.deceptive_value for row in serial]
+    monkeypatch.setitem(registry.KINDS, "patient", _patient(NEVER))
+    patient = _world_of_kind("patient")
+    swept = hg2prism.sweep(patient, "patience", [1, 3], workers=2)
+    assert not swept.failed and swept.column("patience") == [1, 3]
+    # patience changes nothing she does: both points are the never-revising P2's value
+    assert swept.column("deceptive_value") == pytest.approx([
+        hg2prism.solve(patient).deceptive_value] * 2, abs=TOL)
+
+
+def test_a_kind_that_cannot_be_sent_is_one_line(never, monkeypatch) -> None:
+    """A parallel sweep of a world whose kind cannot be sent to the workers (a lock in a
+    closure) is refused before anything runs, in one line naming the kind (each point failed
+    on its worker); serially it solves."""
+    import hg2prism
+
+    monkeypatch.setitem(registry.KINDS, "locked", _locked(NEVER))
+    world = _world_of_kind("locked")
+    with pytest.raises(InputError) as refused:
+        hg2prism.sweep(world, "window", [1, 2], workers=2)
+    assert (refused.value.file, refused.value.key) == ("sweep()", "workers")
+    assert refused.value.reason.startswith("the locked observer (kind 'locked', registered at "
+                                           "run time) cannot be sent to worker processes")
+    assert "sweep it with one worker" in refused.value.reason
+    assert "\n" not in str(refused.value)
+    assert not hg2prism.sweep(world, "window", [1]).failed

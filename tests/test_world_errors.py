@@ -514,6 +514,9 @@ ARENA_CASES = [
      "arena.states[5]", "reserved"),
     ("initial-unknown", arena_edit(('initial = "out"', 'initial = "inside"')), "arena.initial",
      "unknown state"),
+    # an episode that ends before P1 moves: an empty strategy, a value of 0 or 1 (accepted)
+    ("initial-terminal", arena_edit(('initial = "out"', 'initial = "db"')), "arena.initial",
+     "'db' is terminal (no [[arena.transition]] entry): the episode would end before P1 moves"),
     ("proposition-not-identifier", arena_edit(('["crown", "payroll"]', '["crown", "pay-roll"]')),
      "arena.propositions[1]", "identifier"),
     ("proposition-spot-operator", arena_edit(('["crown", "payroll"]', '["crown", "F"]')),

@@ -52,7 +52,9 @@ from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism import frontends
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
-from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
+from hg2prism.opponent.observer import ObserverKind
+from hg2prism.opponent.registry import (KINDS, configure, observer_kind, owner, register,
+                                        run_time_kinds)
 from hg2prism import progress
 from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
 from hg2prism.results import Parameters, provenance
@@ -96,9 +98,10 @@ class SweepParameter:
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
-def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None
-            ) -> Callable[[object], int | float]:
-    """A parser of ints or floats >= minimum (> when exclusive), and < below when given."""
+def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None,
+            at_most: bool = False) -> Callable[[object], int | float]:
+    """A parser of ints or floats >= minimum (> when exclusive), and < below when given (<=
+    when `at_most`)."""
     def parse(value: object) -> int | float:
         if isinstance(value, bool):
             raise ValueError("must be")
@@ -122,7 +125,7 @@ def _number(kind: type, minimum: float, exclusive: bool, below: float | None = N
             if not math.isfinite(number):
                 raise ValueError("must be")
         if number < minimum or (exclusive and number == minimum) or (
-                below is not None and number >= below):
+                below is not None and (number > below if at_most else number >= below)):
             raise ValueError("must be")
         return number
     return parse
@@ -272,7 +275,7 @@ def _built_table() -> dict[str, SweepParameter]:
                        _field("rationality")),
         *(SweepParameter(setting.name, setting.expected,
                          _number(setting.kind, setting.minimum, setting.exclusive,
-                                 setting.below),
+                                 setting.below, setting.at_most),
                          setting.apply, front_end=kind)
           for kind, setting in frontends.sweep_settings()),
         SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
@@ -480,6 +483,9 @@ class PointTask:
     # the front ends registered where the sweep runs (kind -> module): a worker process
     # registers those it lacks (a kind registered at run time, tests/frontend_line.py)
     front_ends: tuple[tuple[str, str], ...] = ()
+    # the observer kinds registered at run time where a parallel sweep runs, which a worker
+    # process (having only the built-in kinds) registers (tests/test_observer_registry.py)
+    observer_kinds: tuple[ObserverKind, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -531,6 +537,8 @@ def solve_point(task: PointTask) -> PointOutcome:
     assignment = dict(task.assignment)
     for kind, module in task.front_ends:
         frontends.FRONT_ENDS.setdefault(kind, module)
+    for observer in task.observer_kinds:
+        register(observer)
     with progress.collected_warnings() as warnings:
         try:
             world = _world_of(task)
@@ -601,8 +609,34 @@ def _world_text(world: World) -> str | None:
     return text if replace(parsed, name=world.name, path=world.path) == world else None
 
 
+def _observer_kinds(world: World, points: list[dict[str, Value]]
+                    ) -> tuple[ObserverKind, ...]:
+    """The observer kinds registered at run time here, for a parallel sweep's workers, which
+    have only the built-in ones: those Dask can send (by cloudpickle, as it sends the points).
+    One the points use that cannot be sent (a lock in a closure) refuses the sweep in one line
+    (each point failed on its worker); another is left behind, as no point needs it."""
+    import cloudpickle
+
+    used = {world.inference, *(point["inference"] for point in points if "inference" in point)}
+    carried = []
+    for kind in run_time_kinds():
+        try:
+            cloudpickle.dumps(kind)
+        except Exception as err:    # pickling raises TypeError, PicklingError, AttributeError...
+            if kind.name not in used:
+                continue
+            reason = (str(err).strip().splitlines() or [""])[0]
+            raise InputError(COMMAND_LINE, "--workers", f"the {kind.title} observer (kind "
+                             f"{kind.name!r}, registered at run time) cannot be sent to worker "
+                             f"processes ({type(err).__name__}: {reason}); sweep it with one "
+                             "worker") from None
+        carried.append(kind)
+    return tuple(carried)
+
+
 def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
-           max_states: int | None, deception: bool = False) -> list[PointTask]:
+           max_states: int | None, deception: bool = False,
+           observer_kinds: tuple[ObserverKind, ...] = ()) -> list[PointTask]:
     from hg2prism.model import sizeguard
 
     text = _world_text(world)
@@ -616,7 +650,7 @@ def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
                                None if text is not None else world, str(world.path), changes,
                                _folder(assignment), storm_method, max_states,
                                min(sizeguard.estimate_states(point), 2**62), deception,
-                               tuple(frontends.FRONT_ENDS.items())))
+                               tuple(frontends.FRONT_ENDS.items()), observer_kinds))
     return tasks
 
 
@@ -781,11 +815,12 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
                 show_progress: bool, storm_method: str, workers: int, scheduler: str | None,
                 max_states: int | None, deception: bool) -> SweepRun:
     parsed, points = check_grid(world, grid, max_states)
-    tasks = _tasks(world, points, storm_method, max_states, deception)
+    serial = workers == 1 and scheduler is None
+    tasks = _tasks(world, points, storm_method, max_states, deception,
+                   () if serial else _observer_kinds(world, points))
     _first_guess_notes(world, tasks)
     out = Path(out)
     total_start = time.perf_counter()
-    serial = workers == 1 and scheduler is None
     live = show_progress and serial and sys.stderr.isatty()
 
     def label_of(task: PointTask) -> str:

@@ -16,5 +16,6 @@ class Setting:
     kind: type                      # int or float
     minimum: float
     exclusive: bool                 # > minimum (else >=)
-    below: float | None             # < below, when given
+    below: float | None             # < below, when given (<= below when at_most)
     apply: Callable[[World, object], World]
+    at_most: bool = False           # below is a value's largest (else its bound above)

@@ -101,7 +101,12 @@ class Arena:
                           + (", ".join(self.propositions) or "none") + ")")
 
     def check(self, checks: Checks) -> None:
-        """Nothing of its own: the arena file's reader (frontends/arena.py) checked it."""
+        """The initial state is not terminal (an episode would end before P1 moves: nothing
+        to decide); the rest the arena file's reader (frontends/arena.py) checked."""
+        if not self.actions[self.initial]:
+            raise checks.fail("arena.initial", f"{self.states[self.initial]!r} is terminal (no "
+                              "[[arena.transition]] entry): the episode would end before P1 "
+                              "moves; start at a state with an action")
 
     def count_p2_actions(self, checks: Checks, traps: object) -> tuple[int, str]:
         """|A2| and the key of P2's standing action: the traps-subsets of the candidates, or

@@ -20,8 +20,8 @@ from hg2prism.opponent.observer import Observer, ObserverKind
 from hg2prism.opponent.perceptual_games import PerceptualGame
 from hg2prism.prism.observers import render_bayes, render_cusum
 
-__all__ = ["KINDS", "register", "observer_kind", "build_observer", "owner", "configure",
-           "mismatches"]
+__all__ = ["KINDS", "register", "run_time_kinds", "observer_kind", "build_observer", "owner",
+           "configure", "mismatches"]
 
 KINDS: dict[str, ObserverKind] = {}
 
@@ -39,6 +39,14 @@ def register(kind: ObserverKind, render: Callable[..., object] | None = None) ->
 
 register(inference.KIND, render_cusum)
 register(bayes.KIND, render_bayes)
+_BUILT_IN = dict(KINDS)
+
+
+def run_time_kinds() -> tuple[ObserverKind, ...]:
+    """The kinds registered since the package was imported (a new name, or a built-in one
+    registered again): what another process importing the package lacks (a parallel sweep's
+    workers, experiments/sweep.py)."""
+    return tuple(kind for name, kind in KINDS.items() if _BUILT_IN.get(name) is not kind)
 
 
 def _same(read: object, held: object) -> bool:

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hg2prism.engines.engine import Transitions
+from hg2prism.errors import InputError
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.opponent.observer import Memory
@@ -301,6 +302,59 @@ def _action_index(ts: TransitionSystem, v: int, name: object, where: str) -> int
     return names.index(name)
 
 
+def _examples(names: Sequence[str], shown: int = 5) -> str:
+    """A few names of a list, "..." when there are more."""
+    return ", ".join(names[:shown]) + (", ..." if len(names) > shown else "")
+
+
+def _order(key: tuple[int, int, Memory]) -> tuple:
+    """Hypergame states in a stable order (for the example a message shows)."""
+    return (key[0], key[1], key[2].hypothesis, len(key[2].window), key[2].window)
+
+
+def _named_ts_state(ts: TransitionSystem, state: object, standing: object,
+                    countdown: object) -> int:
+    """`Strategy.move`'s state, standing action and countdown as a TS state (InputError naming
+    the argument that names nothing)."""
+    import difflib
+
+    states, _ = _numbering(ts)
+    if not isinstance(state, str) or state not in states:
+        names = list(ts.arena.states)
+        close = (difflib.get_close_matches(state, names, n=3, cutoff=0.8)
+                 if isinstance(state, str) else [])
+        raise InputError("move()", "state", f"{state!r} is not a state of the world, whose "
+                         f"{len(names)} states are {_examples(names)}"
+                         + (f"; did you mean {' or '.join(close)}?" if close else ""))
+    try:
+        return _record_ts_state(ts, {"state": state, "standing": standing,
+                                     "countdown": countdown}, "move()")
+    except StrategyError as err:
+        raise InputError("move()", "standing", str(err).removeprefix("move(): ")) from None
+
+
+def _window_observations(ts: TransitionSystem, window: Iterable) -> list[tuple[int, ...]]:
+    """`Strategy.move`'s window entries as observations (InputError, key "window")."""
+    shape = "(state, action)" if ts.delay == 0 else "(state, action, standing, countdown)"
+    observed = []
+    try:
+        for entry in window:
+            if isinstance(entry, Mapping):
+                entry = _entry_tuple(entry)
+            if len(entry) < (2 if ts.delay == 0 else 4):
+                raise StrategyError(f"window entry {tuple(entry)!r}: expected {shape} (and the "
+                                    "action played, for a Bayesian observer)")
+            u = _record_ts_state(ts, {"state": entry[0], "standing": entry[2] if len(entry) > 2
+                                      else None, "countdown": entry[3] if len(entry) > 3
+                                      else None}, "move()")
+            observed.append((u, _action_index(ts, u, entry[1], "move()"))
+                            + ((_p2_action_index(ts, entry[4], "move()"),)
+                               if len(entry) > 4 else ()))
+    except StrategyError as err:
+        raise InputError("move()", "window", str(err).removeprefix("move(): ")) from None
+    return observed
+
+
 def read_record(ts: TransitionSystem, record: Mapping, where: str
                 ) -> tuple[tuple[int, int, Memory], int]:
     """A strategy.json record read: the hypergame state ``(ts_state, q, Memory)`` it is for and
@@ -397,42 +451,27 @@ class Strategy:
         `step` is the number of steps taken so far: the action of a step-bounded
         strategy (records with a ``schedule``) depends on it, from the bound on it stays the
         last step's; the other strategies ignore it.
-        Raises KeyError for a state the strategy has no record of (the fallback is not used)."""
+        Raises InputError (file "move()") for an argument that names nothing in the world (a
+        state, action or standing action the world does not have; key: the argument) and for
+        a hypergame state the strategy has no record of (key "state"; the fallback is not
+        used), saying whether the strategy never reaches the arena state at all or reaches it
+        only with other task states and memories of P2."""
         if self.ts is None:
             raise ValueError("move() needs the strategy's transition system")
-        where = "move()"
         ts = self.ts
-
-        def at(name, standing, countdown) -> int:
-            return _record_ts_state(ts, {"state": name, "standing": standing,
-                                         "countdown": countdown}, where)
 
         import numbers
 
         if isinstance(hypothesis, bool) or not isinstance(hypothesis, numbers.Integral):
-            raise KeyError(f"hypothesis {hypothesis!r}: expected P2's hypothesis as its index "
-                           "into the world's hypotheses")
-        shape = "(state, action)" if ts.delay == 0 else "(state, action, standing, countdown)"
-        try:
-            v = at(state, standing, countdown)
-            observed = []
-            for entry in window:
-                if isinstance(entry, Mapping):
-                    entry = _entry_tuple(entry)
-                if len(entry) < (2 if ts.delay == 0 else 4):
-                    raise StrategyError(f"window entry {tuple(entry)!r}: expected {shape} "
-                                        "(and the action played, for a Bayesian observer)")
-                u = at(entry[0], *(entry[2:4] if len(entry) > 2 else (None, None)))
-                observed.append((u, _action_index(ts, u, entry[1], where))
-                                + ((_p2_action_index(ts, entry[4], where),)
-                                   if len(entry) > 4 else ()))
-        except StrategyError as err:
-            raise KeyError(str(err)) from None
+            raise InputError("move()", "hypothesis", f"expected P2's hypothesis as its index "
+                             f"into the world's hypotheses, got {hypothesis!r}")
+        if step < 0:
+            raise InputError("move()", "step", f"must be at least 0, got {step}")
+        v = _named_ts_state(ts, state, standing, countdown)
+        observed = _window_observations(ts, window)
         key = (v, int(q), Memory(int(hypothesis), tuple(observed)))
         if key not in self.table:
-            raise KeyError(f"no record for {self.describe(*key)}")
-        if step < 0:
-            raise ValueError(f"step must be at least 0, got {step}")
+            raise InputError("move()", "state", self._no_record(key))
         schedule = self._schedule(key)
         if schedule:
             last = max(int(run[1]) for run in schedule)
@@ -441,15 +480,33 @@ class Strategy:
                     return str(move)
         return ts.action_names(v)[self.table[key]]
 
+    def _no_record(self, key: tuple[int, int, Memory]) -> str:
+        """Why `move` has no answer at `key`: the strategy has no record at its arena state at
+        all, or records there only in other hypergame states."""
+        ts = self.ts
+        place = ts.decode(key[0])[0]
+        name = ts.arena.states[place]
+        there = [other for other in self.table if ts.decode(other[0])[0] == place]
+        if not there:
+            reached = sorted({ts.decode(other[0])[0] for other in self.table})
+            return (f"the strategy has no record at {name}: P1 does not move from there when "
+                    "P2 behaves as modelled (never reached, or the task is done or failed "
+                    f"there); it has records at {len(reached)} of the world's "
+                    f"{len(ts.arena.states)} states, e.g. "
+                    f"{_examples([ts.arena.states[p] for p in reached])}")
+        return (f"no record for {self.describe(*key)}: the strategy has records at {name} only "
+                f"in {len(there)} other hypergame state{'s' if len(there) > 1 else ''} (task "
+                f"state, P2's hypothesis and window), e.g. {self.describe(*min(there, key=_order))}")
+
     def move_of(self, record: Mapping, step: int = 0) -> str:
         """`move` in the hypergame state a strategy.json record names (its keys MOVE_KEYS; the
         record may come from another strategy of the world, e.g. a robust one's)."""
         if not isinstance(record, Mapping):
-            raise KeyError(f"move_of(): expected a strategy.json record (a dict), got "
-                           f"{type(record).__name__}")
+            raise InputError("move_of()", "record", f"expected a strategy.json record (a "
+                             f"dict), got {type(record).__name__}")
         missing = [key for key in ("state", "q", "hypothesis") if key not in record]
         if missing:
-            raise KeyError(f"move_of(): the record has no {', '.join(missing)}")
+            raise InputError("move_of()", "record", f"the record has no {', '.join(missing)}")
         return self.move(**{key: record[key] for key in MOVE_KEYS if key in record}, step=step)
 
     def record(self, ts_state: int, q: int, memory: Memory) -> Mapping | None:
