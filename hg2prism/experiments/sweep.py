@@ -40,7 +40,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -440,11 +439,6 @@ def _folder(assignment: dict[str, Value]) -> str:
     return "__".join(f"{name}_{_value_text(value)}" for name, value in assignment.items())
 
 
-def _bar(done: int, total: int, width: int = 20) -> str:
-    filled = int(round(width * done / max(total, 1)))
-    return "#" * filled + "." * (width - filled)
-
-
 _CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states",
                 "transitions", "storm_states", "storm_transitions", "seconds")
 
@@ -630,15 +624,11 @@ def _closing(outcomes: Iterator[PointOutcome]) -> Iterator[PointOutcome]:
             close()
 
 
-def _run_serial(tasks: list[PointTask], live: bool,
+def _run_serial(tasks: list[PointTask], bar: progress.Bar,
                 label_of: Callable[[PointTask], str]) -> Iterator[PointOutcome]:
     for task in tasks:
-        if live:
-            sys.stderr.write(f"sweep {label_of(task)} ...")
-            sys.stderr.flush()
-        outcome = solve_point(task)
-        if live:
-            sys.stderr.write("\r")
+        with bar.pending(f"sweep {label_of(task)}"):
+            outcome = solve_point(task)
         yield outcome
 
 
@@ -786,13 +776,13 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
     out = Path(out)
     total_start = time.perf_counter()
     serial = workers == 1 and scheduler is None
-    live = show_progress and serial and sys.stderr.isatty()
+    bar = progress.Bar("sweep", len(tasks), show_progress, unit="points", width=20)
 
     def label_of(task: PointTask) -> str:
         return point_label(dict(task.assignment))
 
     outcomes: dict[int, PointOutcome] = {}
-    running = (_run_serial(tasks, live, label_of) if serial
+    running = (_run_serial(tasks, bar, label_of) if serial
                else _run_dask(tasks, min(workers, len(tasks)), scheduler))
     for outcome in _closing(running):
         outcomes[outcome.index] = outcome
@@ -801,19 +791,12 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
             write_bytes(out / task.folder / name, data)
         for message in outcome.warnings:        # which point says it (points may say alike)
             progress.replay_warning(f"sweep {label_of(task)}: {message}")
-        if show_progress:
-            done = len(outcomes)
-            head = f"sweep {label_of(task)} ({done}/{len(tasks)}) [{_bar(done, len(tasks))}]"
-            row = outcome.row
-            if row is None:
-                line = f"{head}: failed: {outcome.error}"
-            else:
-                line = (f"{head}: deceptive {row['deceptive_value']:.4f}, V_lead "
-                        f"{row['v_lead']:.4f}, V_NE {row['v_ne']:.4f}, {row['states']} states "
-                        f"({row['seconds']:.1f} s)"
-                        + (f"; warning: {outcome.note}" if outcome.note else ""))
-            sys.stderr.write(line + "\n")
-            sys.stderr.flush()
+        row = outcome.row
+        bar.finished(len(outcomes), f"sweep {label_of(task)}", (
+            f"failed: {outcome.error}" if row is None else
+            f"deceptive {row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
+            f"{row['v_ne']:.4f}, {row['states']} states ({row['seconds']:.1f} s)"
+            + (f"; warning: {outcome.note}" if outcome.note else "")))
 
     rows = tuple(outcomes[i].row for i in range(len(tasks)) if outcomes[i].row is not None)
     failed = tuple({**dict(tasks[i].assignment), "error": outcomes[i].error}
