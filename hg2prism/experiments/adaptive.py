@@ -23,7 +23,8 @@ from hg2prism.analyses.simulation import leader_fallback
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
 from hg2prism.engines.engine import BuiltModel, ModelChecker
-from hg2prism.errors import COMMAND_LINE, probability
+from hg2prism.errors import probability
+from hg2prism.experiments.values import ValueList, number, parse_values
 from hg2prism.model.world import World
 from hg2prism.outputs import write_csv, write_json, write_text
 from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
@@ -408,21 +409,16 @@ def with_first_weight(world: World, weight: float) -> World:
     return replace(world, types=types)
 
 
+# --values of --param weight: numbers in [0, 1]
+WEIGHTS = ValueList("--values", "weight", "a number in [0, 1]",
+                    number(float, 0.0, maximum=1.0),
+                    not_form="a {name} is {expected}, got {value!r}",
+                    outside="a {name} is {expected}, got {value!r}", repeated=None)
+
+
 def parse_weights(values: list[str]) -> list[float]:
     """--values of --param weight: numbers in [0, 1]."""
-    from hg2prism.errors import InputError
-
-    weights = []
-    for value in values:
-        try:
-            weight = float(value)
-        except ValueError:
-            weight = float("nan")
-        if not 0.0 <= weight <= 1.0:
-            raise InputError(COMMAND_LINE, "--values", f"a weight is a number in [0, 1], "
-                             f"got {value!r}")
-        weights.append(weight)
-    return weights
+    return parse_values(WEIGHTS, values)
 
 
 def sweep_weights(world: World, weights: list[float], out: Path,

@@ -49,6 +49,7 @@ from typing import Any
 
 from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism import frontends
+from hg2prism.experiments.values import NOT_FORM, OUTSIDE, ValueList, number, parse_values
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
 from hg2prism.opponent.registry import KINDS, configure, observer_kind, owner
@@ -71,7 +72,8 @@ Value = Any     # int | float today; a parameter's parser decides (e.g. a name, 
 @dataclass(frozen=True)
 class SweepParameter:
     """One sweepable parameter. `parse` turns a value as given (a command-line string or a
-    Python value) into the parameter's value, raising ValueError with what is expected; `apply`
+    Python value) into the parameter's value, raising ValueError (experiments/values.py: NOT_FORM
+    or OUTSIDE, the reason's words); `apply`
     returns the world with that value (InputError when the value does not fit this world);
     `moves_traps` says the standing traps must be worked out again (docs/semantics.md §7, Sweeps)."""
 
@@ -95,45 +97,13 @@ class SweepParameter:
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
-def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None
-            ) -> Callable[[object], int | float]:
-    """A parser of ints or floats >= minimum (> when exclusive), and < below when given."""
-    def parse(value: object) -> int | float:
-        if isinstance(value, bool):
-            raise ValueError("must be")
-        number: float
-        if isinstance(value, (int, float)):
-            number = value
-        elif isinstance(value, str):
-            text = value.strip()
-            try:
-                number = int(text) if kind is int else float(text)
-            except ValueError:
-                raise ValueError("is not") from None
-        else:
-            raise ValueError("must be")
-        if kind is int:
-            if isinstance(number, float):
-                raise ValueError("must be")
-            number = int(number)
-        else:
-            number = float(number)
-            if not math.isfinite(number):
-                raise ValueError("must be")
-        if number < minimum or (exclusive and number == minimum) or (
-                below is not None and number >= below):
-            raise ValueError("must be")
-        return number
-    return parse
-
-
 def _field(name: str) -> Callable[[World, Value], World]:
     return lambda world, value: replace(world, **{name: value})
 
 
 def _observer_kind(value: object) -> str:
     if value not in KINDS:
-        raise ValueError("must be")
+        raise ValueError(OUTSIDE)
     return str(value)
 
 
@@ -145,9 +115,9 @@ def _numbers(normalise: Callable[[list[float]], object] | None) -> Callable[[obj
         try:
             numbers = [float(p) for p in parts]           # type: ignore[union-attr]
         except (TypeError, ValueError):
-            raise ValueError("is not") from None
+            raise ValueError(NOT_FORM) from None
         if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
-            raise ValueError("must be")
+            raise ValueError(OUTSIDE)
         return tuple(numbers) if normalise is None else normalise(numbers)
     return parse
 
@@ -208,7 +178,7 @@ def _with_setting(name: str) -> Callable[[World, Value], World]:
 def _observer_parameters() -> list[SweepParameter]:
     """The settings of the registered observers that a sweep may vary (Setting.swept), each
     once (a key two kinds share is swept by the first)."""
-    parsers = {"number": lambda s: _number(s.kind, s.minimum, s.exclusive),
+    parsers = {"number": lambda s: number(s.kind, s.minimum, s.exclusive),
                "word": lambda s: _word, "numbers": lambda s: _numbers(s.normalise)}
     found: dict[str, SweepParameter] = {}
     for kind in KINDS.values():
@@ -224,7 +194,7 @@ def _word(value: object) -> str:
     """A setting's value that is a word (the Bayesian observer's decision); the observer reads
     and checks it when it is applied."""
     if not isinstance(value, str) or not value.strip():
-        raise ValueError("must be")
+        raise ValueError(OUTSIDE)
     return value.strip()
 
 
@@ -263,21 +233,21 @@ def _built_table() -> dict[str, SweepParameter]:
         # first: the other parameters apply to the observer it chooses
         SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
                        _with_observer),
-        SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
+        SweepParameter("delay", "an integer >= 0", number(int, 0, False), _field("delay"),
                        moves_traps=True),
-        SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
+        SweepParameter("window", "an integer >= 1", number(int, 1, False), _field("window")),
         *_observer_parameters(),       # the observers' own: threshold, prior, decision
-        SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
+        SweepParameter("rationality", "a number > 0", number(float, 0.0, True),
                        _field("rationality")),
         *(SweepParameter(setting.name, setting.expected,
-                         _number(setting.kind, setting.minimum, setting.exclusive,
+                         number(setting.kind, setting.minimum, setting.exclusive,
                                  setting.below),
                          setting.apply, front_end=kind)
           for kind, setting in frontends.sweep_settings()),
         SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
-                       _number(int, 1, False), _with_traps, moves_traps=True),
+                       number(int, 1, False), _with_traps, moves_traps=True),
         SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
-                       _number(int, 0, False), _with_first_guess),
+                       number(int, 0, False), _with_first_guess),
     ):
         if parameter.name in table:
             raise ValueError(f"sweep parameter {parameter.name!r} is defined twice (a front "
@@ -316,20 +286,11 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _parse_value(parameter: str, value: object) -> Value:
+def _values_of(parameter: str) -> ValueList:
+    """--values of `parameter`, in the sweep's wording."""
     spec = sweep_parameters()[parameter]
-    shown = repr(value) if not isinstance(value, str) else value
-    try:
-        return spec.parse(value)
-    except ValueError as err:
-        if str(err) == "is not":
-            # "1,4" for 1 4: the values are separate arguments (a prior's weights take commas)
-            apart = ("; separate the values with spaces (--values 1 4)"
-                     if isinstance(value, str) and "," in value else "")
-            raise InputError(COMMAND_LINE, "--values",
-                             f"{parameter} value {shown!r} is not {spec.expected}{apart}") from None
-        raise InputError(COMMAND_LINE, "--values",
-                         f"{parameter} value {shown} must be {spec.expected}") from None
+    return ValueList("--values", f"{parameter} value", spec.expected, spec.parse,
+                     empty=f"expected at least one value of {parameter} ({{expected}})")
 
 
 def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
@@ -340,16 +301,7 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
         raise InputError(COMMAND_LINE, "--param",
                          f"unknown parameter {parameter!r}; expected one of "
                          + ", ".join(sweep_parameters()) + " (weight: for a world with P2's types)")
-    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(COMMAND_LINE, "--values", f"expected at least one value of {parameter} "
-                                           f"({sweep_parameters()[parameter].expected})")
-    parsed = [_parse_value(parameter, v) for v in values]
-    for i, v in enumerate(parsed):
-        if v in parsed[:i]:
-            raise InputError(COMMAND_LINE, "--values",
-                             f"{parameter} value {v} is repeated; expected "
-                             "distinct values")
-    return parsed
+    return parse_values(_values_of(parameter), values)
 
 
 def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
