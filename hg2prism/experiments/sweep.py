@@ -58,7 +58,7 @@ from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
 from hg2prism.results import Parameters, provenance
 
 __all__ = ["SweepParameter", "sweep_parameters", "owned_pattern", "parse_sweep_values",
-           "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
+           "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "Solved", "solve_point", "check_point", "point_tasks", "run_points", "guard_points", "SweepRun", "sweep",
            "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
 
@@ -426,6 +426,20 @@ class PointTask:
     # the front ends registered where the sweep runs (kind -> module): a worker process
     # registers those it lacks (a kind registered at run time, tests/frontend_line.py)
     front_ends: tuple[tuple[str, str], ...] = ()
+    # what solving the point's world is (a module-level function, so that it reaches a Dask
+    # worker by name): None for the hypergame's check and Nash baseline (`check_point`);
+    # adaptive deception's weight sweep gives its own (experiments/adaptive.py)
+    solver: Callable[[World, PointTask], Solved] | None = None
+
+
+@dataclass(frozen=True)
+class Solved:
+    """What a point's solver hands back: its row after the point's parameters, its files (path
+    relative to its folder -> content) and a note for its progress line."""
+
+    values: dict
+    files: tuple[tuple[str, bytes], ...] = ()
+    note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -467,34 +481,43 @@ def point_error(err: Exception) -> str:
 
 
 def solve_point(task: PointTask) -> PointOutcome:
-    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, `check` into a private
-    temporary folder, the Nash baseline; the row and the folder's files come back. Every error
-    becomes the outcome's one-line `error`, so that one point's failure loses no other."""
-    from hg2prism import pipeline
-    from hg2prism.analyses import baselines
+    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, then the task's solver
+    (`check_point` unless it names another), its stage reports quiet; the row (the point's
+    parameters, then the solver's values) and the files come back. Every error becomes the
+    outcome's one-line `error`, so that one point's failure loses no other."""
     from hg2prism.model import sizeguard
 
-    assignment = dict(task.assignment)
     for kind, module in task.front_ends:
         frontends.FRONT_ENDS.setdefault(kind, module)
     with progress.collected_warnings() as warnings:
         try:
             world = _world_of(task)
             sizeguard.check_size(world, task.max_states)
-            start = time.perf_counter()
-            with progress.quiet(), tempfile.TemporaryDirectory(prefix="hg2prism-point-") as tmp:
-                folder = Path(tmp) / task.folder
-                checked = pipeline.check(world, folder, task.storm_method)
-                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
-                worth = _deception(checked) if task.deception else {}
-                files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
-                                     for p in folder.rglob("*") if p.is_file()))
-            seconds = time.perf_counter() - start
+            with progress.quiet():
+                solved = (task.solver or check_point)(world, task)
         except Exception as err:     # a bug or the machine (MemoryError) too: still one point
             return PointOutcome(task.index, None, (), point_error(err), tuple(warnings))
+    row = {**{name: _json_value(value) for name, value in task.assignment}, **solved.values}
+    return PointOutcome(task.index, row, solved.files, None, tuple(warnings), solved.note)
+
+
+def check_point(world: World, task: PointTask) -> Solved:
+    """A point of a sweep of parameters: `check` into a private temporary folder, the Nash
+    baseline (and with `task.deception` what the deception is worth); the folder's files."""
+    from hg2prism import pipeline
+    from hg2prism.analyses import baselines
+
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="hg2prism-point-") as tmp:
+        folder = Path(tmp) / task.folder
+        checked = pipeline.check(world, folder, task.storm_method)
+        nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
+        worth = _deception(checked) if task.deception else {}
+        files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
+                             for p in folder.rglob("*") if p.is_file()))
+    seconds = time.perf_counter() - start
     results = checked.results
-    row = {
-        **{name: _json_value(value) for name, value in assignment.items()},
+    values = {
         "deceptive_value": results.deceptive_value,
         "v_lead": results.v_lead,
         "v_ne": nash.v_ne,
@@ -510,7 +533,13 @@ def solve_point(task: PointTask) -> PointOutcome:
     }
     note = (f"P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}" if nash.warn
             else None)
-    return PointOutcome(task.index, row, files, None, tuple(warnings), note)
+    return Solved(values, files, note)
+
+
+def _check_line(row: dict) -> str:
+    """A checked point's progress line, after its parameters and count."""
+    return (f"deceptive {row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
+            f"{row['v_ne']:.4f}, {row['states']} states ({row['seconds']:.1f} s)")
 
 
 def _deception(checked) -> dict:
@@ -547,22 +576,28 @@ def _world_text(world: World) -> str | None:
     return text if replace(parsed, name=world.name, path=world.path) == world else None
 
 
-def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
-           max_states: int | None, deception: bool = False) -> list[PointTask]:
+def point_tasks(world: World, points: list[dict[str, Value]], storm_method: str,
+                max_states: int | None, deception: bool = False,
+                at: Callable[[World, dict[str, Value]], World] = sweep_point,
+                solver: Callable[[World, PointTask], Solved] | None = None) -> list[PointTask]:
+    """The points' tasks: each point's world is `at(world, assignment)` (a sweep's parameters
+    by default), solved by `solver` (None: `check_point`)."""
     from hg2prism.model import sizeguard
 
     text = _world_text(world)
     tasks = []
     for index, assignment in enumerate(points):
-        point = sweep_point(world, assignment)
+        point = at(world, assignment)
+        estimate = (sizeguard.estimate_adaptive(point) if point.types
+                    else sizeguard.estimate_states(point))
         # name and path always travel: the text alone names the world after its file
         changes = tuple((f.name, getattr(point, f.name)) for f in fields(World)
                         if f.name in ("name", "path") or getattr(point, f.name) != getattr(world, f.name))
         tasks.append(PointTask(index, tuple(assignment.items()), text,
                                None if text is not None else world, str(world.path), changes,
                                _folder(assignment), storm_method, max_states,
-                               min(sizeguard.estimate_states(point), 2**62), deception,
-                               tuple(frontends.FRONT_ENDS.items())))
+                               min(estimate, 2**62), deception,
+                               tuple(frontends.FRONT_ENDS.items()), solver))
     return tasks
 
 
@@ -656,23 +691,31 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
     the size guard, which refuses the sweep only when it refuses every point (a single refused
     point fails alone when it is reached). Returns the parsed grid and its points in grid order
     (the first parameter varies slowest)."""
-    from hg2prism.model import sizeguard
-
     parsed = parse_sweep_grid(grid)
     names = [name for name, _ in parsed]
     for name in names:
         sweep_parameters()[name].refuse_unless_applies(world)
     points = [dict(zip(names, combination))
               for combination in itertools.product(*(values for _, values in parsed))]
+    guard_points(world, points, max_states)
+    return parsed, points
+
+
+def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: int | None,
+                 at: Callable[[World, dict[str, Value]], World] = sweep_point) -> None:
+    """The size guard over a sweep's points (each point's world `at(world, point)`; a value
+    that does not fit the world counts as refused): the sweep is refused (the first point's
+    InputError) only when every point is; a single refused point fails alone when reached."""
+    from hg2prism.model import sizeguard
+
     refusals = []
     for point in points:
         try:
-            sizeguard.check_size(sweep_point(world, point), max_states)
+            sizeguard.check_size(at(world, point), max_states)
         except InputError as err:
             refusals.append(err)
     if len(refusals) == len(points):
         raise refusals[0]
-    return parsed, points
 
 
 def _standing_rule(world: World, traps_swept: bool) -> str:
@@ -723,10 +766,25 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
                 show_progress: bool, storm_method: str, workers: int, scheduler: str | None,
                 max_states: int | None, deception: bool) -> SweepRun:
     parsed, points = check_grid(world, grid, max_states)
-    tasks = _tasks(world, points, storm_method, max_states, deception)
+    tasks = point_tasks(world, points, storm_method, max_states, deception)
     _first_guess_notes(world, tasks)
     out = Path(out)
     total_start = time.perf_counter()
+    rows, failed = run_points(tasks, out, show_progress, workers, scheduler, _check_line)
+    run = SweepRun(tuple((name, tuple(values)) for name, values in parsed), rows, failed)
+    _write_summary(world, run, out, storm_method, time.perf_counter() - total_start)
+    return run
+
+
+def run_points(tasks: list[PointTask], out: Path, show_progress: bool, workers: int,
+               scheduler: str | None, line: Callable[[dict], str]
+               ) -> tuple[tuple[dict, ...], tuple[dict, ...]]:
+    """Every sweep's driver: the points solved serially here (``workers == 1``, no `scheduler`)
+    or on Dask, each point's files written into ``out/<its folder>/`` as it finishes, its
+    warnings shown (naming the point), a progress line per point (`line(row)` after the
+    point's parameters and count, or why it failed). Returns the solved points' rows and the
+    failed points (their parameters and ``error``), in the tasks' order."""
+    out = Path(out)
     serial = workers == 1 and scheduler is None
     bar = progress.Bar("sweep", len(tasks), show_progress, unit="points", width=20)
 
@@ -744,18 +802,13 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
         for message in outcome.warnings:        # which point says it (points may say alike)
             progress.replay_warning(f"sweep {label_of(task)}: {message}")
         row = outcome.row
-        bar.finished(len(outcomes), f"sweep {label_of(task)}", (
-            f"failed: {outcome.error}" if row is None else
-            f"deceptive {row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
-            f"{row['v_ne']:.4f}, {row['states']} states ({row['seconds']:.1f} s)"
-            + (f"; warning: {outcome.note}" if outcome.note else "")))
-
+        bar.finished(len(outcomes), f"sweep {label_of(task)}",
+                     f"failed: {outcome.error}" if row is None else
+                     line(row) + (f"; warning: {outcome.note}" if outcome.note else ""))
     rows = tuple(outcomes[i].row for i in range(len(tasks)) if outcomes[i].row is not None)
     failed = tuple({**dict(tasks[i].assignment), "error": outcomes[i].error}
                    for i in range(len(tasks)) if outcomes[i].row is None)
-    run = SweepRun(tuple((name, tuple(values)) for name, values in parsed), rows, failed)
-    _write_summary(world, run, out, storm_method, time.perf_counter() - total_start)
-    return run
+    return rows, failed
 
 
 # With --deception, after v_ne_p1_guaranteed (docs/semantics.md §11).
