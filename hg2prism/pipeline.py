@@ -338,13 +338,15 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     with _Clock() as exports:
         written = game_models.write_game_models(analysis, out)
     say(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
-    nash, nash_seconds = _nash_stage(analysis)
-    worth, deception_seconds = _deception_stage(checked)
+    with _Clock() as nash_clock:
+        nash = _nash_stage(analysis)
+    with _Clock() as deception_clock:
+        worth = _deception_stage(checked)
     with _Clock() as simulating:
         played = _simulations(checked, nash, worth, n_episodes, horizon, seed, show_progress)
     drawn, frames, drawing = _figures(world, out, analysis, played, horizon, seed, rule)
     timings = checked.results.timings.then(
-        exports=exports.seconds, nash=nash_seconds, deception=deception_seconds,
+        exports=exports.seconds, nash=nash_clock.seconds, deception=deception_clock.seconds,
         simulation=simulating.seconds).then(drawing)
     results = RunResults.extending(
         checked.results, timings=timings, v_ne=nash.v_ne,
@@ -362,9 +364,8 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
     return RunResult(checked, results, table)
 
 
-def _nash_stage(analysis: Analysis) -> tuple[NashBaseline, float]:
-    """The symmetric Nash baseline with its sound bracket (docs/semantics.md §7), reported, and
-    the seconds it took."""
+def _nash_stage(analysis: Analysis) -> NashBaseline:
+    """The symmetric Nash baseline with its sound bracket (docs/semantics.md §7), reported."""
     from hg2prism.analyses import baselines
 
     with _Clock() as clock:
@@ -377,11 +378,11 @@ def _nash_stage(analysis: Analysis) -> tuple[NashBaseline, float]:
     if nash.warn:
         warn(f"P1's extracted Nash strategy guarantees {nash.v_ne_p1_guaranteed:.6f}, "
                  f"{nash.shortfall:.2e} below V_NE (it is only locally optimal, docs/semantics.md §7)")
-    return nash, clock.seconds
+    return nash
 
 
-def _deception_stage(checked: CheckResult) -> tuple[DeceptionValues, float]:
-    """V_static and V_naive (docs/semantics.md §11), reported, and the seconds they took."""
+def _deception_stage(checked: CheckResult) -> DeceptionValues:
+    """V_static and V_naive (docs/semantics.md §11), reported."""
     from hg2prism.analyses import deception_value
 
     with _Clock() as clock:
@@ -390,7 +391,7 @@ def _deception_stage(checked: CheckResult) -> tuple[DeceptionValues, float]:
     say(f"deception: V_static = {worth.v_static:.6f}, V_naive = {worth.v_naive:.6f} "
         f"({worth.naive_chain.size} states), value of deception "
         f"{worth.value_of_deception:.6f} ({clock.seconds:.2f} s)")
-    return worth, clock.seconds
+    return worth
 
 
 @dataclass(frozen=True, eq=False)
