@@ -226,12 +226,12 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
         raise InputError(COMMAND_LINE, "--scheduler", "the cluster at --scheduler has "
                          "its own workers; leave out --workers")
     if world.types:         # adaptive deception: the prior is swept (docs/adaptive.md)
-        from hg2prism.experiments.adaptive import parse_weights
+        from hg2prism.experiments.adaptive import check_weights
 
         if args.param != ["weight"]:
             raise InputError(COMMAND_LINE, "--param", "a world with P2's types sweeps "
                              "--param weight (the first type's prior weight) only")
-        parse_weights(args.values[0])
+        check_weights(world, args.values[0], args.max_states)
         return
     # every point is guarded before the first is solved: all refused refuses the sweep
     sweep.check_grid(world, list(zip(args.param, args.values)), args.max_states)
@@ -336,13 +336,14 @@ def _adaptive(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
 def _sweep(args: argparse.Namespace, world: object, stage: Path) -> Outcome:
     from hg2prism.experiments import sweep
 
+    workers = args.workers if args.workers is not None else sweep.default_workers()
     if world.types:
         from hg2prism.experiments.adaptive import parse_weights, sweep_weights
 
         table, failed = sweep_weights(world, parse_weights(args.values[0]), stage,
-                                      args.storm_method)
+                                      args.storm_method, workers=workers,
+                                      scheduler=args.scheduler, max_states=args.max_states)
         return Outcome(table="\n".join(table), failed=failed)
-    workers = args.workers if args.workers is not None else sweep.default_workers()
     run = sweep.sweep_grid(world, list(zip(args.param, args.values)), stage,
                            storm_method=args.storm_method, workers=workers,
                            scheduler=args.scheduler, max_states=args.max_states,

@@ -5,10 +5,9 @@ from __future__ import annotations
 import functools
 import time
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -38,7 +37,7 @@ from hg2prism.outputs import write_bytes, write_chunks, write_json, write_text
 from hg2prism.model.world import World
 from hg2prism.results import (Analysis, CheckResult, CheckResults, DrawnEpisode, Parameters,
                               RunResult, RunResults, SimulatedRow, Simulations, StrategyObjective,
-                              provenance)
+                              Timings, provenance)
 
 if TYPE_CHECKING:
     from hg2prism.analyses.baselines import NashBaseline
@@ -51,16 +50,20 @@ if TYPE_CHECKING:
 MAX_BOUNDED_PAIRS = 50_000_000
 
 
-@contextmanager
-def _timed(timings: dict[str, float], stage: str) -> Iterator[None]:
-    start = time.perf_counter()
-    yield
-    timings[stage] = time.perf_counter() - start
+class _Clock:
+    """The seconds a stage takes: `seconds` once the `with` block is left."""
+
+    def __enter__(self) -> _Clock:
+        self.start = time.perf_counter()
+        self.seconds = 0.0
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.seconds = time.perf_counter() - self.start
 
 
 def analyse(world: World) -> Analysis:
-    timings: dict[str, float] = {}
-    with _timed(timings, "games"):
+    with _Clock() as games_clock:
         ts = build_transition_system(world)
         task = translate(world.formula, ts.label_names, ts.letters)
         hypotheses = [translate(h, ts.label_names, ts.letters) for h in world.hypotheses]
@@ -78,7 +81,7 @@ def analyse(world: World) -> Analysis:
                            pool.submit(perceptual_game, ts, dfa, world.rationality, shared))
                        for dfa, i in jobs}
             if ts.succ.size >= LONG_GAMES:      # seconds to minutes: say how it goes
-                _say_games_progress(futures, ts, timings)
+                _say_games_progress(futures, ts)
             games = [futures[i].result() for i in range(len(hypotheses))]
             leader = futures[-1].result()
         finally:    # a failed game (or Ctrl-C) does not wait for the games still queued
@@ -88,8 +91,9 @@ def analyse(world: World) -> Analysis:
         v_lead = probability(leader.values[ts.start_state, task.delta[task.initial, start_label]],
                              "V_lead")
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
-             f"({ts.n_states} TS states) in {timings['games']:.2f} s")
-    return Analysis(world, ts, task, games, inference, leader, v_lead, timings)
+             f"({ts.n_states} TS states) in {games_clock.seconds:.2f} s")
+    return Analysis(world, ts, task, games, inference, leader, v_lead,
+                    Timings().then(games=games_clock.seconds))
 
 
 # TS tables (state x P1's action x P2's action x outcome) from which the games take seconds:
@@ -98,7 +102,7 @@ def analyse(world: World) -> Analysis:
 LONG_GAMES = 5_000_000
 
 
-def _say_games_progress(futures: dict, ts: TransitionSystem, timings: dict[str, float]) -> None:
+def _say_games_progress(futures: dict, ts: TransitionSystem) -> None:
     from concurrent.futures import as_completed
 
     start = time.perf_counter()
@@ -118,13 +122,19 @@ def build_observer(world: World, games: list[PerceptualGame]) -> Observer:
 
 
 def generate(analysis: Analysis, out: Path) -> PrismModel:
-    start = time.perf_counter()
-    model = build_model(analysis.world, analysis.ts, analysis.task, analysis.games, analysis.inference)
-    prism, _ = write_model(model, out)
-    analysis.timings["generate"] = time.perf_counter() - start
+    """The hypergame's PRISM model, written into `out` (hypergame.prism, .props)."""
+    return _generate(analysis, out)[0]
+
+
+def _generate(analysis: Analysis, out: Path) -> tuple[PrismModel, float]:
+    """`generate`, and the seconds it took."""
+    with _Clock() as clock:
+        model = build_model(analysis.world, analysis.ts, analysis.task, analysis.games,
+                            analysis.inference)
+        prism, _ = write_model(model, out)
     say(f"generate: {prism.name} ({sum(model.commands.values())} commands) "
-             f"in {analysis.timings['generate']:.2f} s")
-    return model
+             f"in {clock.seconds:.2f} s")
+    return model, clock.seconds
 
 
 def emit(world: World, out: Path) -> PrismModel:
@@ -229,14 +239,13 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
     engine = engine or default_engine()
     bound = _objective_bound(world, objective, bound)
     analysis = analyse(world)
-    prism = generate(analysis, out)
+    prism, generating = _generate(analysis, out)
     say(f"storm: building and checking {PROPERTY} ({storm_method})")
     if storm_method not in engine.sound_methods:
         warn(f"Storm method {storm_method!r} is not sound: the deceptive value is not "
                  "certified to 1e-10")
     checked = engine.check(out / "hypergame.prism", PROPERTY, storm_method,
                            alongside=lambda model: read_model(model, prism, analysis))
-    analysis.timings.update(checked.timings)
     start = time.perf_counter()
     structure: ModelStructure = checked.alongside
     memory.trim()       # what reading Storm's model freed, before the strategy's arrays
@@ -265,7 +274,9 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
         steps = expected_steps(dtmc)
         for job in jobs:
             job.result()
-    analysis.timings["export"] = time.perf_counter() - start
+    # the Analysis check hands on carries the check's stages too (run goes on from them)
+    analysis = replace(analysis, timings=analysis.timings.then(
+        {"generate": generating, **checked.timings}, export=time.perf_counter() - start))
     if abs(steps.goal_probability - objective_value) > 1e-6:
         warn(f"the exported strategy reaches the goal with probability "
              f"{steps.goal_probability:.9f}, not the {objective} value {objective_value:.9f}")
@@ -282,7 +293,7 @@ def check(world: World, out: Path, storm_method: str = "sound", objective: str =
         storm_choices=checked.size[2],
         model_commands=dict(prism.commands),
         parameters=Parameters.of(world),
-        timings=dict(analysis.timings),   # a snapshot: run() goes on timing its own stages
+        timings=analysis.timings,
         objective=StrategyObjective(
             name=objective, bound=bound, value=objective_value,
             goal_probability=steps.goal_probability, expected_steps=steps.to_end,
@@ -323,17 +334,22 @@ def run(world: World, out: Path, episodes: int | None = None, horizon: int | Non
                              f"got {bound}")
         bound = horizon
     checked = check(world, out, storm_method, objective, bound)
-    analysis, timings = checked.analysis, checked.analysis.timings
-    with _timed(timings, "exports"):
+    analysis = checked.analysis
+    with _Clock() as exports:
         written = game_models.write_game_models(analysis, out)
     say(f"exports: wrote {', '.join(p.name for p in written if p.suffix == '.prism')}")
-    nash = _nash_stage(analysis)
-    worth = _deception_stage(checked)
-    with _timed(timings, "simulation"):
+    with _Clock() as nash_clock:
+        nash = _nash_stage(analysis)
+    with _Clock() as deception_clock:
+        worth = _deception_stage(checked)
+    with _Clock() as simulating:
         played = _simulations(checked, nash, worth, n_episodes, horizon, seed, show_progress)
-    drawn, frames = _figures(world, out, analysis, played, horizon, seed, rule)
+    drawn, frames, drawing = _figures(world, out, analysis, played, horizon, seed, rule)
+    timings = checked.results.timings.then(
+        exports=exports.seconds, nash=nash_clock.seconds, deception=deception_clock.seconds,
+        simulation=simulating.seconds).then(drawing)
     results = RunResults.extending(
-        checked.results, timings=dict(timings), v_ne=nash.v_ne,
+        checked.results, timings=timings, v_ne=nash.v_ne,
         v_ne_p1_guaranteed=nash.v_ne_p1_guaranteed, v_ne_bounds=nash.v_ne_bounds,
         v_static=worth.v_static, v_naive=worth.v_naive,
         value_of_deception=worth.value_of_deception,
@@ -352,12 +368,11 @@ def _nash_stage(analysis: Analysis) -> NashBaseline:
     """The symmetric Nash baseline with its sound bracket (docs/semantics.md §7), reported."""
     from hg2prism.analyses import baselines
 
-    timings = analysis.timings
-    with _timed(timings, "nash"):
+    with _Clock() as clock:
         nash = baselines.nash_baseline(analysis.ts, analysis.task)
     low, high = nash.v_ne_bounds
     say(f"nash: V_NE = {nash.v_ne:.6f} in [{low:.10f}, {high:.10f}], guaranteed by P1's "
-             f"stationary strategy {nash.v_ne_p1_guaranteed:.6f} ({timings['nash']:.2f} s)")
+             f"stationary strategy {nash.v_ne_p1_guaranteed:.6f} ({clock.seconds:.2f} s)")
     if nash.bracket_warn:
         warn(f"the bracket around V_NE is {high - low:.2e} wide (more than 1e-6)")
     if nash.warn:
@@ -370,13 +385,12 @@ def _deception_stage(checked: CheckResult) -> DeceptionValues:
     """V_static and V_naive (docs/semantics.md §11), reported."""
     from hg2prism.analyses import deception_value
 
-    timings = checked.analysis.timings
-    with _timed(timings, "deception"):
+    with _Clock() as clock:
         worth = deception_value.deception_values(checked.analysis,
                                                  checked.results.deceptive_value)
     say(f"deception: V_static = {worth.v_static:.6f}, V_naive = {worth.v_naive:.6f} "
         f"({worth.naive_chain.size} states), value of deception "
-        f"{worth.value_of_deception:.6f} ({timings['deception']:.2f} s)")
+        f"{worth.value_of_deception:.6f} ({clock.seconds:.2f} s)")
     return worth
 
 
@@ -431,16 +445,15 @@ def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValue
 
 
 def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horizon: int,
-             seed: int, rule: EpisodeRule) -> tuple[ChosenEpisode, int]:
+             seed: int, rule: EpisodeRule) -> tuple[ChosenEpisode, int, Timings]:
     """world.png, belief.png, completion.png (and .svg) and replay.gif of the episode `rule`
-    names (P2's belief as `analysis`'s observer holds it); the episode and the replay's
-    frames."""
+    names (P2's belief as `analysis`'s observer holds it); the episode, the replay's frames
+    and the seconds of the plots and the replay."""
     from hg2prism.analyses.episodes import belief_trace, choose_episode
     from hg2prism.report import plots, replay
     from hg2prism.report.tables import COMPLETION_ROWS
 
-    timings = analysis.timings
-    with _timed(timings, "plots"):
+    with _Clock() as plotting:
         drawn = choose_episode(played.analysis, played.strategy, horizon, seed, rule)
         trace = belief_trace(analysis.inference, drawn.steps)
         plots.world_figure(world, analysis.ts, drawn, trace, out / "world.png")
@@ -449,11 +462,11 @@ def _figures(world: World, out: Path, analysis: Analysis, played: _Played, horiz
             (row.information, played.summaries[row.key], played.within[row.key])
             for row in COMPLETION_ROWS], out / "completion.png")
     say(f"plots: {drawn.describe()}: seed {drawn.seed}, {drawn.n_steps} steps, {drawn.outcome}")
-    with _timed(timings, "replay"):
+    with _Clock() as replaying:
         frames = replay.replay_gif(world, analysis.ts, drawn, trace, out / "replay.gif")
-    say(f"replay: replay.gif, {frames} frames ({timings['replay']:.2f} s)")
+    say(f"replay: replay.gif, {frames} frames ({replaying.seconds:.2f} s)")
     _explorer(world, out, analysis, played, drawn, horizon, seed)
-    return drawn, frames
+    return drawn, frames, Timings().then(plots=plotting.seconds, replay=replaying.seconds)
 
 
 def _explorer(world: World, out: Path, analysis: Analysis, played: _Played,

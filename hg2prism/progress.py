@@ -2,8 +2,9 @@
 
 The library reports each stage at INFO level (warnings at WARNING) on the `hg2prism` logger and
 prints nothing by itself: a notebook sees the reports after `logging.basicConfig(level=
-logging.INFO)`, and the command line shows them on stderr (`on_stderr`). Long simulations draw
-a bar on stderr only when asked to (`progress=True`).
+logging.INFO)`, and the command line shows them on stderr (`on_stderr`). Long simulations and
+sweeps draw a bar on stderr (`Bar`, the one progress bar) only when asked to (`progress=True`,
+`show_progress=True`).
 """
 
 from __future__ import annotations
@@ -125,15 +126,26 @@ def replay_warning(message: str) -> None:
     LOGGER.warning(message)
 
 
+def bar_text(done: int, total: int, width: int) -> str:
+    """`done` of `total` as a bar of `width` characters: ``#####.....``."""
+    filled = int(round(width * min(done, total) / max(total, 1)))
+    return "#" * filled + "." * (width - filled)
+
+
 class Bar:
-    """A text progress bar of episodes on stderr, redrawn at most ~20 times on a terminal; a
-    log (not a terminal) gets the final line alone."""
+    """The package's one progress bar on stderr, of `total` units (episodes, sweep points),
+    drawn only when asked to (`enabled`). On a terminal, `update` redraws it in place at most
+    ~20 times and `pending` shows the unit under way until its line replaces it; `finished`
+    writes a line per finished unit (``head (3/8) [###.....]: detail``) on any stream, and
+    `close` ends the bar (a log, not a terminal, gets the final line alone)."""
 
     WIDTH = 30
     UPDATES = 20
 
-    def __init__(self, label: str, total: int, enabled: bool) -> None:
+    def __init__(self, label: str, total: int, enabled: bool, unit: str = "episodes",
+                 width: int = WIDTH) -> None:
         self.label, self.total, self.enabled = label, max(int(total), 1), enabled
+        self.unit, self.width = unit, width
         self.next_at = 0
         self.stream = sys.stderr
         self.live = enabled and self.stream.isatty()
@@ -142,12 +154,29 @@ class Bar:
         if not self.live or done < self.next_at:
             return
         fraction = min(done / self.total, 1.0)
-        filled = int(round(fraction * self.WIDTH))
-        self.stream.write(f"\r{self.label}: [{'#' * filled}{'.' * (self.WIDTH - filled)}] "
-                          f"{fraction:4.0%} {done}/{self.total} episodes")
+        self.stream.write(f"\r{self.label}: [{bar_text(done, self.total, self.width)}] "
+                          f"{fraction:4.0%} {done}/{self.total} {self.unit}")
         self.stream.flush()
         step = max(1, -(-self.total // self.UPDATES))
         self.next_at = (done // step + 1) * step
+
+    @contextmanager
+    def pending(self, text: str) -> Iterator[None]:
+        """On a terminal, ``text ...`` while the body runs, then the cursor back to the line's
+        start (the unit's `finished` line writes over it)."""
+        if self.live:
+            self.stream.write(f"{text} ...")
+            self.stream.flush()
+        yield
+        if self.live:
+            self.stream.write("\r")
+
+    def finished(self, done: int, head: str, detail: str) -> None:
+        """The line of a finished unit, the `done`-th: ``head (done/total) [bar]: detail``."""
+        if self.enabled:
+            self.stream.write(f"{head} ({done}/{self.total}) "
+                              f"[{bar_text(done, self.total, self.width)}]: {detail}\n")
+            self.stream.flush()
 
     def close(self, seconds: float) -> None:
         if self.enabled:
@@ -156,5 +185,5 @@ class Bar:
                 self.update(self.total)
                 self.stream.write(f" in {seconds:.2f} s\n")
             else:
-                self.stream.write(f"{self.label}: {self.total} episodes in {seconds:.2f} s\n")
+                self.stream.write(f"{self.label}: {self.total} {self.unit} in {seconds:.2f} s\n")
             self.stream.flush()

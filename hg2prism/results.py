@@ -16,7 +16,8 @@ Probabilities are in [0, 1] (docs/semantics.md §10), sizes are counts, times ar
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass, field, fields
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -35,7 +36,7 @@ if TYPE_CHECKING:
     from hg2prism.strategy.policy import Policy
     from hg2prism.strategy.records import RecordExtras, Strategy
 
-__all__ = ["Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObjective", "CheckResults",
+__all__ = ["Timings", "Analysis", "CheckResult", "RunResult", "Parameters", "StrategyObjective", "CheckResults",
            "SimulatedRow", "Simulations", "DrawnEpisode", "RunResults", "provenance"]
 
 TIMING_DIGITS = 4
@@ -162,7 +163,36 @@ class StrategyObjective:
                 "expected_steps_to_goal": self.expected_steps_to_goal}
 
 
-def _timings_json(timings: dict[str, float]) -> dict[str, float]:
+@dataclass(frozen=True)
+class Timings(Mapping):
+    """Seconds per stage, in the order the stages ran: a read-only mapping (stage -> seconds).
+    A stage adds its time by making new Timings (`then`), so that a value handed on never
+    changes after it is built."""
+
+    stages: tuple[tuple[str, float], ...] = ()
+
+    def __getitem__(self, stage: str) -> float:
+        for name, seconds in self.stages:
+            if name == stage:
+                return seconds
+        raise KeyError(stage)
+
+    def __iter__(self) -> Iterator[str]:
+        return (name for name, _ in self.stages)
+
+    def __len__(self) -> int:
+        return len(self.stages)
+
+    def then(self, more: Mapping[str, float] | None = None, /, **seconds: float) -> Timings:
+        """These timings followed by `more`'s and `seconds`' stages (a stage timed again keeps
+        its place and takes the new time, as a dict's key does)."""
+        merged = dict(self.stages)
+        merged.update(more or {})
+        merged.update(seconds)
+        return Timings(tuple(merged.items()))
+
+
+def _timings_json(timings: Mapping[str, float]) -> dict[str, float]:
     return {stage: round(seconds, TIMING_DIGITS) for stage, seconds in timings.items()}
 
 
@@ -188,9 +218,9 @@ class CheckResults:
     model_commands: dict[str, int]  # hypergame.prism: module name -> number of commands
     parameters: Parameters
     # Seconds per stage, in the order the stages ran: games, generate, parse, build, check,
-    # export (and with `run`: exports, nash, simulation, plots, replay). Unrounded here, rounded in
-    # to_json(); a copy, not the pipeline's live dict.
-    timings: dict[str, float]
+    # export (and with `run`: exports, nash, deception, simulation, plots, replay). Unrounded
+    # here, rounded in to_json(); read-only.
+    timings: Timings
     objective: StrategyObjective    # what the exported strategy optimises, and its timing
 
     def to_json(self) -> dict:
@@ -325,7 +355,7 @@ class RunResults(CheckResults):
     episode: DrawnEpisode | None = None     # the episode world.png and replay.gif draw
 
     @classmethod
-    def extending(cls, check: CheckResults, *, timings: dict[str, float], v_ne: float,
+    def extending(cls, check: CheckResults, *, timings: Timings, v_ne: float,
                   v_ne_p1_guaranteed: float, v_ne_bounds: tuple[float, float],
                   v_static: float, v_naive: float, value_of_deception: float,
                   simulation: Simulations, episode: DrawnEpisode | None = None) -> RunResults:
@@ -367,7 +397,7 @@ class Analysis:
     inference: Observer       # P2's inference: CUSUM (§5) or Bayesian (§12)
     leader: GameSolution      # the symmetric leader game G(phi), DFA state tracked (docs/semantics.md §7)
     v_lead: float
-    timings: dict[str, float] = field(default_factory=dict)
+    timings: Timings = Timings()    # the analysis's stage (games); check's Analysis: check's too
 
 
 @dataclass(frozen=True, eq=False)

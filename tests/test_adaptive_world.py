@@ -318,8 +318,9 @@ def test_a_weight_that_fails_is_recorded_and_the_others_go_on(tmp_path, monkeypa
 
     monkeypatch.setattr(adaptive, "check_adaptive", failing_at_half)
     world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    # one worker: the points run in this process, where the failing solve is patched in
     status = cli.main(["sweep", str(world), "--param", "weight", "--values", "0.5", "1",
-                       "--out", str(tmp_path / "s")])
+                       "--out", str(tmp_path / "s"), "--workers", "1"])
     assert status == 1
     err = capsys.readouterr().err.splitlines()
     assert [line for line in err if "error" in line] == [
@@ -331,3 +332,57 @@ def test_a_weight_that_fails_is_recorded_and_the_others_go_on(tmp_path, monkeypa
     assert [row["weight"] for row in summary["rows"]] == [1.0]
     assert summary["values"] == [0.5, 1.0] and summary["parameters"] == ["weight"]
     assert (tmp_path / "s" / "sweep.png").exists()
+
+
+def test_the_weight_sweep_runs_on_the_sweeps_driver(tmp_path, capsys):
+    """`sweep --param weight` goes through experiments/sweep.py's driver: serially and on a
+    2-worker Dask cluster it writes the same sweep.json (timings aside), sweep.csv and figures,
+    with a progress line per weight counting the points; no folder per weight."""
+    import json
+    from pathlib import Path
+
+    from hg2prism import cli
+
+    world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    outs = {}
+    for workers in ("1", "2"):
+        out = tmp_path / f"w{workers}"
+        status = cli.main(["sweep", str(world), "--param", "weight", "--values", "0", "0.5",
+                           "--out", str(out), "--workers", workers])
+        assert status == 0
+        lines = [line for line in capsys.readouterr().err.splitlines()
+                 if line.startswith("sweep weight=")]
+        # one line per weight as it finishes (on Dask, in any order), counting the points
+        assert [line.split(" ")[2] for line in lines] == ["(1/2)", "(2/2)"], lines
+        assert sorted(line.split(" ")[1] for line in lines) == ["weight=0", "weight=0.5"]
+        assert any("V_adapt 0.8712, V_oracle 0.8750, V_commit(jumpy) 0.5000, "
+                   "V_commit(stubborn) 0.7500" in line for line in lines), lines
+        assert sorted(p.name for p in out.iterdir()) == ["sweep.csv", "sweep.json",
+                                                         "sweep.png", "sweep.svg"]
+        summary = json.loads((out / "sweep.json").read_text())
+        summary.pop("seconds")
+        outs[workers] = (summary, *((out / f).read_bytes() for f in ("sweep.csv", "sweep.svg")))
+    assert outs["1"] == outs["2"]
+    assert [row["weight"] for row in outs["1"][0]["rows"]] == [0.0, 0.5]
+
+
+def test_the_weight_sweep_has_the_size_guard(tmp_path, capsys):
+    """--max-states bounds every weight's adaptive hypergame, as it bounds a sweep's points:
+    refused at every weight, the sweep is one error line (exit status 2) and writes nothing."""
+    from pathlib import Path
+
+    from hg2prism import cli
+    from hg2prism.model import sizeguard
+    from hg2prism.worldfile import load_world
+
+    from hg2prism.experiments.adaptive import with_first_weight
+
+    world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    below = min(sizeguard.estimate_adaptive(with_first_weight(load_world(world), weight))
+                for weight in (0.5, 1.0)) - 1
+    status = cli.main(["sweep", str(world), "--param", "weight", "--values", "0.5", "1",
+                       "--out", str(tmp_path / "s"), "--max-states", str(below)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert err[0].startswith("hg2prism: error: ") and f"limit of {below:,}" in err[0], err
+    assert not (tmp_path / "s").exists()

@@ -86,3 +86,38 @@ def test_run_is_reproducible(tmp_path: Path) -> None:
     b = pipeline.run(world, tmp_path / "b", episodes=500, horizon=50, seed=3, show_progress=False)
     assert a.results.simulation == b.results.simulation
     assert (tmp_path / "a" / "table.md").read_text() == (tmp_path / "b" / "table.md").read_text()
+
+
+def test_timings_are_read_only_and_each_output_keeps_its_stages(tmp_path: Path) -> None:
+    """Analysis.timings (and a check's or run's results' timings) are read-only: a stage adds
+    its time by making new timings, so an Analysis never changes after it is built (generate
+    once added its time to the Analysis it was given). results.json keeps every stage, in the
+    order they ran, each time at most the wall time measured around the whole call."""
+    import time
+
+    world = _world(SAMPLE[0], tmp_path)
+    analysis = pipeline.analyse(world)
+    assert list(analysis.timings) == ["games"]
+    pipeline.generate(analysis, tmp_path / "emitted")
+    assert list(analysis.timings) == ["games"]
+    with pytest.raises(TypeError):
+        analysis.timings["generate"] = 0.0              # type: ignore[index]
+    check_stages = ["games", "generate", "parse", "build", "check", "export"]
+    start = time.perf_counter()
+    checked = pipeline.check(world, tmp_path / "check")
+    wall = time.perf_counter() - start
+    saved = json.loads((tmp_path / "check" / "results.json").read_text())["timings"]
+    assert list(saved) == list(checked.analysis.timings) == check_stages
+    assert dict(checked.results.timings) == dict(checked.analysis.timings)
+    assert all(0 <= seconds for seconds in saved.values()) and sum(saved.values()) <= wall
+    start = time.perf_counter()
+    ran = pipeline.run(world, tmp_path / "run", episodes=50, horizon=20, seed=1,
+                       show_progress=False)
+    wall = time.perf_counter() - start
+    saved = json.loads((tmp_path / "run" / "results.json").read_text())["timings"]
+    assert list(saved) == check_stages + ["exports", "nash", "deception", "simulation",
+                                          "plots", "replay"]
+    assert list(ran.check.analysis.timings) == check_stages     # the check's, unchanged
+    assert all(0 <= seconds for seconds in saved.values()) and sum(saved.values()) <= wall
+    with pytest.raises(TypeError):
+        ran.results.timings["replay"] = 0.0             # type: ignore[index]

@@ -268,6 +268,34 @@ def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsy
     assert capsys.readouterr().err == ""
 
 
+def test_sweep_progress_is_the_package_bar(tmp_path: Path, capsys, monkeypatch) -> None:
+    """The sweep draws its progress with progress.Bar, the package's one bar: on a terminal
+    each point is shown under way ("sweep window=1 ...", then a carriage return) and replaced
+    by its line with the count of points and the bar."""
+    import sys
+
+    from hg2prism import progress
+
+    made = []
+
+    class Recorded(progress.Bar):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    monkeypatch.setattr(progress, "Bar", Recorded)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    world = load_world(write_world(tmp_path, "small", SMALL))
+    sweep.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
+    err = capsys.readouterr().err
+    assert [(bar.unit, bar.total, bar.live) for bar in made] == [("points", 2, True)]
+    assert err.startswith("sweep window=1 ...\rsweep window=1 (1/2) [##########..........]: "
+                          "deceptive "), err
+    assert "\nsweep window=3 ...\rsweep window=3 (2/2) [####################]: " in err
+    assert progress.bar_text(1, 2, 20) == "#" * 10 + "." * 10
+    assert progress.bar_text(7, 3, 4) == "####"             # never past the end
+
+
 @pytest.mark.parametrize("parameter, values, key, fragment", [
     ("colour", [0.1], "--param", "unknown parameter 'colour'"),
     ("slip", [0.5], "--values", "slip value 0.5 must be a number in [0, 0.5)"),

@@ -23,7 +23,8 @@ from hg2prism.analyses.simulation import leader_fallback
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
 from hg2prism.engines.engine import BuiltModel, ModelChecker
-from hg2prism.errors import COMMAND_LINE, probability
+from hg2prism.errors import COMMAND_LINE, InputError, probability
+from hg2prism.experiments.values import ValueList, number, parse_values
 from hg2prism.model.world import World
 from hg2prism.outputs import write_csv, write_json, write_text
 from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
@@ -408,66 +409,96 @@ def with_first_weight(world: World, weight: float) -> World:
     return replace(world, types=types)
 
 
+# --values of --param weight: numbers in [0, 1]
+WEIGHTS = ValueList("--values", "weight", "a number in [0, 1]",
+                    number(float, 0.0, maximum=1.0),
+                    not_form="a {name} is {expected}, got {value!r}",
+                    outside="a {name} is {expected}, got {value!r}", repeated=None)
+
+
 def parse_weights(values: list[str]) -> list[float]:
     """--values of --param weight: numbers in [0, 1]."""
-    from hg2prism.errors import InputError
+    return parse_values(WEIGHTS, values)
 
-    weights = []
-    for value in values:
-        try:
-            weight = float(value)
-        except ValueError:
-            weight = float("nan")
-        if not 0.0 <= weight <= 1.0:
-            raise InputError(COMMAND_LINE, "--values", f"a weight is a number in [0, 1], "
-                             f"got {value!r}")
-        weights.append(weight)
+
+def check_weights(world: World, values: list[str], max_states: int | None = None
+                  ) -> list[float]:
+    """Everything a weight sweep checks before solving: the weights (`parse_weights`) and the
+    size guard over them, which refuses the sweep only when it refuses every weight."""
+    from hg2prism.experiments.sweep import guard_points
+
+    weights = parse_weights(values)
+    guard_points(world, [{"weight": weight} for weight in weights], max_states, at=_at_weight)
     return weights
 
 
 def sweep_weights(world: World, weights: list[float], out: Path,
-                  storm_method: str = "sound") -> tuple[list[str], tuple[dict, ...]]:
+                  storm_method: str = "sound", *, show_progress: bool = True, workers: int = 1,
+                  scheduler: str | None = None, max_states: int | None = None
+                  ) -> tuple[list[str], tuple[dict, ...]]:
     """V_adapt, V_oracle and every V_commit against the first type's prior weight: sweep.json,
-    sweep.csv, sweep.{png,svg}. A weight whose solve fails is recorded under `failed` (its
-    weight and the one-line error, as `hg2prism sweep` records a point) and the others go on.
-    Returns the summary table's lines and the failed points."""
-    import tempfile
-
-    from hg2prism.experiments.sweep import point_error, results_sound
+    sweep.csv, sweep.{png,svg}. The weights are points of a sweep, run by its driver
+    (experiments/sweep.py:run_points: serially or on Dask, a progress line per weight, the size
+    guard with `max_states`); a weight whose solve fails is recorded under `failed` (its weight
+    and the one-line error) and the others go on. Returns the summary table's lines and the
+    failed points."""
+    from hg2prism.experiments import sweep
     from hg2prism.report.adaptive_plot import weight_sweep_figure
 
+    if workers < 1:
+        raise InputError(COMMAND_LINE, "--workers", f"must be at least 1, got {workers}")
     names = [t.name for t in world.types]
-    rows, failed = [], []
     start = time.perf_counter()
-    for weight in weights:
-        say(f"sweep: weight of {names[0]} = {weight:g}")
-        try:
-            with tempfile.TemporaryDirectory(prefix="hg2prism-weight-") as scratch:
-                r = check_adaptive(with_first_weight(world, weight), Path(scratch) / "point",
-                                   storm_method).results
-        except Exception as err:     # as `hg2prism sweep`: one point's failure loses no other
-            failed.append({"weight": weight, "error": point_error(err)})
-            say(f"sweep: weight of {names[0]} = {weight:g}: failed: {failed[-1]['error']}")
-            continue
-        rows.append({"weight": weight, "v_adapt": r["v_adapt"], "v_oracle": r["v_oracle"],
-                     "v_commit": {t["name"]: t["v_commit"] for t in r["types"]},
-                     "value_of_adaptivity": r["value_of_adaptivity"],
-                     "cost_of_not_knowing": r["cost_of_not_knowing"]})
+    points = [{"weight": weight} for weight in weights]
+    sweep.guard_points(world, points, max_states, at=_at_weight)
+    tasks = sweep.point_tasks(world, points, storm_method, max_states, at=_at_weight,
+                              solver=weight_point)
+    with each_warning_once():
+        rows, failed = sweep.run_points(tasks, out, show_progress, workers, scheduler,
+                                        _weight_line)
     write_json(out / "sweep.json", {
         **provenance(world), "parameter": "weight",
         "values": weights, "parameters": ["weight"], "type": names[0],
-        "storm_method": storm_method, "sound": results_sound(storm_method), "rows": rows,
-        "failed": failed, "seconds": round(time.perf_counter() - start, 3)})
+        "storm_method": storm_method, "sound": sweep.results_sound(storm_method),
+        "rows": list(rows), "failed": list(failed),
+        "seconds": round(time.perf_counter() - start, 3)})
     write_csv(out / "sweep.csv",
               ["weight", "v_adapt", "v_oracle"] + [f"v_commit_{n}" for n in names],
               ([row["weight"], row["v_adapt"], row["v_oracle"], *row["v_commit"].values()]
                for row in rows))
     if rows:
-        weight_sweep_figure(world.name, names, rows, out / "sweep")
+        weight_sweep_figure(world.name, names, list(rows), out / "sweep")
     table = [f"{world.name}: adaptive deception against the prior weight of {names[0]}", "",
              "| weight | V_adapt | V_oracle | " + " | ".join(f"V_commit({n})" for n in names)
              + " |", "|---" * (3 + len(names)) + "|"]
     for row in rows:
         table.append(f"| {row['weight']:g} | {row['v_adapt']:.6f} | {row['v_oracle']:.6f} | "
                      + " | ".join(f"{v:.6f}" for v in row["v_commit"].values()) + " |")
-    return table, tuple(failed)
+    return table, failed
+
+
+def _at_weight(world: World, point: dict) -> World:
+    """A point of the weight sweep: the world with its first type's prior weight."""
+    return with_first_weight(world, point["weight"])
+
+
+def weight_point(world: World, task):
+    """One weight of the sweep, where it runs (this process or a Dask worker): adaptive
+    deception checked in a scratch folder, its values (no files: the weight sweep writes
+    none per point)."""
+    import tempfile
+
+    from hg2prism.experiments.sweep import Solved
+
+    with tempfile.TemporaryDirectory(prefix="hg2prism-weight-") as scratch:
+        r = check_adaptive(world, Path(scratch) / "point", task.storm_method).results
+    return Solved({"v_adapt": r["v_adapt"], "v_oracle": r["v_oracle"],
+                   "v_commit": {t["name"]: t["v_commit"] for t in r["types"]},
+                   "value_of_adaptivity": r["value_of_adaptivity"],
+                   "cost_of_not_knowing": r["cost_of_not_knowing"]})
+
+
+def _weight_line(row: dict) -> str:
+    """A weight's progress line, after the weight and the count."""
+    return (f"V_adapt {row['v_adapt']:.4f}, V_oracle {row['v_oracle']:.4f}, "
+            + ", ".join(f"V_commit({name}) {v:.4f}" for name, v in row["v_commit"].items()))

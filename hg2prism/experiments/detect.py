@@ -70,12 +70,12 @@ def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | No
         return fallback, None
     if delta is None:
         return fallback, DEFAULT_FALLBACK_DELTA
-    from hg2prism.experiments.robust import parse_deltas
+    from dataclasses import replace
 
-    try:
-        (parsed,) = parse_deltas([delta])
-    except InputError as err:
-        raise InputError(COMMAND_LINE, "--fallback-delta", err.reason) from None
+    from hg2prism.experiments.robust import DELTAS
+    from hg2prism.experiments.values import parse_values
+
+    (parsed,) = parse_values(replace(DELTAS, option="--fallback-delta", example=None), [delta])
     return fallback, parsed
 
 

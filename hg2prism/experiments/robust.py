@@ -19,7 +19,6 @@ Writes ``OUT/robust.json``, ``OUT/robust.csv``, ``OUT/robust.png`` and ``OUT/rob
 
 from __future__ import annotations
 
-import math
 import tempfile
 import time
 from collections.abc import Sequence
@@ -33,6 +32,7 @@ from hg2prism import progress
 from hg2prism.engines import default
 from hg2prism.engines.engine import ModelChecker
 from hg2prism.errors import COMMAND_LINE, InputError, probability
+from hg2prism.experiments.values import ValueList, number, parse_values
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes, write_csv, write_json
 from hg2prism.strategy.policy import Policy
@@ -50,25 +50,18 @@ _CSV_COLUMNS = ("robust_value", "nominal_worst_case", "robust_strategy_nominal_v
                 "storm_states", "storm_robust_value_eps", "seconds")
 
 
+# --deltas: distinct budgets in [0, 1)
+DELTAS = ValueList("--deltas", "deviation budget", "in [0, 1)", number(float, 0.0, below=1.0),
+                   empty="expected at least one {name} {expected}",
+                   not_form="{value!r} is not a {name} {expected}",
+                   outside="{value!r} is not a {name} {expected}",
+                   repeated="{value} is repeated; expected distinct budgets",
+                   example="0.1 0.2")
+
+
 def parse_deltas(values: Sequence[object]) -> list[float]:
     """Distinct budgets in [0, 1), as typed on the command line; InputError (key --deltas)."""
-    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(COMMAND_LINE, "--deltas",
-                         "expected at least one deviation budget in [0, 1)")
-    parsed: list[float] = []
-    for value in values:
-        try:
-            number = float(value) if not isinstance(value, bool) else math.nan
-        except (TypeError, ValueError):
-            number = math.nan
-        if not (math.isfinite(number) and 0.0 <= number < 1.0):
-            raise InputError(COMMAND_LINE, "--deltas",
-                             f"{value!r} is not a deviation budget in [0, 1)")
-        if number in parsed:
-            raise InputError(COMMAND_LINE, "--deltas",
-                             f"{value} is repeated; expected distinct budgets")
-        parsed.append(number)
-    return parsed
+    return parse_values(DELTAS, values)
 
 
 @dataclass(frozen=True, eq=False)

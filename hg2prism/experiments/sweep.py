@@ -40,7 +40,6 @@ from __future__ import annotations
 import itertools
 import math
 import os
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -50,6 +49,7 @@ from typing import Any
 
 from hg2prism.errors import COMMAND_LINE, InputError
 from hg2prism import frontends
+from hg2prism.experiments.values import NOT_FORM, OUTSIDE, ValueList, number, parse_values
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import ObserverKind
@@ -60,7 +60,7 @@ from hg2prism.outputs import csv_text, write_bytes, write_json, write_text
 from hg2prism.results import Parameters, provenance
 
 __all__ = ["SweepParameter", "sweep_parameters", "owned_pattern", "parse_sweep_values",
-           "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "solve_point", "SweepRun", "sweep",
+           "parse_sweep_grid", "sweep_world", "sweep_point", "standing_at", "PointTask", "PointOutcome", "Solved", "solve_point", "check_point", "point_tasks", "run_points", "guard_points", "SweepRun", "sweep",
            "sweep_grid", "check_grid", "default_workers", "sweep_summary_lines", "point_label"]
 
 
@@ -74,7 +74,8 @@ Value = Any     # int | float today; a parameter's parser decides (e.g. a name, 
 @dataclass(frozen=True)
 class SweepParameter:
     """One sweepable parameter. `parse` turns a value as given (a command-line string or a
-    Python value) into the parameter's value, raising ValueError with what is expected; `apply`
+    Python value) into the parameter's value, raising ValueError (experiments/values.py: NOT_FORM
+    or OUTSIDE, the reason's words); `apply`
     returns the world with that value (InputError when the value does not fit this world);
     `moves_traps` says the standing traps must be worked out again (docs/semantics.md §7, Sweeps)."""
 
@@ -98,46 +99,13 @@ class SweepParameter:
                              f"traps; {world.name} gives P2's actions ([adversary] actions)")
 
 
-def _number(kind: type, minimum: float, exclusive: bool, below: float | None = None,
-            at_most: bool = False) -> Callable[[object], int | float]:
-    """A parser of ints or floats >= minimum (> when exclusive), and < below when given (<=
-    when `at_most`)."""
-    def parse(value: object) -> int | float:
-        if isinstance(value, bool):
-            raise ValueError("must be")
-        number: float
-        if isinstance(value, (int, float)):
-            number = value
-        elif isinstance(value, str):
-            text = value.strip()
-            try:
-                number = int(text) if kind is int else float(text)
-            except ValueError:
-                raise ValueError("is not") from None
-        else:
-            raise ValueError("must be")
-        if kind is int:
-            if isinstance(number, float):
-                raise ValueError("must be")
-            number = int(number)
-        else:
-            number = float(number)
-            if not math.isfinite(number):
-                raise ValueError("must be")
-        if number < minimum or (exclusive and number == minimum) or (
-                below is not None and (number > below if at_most else number >= below)):
-            raise ValueError("must be")
-        return number
-    return parse
-
-
 def _field(name: str) -> Callable[[World, Value], World]:
     return lambda world, value: replace(world, **{name: value})
 
 
 def _observer_kind(value: object) -> str:
     if value not in KINDS:
-        raise ValueError("must be")
+        raise ValueError(OUTSIDE)
     return str(value)
 
 
@@ -149,9 +117,9 @@ def _numbers(normalise: Callable[[list[float]], object] | None) -> Callable[[obj
         try:
             numbers = [float(p) for p in parts]           # type: ignore[union-attr]
         except (TypeError, ValueError):
-            raise ValueError("is not") from None
+            raise ValueError(NOT_FORM) from None
         if not numbers or not all(math.isfinite(p) and p > 0 for p in numbers):
-            raise ValueError("must be")
+            raise ValueError(OUTSIDE)
         return tuple(numbers) if normalise is None else normalise(numbers)
     return parse
 
@@ -212,7 +180,7 @@ def _with_setting(name: str) -> Callable[[World, Value], World]:
 def _observer_parameters() -> list[SweepParameter]:
     """The settings of the registered observers that a sweep may vary (Setting.swept), each
     once (a key two kinds share is swept by the first)."""
-    parsers = {"number": lambda s: _number(s.kind, s.minimum, s.exclusive),
+    parsers = {"number": lambda s: number(s.kind, s.minimum, s.exclusive),
                "word": lambda s: _word, "numbers": lambda s: _numbers(s.normalise)}
     found: dict[str, SweepParameter] = {}
     for kind in KINDS.values():
@@ -228,7 +196,7 @@ def _word(value: object) -> str:
     """A setting's value that is a word (the Bayesian observer's decision); the observer reads
     and checks it when it is applied."""
     if not isinstance(value, str) or not value.strip():
-        raise ValueError("must be")
+        raise ValueError(OUTSIDE)
     return value.strip()
 
 
@@ -267,21 +235,22 @@ def _built_table() -> dict[str, SweepParameter]:
         # first: the other parameters apply to the observer it chooses
         SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
                        _with_observer),
-        SweepParameter("delay", "an integer >= 0", _number(int, 0, False), _field("delay"),
+        SweepParameter("delay", "an integer >= 0", number(int, 0, False), _field("delay"),
                        moves_traps=True),
-        SweepParameter("window", "an integer >= 1", _number(int, 1, False), _field("window")),
+        SweepParameter("window", "an integer >= 1", number(int, 1, False), _field("window")),
         *_observer_parameters(),       # the observers' own: threshold, prior, decision
-        SweepParameter("rationality", "a number > 0", _number(float, 0.0, True),
+        SweepParameter("rationality", "a number > 0", number(float, 0.0, True),
                        _field("rationality")),
         *(SweepParameter(setting.name, setting.expected,
-                         _number(setting.kind, setting.minimum, setting.exclusive,
-                                 setting.below, setting.at_most),
+                         number(setting.kind, setting.minimum, setting.exclusive,
+                                None if setting.at_most else setting.below,
+                                setting.below if setting.at_most else None),
                          setting.apply, front_end=kind)
           for kind, setting in frontends.sweep_settings()),
         SweepParameter("traps", "an integer >= 1 (at most the trap candidates)",
-                       _number(int, 1, False), _with_traps, moves_traps=True),
+                       number(int, 1, False), _with_traps, moves_traps=True),
         SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
-                       _number(int, 0, False), _with_first_guess),
+                       number(int, 0, False), _with_first_guess),
     ):
         if parameter.name in table:
             raise ValueError(f"sweep parameter {parameter.name!r} is defined twice (a front "
@@ -320,20 +289,11 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _parse_value(parameter: str, value: object) -> Value:
+def _values_of(parameter: str) -> ValueList:
+    """--values of `parameter`, in the sweep's wording."""
     spec = sweep_parameters()[parameter]
-    shown = repr(value) if not isinstance(value, str) else value
-    try:
-        return spec.parse(value)
-    except ValueError as err:
-        if str(err) == "is not":
-            # "1,4" for 1 4: the values are separate arguments (a prior's weights take commas)
-            apart = ("; separate the values with spaces (--values 1 4)"
-                     if isinstance(value, str) and "," in value else "")
-            raise InputError(COMMAND_LINE, "--values",
-                             f"{parameter} value {shown!r} is not {spec.expected}{apart}") from None
-        raise InputError(COMMAND_LINE, "--values",
-                         f"{parameter} value {shown} must be {spec.expected}") from None
+    return ValueList("--values", f"{parameter} value", spec.expected, spec.parse,
+                     empty=f"expected at least one value of {parameter} ({{expected}})")
 
 
 def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
@@ -344,16 +304,7 @@ def parse_sweep_values(parameter: str, values: Sequence[object]) -> list[Value]:
         raise InputError(COMMAND_LINE, "--param",
                          f"unknown parameter {parameter!r}; expected one of "
                          + ", ".join(sweep_parameters()) + " (weight: for a world with P2's types)")
-    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence) or not values:
-        raise InputError(COMMAND_LINE, "--values", f"expected at least one value of {parameter} "
-                                           f"({sweep_parameters()[parameter].expected})")
-    parsed = [_parse_value(parameter, v) for v in values]
-    for i, v in enumerate(parsed):
-        if v in parsed[:i]:
-            raise InputError(COMMAND_LINE, "--values",
-                             f"{parameter} value {v} is repeated; expected "
-                             "distinct values")
-    return parsed
+    return parse_values(_values_of(parameter), values)
 
 
 def parse_sweep_grid(grid: Sequence[tuple[str, Sequence[object]]]
@@ -443,11 +394,6 @@ def _folder(assignment: dict[str, Value]) -> str:
     return "__".join(f"{name}_{_value_text(value)}" for name, value in assignment.items())
 
 
-def _bar(done: int, total: int, width: int = 20) -> str:
-    filled = int(round(width * done / max(total, 1)))
-    return "#" * filled + "." * (width - filled)
-
-
 _CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states",
                 "transitions", "storm_states", "storm_transitions", "seconds")
 
@@ -486,6 +432,20 @@ class PointTask:
     # the observer kinds registered at run time where a parallel sweep runs, which a worker
     # process (having only the built-in kinds) registers (tests/test_observer_registry.py)
     observer_kinds: tuple[ObserverKind, ...] = ()
+    # what solving the point's world is (a module-level function, so that it reaches a Dask
+    # worker by name): None for the hypergame's check and Nash baseline (`check_point`);
+    # adaptive deception's weight sweep gives its own (experiments/adaptive.py)
+    solver: Callable[[World, PointTask], Solved] | None = None
+
+
+@dataclass(frozen=True)
+class Solved:
+    """What a point's solver hands back: its row after the point's parameters, its files (path
+    relative to its folder -> content) and a note for its progress line."""
+
+    values: dict
+    files: tuple[tuple[str, bytes], ...] = ()
+    note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -527,14 +487,12 @@ def point_error(err: Exception) -> str:
 
 
 def solve_point(task: PointTask) -> PointOutcome:
-    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, `check` into a private
-    temporary folder, the Nash baseline; the row and the folder's files come back. Every error
-    becomes the outcome's one-line `error`, so that one point's failure loses no other."""
-    from hg2prism import pipeline
-    from hg2prism.analyses import baselines
+    """Solve one point (docs/semantics.md §7, Sweeps): the size guard, then the task's solver
+    (`check_point` unless it names another), its stage reports quiet; the row (the point's
+    parameters, then the solver's values) and the files come back. Every error becomes the
+    outcome's one-line `error`, so that one point's failure loses no other."""
     from hg2prism.model import sizeguard
 
-    assignment = dict(task.assignment)
     for kind, module in task.front_ends:
         frontends.FRONT_ENDS.setdefault(kind, module)
     for observer in task.observer_kinds:
@@ -543,20 +501,31 @@ def solve_point(task: PointTask) -> PointOutcome:
         try:
             world = _world_of(task)
             sizeguard.check_size(world, task.max_states)
-            start = time.perf_counter()
-            with progress.quiet(), tempfile.TemporaryDirectory(prefix="hg2prism-point-") as tmp:
-                folder = Path(tmp) / task.folder
-                checked = pipeline.check(world, folder, task.storm_method)
-                nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
-                worth = _deception(checked) if task.deception else {}
-                files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
-                                     for p in folder.rglob("*") if p.is_file()))
-            seconds = time.perf_counter() - start
+            with progress.quiet():
+                solved = (task.solver or check_point)(world, task)
         except Exception as err:     # a bug or the machine (MemoryError) too: still one point
             return PointOutcome(task.index, None, (), point_error(err), tuple(warnings))
+    row = {**{name: _json_value(value) for name, value in task.assignment}, **solved.values}
+    return PointOutcome(task.index, row, solved.files, None, tuple(warnings), solved.note)
+
+
+def check_point(world: World, task: PointTask) -> Solved:
+    """A point of a sweep of parameters: `check` into a private temporary folder, the Nash
+    baseline (and with `task.deception` what the deception is worth); the folder's files."""
+    from hg2prism import pipeline
+    from hg2prism.analyses import baselines
+
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="hg2prism-point-") as tmp:
+        folder = Path(tmp) / task.folder
+        checked = pipeline.check(world, folder, task.storm_method)
+        nash = baselines.nash_baseline(checked.analysis.ts, checked.analysis.task)
+        worth = _deception(checked) if task.deception else {}
+        files = tuple(sorted((str(p.relative_to(folder)), p.read_bytes())
+                             for p in folder.rglob("*") if p.is_file()))
+    seconds = time.perf_counter() - start
     results = checked.results
-    row = {
-        **{name: _json_value(value) for name, value in assignment.items()},
+    values = {
         "deceptive_value": results.deceptive_value,
         "v_lead": results.v_lead,
         "v_ne": nash.v_ne,
@@ -572,7 +541,13 @@ def solve_point(task: PointTask) -> PointOutcome:
     }
     note = (f"P1's Nash strategy guarantees only {nash.v_ne_p1_guaranteed:.4f}" if nash.warn
             else None)
-    return PointOutcome(task.index, row, files, None, tuple(warnings), note)
+    return Solved(values, files, note)
+
+
+def _check_line(row: dict) -> str:
+    """A checked point's progress line, after its parameters and count."""
+    return (f"deceptive {row['deceptive_value']:.4f}, V_lead {row['v_lead']:.4f}, V_NE "
+            f"{row['v_ne']:.4f}, {row['states']} states ({row['seconds']:.1f} s)")
 
 
 def _deception(checked) -> dict:
@@ -634,23 +609,30 @@ def _observer_kinds(world: World, points: list[dict[str, Value]]
     return tuple(carried)
 
 
-def _tasks(world: World, points: list[dict[str, Value]], storm_method: str,
-           max_states: int | None, deception: bool = False,
-           observer_kinds: tuple[ObserverKind, ...] = ()) -> list[PointTask]:
+def point_tasks(world: World, points: list[dict[str, Value]], storm_method: str,
+                max_states: int | None, deception: bool = False,
+                at: Callable[[World, dict[str, Value]], World] = sweep_point,
+                solver: Callable[[World, PointTask], Solved] | None = None,
+                observer_kinds: tuple[ObserverKind, ...] = ()) -> list[PointTask]:
+    """The points' tasks: each point's world is `at(world, assignment)` (a sweep's parameters
+    by default), solved by `solver` (None: `check_point`); `observer_kinds` go to a parallel
+    sweep's workers (`_observer_kinds`)."""
     from hg2prism.model import sizeguard
 
     text = _world_text(world)
     tasks = []
     for index, assignment in enumerate(points):
-        point = sweep_point(world, assignment)
+        point = at(world, assignment)
+        estimate = (sizeguard.estimate_adaptive(point) if point.types
+                    else sizeguard.estimate_states(point))
         # name and path always travel: the text alone names the world after its file
         changes = tuple((f.name, getattr(point, f.name)) for f in fields(World)
                         if f.name in ("name", "path") or getattr(point, f.name) != getattr(world, f.name))
         tasks.append(PointTask(index, tuple(assignment.items()), text,
                                None if text is not None else world, str(world.path), changes,
                                _folder(assignment), storm_method, max_states,
-                               min(sizeguard.estimate_states(point), 2**62), deception,
-                               tuple(frontends.FRONT_ENDS.items()), observer_kinds))
+                               min(estimate, 2**62), deception,
+                               tuple(frontends.FRONT_ENDS.items()), observer_kinds, solver))
     return tasks
 
 
@@ -664,15 +646,11 @@ def _closing(outcomes: Iterator[PointOutcome]) -> Iterator[PointOutcome]:
             close()
 
 
-def _run_serial(tasks: list[PointTask], live: bool,
+def _run_serial(tasks: list[PointTask], bar: progress.Bar,
                 label_of: Callable[[PointTask], str]) -> Iterator[PointOutcome]:
     for task in tasks:
-        if live:
-            sys.stderr.write(f"sweep {label_of(task)} ...")
-            sys.stderr.flush()
-        outcome = solve_point(task)
-        if live:
-            sys.stderr.write("\r")
+        with bar.pending(f"sweep {label_of(task)}"):
+            outcome = solve_point(task)
         yield outcome
 
 
@@ -748,23 +726,31 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
     the size guard, which refuses the sweep only when it refuses every point (a single refused
     point fails alone when it is reached). Returns the parsed grid and its points in grid order
     (the first parameter varies slowest)."""
-    from hg2prism.model import sizeguard
-
     parsed = parse_sweep_grid(grid)
     names = [name for name, _ in parsed]
     for name in names:
         sweep_parameters()[name].refuse_unless_applies(world)
     points = [dict(zip(names, combination))
               for combination in itertools.product(*(values for _, values in parsed))]
+    guard_points(world, points, max_states)
+    return parsed, points
+
+
+def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: int | None,
+                 at: Callable[[World, dict[str, Value]], World] = sweep_point) -> None:
+    """The size guard over a sweep's points (each point's world `at(world, point)`; a value
+    that does not fit the world counts as refused): the sweep is refused (the first point's
+    InputError) only when every point is; a single refused point fails alone when reached."""
+    from hg2prism.model import sizeguard
+
     refusals = []
     for point in points:
         try:
-            sizeguard.check_size(sweep_point(world, point), max_states)
+            sizeguard.check_size(at(world, point), max_states)
         except InputError as err:
             refusals.append(err)
     if len(refusals) == len(points):
         raise refusals[0]
-    return parsed, points
 
 
 def _standing_rule(world: World, traps_swept: bool) -> str:
@@ -816,18 +802,34 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
                 max_states: int | None, deception: bool) -> SweepRun:
     parsed, points = check_grid(world, grid, max_states)
     serial = workers == 1 and scheduler is None
-    tasks = _tasks(world, points, storm_method, max_states, deception,
-                   () if serial else _observer_kinds(world, points))
+    tasks = point_tasks(world, points, storm_method, max_states, deception,
+                        observer_kinds=() if serial else _observer_kinds(world, points))
     _first_guess_notes(world, tasks)
     out = Path(out)
     total_start = time.perf_counter()
-    live = show_progress and serial and sys.stderr.isatty()
+    rows, failed = run_points(tasks, out, show_progress, workers, scheduler, _check_line)
+    run = SweepRun(tuple((name, tuple(values)) for name, values in parsed), rows, failed)
+    _write_summary(world, run, out, storm_method, time.perf_counter() - total_start)
+    return run
+
+
+def run_points(tasks: list[PointTask], out: Path, show_progress: bool, workers: int,
+               scheduler: str | None, line: Callable[[dict], str]
+               ) -> tuple[tuple[dict, ...], tuple[dict, ...]]:
+    """Every sweep's driver: the points solved serially here (``workers == 1``, no `scheduler`)
+    or on Dask, each point's files written into ``out/<its folder>/`` as it finishes, its
+    warnings shown (naming the point), a progress line per point (`line(row)` after the
+    point's parameters and count, or why it failed). Returns the solved points' rows and the
+    failed points (their parameters and ``error``), in the tasks' order."""
+    out = Path(out)
+    serial = workers == 1 and scheduler is None
+    bar = progress.Bar("sweep", len(tasks), show_progress, unit="points", width=20)
 
     def label_of(task: PointTask) -> str:
         return point_label(dict(task.assignment))
 
     outcomes: dict[int, PointOutcome] = {}
-    running = (_run_serial(tasks, live, label_of) if serial
+    running = (_run_serial(tasks, bar, label_of) if serial
                else _run_dask(tasks, min(workers, len(tasks)), scheduler))
     for outcome in _closing(running):
         outcomes[outcome.index] = outcome
@@ -836,26 +838,14 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
             write_bytes(out / task.folder / name, data)
         for message in outcome.warnings:        # which point says it (points may say alike)
             progress.replay_warning(f"sweep {label_of(task)}: {message}")
-        if show_progress:
-            done = len(outcomes)
-            head = f"sweep {label_of(task)} ({done}/{len(tasks)}) [{_bar(done, len(tasks))}]"
-            row = outcome.row
-            if row is None:
-                line = f"{head}: failed: {outcome.error}"
-            else:
-                line = (f"{head}: deceptive {row['deceptive_value']:.4f}, V_lead "
-                        f"{row['v_lead']:.4f}, V_NE {row['v_ne']:.4f}, {row['states']} states "
-                        f"({row['seconds']:.1f} s)"
-                        + (f"; warning: {outcome.note}" if outcome.note else ""))
-            sys.stderr.write(line + "\n")
-            sys.stderr.flush()
-
+        row = outcome.row
+        bar.finished(len(outcomes), f"sweep {label_of(task)}",
+                     f"failed: {outcome.error}" if row is None else
+                     line(row) + (f"; warning: {outcome.note}" if outcome.note else ""))
     rows = tuple(outcomes[i].row for i in range(len(tasks)) if outcomes[i].row is not None)
     failed = tuple({**dict(tasks[i].assignment), "error": outcomes[i].error}
                    for i in range(len(tasks)) if outcomes[i].row is None)
-    run = SweepRun(tuple((name, tuple(values)) for name, values in parsed), rows, failed)
-    _write_summary(world, run, out, storm_method, time.perf_counter() - total_start)
-    return run
+    return rows, failed
 
 
 # With --deception, after v_ne_p1_guaranteed (docs/semantics.md §11).
