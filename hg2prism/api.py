@@ -72,12 +72,14 @@ def _storm_method(verb: str, method: object) -> str:
     return _option(verb, method, "storm_method", "Storm method", default_engine().methods)
 
 
-def _sequence(verb: str, value: object, key: str, expected: str) -> list:
-    """A list of the values of a sequence argument (not a string)."""
+def _sequence(verb: str, value: object, key: str, expected: str, call: bool = True) -> list:
+    """A list of the values of a sequence argument (not a string); its error names the call
+    `verb()`, or with `call` False the world `verb`."""
     from collections.abc import Iterable
 
     if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
-        raise InputError(f"{verb}()", key, f"expected {expected}, got {type(value).__name__}")
+        raise InputError(f"{verb}()" if call else verb, key,
+                         f"expected {expected}, got {type(value).__name__}")
     return list(value)
 
 
@@ -252,20 +254,21 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
 
     from hg2prism.worldfile import world_from_data
 
-    verb = "world_from_graph"
     if not isinstance(name, str):
-        raise InputError(f"{verb}()", "name", f"expected a str, got {type(name).__name__}")
-    entries = _sequence(verb, entries, "entries", "a list of nodes")
+        raise InputError("world_from_graph()", "name",
+                         f"expected a str, got {type(name).__name__}")
+    # every other problem names the world, as its file would be named (docs/api.md)
+    entries = _sequence(name, entries, "entries", "a list of nodes", call=False)
     if hypotheses is not None:
-        hypotheses = _sequence(verb, hypotheses, "hypotheses", "a list of formulas")
+        hypotheses = _sequence(name, hypotheses, "hypotheses", "a list of formulas", call=False)
     for key, nodes in (("trap_candidates", trap_candidates), ("initial_traps", initial_traps)):
         if nodes is not None:
-            _sequence(verb, nodes, key, "a list of nodes")
+            _sequence(name, nodes, key, "a list of nodes", call=False)
     for key, table in (("labels", labels), ("inference", inference),
                        ("simulation", simulation), ("detection", detection),
                        ("positions", positions)):
         if table is not None and not isinstance(table, Mapping):
-            raise InputError(f"{verb}()", key, f"expected a dict, got {type(table).__name__}")
+            raise InputError(name, key, f"expected a dict, got {type(table).__name__}")
     arena = _graph_arena(graph, entries, labels, probability, name)
     if positions is not None:
         arena["positions"] = _graph_positions(graph, entries, positions, name)
