@@ -243,6 +243,15 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
     assert not list(out.glob(".*.tmp"))
     lines = sweep.sweep_summary_lines("delay", rows, "world2")
     assert any(line.startswith("| 3 | 0.8592 |") for line in lines)
+    assert "V_static" not in lines[2]
+    # with --deception's values, the printed table shows them as sweep.csv does
+    worth = [{**row, "v_static": 0.5 + i / 10, "v_naive": 0.25, "value_of_deception": 0.125}
+             for i, row in enumerate(rows)]
+    lines = sweep.sweep_summary_lines("delay", worth, "world2")
+    assert lines[2].split(" | ")[4:7] == ["V_static", "V_naive", "value of deception"]
+    assert lines[3].count("---|") == len(lines[2].split(" | "))
+    assert any(line.startswith("| 3 | 0.8592 |") and " | 0.8000 | 0.2500 | 0.1250 | " in line
+               for line in lines)
 
 
 def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsys) -> None:

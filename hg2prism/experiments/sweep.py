@@ -912,12 +912,16 @@ def sweep_summary_lines(parameter: str | Sequence[str], rows: Sequence[dict],
     title = f"Completion probability at the initial state against {' and '.join(names)}"
     if world_name:
         title += f" ({world_name})"
+    # with the deception's values where every row has them (`sweep --deception`), as sweep.csv
+    worth = bool(rows) and all("v_static" in row for row in rows)
+    extra = " V_static | V_naive | value of deception |" if worth else ""
     lines = [title, "",
-             "| " + " | ".join(names) + " | deceptive value | V_lead | V_NE | hypergame states "
-             "| transitions |",
-             "|" + "---|" * (len(names) + 5)]
+             "| " + " | ".join(names) + " | deceptive value | V_lead | V_NE |" + extra
+             + " hypergame states | transitions |",
+             "|" + "---|" * (len(names) + 5 + 3 * worth)]
     for row in rows:
+        values = "".join(f" {row[c]:.4f} |" for c in _DECEPTION_COLUMNS) if worth else ""
         lines.append("| " + " | ".join(_value_text(row[n]) for n in names)
                      + f" | {row['deceptive_value']:.4f} | {row['v_lead']:.4f} "
-                     f"| {row['v_ne']:.4f} | {row['states']} | {row['transitions']} |")
+                     f"| {row['v_ne']:.4f} |{values} {row['states']} | {row['transitions']} |")
     return lines
