@@ -17,12 +17,46 @@ def test_outputs_match_the_snapshot(tmp_path):
     assert not problems, "outputs changed:\n" + "\n".join(problems)
 
 
+def _taken(exact: dict, rounded: dict | None = None, machine: str = "here") -> dict:
+    rounded = rounded or {c: {f: ["r4" + d, "r6" + d] for f, d in files.items()}
+                          for c, files in exact.items()}
+    return {"machine": machine, "exact": exact, "rounded": rounded}
+
+
 def test_the_comparison_sees_a_changed_file():
-    stored = {"w": {"a.json": "1", "b.png": "2"}}
-    assert snapshot.compare({"w": {"a.json": "1", "b.png": "2"}}, stored) == []
-    assert snapshot.compare({"w": {"a.json": "x", "b.png": "2"}}, stored) == ["w/a.json: differs"]
-    assert snapshot.compare({"w": {"a.json": "1"}}, stored) == ["w/b.png: not written"]
-    assert snapshot.compare({}, stored) == ["w: missing from the run"]
+    stored = _taken({"w": {"a.json": "1", "b.png": "2"}})
+    assert snapshot.compare(_taken({"w": {"a.json": "1", "b.png": "2"}}), stored) == []
+    assert snapshot.compare(_taken({"w": {"a.json": "x", "b.png": "2"}}, stored["rounded"]),
+                            stored) == ["w/a.json: differs"]
+    assert snapshot.compare(_taken({"w": {"a.json": "1"}}), stored) == ["w/b.png: not written"]
+    assert snapshot.compare(_taken({}), stored) == ["w: missing from the run"]
+
+
+def test_another_machine_compares_the_numbers_rounded(tmp_path):
+    """On the machine the snapshot was taken on, a difference in the last bit of a number is a
+    difference; on a machine whose floating-point code differs, numbers are compared rounded
+    to 4 or 6 significant digits (either): a number at a rounding boundary of one precision is
+    not at the other's, and a change beyond rounding is still seen."""
+    def taken(text: str, machine: str) -> dict:
+        path = tmp_path / "m.prism"
+        path.write_text(text)
+        exact, *rounded = snapshot.digests(path, [])
+        return _taken({"w": {"m.prism": exact}}, {"w": {"m.prism": rounded}}, machine)
+
+    # p is at a boundary of 4 digits, q at one of 6: last-bit changes of either pass
+    for before, after in (("p = 0.61234999999999995; q = 0.1234444;",
+                           "p = 0.61235000000000001; q = 0.1234444;"),
+                          ("p = 0.6123; q = 0.12344449999999999;",
+                           "p = 0.6123; q = 0.12344450000000001;")):
+        stored = taken(before + " n = 3;", "avx512")
+        assert snapshot.compare(taken(after + " n = 3;", "avx512"), stored) == [
+            "w/m.prism: differs"]
+        assert snapshot.compare(taken(after + " n = 3;", "avx2"), stored) == []
+        for changed in (before.replace("0.6123", "0.6125") + " n = 3;",   # a value
+                        before + " n = 4;"):                              # an integer
+            assert snapshot.compare(taken(changed, "avx2"), stored) == [
+                "w/m.prism: differs (numbers rounded to 4 and 6 digits)"], changed
+    assert snapshot.rounded("v 0.1.0 x1_y2 1e-9 -2.50000001", 4) == "v 0.1.0 x1_y2 1e-09 -2.5"
 
 
 def test_masking_keeps_values_and_hides_timings(tmp_path):
