@@ -267,3 +267,29 @@ def test_a_kind_that_cannot_be_sent_is_one_line(never, monkeypatch) -> None:
     assert "sweep it with one worker" in refused.value.reason
     assert "\n" not in str(refused.value)
     assert not hg2prism.sweep(world, "window", [1]).failed
+
+
+def test_a_parallel_weight_sweep_carries_a_types_kind(never, tmp_path) -> None:
+    """A world with P2's types whose type is of a kind registered at run time: the weight
+    sweep (on the sweeps' driver) sends the kind to its workers too, and solves on workers=2
+    as serially (every point failed with 'type[1].inference.kind: unknown inference kind').
+    No weight is one line."""
+    from hg2prism.experiments.adaptive import sweep_weights
+
+    text = (MODELS / "world4.toml").read_text()
+    stubborn = text.index('name = "stubborn"')
+    text = text[:stubborn] + text[stubborn:].replace(
+        "[type.inference]\nwindow = 3\nthreshold = 5.0\n",
+        '[type.inference]\nkind = "never"\nwindow = 3\n', 1)
+    world = world_from_toml(text, "world4_never.toml")
+    assert [t.inference for t in world.types] == ["cusum", "never"]
+    rows = {}
+    for workers in (1, 2):
+        with progress.quiet():
+            _, failed = sweep_weights(world, [0.25, 0.75], tmp_path / str(workers),
+                                      show_progress=False, workers=workers)
+        assert failed == ()
+        rows[workers] = json.loads((tmp_path / str(workers) / "sweep.json").read_text())["rows"]
+    assert [r["v_adapt"] for r in rows[2]] == [r["v_adapt"] for r in rows[1]]
+    with pytest.raises(InputError, match="no weight given"):
+        sweep_weights(world, [], tmp_path / "none", show_progress=False)

@@ -447,12 +447,16 @@ def sweep_weights(world: World, weights: list[float], out: Path,
 
     if workers < 1:
         raise InputError(COMMAND_LINE, "--workers", f"must be at least 1, got {workers}")
+    if not weights:
+        raise InputError(COMMAND_LINE, "--values", "no weight given")
     names = [t.name for t in world.types]
     start = time.perf_counter()
     points = [{"weight": weight} for weight in weights]
     sweep.guard_points(world, points, max_states, at=_at_weight)
+    serial = workers == 1 and scheduler is None
     tasks = sweep.point_tasks(world, points, storm_method, max_states, at=_at_weight,
-                              solver=weight_point)
+                              solver=weight_point,
+                              observer_kinds=() if serial else sweep.observer_kinds(world, points))
     with each_warning_once():
         rows, failed = sweep.run_points(tasks, out, show_progress, workers, scheduler,
                                         _weight_line)

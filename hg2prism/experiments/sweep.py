@@ -584,15 +584,17 @@ def _world_text(world: World) -> str | None:
     return text if replace(parsed, name=world.name, path=world.path) == world else None
 
 
-def _observer_kinds(world: World, points: list[dict[str, Value]]
-                    ) -> tuple[ObserverKind, ...]:
+def observer_kinds(world: World, points: list[dict[str, Value]]
+                   ) -> tuple[ObserverKind, ...]:
     """The observer kinds registered at run time here, for a parallel sweep's workers, which
     have only the built-in ones: those Dask can send (by cloudpickle, as it sends the points).
-    One the points use that cannot be sent (a lock in a closure) refuses the sweep in one line
-    (each point failed on its worker); another is left behind, as no point needs it."""
+    One the points use (the world's, its types', a swept `inference`) that cannot be sent (a
+    lock in a closure) refuses the sweep in one line (each point failed on its worker);
+    another is left behind, as no point needs it."""
     import cloudpickle
 
-    used = {world.inference, *(point["inference"] for point in points if "inference" in point)}
+    used = {world.inference, *(t.inference for t in world.types),
+            *(point["inference"] for point in points if "inference" in point)}
     carried = []
     for kind in run_time_kinds():
         try:
@@ -616,7 +618,7 @@ def point_tasks(world: World, points: list[dict[str, Value]], storm_method: str,
                 observer_kinds: tuple[ObserverKind, ...] = ()) -> list[PointTask]:
     """The points' tasks: each point's world is `at(world, assignment)` (a sweep's parameters
     by default), solved by `solver` (None: `check_point`); `observer_kinds` go to a parallel
-    sweep's workers (`_observer_kinds`)."""
+    sweep's workers (`observer_kinds`)."""
     from hg2prism.model import sizeguard
 
     text = _world_text(world)
@@ -749,7 +751,7 @@ def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: i
             sizeguard.check_size(at(world, point), max_states)
         except InputError as err:
             refusals.append(err)
-    if len(refusals) == len(points):
+    if refusals and len(refusals) == len(points):
         raise refusals[0]
 
 
@@ -803,7 +805,7 @@ def _sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out:
     parsed, points = check_grid(world, grid, max_states)
     serial = workers == 1 and scheduler is None
     tasks = point_tasks(world, points, storm_method, max_states, deception,
-                        observer_kinds=() if serial else _observer_kinds(world, points))
+                        observer_kinds=() if serial else observer_kinds(world, points))
     _first_guess_notes(world, tasks)
     out = Path(out)
     total_start = time.perf_counter()
