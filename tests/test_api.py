@@ -712,6 +712,35 @@ def test_move_says_what_it_expected() -> None:
         strategy.move(hypothesis=0, **{**start, "standing": "x9_y9"})
 
 
+def test_move_refuses_each_bad_argument_in_one_line(world1_solution) -> None:
+    """Strategy.move's other arguments (a review found tracebacks): q, step or a window that is
+    not what it should be, a hypothesis or q the strategy has no record for (named as such,
+    not as a state without records), and, on a delayed world, a countdown out of range (key
+    countdown, not standing): one InputError each, naming the argument."""
+    strategy = world1_solution.strategy
+    hypotheses = len(world1_solution.world.hypotheses)
+    cases = [(dict(q="a"), "q", "expected the task DFA's state (an integer)"),
+             (dict(q=True), "q", "expected the task DFA's state"),
+             (dict(step="1"), "step", "expected the number of steps taken so far"),
+             (dict(window=5), "window", "expected a list of (state, action) entries"),
+             (dict(window=[5]), "window", "window entry 5: expected (state, action)"),
+             (dict(hypothesis=hypotheses + 4), "hypothesis",
+              f"{hypotheses + 4} is not among the values the strategy has records for: 0, 1, 2"),
+             (dict(q=99), "q", "99 is not among the values the strategy has records for")]
+    for changes, key, reason in cases:
+        arguments = dict(state="x2_y4", q=0, hypothesis=0) | changes
+        with pytest.raises(InputError) as refused:
+            strategy.move(**arguments)
+        assert (refused.value.file, refused.value.key) == ("move()", key), changes
+        assert refused.value.reason.startswith(reason), (changes, refused.value.reason)
+    delayed = hg2prism.solve(hg2prism.load_world(MODELS / "world1.toml").replace(
+        delay=1, initial_standing=0)).strategy
+    with pytest.raises(InputError) as countdown:
+        delayed.move("x2_y4", 0, 0, standing="x3_y4", countdown=9)
+    assert (countdown.value.key, countdown.value.reason) == ("countdown",
+                                                            "countdown 9 outside 0..1")
+
+
 @pytest.mark.parametrize("name, changes", [("world2", {"delay": 2}), ("world3_bayes", {}),
                                            ("mir100", {"delay": 1})])
 def test_move_of_every_record_is_its_action(name: str, changes: dict) -> None:

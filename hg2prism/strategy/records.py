@@ -330,17 +330,24 @@ def _named_ts_state(ts: TransitionSystem, state: object, standing: object,
         return _record_ts_state(ts, {"state": state, "standing": standing,
                                      "countdown": countdown}, "move()")
     except StrategyError as err:
-        raise InputError("move()", "standing", str(err).removeprefix("move(): ")) from None
+        reason = str(err).removeprefix("move(): ")
+        key = "countdown" if "countdown" in reason and "standing" not in reason else "standing"
+        raise InputError("move()", key, reason) from None
 
 
 def _window_observations(ts: TransitionSystem, window: Iterable) -> list[tuple[int, ...]]:
     """`Strategy.move`'s window entries as observations (InputError, key "window")."""
     shape = "(state, action)" if ts.delay == 0 else "(state, action, standing, countdown)"
     observed = []
+    if isinstance(window, (str, bytes)) or not isinstance(window, Iterable):
+        raise InputError("move()", "window", f"expected a list of {shape} entries, oldest "
+                         f"first, got {type(window).__name__}")
     try:
         for entry in window:
             if isinstance(entry, Mapping):
                 entry = _entry_tuple(entry)
+            if isinstance(entry, (str, bytes)) or not isinstance(entry, Sequence):
+                raise StrategyError(f"window entry {entry!r}: expected {shape}")
             if len(entry) < (2 if ts.delay == 0 else 4):
                 raise StrategyError(f"window entry {tuple(entry)!r}: expected {shape} (and the "
                                     "action played, for a Bayesian observer)")
@@ -437,6 +444,29 @@ class Strategy:
                 f"the strategy has no record for the hypergame state "
                 f"{self.describe(ts_state, q, memory)}") from None
 
+    def _check_indices(self, q: object, hypothesis: object, step: object) -> None:
+        """`move`'s integer arguments: integers, and q and the hypothesis among those the
+        strategy has records for (InputError naming the argument)."""
+        import numbers
+
+        def integer(value: object) -> bool:
+            return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+        for key, value, what in (("q", q, "the task DFA's state"),
+                                 ("hypothesis", hypothesis, "P2's hypothesis as its index into "
+                                  "the world's hypotheses"),
+                                 ("step", step, "the number of steps taken so far")):
+            if not integer(value):
+                raise InputError("move()", key, f"expected {what} (an integer), got {value!r}")
+        if step < 0:
+            raise InputError("move()", "step", f"must be at least 0, got {step}")
+        for key, value, seen in (("q", q, {k[1] for k in self.table}),
+                                 ("hypothesis", hypothesis,
+                                  {k[2].hypothesis for k in self.table})):
+            if seen and value not in seen:
+                raise InputError("move()", key, f"{value} is not among the values the strategy "
+                                 f"has records for: {_examples([str(x) for x in sorted(seen)])}")
+
     def move(self, state: str, q: int, hypothesis: int, window: Iterable[tuple] = (),
              standing: str | None = None, countdown: int | None = None, step: int = 0) -> str:
         """P1's action (its name) when the arena state is `state` (a name), the task DFA is in
@@ -460,13 +490,7 @@ class Strategy:
             raise ValueError("move() needs the strategy's transition system")
         ts = self.ts
 
-        import numbers
-
-        if isinstance(hypothesis, bool) or not isinstance(hypothesis, numbers.Integral):
-            raise InputError("move()", "hypothesis", f"expected P2's hypothesis as its index "
-                             f"into the world's hypotheses, got {hypothesis!r}")
-        if step < 0:
-            raise InputError("move()", "step", f"must be at least 0, got {step}")
+        self._check_indices(q, hypothesis, step)
         v = _named_ts_state(ts, state, standing, countdown)
         observed = _window_observations(ts, window)
         key = (v, int(q), Memory(int(hypothesis), tuple(observed)))
