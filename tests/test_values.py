@@ -55,7 +55,7 @@ def reason(parse, *args) -> tuple[str, str]:
     (adaptive.parse_weights, ["1.5"], "--values", "a weight is a number in [0, 1], got '1.5'"),
     (adaptive.parse_weights, ["0.5,1"], "--values", "a weight is a number in [0, 1], got "
                                                     "'0.5,1'; separate the values with spaces "
-                                                    "(--values 1 4)"),
+                                                    "(--values 0.5 1)"),
     # --fallback-delta is one value: its key, robust's words, no hint about lists
     (lambda v: detect.parse_fallback("robust", v), "0.1,0.2", "--fallback-delta",
      "'0.1,0.2' is not a deviation budget in [0, 1)"),
@@ -87,7 +87,7 @@ def test_an_option_of_its_own_words() -> None:
     assert parse_values(spec, ["3", "4"]) == [3, 4]
     assert reason(parse_values, spec, ["3,4"]) == (
         "--sizes", "size '3,4' is not an integer >= 1; separate the values with spaces "
-                   "(--sizes 1 4)")
+                   "(--sizes 3 4)")
     assert reason(parse_values, spec, []) == ("--sizes",
                                               "expected at least one size (an integer >= 1)")
 
@@ -98,5 +98,5 @@ def test_the_command_line_says_it_in_one_line(tmp_path: Path, capsys) -> None:
                  "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["hg2prism: error: command line: --deltas: '0,0.1' is not a deviation budget "
-                   "in [0, 1); separate the values with spaces (--deltas 0.1 0.2)"]
+                   "in [0, 1); separate the values with spaces (--deltas 0 0.1)"]
     assert not out.exists()

@@ -75,7 +75,7 @@ def parse_fallback(fallback: str | None, delta: object | None) -> tuple[str | No
     from hg2prism.experiments.robust import DELTAS
     from hg2prism.experiments.values import parse_values
 
-    (parsed,) = parse_values(replace(DELTAS, option="--fallback-delta", example=None), [delta])
+    (parsed,) = parse_values(replace(DELTAS, option="--fallback-delta", hint=False), [delta])
     return fallback, parsed
 
 

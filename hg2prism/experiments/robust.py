@@ -55,8 +55,7 @@ DELTAS = ValueList("--deltas", "deviation budget", "in [0, 1)", number(float, 0.
                    empty="expected at least one {name} {expected}",
                    not_form="{value!r} is not a {name} {expected}",
                    outside="{value!r} is not a {name} {expected}",
-                   repeated="{value} is repeated; expected distinct budgets",
-                   example="0.1 0.2")
+                   repeated="{value} is repeated; expected distinct budgets")
 
 
 def parse_deltas(values: Sequence[object]) -> list[float]:

@@ -75,7 +75,7 @@ class ValueList:
     not_form: str = "{name} {shown!r} is not {expected}"
     outside: str = "{name} {shown} must be {expected}"
     repeated: str | None = "{name} {parsed} is repeated; expected distinct values"
-    example: str | None = "1 4"     # the hint's values, separated by a space (None: no hint,
+    hint: bool = True               # values joined by commas: say to separate them (False:
                                     # an option of one value)
 
 
@@ -94,9 +94,10 @@ def parse_values(spec: ValueList, values: Sequence[object]) -> list:
         except ValueError as err:
             if str(err) == NOT_FORM:
                 # "1,4" for 1 4: the values are separate arguments (a prior's weights take
-                # commas, and its parser says whether they parse)
-                apart = (f"; separate the values with spaces ({spec.option} {spec.example})"
-                         if spec.example and isinstance(value, str) and "," in value else "")
+                # commas, and its parser says whether they parse); the hint shows those typed
+                apart = (f"; separate the values with spaces ({spec.option} "
+                         f"{' '.join(part.strip() for part in value.split(',') if part.strip())})"
+                         if spec.hint and isinstance(value, str) and "," in value else "")
                 reason = spec.not_form.format(value=value, shown=shown, **words) + apart
             else:
                 reason = spec.outside.format(value=value, shown=shown, **words)
