@@ -270,8 +270,8 @@ class SimulatedRow:
     exact_within_horizon: float     # P(goal within `horizon` steps) for the pair simulated (§8)
     # Rows played against P2's inference (§11): the share of episodes in which her hypothesis
     # changed at least once, and the mean number of changes per episode; None for the others.
-    # `p2_switched_in_play`: the share with a change after which the episode went on (not at
-    # its last step, where reaching the goal often reveals it): a change P2 could act on.
+    # `p2_switched_in_play`: the share with a change after which the episode went on (neither
+    # the goal nor a failure reached; cut by the horizon counts): a change P2 could act on.
     p2_switched: float | None = None
     p2_switches_mean: float | None = None
     p2_switched_in_play: float | None = None

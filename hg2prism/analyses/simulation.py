@@ -137,7 +137,8 @@ class SimulationSummary:
     # the number of changes over all episodes (docs/semantics.md §11). A change at an episode's
     # last step counts: P2 updates her memory from P1's move whatever the robot reached.
     # `p2_switched_in_play` counts the episodes with a change after which the episode went on
-    # (not at its last step): a change P2 could act on.
+    # (neither the goal nor a failure reached; cut by the horizon counts): a change P2 could
+    # act on.
     p2_switched: int = 0
     p2_switches: int = 0
     p2_switched_in_play: int = 0

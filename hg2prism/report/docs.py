@@ -278,7 +278,7 @@ def _changes(results: dict) -> str:
     share = f"{deceptive['p2_switched']:.0%}"
     if deceptive["p2_switched"] > 0:
         share += (f" ({deceptive['p2_switches_mean']:.1f} changes per episode; "
-                  f"{deceptive['p2_switched_in_play']:.0%} before the last step)")
+                  f"{deceptive['p2_switched_in_play']:.0%} she could act on)")
     return share
 
 
@@ -303,7 +303,7 @@ def world3_observers(out: Outputs) -> str:
                      f"{d['p2_switched_in_play']:.0%}", f"{d['p2_switches_mean']:.2f}",
                      _f(d["rate"])])
     return _table(["world3 against", "V_static", "V_naive", "deceptive value",
-                   "value of deception", "P2 changes her mind", "... before the last step",
+                   "value of deception", "P2 changes her mind", "... that she could act on",
                    "changes per episode", "simulated completion"], rows)
 
 

@@ -62,7 +62,7 @@ def completion_table(results: RunResults) -> str:
                  f"P2 changed her hypothesis in {sim.deceptive.p2_switched:.1%} of the deceptive "
                  f"episodes ({sim.deceptive.p2_switches_mean:.2f} changes per episode on average) "
                  f"and in {sim.naive.p2_switched:.1%} of the naive ones; at a step after which the "
-                 f"episode went on (a change she could act on, not one the last step caused) in "
+                 f"episode went on (a change she could act on) in "
                  f"{sim.deceptive.p2_switched_in_play:.1%} and "
                  f"{sim.naive.p2_switched_in_play:.1%}.")
     return "\n".join(lines) + "\n"
