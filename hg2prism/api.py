@@ -24,7 +24,7 @@ from pathlib import Path
 from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, MAX_SEED, Checks
 from hg2prism.model.world import World, plain
 
-from hg2prism.errors import COMMAND_LINE, InputError
+from hg2prism.errors import COMMAND_LINE, InputError, listing
 from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.results import CheckResult, CheckResults
 from hg2prism.strategy.records import Strategy
@@ -261,9 +261,13 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     entries = _sequence(name, entries, "entries", "a list of nodes", call=False)
     if hypotheses is not None:
         hypotheses = _sequence(name, hypotheses, "hypotheses", "a list of formulas", call=False)
-    for key, nodes in (("trap_candidates", trap_candidates), ("initial_traps", initial_traps)):
-        if nodes is not None:
-            _sequence(name, nodes, key, "a list of nodes", call=False)
+    # a generator is read once, here
+    if trap_candidates is not None:
+        trap_candidates = _sequence(name, trap_candidates, "trap_candidates", "a list of nodes",
+                                    call=False)
+    if initial_traps is not None:
+        initial_traps = _sequence(name, initial_traps, "initial_traps", "a list of nodes",
+                                  call=False)
     for key, table in (("labels", labels), ("inference", inference),
                        ("simulation", simulation), ("detection", detection),
                        ("positions", positions)):
@@ -297,11 +301,6 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     return world
 
 
-def _few(items: list[str]) -> str:
-    """Up to three names, then how many more."""
-    return ", ".join(items[:3]) + (f" and {len(items) - 3} more" if len(items) > 3 else "")
-
-
 def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
                     file: str) -> None:
     """What world_from_graph accepts that has a meaning (docs/semantics.md §15) but is likely
@@ -316,7 +315,8 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
              if _edge_probability(graph, u, v, probability, file) == 0]
     if never:
         one = len(never) == 1
-        progress.warn(f"{file}: edge{'' if one else 's'} {_few(never)}: probability 0, so the "
+        progress.warn(f"{file}: edge{'' if one else 's'} {listing(never, 3, count=True)}: "
+                      f"probability 0, so the "
                       f"attacker's action along {'it' if one else 'each'} never succeeds (he "
                       f"stays where he is); remove {'the edge' if one else 'them'} if the step "
                       "is impossible")
@@ -329,13 +329,15 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
              "it is exposed so")):
         odd = [names[v] for v in dict.fromkeys(given) if v in targets]
         if odd:
-            progress.warn(f"{file}: {key}: {_few(odd)} {'has' if len(odd) == 1 else 'have'} "
-                          f"no outgoing edge (a target): {meaning}")
+            progress.warn(f"{file}: {key}: {listing(odd, 3, count=True)} "
+                          f"{'has' if len(odd) == 1 else 'have'} no outgoing edge (a target): "
+                          f"{meaning}")
     if labels is not None:
         bare = [names[v] for v in nodes if v in targets and not labels.get(v)]
         if bare:
-            progress.warn(f"{file}: labels: {_few(bare)} {'has' if len(bare) == 1 else 'have'} "
-                          "no outgoing edge and no label: reaching one ends the episode with "
+            progress.warn(f"{file}: labels: {listing(bare, 3, count=True)} "
+                          f"{'has' if len(bare) == 1 else 'have'} no outgoing edge and no "
+                          "label: reaching one ends the episode with "
                           "nothing gained (won only if the task is already done); label "
                           f"{'it' if len(bare) == 1 else 'them'} in labels= (by default every "
                           "such node is labelled asset<v>) or give them outgoing edges")

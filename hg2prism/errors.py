@@ -6,6 +6,17 @@ from __future__ import annotations
 COMMAND_LINE = "command line"   # the InputError "file" of a bad option or option value
 
 
+def listing(names, shown: int, count: bool = False, empty: str = "") -> str:
+    """A message's list of names: the first `shown`, then "and N more" (`count`) or ", ..."
+    when there are more; `empty` when there are none."""
+    names = [str(name) for name in names]
+    if not names:
+        return empty
+    more = len(names) - shown
+    tail = "" if more <= 0 else f" and {more} more" if count else ", ..."
+    return ", ".join(names[:shown]) + tail
+
+
 class InputError(Exception):
     """Bad user input. The CLI prints it as one line and exits with status 2."""
 

@@ -14,7 +14,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from hg2prism.errors import COMMAND_LINE, InputError
+from hg2prism.errors import COMMAND_LINE, InputError, listing
 from hg2prism.progress import say
 
 
@@ -168,12 +168,6 @@ def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
     return False
 
 
-def _some(names: list[str], shown: int = 6) -> str:
-    """`names` joined, the first `shown` of them and how many more."""
-    more = len(names) - shown
-    return ", ".join(names[:shown]) + (f" and {more} more" if more > 0 else "")
-
-
 @contextmanager
 def staged(out: Path, owns: str | None = None, world: str | None = None,
            every: str | None = None, digest: str | None = None) -> Iterator[Path]:
@@ -229,6 +223,6 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             if others:
                 say(f"outputs: {out} held the outputs of another world (or of this world "
                     f"file before an edit); removed those of other commands too: "
-                    f"{_some(others)}")
+                    f"{listing(others, 6, count=True)}")
     finally:
         shutil.rmtree(stage, ignore_errors=True)

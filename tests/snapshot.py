@@ -11,10 +11,10 @@ tests/snapshots/outputs.json holds the digests the code produced when the snapsh
 tests/test_snapshot.py compares a fresh run with it. On a machine whose floating-point code
 differs (numpy picks its SIMD kernels for the CPU at run time: exp and log with AVX-512 differ
 from AVX2's in the last bit, and so did world1's inference tables in hypergame.prism), the
-exact digests cannot match; there the text files are compared with every number rounded to 4
-and, failing that, to 6 significant digits (a number at a rounding boundary of one precision
-is not at the other's), so that the snapshot still sees any change of structure, strategy or
-value beyond rounding. `machine()` names the floating-point code; the snapshot records it.
+exact digests cannot match; there the text files are compared with every number rounded to 6
+and, failing that, to 8 significant digits (a number at a rounding boundary of one precision
+is not at the other's), so that the snapshot still sees any change of structure or strategy,
+and of a value in its first 6 significant digits. `machine()` names the floating-point code; the snapshot records it.
 After a change that is *meant* to alter outputs, rewrite it with
 
     .venv/bin/python tests/snapshot.py --write
@@ -94,7 +94,7 @@ def machine() -> str:
 
 # a number with a fraction or an exponent (not an integer: counts, indices and names stay)
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+(?:[eE][-+]?\d+)?|[eE][-+]?\d+)")
-ROUNDINGS = (4, 6)       # significant digits of the comparison across machines
+ROUNDINGS = (6, 8)       # significant digits of the comparison across machines
 
 
 def rounded(text: str, digits: int) -> str:
@@ -179,7 +179,7 @@ def compare(fresh: dict, stored: dict) -> list[str]:
                     a == b for a, b in zip(fresh["rounded"][case][name],
                                            stored["rounded"][case][name]))):
                 problems.append(f"{case}/{name}: differs" + ("" if same else
-                                                             " (numbers rounded to 4 and 6 digits)"))
+                                                             " (numbers rounded to 6 and 8 digits)"))
     return problems
 
 

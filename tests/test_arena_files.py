@@ -386,6 +386,11 @@ def test_world_from_graph_small() -> None:
     # written and read back: the same arena
     again = world_from_toml(to_toml(world), name="small.toml")
     assert_same_ts(transition_system(world), transition_system(again))
+    # node arguments given as generators are read once (trap_candidates was 'is empty')
+    lazy = hg2prism.world_from_graph(_small_graph(), entries=(v for v in [2, 1]),
+                                     task="F asset3", trap_candidates=(v for v in [2]),
+                                     name="small")
+    assert lazy.arena.trap_candidates == (2,) and lazy.arena.actions == a.actions
 
 
 def _graph_warnings(caplog, **arguments) -> list[str]:

@@ -35,27 +35,27 @@ def test_the_comparison_sees_a_changed_file():
 def test_another_machine_compares_the_numbers_rounded(tmp_path):
     """On the machine the snapshot was taken on, a difference in the last bit of a number is a
     difference; on a machine whose floating-point code differs, numbers are compared rounded
-    to 4 or 6 significant digits (either): a number at a rounding boundary of one precision is
-    not at the other's, and a change beyond rounding is still seen."""
+    to 6 or 8 significant digits (either): a number at a rounding boundary of one precision is
+    not at the other's, and a change in the first 6 digits is still seen."""
     def taken(text: str, machine: str) -> dict:
         path = tmp_path / "m.prism"
         path.write_text(text)
         exact, *rounded = snapshot.digests(path, [])
         return _taken({"w": {"m.prism": exact}}, {"w": {"m.prism": rounded}}, machine)
 
-    # p is at a boundary of 4 digits, q at one of 6: last-bit changes of either pass
-    for before, after in (("p = 0.61234999999999995; q = 0.1234444;",
-                           "p = 0.61235000000000001; q = 0.1234444;"),
-                          ("p = 0.6123; q = 0.12344449999999999;",
-                           "p = 0.6123; q = 0.12344450000000001;")):
+    # p is at a boundary of 6 digits, q at one of 8: last-bit changes of either pass
+    for before, after in (("p = 0.6123454999999999; q = 0.12344;",
+                           "p = 0.6123455000000001; q = 0.12344;"),
+                          ("p = 0.61234; q = 0.12344444499999999;",
+                           "p = 0.61234; q = 0.12344444500000001;")):
         stored = taken(before + " n = 3;", "avx512")
         assert snapshot.compare(taken(after + " n = 3;", "avx512"), stored) == [
             "w/m.prism: differs"]
         assert snapshot.compare(taken(after + " n = 3;", "avx2"), stored) == []
-        for changed in (before.replace("0.6123", "0.6125") + " n = 3;",   # a value
+        for changed in (before.replace("0.6123", "0.6124") + " n = 3;",   # a value
                         before + " n = 4;"):                              # an integer
             assert snapshot.compare(taken(changed, "avx2"), stored) == [
-                "w/m.prism: differs (numbers rounded to 4 and 6 digits)"], changed
+                "w/m.prism: differs (numbers rounded to 6 and 8 digits)"], changed
     assert snapshot.rounded("v 0.1.0 x1_y2 1e-9 -2.50000001", 4) == "v 0.1.0 x1_y2 1e-09 -2.5"
 
 

@@ -59,6 +59,7 @@ import re
 
 import numpy as np
 
+from hg2prism.errors import listing
 from hg2prism.model.arena import TRAPS_BEYOND, Arena
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -132,9 +133,7 @@ def proposition_problem(name: str) -> str | None:
 
 
 def _listing(names) -> str:
-    names = list(names)
-    shown = ", ".join(names[:12]) + (", ..." if len(names) > 12 else "")
-    return shown or "none"
+    return listing(names, 12, empty="none")
 
 
 # ---------------------------------------------------------------------------------------------

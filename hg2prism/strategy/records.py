@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hg2prism.engines.engine import Transitions
-from hg2prism.errors import InputError
+from hg2prism.errors import InputError, listing
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.opponent.observer import Memory
@@ -302,11 +302,6 @@ def _action_index(ts: TransitionSystem, v: int, name: object, where: str) -> int
     return names.index(name)
 
 
-def _examples(names: Sequence[str], shown: int = 5) -> str:
-    """A few names of a list, "..." when there are more."""
-    return ", ".join(names[:shown]) + (", ..." if len(names) > shown else "")
-
-
 def _order(key: tuple[int, int, Memory]) -> tuple:
     """Hypergame states in a stable order (for the example a message shows)."""
     return (key[0], key[1], key[2].hypothesis, len(key[2].window), key[2].window)
@@ -324,7 +319,7 @@ def _named_ts_state(ts: TransitionSystem, state: object, standing: object,
         close = (difflib.get_close_matches(state, names, n=3, cutoff=0.8)
                  if isinstance(state, str) else [])
         raise InputError("move()", "state", f"{state!r} is not a state of the world, whose "
-                         f"{len(names)} states are {_examples(names)}"
+                         f"{len(names)} states are {listing(names, 5)}"
                          + (f"; did you mean {' or '.join(close)}?" if close else ""))
     try:
         return _record_ts_state(ts, {"state": state, "standing": standing,
@@ -465,7 +460,7 @@ class Strategy:
                                   {k[2].hypothesis for k in self.table})):
             if seen and value not in seen:
                 raise InputError("move()", key, f"{value} is not among the values the strategy "
-                                 f"has records for: {_examples([str(x) for x in sorted(seen)])}")
+                                 f"has records for: {listing([str(x) for x in sorted(seen)], 5)}")
 
     def move(self, state: str, q: int, hypothesis: int, window: Iterable[tuple] = (),
              standing: str | None = None, countdown: int | None = None, step: int = 0) -> str:
@@ -517,7 +512,7 @@ class Strategy:
                     "P2 behaves as modelled (never reached, or the task is done or failed "
                     f"there); it has records at {len(reached)} of the world's "
                     f"{len(ts.arena.states)} states, e.g. "
-                    f"{_examples([ts.arena.states[p] for p in reached])}")
+                    f"{listing([ts.arena.states[p] for p in reached], 5)}")
         return (f"no record for {self.describe(*key)}: the strategy has records at {name} only "
                 f"in {len(there)} other hypergame state{'s' if len(there) > 1 else ''} (task "
                 f"state, P2's hypothesis and window), e.g. {self.describe(*min(there, key=_order))}")
