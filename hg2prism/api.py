@@ -807,7 +807,8 @@ class EpisodeStep:
     landing: str                          # the state reached ("trapped" when trapped)
     traps: tuple[str, ...]                # the states P2's trap set covered
     p2_action: str                        # P2's action by name
-    hypothesis: int                       # the hypothesis P2 acted on during the step
+    hypothesis: int                       # the hypothesis P2 acted on during the step (drawn,
+    #                                       with the Bayesian "sample" decision)
     belief: tuple[float, ...] | None      # her observer's numbers per hypothesis (CUSUM
     #                                       scores, Bayesian posteriors) after observing the
     #                                       step, None if unreported

@@ -374,6 +374,33 @@ def test_an_episode_step_says_what_p2_holds_after_it() -> None:
             assert step.belief[step.hypothesis_after] >= played.threshold - 1e-9, step
 
 
+def test_a_p2_who_draws_acts_on_the_hypothesis_drawn() -> None:
+    """With the Bayesian 'sample' decision P2 draws her hypothesis each step (semantics §12):
+    an episode step's `hypothesis` (and the figures' colours, the explorer's "acted on") is the
+    one drawn, whose trap set she played, not her most probable one (it was, and at the steps
+    where the two differ the set shown was another hypothesis's)."""
+    from hg2prism.analyses.episodes import belief_trace
+
+    text = (MODELS / "world3_bayes.toml").read_text().replace('decision = "map"',
+                                                              'decision = "sample"')
+    solution = hg2prism.solve(hg2prism.world_from_toml(text, "sample.toml"))
+    assert dict(solution.world.settings)["decision"] == "sample"
+    games = solution.check.analysis.games
+    inference = solution.check.analysis.inference
+    differ = 0
+    for seed in range(6):
+        played = hg2prism.episode(solution, seed=seed)
+        trace = belief_trace(inference, played.drawn.steps)
+        for step, record in zip(played.steps, played.drawn.steps):
+            assert record.a2 == games[step.hypothesis].trap_choice[record.ts_state]
+            differ += step.hypothesis != inference.hypothesis(record.p2_memory)
+        # her changes of mind are those of the hypothesis she holds, drawn or not
+        assert [n for n, _ in trace.changes] == [
+            n for n, (held, after) in enumerate(zip(trace.before, trace.after), 1)
+            if held != after]
+    assert differ > 0
+
+
 def test_figures_draw_into_the_axes_given(world1_solution, tmp_path: Path, monkeypatch) -> None:
     import matplotlib
 

@@ -300,7 +300,7 @@ def _assert_not_blank(path: Path) -> None:
 def test_explorer_shows_a_change_of_mind_at_the_step_of_the_belief_trace(runs: dict[str, Path]
                                                                          ) -> None:
     """Step numbering (issue #26 item 2): the explorer marks a change of mind at step n exactly
-    when belief.png's trace does (analyses/episodes.belief_trace: after[n-1] != acted[n-1]);
+    when belief.png's trace does (analyses/episodes.belief_trace: after[n-1] != before[n-1]);
     world3's drawn episode has one."""
     from hg2prism import pipeline
     from hg2prism.analyses import episodes, simulation
@@ -316,7 +316,7 @@ def test_explorer_shows_a_change_of_mind_at_the_step_of_the_belief_trace(runs: d
     simulation.simulate_deceptive(analysis, strategy, 1, world.simulation.horizon, seed,
                                   observer=steps.append, progress=False)
     trace = episodes.belief_trace(analysis.inference, steps)
-    changes = [n for n in range(1, len(steps) + 1) if trace.after[n - 1] != trace.acted[n - 1]]
+    changes = [n for n in range(1, len(steps) + 1) if trace.after[n - 1] != trace.before[n - 1]]
     (episode,) = [e for e in page_data(out / "explorer.html")["episodes"] if e["drawn"]]
     shown = [n for n, state in enumerate(episode["states"]) if state["belief"]["changed"]]
     assert changes and shown == changes

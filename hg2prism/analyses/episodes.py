@@ -170,7 +170,7 @@ class Step:
     p2_action_name: str
     traps: tuple[int, ...]      # arena states P2's trap set covers (none with general actions)
     trapped: bool
-    hypothesis: int             # P2's hypothesis when she chose her action
+    hypothesis: int             # the hypothesis P2 acted on (drawn, when she draws it)
     terminal: bool = False      # `landing` is a terminal state (no action): the episode ends
 
     @property
@@ -207,7 +207,7 @@ def episode_steps(ts, steps) -> list[Step]:
             action_name=ts.action_names(record.ts_state)[record.a1], outcome=outcome,
             landing=landing, p2_action=int(record.a2), p2_action_name=ts.a2_names[record.a2],
             traps=tuple(int(p) for p in ts.trap_places(record.a2)), trapped=trapped,
-            hypothesis=record.p2_memory.hypothesis,
+            hypothesis=record.acted,
             terminal=bool(arena.terminal[landing]) and not trapped))
     return drawn
 
@@ -216,30 +216,40 @@ def episode_steps(ts, steps) -> list[Step]:
 class BeliefTrace:
     """P2's side of an episode, step by step: the hypothesis she acted on, the one she
     holds after reading P1's move, and (when her observer reports them, observer.ReportsBelief)
-    the per-hypothesis numbers her update rests on."""
+    the per-hypothesis numbers her update rests on. The hypothesis she holds is her memory's
+    (a Bayesian observer's most probable one); she acts on it unless she draws her hypothesis
+    (decision "sample", docs/semantics.md §12), when she acts on the one drawn."""
 
     acted: tuple[int, ...]          # [n-1]: hypothesis P2 acted on at step n
     after: tuple[int, ...]          # [n-1]: her hypothesis after step n's update
     name: str | None                # what `values` are ("CUSUM score Z_x"), None if unreported
     threshold: float | None         # the level at which she changes her mind, if any
     values: tuple[tuple[float, ...], ...] | None    # [n-1][x]
+    held: tuple[int, ...] = ()      # [n-1]: her hypothesis before step n (`acted` when empty)
+
+    @property
+    def before(self) -> tuple[int, ...]:
+        """[n-1]: the hypothesis P2 held before step n."""
+        return self.held or self.acted
 
     @property
     def changes(self) -> tuple[tuple[int, int], ...]:
         """P2's changes of mind as (n, x): observing step n made her switch to x (the
         figures' step-numbering rule, docs/semantics.md §15 "Figures": shown at step n)."""
-        return tuple((n, after) for n, (acted, after) in enumerate(zip(self.acted, self.after),
-                                                                   start=1) if after != acted)
+        return tuple((n, after) for n, (held, after) in enumerate(zip(self.before, self.after),
+                                                                  start=1) if after != held)
 
 
 def belief_trace(observer, steps) -> BeliefTrace:
     """P2's belief along `steps` (simulation.StepRecord) under `observer` (her inference)."""
     from hg2prism.opponent.observer import ReportsBelief
 
-    acted = tuple(observer.hypothesis(s.p2_memory) for s in steps)
+    held = tuple(observer.hypothesis(s.p2_memory) for s in steps)
+    acted = tuple(s.acted for s in steps)
     after = tuple(observer.hypothesis(observer.update(s.p2_memory, s.observation)) for s in steps)
     if not isinstance(observer, ReportsBelief):
-        return BeliefTrace(acted, after, None, None, None)
+        return BeliefTrace(acted, after, None, None, None, held)
     values = tuple(tuple(float(b) for b in observer.belief(s.p2_memory, s.observation))
                    for s in steps)
-    return BeliefTrace(acted, after, observer.belief_name, observer.belief_threshold, values)
+    return BeliefTrace(acted, after, observer.belief_name, observer.belief_threshold, values,
+                       held)

@@ -284,6 +284,14 @@ class StepRecord:
     # the trap sets P1's model predicts with their probabilities: one pair unless P2 draws
     # her hypothesis (Bayesian "sample", docs/semantics.md §12), then the posterior mixture
     prediction: tuple[tuple[int, float], ...] = ()
+    # the hypothesis whose trap set P2 played: the one she drew when she draws it, else (None)
+    # her memory's
+    p2_drawn: int | None = None
+
+    @property
+    def acted(self) -> int:
+        """The hypothesis P2 acted on at this step (whose trap set she played)."""
+        return self.p2_memory.hypothesis if self.p2_drawn is None else self.p2_drawn
 
     @property
     def augmented_state(self) -> tuple[int, int, Memory]:
@@ -331,6 +339,7 @@ class _Chain:
         self.status: list[int] = []          # RUNNING, GOAL or FAIL
         self.p2_hypothesis: list[int] = []   # the hypothesis of P2's real memory
         self.p2_sets: list[list[tuple[int, float]]] = []   # the trap sets P2 plays from
+        self.p2_draws: list[tuple[int, ...]] = []   # the hypothesis of each of those sets
         self.predicted: list[int] = []       # the trap set P1's model predicts
         self.a1: list[int] = []              # P1's move, -1 until first asked
         self.moves: dict[tuple[int, int, int], tuple[list[float], list[int]]] = {}
@@ -345,6 +354,8 @@ class _Chain:
             self.status.append(self.game.status(v, q))
             self.p2_hypothesis.append(self.game.observer.hypothesis(memory))
             self.p2_sets.append(self.game.trap_sets(v, memory))
+            self.p2_draws.append(tuple(x for x, _ in
+                                       self.game.observer.hypothesis_distribution(memory)))
             self.predicted.append(self.model.predicted(v, memory[0]))
             self.a1.append(-1)
         return i
@@ -409,10 +420,10 @@ class _DeceptiveRun:
             v, q, (m1, _) = chain.nodes[node]
             a1 = self._p1_move(node, switched, episode, steps)
             predicted = chain.predicted[node]
-            a2 = self._p2_move(rng, uniforms, steps, node)
+            a2, drawn = self._p2_move(rng, uniforms, steps, node)
             nxt = self._next(node, a1, a2, uniforms)
             if self.observer is not None:
-                self._report(episode, steps, node, nxt, a1, a2, predicted)
+                self._report(episode, steps, node, nxt, a1, a2, predicted, drawn)
             if chain.p2_hypothesis[nxt] != chain.p2_hypothesis[node]:
                 switches += 1
                 in_play |= bool(chain.status[nxt] < 0)       # the episode goes on
@@ -455,26 +466,27 @@ class _DeceptiveRun:
         return a1
 
     def _p2_move(self, rng: np.random.Generator, uniforms: _Uniforms, n: int,
-                 node: int) -> int:
+                 node: int) -> tuple[int, int | None]:
         """The trap set P2 plays at `node`: pi2 of her real hypothesis (drawn with one uniform
-        when she draws it), or what `p2_policy` makes of it."""
+        when she draws it), or what `p2_policy` makes of it; and the hypothesis she drew (None
+        when she does not draw)."""
         drawn = self.chain.p2_sets[node]
         if len(drawn) == 1:
-            own = drawn[0][0]
+            own, hypothesis = drawn[0][0], None
         else:       # P2 draws her hypothesis (Bayesian "sample"): one uniform
             u, k, total = uniforms.next(), 0, drawn[0][1]
             while u >= total and k + 1 < len(drawn):
                 k += 1
                 total += drawn[k][1]
-            own = drawn[k][0]
+            own, hypothesis = drawn[k][0], self.chain.p2_draws[node][k]
         if self.p2_policy is None:
-            return own
+            return own, hypothesis
         v, _, (_, m2) = self.chain.nodes[node]
         a2 = int(self.p2_policy(rng, n, v, own, m2))
         if not (0 <= a2 < self.ts.n_sets and self.ts.allowed[v, a2]):
             raise ValueError(f"p2_policy returned trap set {a2}, which is not "
                              f"available in TS state {v}")
-        return a2
+        return a2, hypothesis
 
     def _next(self, node: int, a1: int, a2: int, uniforms: _Uniforms) -> int:
         """The node the step leads to, drawn with one uniform when there are several."""
@@ -488,14 +500,14 @@ class _DeceptiveRun:
         return targets[k]
 
     def _report(self, episode: int, steps: int, node: int, nxt: int, a1: int, a2: int,
-                predicted: int) -> None:
+                predicted: int, drawn: int | None) -> None:
         """Pass the step to the observer, with P1's model's prediction as a mixture."""
         v, q, (m1, m2) = self.chain.nodes[node]
         w, q2, _ = self.chain.nodes[nxt]
         self.observer(StepRecord(episode=episode, n=steps, ts_state=v, q=q, memory=m1, a1=a1,
                                  a2=a2, predicted_a2=predicted, n_a2=self.n_allowed[v],
                                  p2_memory=m2, next_state=w, next_q=q2,
-                                 prediction=self._prediction(node)))
+                                 prediction=self._prediction(node), p2_drawn=drawn))
 
     def _prediction(self, node: int) -> tuple[tuple[int, float], ...]:
         """The trap sets P1's model predicts at `node` with their probabilities (one pair

@@ -104,12 +104,12 @@ class _Builder:
     def _belief(self, record) -> dict:
         """P2's belief after observing the step of `record` (simulation.StepRecord)."""
         observer = self.observer
-        acted = observer.hypothesis(record.p2_memory)
+        held = observer.hypothesis(record.p2_memory)
         after = observer.hypothesis(observer.update(record.p2_memory, record.observation))
         scores = (_numbers(observer.belief(record.p2_memory, record.observation))
                   if self.reports else None)
-        return {"hypothesis": after, "acted": acted, "changed": after != acted,
-                "belief": scores}
+        return {"hypothesis": after, "acted": record.acted, "held": held,
+                "changed": after != held, "belief": scores}
 
     def episode(self, records: list, code: int, seed: int, drawn: bool) -> dict:
         """One episode: states 0..N (state n after step n) and steps 1..N."""
@@ -117,7 +117,7 @@ class _Builder:
         initial = self.observer.initial_memory()
         states = [{"place": steps[0].start if steps else self.ts.arena.initial,
                    "belief": {"hypothesis": self.observer.hypothesis(initial), "acted": None,
-                              "changed": False, "belief": None}}]
+                              "held": None, "changed": False, "belief": None}}]
         for record, step in zip(records, steps):
             states[-1]["record"] = self._record(record)
             states[-1]["answers"] = self._answers(record)
