@@ -386,6 +386,34 @@ def test_prism_pomdp_not_asked_or_not_found(tmp_path, monkeypatch):
     assert ": --prism-pomdp: " in done.stderr and not (tmp_path / "r").exists()
 
 
+def test_prism_pomdp_bounds_that_come_out_inverted(tmp_path, monkeypatch, caplog):
+    """PRISM's two uncertified iterations can give a 'lower' bound above the 'upper' one (a
+    roboticist saw [0.794950204, 0.794950079]): results.json says `inverted` and the warning
+    says why they are no bracket, even when V_adapt is within PRISM's precision of them."""
+    import logging
+
+    from hg2prism.experiments import adaptive
+
+    executable = tmp_path / "prism"
+    executable.write_text("#!/bin/sh\n")
+    executable.chmod(0o755)
+    for lower, upper, v in ((0.794950204, 0.794950079, 0.7949501), (0.5, 0.6, 0.55)):
+        monkeypatch.setattr(adaptive, "prism_pomdp_bounds", lambda *a, **k: {
+            "lower": lower, "upper": upper, "seconds": 1.0})
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            found = adaptive.prism_pomdp(str(executable), tmp_path / "m.prism", v)
+        assert found["inverted"] == (lower > upper)
+        assert found["brackets_v_adapt"] == (lower <= v <= upper)
+        said = [r.getMessage() for r in caplog.records]
+        if lower > upper:
+            assert found["within_prism_precision"]
+            (line,) = said
+            assert f"its lower bound above its upper one by {lower - upper:.2g}:" in line, line
+        else:
+            assert said == []
+
+
 @pytest.mark.parametrize("seed", [None, 7, 9])
 def test_simulation_agrees_with_exact(tmp_path, seed):
     """The adaptive strategy simulated (P2's type drawn from the prior in each episode): the

@@ -268,12 +268,16 @@ def prism_pomdp(asked: bool | str, path: Path, v_adapt: float,
     lower, upper = found["lower"], found["upper"]
     outside = max(lower - v_adapt, v_adapt - upper, 0.0)
     precise = outside <= PRISM_PRECISION * v_adapt
-    if not precise:
+    # PRISM's two value iterations stop at a relative 1e-6 each: its "lower" bound may come out
+    # above its "upper" one, which is then no bracket at all
+    inverted = lower > upper
+    if not precise or inverted:
+        why = [f"outside by {outside:.2g}, beyond PRISM's relative {PRISM_PRECISION:g}"] * (
+            not precise) + [f"its lower bound above its upper one by {lower - upper:.2g}"] * inverted
         warn(f"PRISM's POMDP bounds [{lower:.9f}, {upper:.9f}] do not hold V_adapt "
-             f"{v_adapt:.9f} (outside by {outside:.2g}, beyond PRISM's relative "
-             f"{PRISM_PRECISION:g}: its bounds are not certified)")
+             f"{v_adapt:.9f} ({'; '.join(why)}: its bounds are not certified)")
     return {"status": "run", "lower": lower, "upper": upper, "brackets_v_adapt": outside == 0,
-            "outside_by": outside, "within_prism_precision": precise,
+            "inverted": inverted, "outside_by": outside, "within_prism_precision": precise,
             "resolution": resolution, "seconds": found["seconds"],
             **({"prism_version": found["version"]} if found.get("version") else {})}
 
