@@ -5,6 +5,7 @@ quantity, docs/worlds.md the world format, docs/cli.md the commands and outputs.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 from dataclasses import dataclass
@@ -492,6 +493,15 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
+def _quiet_stdout() -> None:
+    """stdout to the null device (its reader has gone)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def _command(args: argparse.Namespace) -> int:
     """Run the command `args` names; errors become one line on stderr and an exit status."""
     try:
@@ -511,6 +521,11 @@ def _command(args: argparse.Namespace) -> int:
         # line (with what and where) rather than a traceback
         print(f"hg2prism: error: {args.world}: strategy: {err}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # what reads stdout went away (`| head`, `| true`): stop without a word, as Unix tools
+        # do, and let Python's final flush write nowhere
+        _quiet_stdout()
+        return 141
     except OSError as err:
         # the output folder was checked up front; this is the disk filling up or a folder
         # changing under us. Nothing was placed: the staging folder is gone.

@@ -609,3 +609,22 @@ def test_every_record_says_what_software_computed_it(tmp_path: Path) -> None:
         assert checker.startswith("Storm ") and "stormpy" in checker
         if (ROOT / ".git").exists():
             assert re.fullmatch(r"[0-9a-f]{40}(\+edits)?", software["hg2prism_commit"])
+
+
+def test_a_closed_stdout_ends_the_command_quietly(tmp_path: Path) -> None:
+    """`hg2prism validate world | true`: the reader of stdout is gone before the command
+    prints; it stops without a word on stderr (it said 'error: world.toml: Broken pipe',
+    naming the world file as if it were at fault) and with SIGPIPE's status, 141."""
+    import os
+    import subprocess
+    import sys
+
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        done = subprocess.run([sys.executable, "-m", "hg2prism", "validate", WORLD1],
+                              stdout=write, stderr=subprocess.PIPE, text=True, timeout=120,
+                              cwd=tmp_path)
+    finally:
+        os.close(write)
+    assert (done.returncode, done.stderr) == (141, "")
