@@ -398,7 +398,36 @@ def _validate(args: argparse.Namespace, world: object) -> int:
     print(f"{args.world}: ok ({world.name}: {frontends.describe(world)}, "
           f"{len(world.hypotheses)} hypothes{'is' if len(world.hypotheses) == 1 else 'es'}"
           f"{types})")
+    print(_validate_details(world))
     return 0
+
+
+def _validate_details(world) -> str:
+    """`validate`'s second line: P2's observer and traps, and the size guard's bound on the
+    hypergame, with whether the solving commands would refuse it."""
+    from hg2prism import frontends
+    from hg2prism.model import sizeguard
+
+    settings = "".join(f", {key} {value}" for key, value in world.settings)
+    observer = (f"P2's types: {len(world.types)}" if world.types else
+                f"P2's observer: {world.inference}, window {world.window}, rationality "
+                f"{world.rationality:g}{settings}")
+    bound = (sizeguard.estimate_adaptive(world) if world.types
+             else sizeguard.estimate_states(world))
+    size = ("more than 10^18" if bound >= sizeguard.BEYOND else f"at most {bound:,}")
+    verdict = ""
+    if bound > sizeguard.DEFAULT_LIMIT:
+        from hg2prism.opponent.registry import observer_kind
+
+        tighter = (not world.types and observer_kind(world.inference).solved_memory)
+        verdict = (f"; above the size guard's limit of {sizeguard.DEFAULT_LIMIT:,}: the solving "
+                   "commands refuse it unless "
+                   + ("the tighter bound from P2's games fits or " if tighter else "")
+                   + "--max-states allows it")
+    traps = (f"{world.traps} trap{'' if world.traps == 1 else 's'}"
+             if frontends.arena_of(world).traps_mode else "P2's own actions")
+    return (f"  {observer}; {traps}, delay {world.delay}; hypergame: {size} canonical states "
+            f"(the size guard's bound from the world alone){verdict}")
 
 
 def _convert(args: argparse.Namespace, world: object) -> int:

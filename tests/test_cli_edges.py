@@ -291,7 +291,7 @@ def test_validate_counts_the_hypotheses(tmp_path: Path, hypotheses: str, said: s
                                    f"hypotheses = {hypotheses}"})
     proc = run_cli(["validate", str(world)], tmp_path)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.rstrip().endswith(said), proc.stdout
+    assert proc.stdout.splitlines()[0].endswith(said), proc.stdout
 
 
 def test_a_rounding_level_difference_is_printed_as_zero() -> None:
@@ -363,6 +363,30 @@ def test_validate_counts_one_trap_candidate(tmp_path: Path) -> None:
     proc = run_cli(["validate", str(world)], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "5x3 grid, 1 trap candidate, 1 hypothesis)" in proc.stdout, proc.stdout
+
+
+def test_validate_says_the_observer_and_whether_the_size_guard_refuses(tmp_path: Path) -> None:
+    """validate's second line names P2's observer, traps and delay, and the size guard's bound,
+    which is check's: where check refuses the world as too large, validate says so (it said
+    'ok' and nothing more to a world every solving command refused)."""
+    from hg2prism.model import sizeguard
+
+    for window, refused in ((2, False), (12, True)):
+        text = (MODELS / "world1.toml").read_text().replace("\nwindow = 2\n",
+                                                            f"\nwindow = {window}\n")
+        world = tmp_path / f"w{window}.toml"
+        world.write_text(text)
+        proc = run_cli(["validate", str(world)], tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        first, second = proc.stdout.splitlines()
+        bound = sizeguard.estimate_states(load_world(world))
+        assert second == (f"  P2's observer: cusum, window {window}, rationality 10, threshold "
+                          f"1.5; 1 trap, delay 0; hypergame: at most {bound:,} canonical states "
+                          "(the size guard's bound from the world alone)"
+                          + ("; above the size guard's limit of 6,291,456: the solving commands "
+                             "refuse it unless --max-states allows it" if refused else ""))
+        check = run_cli(["check", str(world), "--out", str(tmp_path / f"o{window}")], tmp_path)
+        assert (check.returncode == 2 and "size" in check.stderr) == refused, check.stderr
 
 
 def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
