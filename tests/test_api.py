@@ -637,6 +637,22 @@ def test_a_wrong_kind_of_argument_says_what_was_expected(lateral_solution, monke
         assert expected in _refused(call, file, key).reason
 
 
+def test_replace_of_an_observer_setting_says_where_it_is_set() -> None:
+    """World.replace(threshold=...) names the observer's configure (it said 'not a setting of
+    this world', although world.threshold reads it); configure sets it."""
+    from hg2prism.opponent import registry
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    with pytest.raises(InputError) as refused:
+        world.replace(threshold=2.0)
+    assert (refused.value.key, refused.value.reason) == (
+        "threshold", "a setting of P2's observer: change it with "
+        "hg2prism.opponent.registry.configure(world, threshold=...)")
+    assert registry.configure(world, threshold=2.0).threshold == 2.0
+    with pytest.raises(InputError, match="not a setting of this world"):
+        world.replace(thresold=2.0)
+
+
 def test_replace_with_a_settings_table_names_the_key() -> None:
     """World.replace(simulation=...) and (detection=...) take the settings dataclasses: a dict
     or None is one InputError naming the key (was an AttributeError in validation.py); the

@@ -118,6 +118,10 @@ class World:
 
                 known = _FIELDS | replaceable
                 unknown = sorted(set(front) - known)[0]
+                if unknown in dict(self.settings):
+                    raise InputError(str(self.path), unknown, "a setting of P2's observer: "
+                                     "change it with hg2prism.opponent.registry.configure("
+                                     f"world, {unknown}=...)")
                 raise InputError(str(self.path), unknown, "not a setting of this world; expected "
                                  "one of " + ", ".join(sorted(known)))
             own["front"] = dataclasses.replace(own.get("front", self.front), **front)
