@@ -185,6 +185,25 @@ def test_the_world_leaves_the_callers_layout_to_the_callers_figure(world3) -> No
                 and box.y0 >= frame.y0 - 1 and box.y1 <= frame.y1 + 1), (artist, box, frame)
 
 
+def test_a_legend_in_the_callers_axes_stays_within_them() -> None:
+    """In a caller's panel the legend is the axes' own, in one column inside them: the own
+    figure's row of three columns spilled over the neighbouring panel and the title."""
+    rows = (hg2prism.SweepRow(point=(("window", w),), deceptive_value=v, v_lead=0.5, v_ne=0.2,
+                              v_ne_p1_guaranteed=0.2, v_ne_bounds=(0.2, 0.2), states=1,
+                              transitions=1, row={"window": w, "deceptive_value": v,
+                                                  "v_lead": 0.5, "v_ne": 0.2})
+            for w, v in ((1, 0.7), (2, 0.8)))
+    table = hg2prism.SweepTable(("window",), tuple(rows), ())
+    fig = matplotlib.figure.Figure(figsize=(12, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    third = fig.subplots(1, 3)[2]
+    hg2prism.draw_sweep(table, ax=third)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legend, frame = third.get_legend().get_window_extent(renderer), third.get_window_extent(renderer)
+    assert frame.x0 <= legend.x0 and legend.x1 <= frame.x1 and legend.y1 <= frame.y1
+
+
 # ---- the backend ----
 
 def _python(code: str, env: dict[str, str], cwd: Path) -> subprocess.CompletedProcess:

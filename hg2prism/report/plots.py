@@ -90,9 +90,10 @@ def figure_done(fig: Figure, path: Path | None, given: object) -> list[Path]:
 
 def _legend(fig: Figure, ax: plt.Axes, given: object, **style) -> None:
     """The legend below the axes on a figure function's own figure; in given axes, the
-    axes' own legend (the caller's figure is not ours to lay out)."""
+    axes' own legend in one column, inside them (the caller's figure is not ours to lay out:
+    the own figure's row of columns was wider than a panel, over its neighbour and title)."""
     if given is not None:
-        ax.legend(**style)
+        ax.legend(**{**style, "ncol": 1})
     else:
         fig.legend(loc="outside lower center", **style)
 
