@@ -778,6 +778,18 @@ def test_move_refuses_each_bad_argument_in_one_line(world1_solution) -> None:
         delayed.move("x2_y4", 0, 0, standing="x3_y4", countdown=9)
     assert (countdown.value.key, countdown.value.reason) == ("countdown",
                                                             "countdown 9 outside 0..1")
+    # a Bayesian observer's windows record the action P2 played: entries without it are
+    # named as such (it was 'no record for ...')
+    bayes = hg2prism.solve(hg2prism.load_world(MODELS / "world3_bayes.toml")).strategy
+    record = next(r for r in bayes.records if r["window"])
+    where = (record["state"], record["q"], record["hypothesis"])
+    with pytest.raises(InputError) as short:
+        bayes.move(*where, window=[(w["state"], w["action"]) for w in record["window"]])
+    assert (short.value.key, short.value.reason) == (
+        "window", "expected entries (state, action, standing, countdown, played): the "
+        "strategy's windows record the action P2 played")
+    assert bayes.move(*where, window=[(w["state"], w["action"], None, None, w["played"])
+                                      for w in record["window"]]) == record["action"]
 
 
 @pytest.mark.parametrize("name, changes", [("world2", {"delay": 2}), ("world3_bayes", {}),

@@ -462,6 +462,18 @@ class Strategy:
                 raise InputError("move()", key, f"{value} is not among the values the strategy "
                                  f"has records for: {listing([str(x) for x in sorted(seen)], 5)}")
 
+    def _check_entries(self, observed: list[tuple[int, ...]]) -> None:
+        """InputError (key window) when the window's entries lack P2's action played and the
+        strategy's windows record it (a Bayesian observer's), or the other way round."""
+        lengths = {len(o) for key in self.table for o in key[2].window}
+        given = {len(o) for o in observed}
+        if len(lengths) == 1 and given and given != lengths:
+            shape = ("(state, action, standing, countdown, played)" if lengths == {3}
+                     else "(state, action, standing, countdown), without the action played")
+            recorded = "record" if lengths == {3} else "do not record"
+            raise InputError("move()", "window", f"expected entries {shape}: the strategy's "
+                             f"windows {recorded} the action P2 played")
+
     def move(self, state: str, q: int, hypothesis: int, window: Iterable[tuple] = (),
              standing: str | None = None, countdown: int | None = None, step: int = 0) -> str:
         """P1's action (its name) when the arena state is `state` (a name), the task DFA is in
@@ -490,6 +502,7 @@ class Strategy:
         observed = _window_observations(ts, window)
         key = (v, int(q), Memory(int(hypothesis), tuple(observed)))
         if key not in self.table:
+            self._check_entries(observed)
             raise InputError("move()", "state", self._no_record(key))
         schedule = self._schedule(key)
         if schedule:
