@@ -625,7 +625,10 @@ def detection_summary_lines(result: dict) -> list[str]:
         lines += [
             "",
             f"Re-planning: at the detector's first rejection P1 switches to {shown} "
-            "(same seed, same episodes):",
+            "(both columns play the same episodes, each from its own random stream, "
+            "seeded from the seed and its number, until P1's moves differ; they are "
+            "other episodes than the table above's, whose rates they match only up to "
+            "sampling noise):",
             "",
             "| P2 | completion without re-planning (95% CI) | with re-planning (95% CI) "
             "| change | episodes in which the detector fired |",
