@@ -232,6 +232,10 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
         if args.param != ["weight"]:
             raise InputError(COMMAND_LINE, "--param", "a world with P2's types sweeps "
                              "--param weight (the first type's prior weight) only")
+        if args.deception:
+            raise InputError(COMMAND_LINE, "--deception", "V_static and V_naive are of a world "
+                             "with one [inference]; a world with P2's types reports V_adapt, "
+                             "V_oracle and each V_commit per weight (docs/adaptive.md)")
         check_weights(world, args.values[0], args.max_states)
         return
     # every point is guarded before the first is solved: all refused refuses the sweep

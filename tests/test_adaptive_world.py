@@ -386,3 +386,21 @@ def test_the_weight_sweep_has_the_size_guard(tmp_path, capsys):
     assert status == 2 and len(err) == 1, err
     assert err[0].startswith("hg2prism: error: ") and f"limit of {below:,}" in err[0], err
     assert not (tmp_path / "s").exists()
+
+
+def test_the_weight_sweep_refuses_deception(tmp_path, capsys):
+    """sweep --deception on a world with P2's types: one error line and nothing written (the
+    flag was ignored in silence: V_static and V_naive are of a world with one [inference])."""
+    from pathlib import Path
+
+    from hg2prism import cli
+
+    world = Path(__file__).resolve().parent.parent / "models" / "world4.toml"
+    status = cli.main(["sweep", str(world), "--param", "weight", "--values", "0.5",
+                       "--deception", "--out", str(tmp_path / "s")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and err == [
+        "hg2prism: error: command line: --deception: V_static and V_naive are of a world with "
+        "one [inference]; a world with P2's types reports V_adapt, V_oracle and each V_commit "
+        "per weight (docs/adaptive.md)"], err
+    assert not (tmp_path / "s").exists()
