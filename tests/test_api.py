@@ -16,7 +16,7 @@ import pytest
 
 import hg2prism
 import reference
-from conftest import MODELS, ROOT
+from conftest import MODELS, ROOT, window_sweep_table
 from hg2prism.analyses import simulation
 from hg2prism.errors import InputError
 
@@ -412,12 +412,7 @@ def test_figures_draw_into_the_axes_given(world1_solution, tmp_path: Path, monke
     fig, (left, right, third) = plt.subplots(1, 3)
     assert hg2prism.draw_world(world1_solution, played, ax=left) is left
     assert hg2prism.draw_belief(world1_solution, played, ax=right) is right
-    rows = (hg2prism.SweepRow(point=(("window", w),), deceptive_value=v, v_lead=0.5, v_ne=0.2,
-                              v_ne_p1_guaranteed=0.2, v_ne_bounds=(0.2, 0.2), states=1,
-                              transitions=1, row={"window": w, "deceptive_value": v,
-                                                  "v_lead": 0.5, "v_ne": 0.2})
-            for w, v in ((1, 0.7), (2, 0.8)))
-    table = hg2prism.SweepTable(("window",), tuple(rows), ())
+    table = window_sweep_table()
     assert hg2prism.draw_sweep(table, ax=third) is third
     assert left.patches and right.lines and len(third.lines) == 3
     assert "episode of seed 3" in left.get_title(loc="left") and "belief" in right.get_title()

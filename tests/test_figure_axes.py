@@ -26,7 +26,7 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 import hg2prism
-from conftest import MODELS, ROOT
+from conftest import MODELS, ROOT, window_sweep_table
 from hg2prism.analyses.simulation import FAIL, GOAL
 from hg2prism.report import adaptive_plot, plots
 
@@ -188,12 +188,7 @@ def test_the_world_leaves_the_callers_layout_to_the_callers_figure(world3) -> No
 def test_a_legend_in_the_callers_axes_stays_within_them() -> None:
     """In a caller's panel the legend is the axes' own, in one column inside them: the own
     figure's row of three columns spilled over the neighbouring panel and the title."""
-    rows = (hg2prism.SweepRow(point=(("window", w),), deceptive_value=v, v_lead=0.5, v_ne=0.2,
-                              v_ne_p1_guaranteed=0.2, v_ne_bounds=(0.2, 0.2), states=1,
-                              transitions=1, row={"window": w, "deceptive_value": v,
-                                                  "v_lead": 0.5, "v_ne": 0.2})
-            for w, v in ((1, 0.7), (2, 0.8)))
-    table = hg2prism.SweepTable(("window",), tuple(rows), ())
+    table = window_sweep_table()
     fig = matplotlib.figure.Figure(figsize=(12, 4), layout="constrained")
     FigureCanvasAgg(fig)
     third = fig.subplots(1, 3)[2]
