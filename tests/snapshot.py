@@ -1,8 +1,8 @@
 """Snapshot of every file the command line writes, for refactorings that must not change outputs.
 
 `produce(root)` runs `hg2prism run` on world1, world2 (delay 0 and 2), world3, world3_bayes and
-ten generated worlds, plus `hg2prism robust` and `hg2prism detect` on world2, each in a process
-of its own, and returns {case: {file: digest}}. A digest is the SHA-256 of the file with what
+ten generated worlds, plus `hg2prism robust` and `hg2prism detect` on world2, in two processes of
+its own, and returns {case: {file: digest}}. A digest is the SHA-256 of the file with what
 legitimately varies masked: timings (`timings`, `seconds`, in JSON and CSV), the package version and the
 software versions (`software`), and the path of
 the world file and of the output folder (written into headers and results.json).
@@ -136,29 +136,57 @@ def _normalised(path: Path, masks: list[tuple[str, str]]) -> str | None:
 
 def produce(root: Path, python: str = sys.executable) -> dict:
     """Run every case under `root` and digest what it wrote: {"machine": machine(), "exact":
-    {case: {file: digest}}, "rounded": {case: {file: [digest at each of ROUNDINGS]}}}."""
+    {case: {file: digest}}, "rounded": {case: {file: [digest at each of ROUNDINGS]}}}.
+
+    The cases run in two processes of their own (`run_cases`, half of them each, one after
+    another within a process): a fresh interpreter per case spent a quarter of the time
+    importing, and a case whose outputs depended on what its process ran before would show
+    here as a difference."""
     worlds = root / "worlds"
     worlds.mkdir(parents=True, exist_ok=True)
     files = _world_files(worlds)
-    commands = _commands(files, root / "out")
+    names = list(_commands(files, root / "out"))
 
-    def one(item: tuple[str, list[str]]) -> tuple[str, dict[str, str]]:
-        name, args = item
-        done = subprocess.run([python, "-m", "hg2prism", *args], capture_output=True, text=True)
+    def half(names: list[str]) -> None:
+        done = subprocess.run([python, __file__, "--cases", str(root), *names],
+                              capture_output=True, text=True)
         if done.returncode != 0:
-            raise RuntimeError(f"{name}: hg2prism {' '.join(args)} failed:\n{done.stderr}")
-        out = root / "out" / name
-        masks = [(str(out), "<OUT>"), (str(worlds), "<WORLDS>")]
-        return name, {str(p.relative_to(out)): digests(p, masks)
-                      for p in sorted(out.rglob("*")) if p.is_file()}
+            raise RuntimeError(f"cases {names} failed:\n{done.stderr}")
 
     with ThreadPoolExecutor(max_workers=2) as pool:
-        cases = dict(pool.map(one, commands.items()))
+        list(pool.map(half, [names[0::2], names[1::2]]))
+    cases = {}
+    for name in names:
+        out = root / "out" / name
+        masks = [(str(out), "<OUT>"), (str(worlds), "<WORLDS>")]
+        cases[name] = {str(p.relative_to(out)): digests(p, masks)
+                       for p in sorted(out.rglob("*")) if p.is_file()}
     return {"machine": machine(),
             "exact": {case: {name: d[0] for name, d in files.items()}
                       for case, files in cases.items()},
             "rounded": {case: {name: list(d[1:]) for name, d in files.items()}
                         for case, files in cases.items()}}
+
+
+def run_cases(root: Path, names: list[str]) -> int:
+    """Run the cases `names` of `produce(root)` one after another in this process (the world
+    files are in root/worlds); 0, or 1 after printing each failed case's command and errors."""
+    import contextlib
+
+    from hg2prism import cli
+
+    files = {path.stem: path for path in (root / "worlds").glob("*.toml")}
+    commands = _commands(files, root / "out")
+    failed = 0
+    for name in names:
+        captured = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(captured):
+            status = cli.main(commands[name])
+        if status != 0:
+            failed = 1
+            print(f"{name}: hg2prism {' '.join(commands[name])} failed ({status}):\n"
+                  f"{captured.getvalue()}", file=sys.stderr)
+    return failed
 
 
 def compare(fresh: dict, stored: dict) -> list[str]:
@@ -186,6 +214,8 @@ def compare(fresh: dict, stored: dict) -> list[str]:
 if __name__ == "__main__":
     import tempfile
 
+    if sys.argv[1:2] == ["--cases"] and len(sys.argv) > 3:      # produce()'s worker processes
+        sys.exit(run_cases(Path(sys.argv[2]), sys.argv[3:]))
     if sys.argv[1:] != ["--write"]:
         sys.exit("usage: python tests/snapshot.py --write   (rewrites tests/snapshots/outputs.json)")
     with tempfile.TemporaryDirectory() as tmp:

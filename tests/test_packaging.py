@@ -3,7 +3,7 @@ works from any folder, and the installed package holds every subpackage, module 
 
 Skipped, saying why, when there is no Python 3.12 on the machine or the package index cannot be
 reached. It installs the dependencies at the versions of constraints.txt, so pip's cache makes
-it quick after the first run (about 30-60 s; the first run downloads the wheels).
+it quick after the first run (about 30-45 s; the first run downloads the wheels).
 """
 
 from __future__ import annotations
@@ -78,7 +78,9 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> Path:
         pytest.skip("the package index cannot be reached: "
                     + (probe.stderr.strip().splitlines() or ["pip download failed"])[-1])
     source = _source_copy(base / "source")
-    proc = _run([str(bin_dir / "pip"), "install", "--quiet", "-c",
+    # --no-compile: the dependencies' bytecode is left to their first import (compiling all of
+    # numpy, scipy, matplotlib and dask was a third of the install; what is imported is the same)
+    proc = _run([str(bin_dir / "pip"), "install", "--quiet", "--no-compile", "-c",
                  str(source / "constraints.txt"), str(source)], cwd=base)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     return bin_dir
