@@ -82,7 +82,7 @@ bench-huge: $(STAMP)
 	mkdir -p docs/data && cp bench-huge/huge.json docs/data/bench_huge.json
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile   # two processes, one per core; each test file stays in one
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder   # two processes, one per core; each test file stays in one, the longest first (tests/conftest.py)
 
 clean:
 	rm -rf $(VENV) models/*/ bench/ bench-huge/
