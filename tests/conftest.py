@@ -12,11 +12,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 MODELS = ROOT / "models"
 
-# The files that take longest, longest first (`make test`: the durations of a full run). With
-# `--dist loadfile --no-loadscope-reorder` xdist hands whole files to its two processes in the
-# order collected: started first, a long file no longer finishes alone while the other core
-# has nothing left to do (the snapshot, collected late, left a minute and a half of one core
-# idle). The other files follow in their usual order.
+# The files that take longest, longest first (from the durations of a full run). With
+# `--dist loadfile --no-loadscope-reorder` (pytest-xdist 3.8, `make test`) xdist hands whole
+# files to its two processes in the order collected, so a long file no longer starts last and
+# runs alone at the end (by default xdist orders files by their number of tests, and the
+# snapshot's one long test came near the end: 12 s of a 13-minute run). The other files
+# follow in their usual order.
 LONGEST_FIRST = ("test_snapshot.py", "test_docs.py", "test_prism.py", "test_packaging.py",
                  "test_robust.py", "test_core.py", "test_mazes.py", "test_cli_edges.py",
                  "test_arena_equal.py")
