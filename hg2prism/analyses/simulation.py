@@ -198,7 +198,7 @@ class _Uniforms:
     def __init__(self, rng: np.random.Generator) -> None:
         self.rng = rng
         self.block: list[float] = []
-        self.pos = 0
+        self.pos = _RANDOM_BLOCK          # the block is used up: the first number draws one
 
     def next(self) -> float:
         if self.pos >= len(self.block):
@@ -405,12 +405,20 @@ class _DeceptiveRun:
                                   else getattr(replanning.fallback, "table", None))
         self.off_record_steps = self.p2_switched = self.p2_switches = self.replanned = 0
         self.p2_switched_in_play = 0
+        # Without an observer, a detector or a deviating P2 (what `run` plays), each node's step
+        # is memoised whole: (the one successor or -1, cumulative probabilities, successors,
+        # off the records), or
+        # _DRAWS where P2 draws her hypothesis (each step then draws its own trap set).
+        self.plain = observer is None and replanning is None and p2_policy is None
+        self.steps: dict[int, tuple[int, list[float], list[int], bool] | tuple[()]] = {}
 
     def episode(self, episode: int, horizon: int, rng: np.random.Generator,
                 uniforms: _Uniforms) -> tuple[int, int]:
         """Play episode number `episode`: (its outcome code, its number of transitions)."""
         from hg2prism.analyses.detection import MismatchDetector, Mixture
 
+        if self.plain:
+            return self._plain_episode(episode, horizon, rng, uniforms)
         chain, plan = self.chain, self.replanning
         node, steps, switches, switched, in_play = self.root, 0, 0, False, False
         outcome = chain.status[node]
@@ -442,25 +450,90 @@ class _DeceptiveRun:
         self.p2_switched_in_play += in_play
         return (TRUNCATED if outcome < 0 else outcome), steps
 
+    def _plain_episode(self, episode: int, horizon: int, rng: np.random.Generator,
+                       uniforms: _Uniforms) -> tuple[int, int]:
+        """`episode` when the run is plain: the same steps, counts and random numbers (drawn
+        from `uniforms`' block in the same order), each node's step looked up once."""
+        chain, memo = self.chain, self.steps
+        status, hypothesis = chain.status, chain.p2_hypothesis
+        node, steps, switches, in_play, off = self.root, 0, 0, False, 0
+        outcome = status[node]
+        block, pos = uniforms.block, uniforms.pos
+        while outcome < 0 and steps < horizon:
+            steps += 1
+            step = memo.get(node)
+            if step is None:
+                step = memo[node] = self._plain_step(node, episode, steps)
+            if step:
+                nxt, cumulative, targets, off_record = step
+                off += off_record
+                if nxt < 0:
+                    if pos == _RANDOM_BLOCK:
+                        block, pos = uniforms.rng.random(_RANDOM_BLOCK).tolist(), 0
+                    u = block[pos]
+                    pos += 1
+                    k = 0
+                    while u >= cumulative[k]:
+                        k += 1
+                    nxt = targets[k]
+            else:       # P2 draws her hypothesis: her trap set, then the successor
+                uniforms.block, uniforms.pos = block, pos
+                a1 = self._p1_move(node, False, episode, steps)
+                a2, _ = self._p2_move(rng, uniforms, steps, node)
+                nxt = self._next(node, a1, a2, uniforms)
+                block, pos = uniforms.block, uniforms.pos
+            if hypothesis[nxt] != hypothesis[node]:
+                switches += 1
+                in_play |= bool(status[nxt] < 0)       # the episode goes on
+            node = nxt
+            outcome = status[node]
+        uniforms.block, uniforms.pos = block, pos
+        self.off_record_steps += off
+        self.p2_switches += switches
+        self.p2_switched += switches > 0
+        self.p2_switched_in_play += in_play
+        return (TRUNCATED if outcome < 0 else outcome), steps
+
+    def _plain_step(self, node: int, episode: int, steps: int
+                    ) -> tuple[int, list[float], list[int], bool] | tuple[()]:
+        """A plain run's step from `node`, memoised by `_plain_episode`: the one successor (-1
+        when there are several) and the successor table of P1's move and P2's one trap set,
+        and whether the move is off the records; () when P2 draws her trap set."""
+        if len(self.chain.p2_sets[node]) > 1:
+            return ()
+        a1 = self._p1_action(node, episode, steps)
+        cumulative, targets = self.chain.transitions(node, a1, self.chain.p2_sets[node][0][0])
+        single = targets[0] if len(targets) == 1 else -1
+        return single, cumulative, targets, node in self.off_record
+
+    def _p1_action(self, node: int, episode: int, steps: int) -> int:
+        """P1's strategy's move at `node`, memoised (a node off the records is noted)."""
+        a1 = self.chain.a1[node]
+        if a1 < 0:
+            v, q, (m1, _) = self.chain.nodes[node]
+            try:
+                a1 = self.chain.a1[node] = int(self.strategy.action(v, q, m1))
+            except StrategyError as err:
+                raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+            if self.recorded is not None and (v, q, m1) not in self.recorded:
+                self.off_record.add(node)
+        return a1
+
     def _p1_move(self, node: int, switched: bool, episode: int, steps: int) -> int:
         """P1's move at `node`: the strategy's, or after a re-planning switch the fallback's
         (both memoised per node); steps off the strategy's records are counted."""
-        v, q, (m1, _) = self.chain.nodes[node]
-        try:
-            if switched:
-                a1 = self.fallback_a1.get(node, -1)
-                if a1 < 0:
-                    a1 = self.fallback_a1[node] = int(self.replanning.fallback.action(v, q, m1))
-                if self.fallback_recorded is not None and (v, q, m1) not in self.fallback_recorded:
-                    self.off_record_steps += 1
-                return a1
-            a1 = self.chain.a1[node]
+        if switched:
+            v, q, (m1, _) = self.chain.nodes[node]
+            a1 = self.fallback_a1.get(node, -1)
             if a1 < 0:
-                a1 = self.chain.a1[node] = int(self.strategy.action(v, q, m1))
-                if self.recorded is not None and (v, q, m1) not in self.recorded:
-                    self.off_record.add(node)
-        except StrategyError as err:
-            raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+                try:
+                    a1 = self.fallback_a1[node] = int(self.replanning.fallback.action(v, q, m1))
+                except StrategyError as err:
+                    raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
+            if self.fallback_recorded is not None and (v, q, m1) not in self.fallback_recorded:
+                self.off_record_steps += 1
+            return a1
+        a1 = self._p1_action(node, episode, steps)
         if node in self.off_record:
             self.off_record_steps += 1
         return a1
