@@ -160,11 +160,20 @@ def concurrent_game(ts: TransitionSystem, dfa: DFA) -> ConcurrentGame:
 
 @dataclass
 class _Kernels:
-    """Per state, the kernel (rows, columns) that solved its matrix game last time, or None."""
+    """Per state, the kernel (rows, columns) that solved its matrix game last time: its size
+    (0: none) and its rows and columns, the first `size` entries of each state's row."""
 
-    rows: list[tuple[int, ...] | None]
-    cols: list[tuple[int, ...] | None]
+    size: np.ndarray          # [G]
+    rows: np.ndarray          # [G, min(A1, A2)]
+    cols: np.ndarray          # [G, min(A1, A2)]
     lp_calls: int = 0
+
+    @classmethod
+    def none(cls, states: int, n1: int, n2: int) -> "_Kernels":
+        k = min(n1, n2)
+        return cls(size=np.zeros(states, dtype=np.int64),
+                   rows=np.zeros((states, k), dtype=np.int64),
+                   cols=np.zeros((states, k), dtype=np.int64))
 
 
 @dataclass
@@ -202,22 +211,23 @@ def _kernel_solve(m: np.ndarray, allowed: np.ndarray, rows: np.ndarray,
     n, k = rows.shape
     batch = np.arange(n)[:, None, None]
     b = m[batch, rows[:, :, None], cols[:, None, :]]                   # [n, k, k]
-    x_sys = np.zeros((n, k + 1, k + 1))
-    x_sys[:, :k, :k] = b.transpose(0, 2, 1)
-    x_sys[:, :k, k] = -1.0
-    x_sys[:, k, :k] = 1.0
-    y_sys = x_sys.copy()
-    y_sys[:, :k, :k] = b
-    rhs = np.zeros((n, k + 1))
+    # Both players' systems in one stack, P1's first (numpy solves and factors each matrix
+    # of a stack on its own: the same numbers as two stacks, in half the calls).
+    systems = np.zeros((2 * n, k + 1, k + 1))
+    systems[:n, :k, :k] = b.transpose(0, 2, 1)
+    systems[n:, :k, :k] = b
+    systems[:, :k, k] = -1.0
+    systems[:, k, :k] = 1.0
+    rhs = np.zeros((2 * n, k + 1, 1))
     rhs[:, k] = 1.0
     # A singular system cannot be this kernel; swap in the identity so the batch solve works.
     # (Near-singular ones are solved: the certificate below rejects inaccurate answers.)
-    regular = ((np.linalg.det(x_sys) != 0) & (np.linalg.det(y_sys) != 0)
+    nonsingular = np.linalg.det(systems) != 0
+    regular = (nonsingular[:n] & nonsingular[n:]
                & allowed[np.arange(n)[:, None], cols].all(axis=1))
-    eye = np.eye(k + 1)
-    x_sys[~regular], y_sys[~regular] = eye, eye
-    xk = np.linalg.solve(x_sys, rhs[..., None])[..., 0]
-    yk = np.linalg.solve(y_sys, rhs[..., None])[..., 0]
+    systems[~np.concatenate((regular, regular))] = np.eye(k + 1)
+    solved = np.linalg.solve(systems, rhs)[..., 0]
+    xk, yk = solved[:n], solved[n:]
     x = np.zeros(m.shape[:2])
     y = np.zeros((n, m.shape[2]))
     x[np.arange(n)[:, None], rows] = xk[:, :k]
@@ -269,15 +279,10 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
 
     # 2. Last sweep's kernel, batched by kernel size.
     todo = np.flatnonzero(~done)
-    by_size: dict[int, list[int]] = {}
-    for i in todo:
-        rows = kernels.rows[states[i]]
-        if rows is not None:
-            by_size.setdefault(len(rows), []).append(i)
-    for members in by_size.values():
-        idx = np.array(members)
-        rows = np.array([kernels.rows[states[i]] for i in idx])
-        cols = np.array([kernels.cols[states[i]] for i in idx])
+    sizes = kernels.size[states[todo]]
+    for k in np.unique(sizes[sizes > 0]):
+        idx = todo[sizes == k]
+        rows, cols = kernels.rows[states[idx], :k], kernels.cols[states[idx], :k]
         got = _kernel_solve(m[idx], allowed[idx], rows, cols)
         hit = idx[got.ok]
         value[hit], x[hit], y[hit] = got.value[got.ok], got.x[got.ok], got.y[got.ok]
@@ -292,11 +297,12 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
             got = _kernel_solve(m[i:i + 1], allowed[i:i + 1], rows[None], cols[None])
             if got.ok[0]:
                 value[i], x[i], y[i] = got.value[0], got.x[0], got.y[0]
-                kernels.rows[states[i]] = tuple(int(r) for r in rows)
-                kernels.cols[states[i]] = tuple(int(c) for c in cols)
+                kernels.size[states[i]] = rows.size
+                kernels.rows[states[i], :rows.size] = rows
+                kernels.cols[states[i], :cols.size] = cols
                 continue
         # Degenerate supports: keep the LP answer if it is tight enough, without a kernel.
-        kernels.rows[states[i]] = kernels.cols[states[i]] = None
+        kernels.size[states[i]] = 0
         got = _certify(m[i:i + 1], allowed[i:i + 1], lp_x[None], lp_y[None], np.ones(1, bool))
         gap = np.einsum("ab,b->a", m[i], got.y[0]).max() - got.value[0]
         if gap > LP_GAP:
@@ -329,7 +335,7 @@ def solve_nash(game: ConcurrentGame, tolerance: float = VI_TOLERANCE,
     many sweeps (once that many LPs were solved) instead, at the iterate reached (still below
     the least fixed point)."""
     free = np.flatnonzero(game.free)
-    kernels = _Kernels(rows=[None] * game.size, cols=[None] * game.size)
+    kernels = _Kernels.none(game.size, game.next.shape[1], game.next.shape[2])
     v = game.goal.astype(float) if start is None else start.values.copy()
     n1 = game.next.shape[1]
     uniform = (np.full((game.size, n1), 1.0 / n1),
