@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 world4 mir100 sweep-demo test mazes bench bench-huge clean docs docs-all world1-bayes
+.PHONY: world1 world2 world3 world4 mir100 sweep-demo test test-all mazes bench bench-huge clean docs docs-all world1-bayes
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -81,8 +81,16 @@ bench-huge: $(STAMP)
 	$(BIN)/hg2prism bench --huge --out bench-huge
 	mkdir -p docs/data && cp bench-huge/huge.json docs/data/bench_huge.json
 
+# two processes, one per core; each test file stays in one, the longest first; `test` takes every
+# other case of the long families of generated worlds and mazes, `test-all` every case
+# (tests/conftest.py); .ci/run runs both
+PYTEST = $(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder   # two processes, one per core; each test file stays in one, the longest first (tests/conftest.py)
+	HG2PRISM_CASES=quick $(PYTEST)
+
+test-all: $(STAMP)
+	HG2PRISM_CASES=all $(PYTEST)
 
 clean:
 	rm -rf $(VENV) models/*/ bench/ bench-huge/

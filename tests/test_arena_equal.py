@@ -27,7 +27,7 @@ from pathlib import Path
 import pytest
 
 import worldgen
-from conftest import MODELS
+from conftest import MODELS, share
 from hg2prism import pipeline, progress
 from hg2prism.frontends.arena import to_toml
 from hg2prism.worldfile import load_world
@@ -48,7 +48,7 @@ def _model_worlds() -> list[tuple[str, str]]:
 
 FAMILY = worldgen.world_family()
 CASES = ([(name, text, True) for name, text in _model_worlds()]
-         + [(name, text, i % 5 == 0) for i, (name, text) in enumerate(FAMILY)])
+         + share([(name, text, i % 5 == 0) for i, (name, text) in enumerate(FAMILY)]))
 
 
 def _results(world, out: Path, baselines: bool) -> dict:

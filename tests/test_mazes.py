@@ -37,6 +37,7 @@ from hg2prism.analyses import baselines, deception_value
 from hg2prism.cli import main
 from hg2prism.worldfile import load_world
 from test_prism import PRISM, TOL as PRISM_TOL, prism_value
+from conftest import share
 
 TOL = 1e-9
 NASH_TOLERANCE = 1e-6
@@ -48,7 +49,7 @@ RUNS = {"issue": mazegen.ISSUE_WORLD, "maze113": mazegen.maze_world(113),
 # figures and a few slow Nash iterations: `make mazes` runs them all). Maze 3 stopped `run`
 # with a StrategyError until Storm's dropped constant variables were decoded (test_engine).
 RUN_SEEDS = (list(range(200)) if os.environ.get("HG2PRISM_ALL_MAZES")
-             else [3] + list(range(0, 200, 5)))
+             else [3] + share(range(0, 200, 5)))       # every tenth under `make test`
 
 
 # Mazes (not in the default selection) where the reference's bracket stays wider than 1e-6
