@@ -48,8 +48,9 @@ GENERATED = ["fam00_d0_l1_w1_x2", "fam02_d2_l1_w1_x4", "fam05_d2_l1_w2_x3",
 MASKED_KEYS = {"timings", "seconds", "hg2prism_version", "software"}
 
 
-def _world_files(folder: Path) -> dict[str, Path]:
-    """case name -> world file, written into `folder`."""
+def _world_files(folder: Path, generated: list[str]) -> dict[str, Path]:
+    """case name -> world file, written into `folder`: the shipped worlds, world2 at delay 2
+    and the generated worlds `generated`."""
     files = {}
     for name in ("world1", "world2", "world3", "world3_bayes"):
         files[name] = folder / f"{name}.toml"
@@ -59,7 +60,7 @@ def _world_files(folder: Path) -> dict[str, Path]:
     files["world2_d2"].write_text(text.replace("\ndelay = 0\n", "\ndelay = 2\n", 1)
                                   .replace('name = "world2"', 'name = "world2_d2"', 1))
     family = dict(worldgen.world_family())
-    for name in GENERATED:
+    for name in generated:
         files[name] = folder / f"{name}.toml"
         files[name].write_text(family[name])
     return files
@@ -134,9 +135,11 @@ def _normalised(path: Path, masks: list[tuple[str, str]]) -> str | None:
     return text
 
 
-def produce(root: Path, python: str = sys.executable) -> dict:
-    """Run every case under `root` and digest what it wrote: {"machine": machine(), "exact":
-    {case: {file: digest}}, "rounded": {case: {file: [digest at each of ROUNDINGS]}}}.
+def produce(root: Path, python: str = sys.executable,
+            generated: list[str] = GENERATED) -> dict:
+    """Run every case under `root` (of the generated worlds, those of `generated`) and digest
+    what it wrote: {"machine": machine(), "exact": {case: {file: digest}}, "rounded": {case:
+    {file: [digest at each of ROUNDINGS]}}}.
 
     The cases run in two processes of their own (`run_cases`, half of them each, one after
     another within a process): a fresh interpreter per case spent a quarter of the time
@@ -144,7 +147,7 @@ def produce(root: Path, python: str = sys.executable) -> dict:
     here as a difference."""
     worlds = root / "worlds"
     worlds.mkdir(parents=True, exist_ok=True)
-    files = _world_files(worlds)
+    files = _world_files(worlds, generated)
     names = list(_commands(files, root / "out"))
 
     def half(names: list[str]) -> None:

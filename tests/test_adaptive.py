@@ -21,6 +21,7 @@ import typegen
 from hg2prism.experiments.adaptive import check_adaptive
 from hg2prism.model import sizeguard
 from hg2prism.worldfile.loader import load_world
+from conftest import share
 
 TOL = 1e-6
 # seeds of tests/typegen.py whose worlds check in under 3 s each (of the first 40; all 40 agree
@@ -108,7 +109,7 @@ def compare(tmp_path, text: str, renumbered: bool = False) -> dict:
     return r
 
 
-@pytest.mark.parametrize("seed", GRID_SEEDS)
+@pytest.mark.parametrize("seed", share(GRID_SEEDS))     # every other one under `make test`
 def test_grid_worlds_against_reference(tmp_path, seed):
     compare(tmp_path, typegen.typed_world(seed))
 

@@ -22,6 +22,7 @@ from hg2prism.prism.decoding import DecodedStates
 from hg2prism.errors import InputError
 from hg2prism.worldfile import load_world, world_from_toml
 from hg2prism.opponent.observer import Memory
+from conftest import share
 
 TOL = 1e-6
 
@@ -94,7 +95,7 @@ def run(name: str, folder: str) -> pipeline.CheckResult:
         return pipeline.check(load_world(path), Path(folder) / name)
 
 
-@pytest.fixture(params=CASE_NAMES)
+@pytest.fixture(params=share(CASE_NAMES))      # every other one under `make test`
 def case(request: pytest.FixtureRequest, world_dir: Path):
     return request.param, run(request.param, str(world_dir)), world_path(request.param,
                                                                        str(world_dir))

@@ -28,6 +28,7 @@ from hg2prism import pipeline, progress
 from hg2prism.analyses import deception_value, simulation
 from hg2prism.worldfile import load_world
 from hg2prism.strategy.records import Strategy
+from conftest import share
 
 FAMILY = dict(worldgen.world_family())
 # The family less its largest worlds (kept for the core tests), and a few more small ones: 33
@@ -68,7 +69,7 @@ def test_family_size() -> None:
     assert len(NAMES) >= 33 and SINGLE <= set(NAMES)
 
 
-@pytest.mark.parametrize("name", ["world1", "world3"] + NAMES)
+@pytest.mark.parametrize("name", ["world1", "world3"] + share(NAMES))   # every other one under `make test`
 def test_values_match_reference_and_invariants(name: str, solved) -> None:
     path, checked, worth = solved(name)
     deceptive, v_lead = checked.results.deceptive_value, checked.results.v_lead

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import worldgen
-from conftest import MODELS
+from conftest import MODELS, share
 from hg2prism import pipeline
 from hg2prism.analyses import baselines
 from hg2prism.errors import SolverError, probability
@@ -55,7 +55,7 @@ def _plain_iteration(game: baselines.ConcurrentGame, p1: np.ndarray | None,
     raise AssertionError("plain value iteration did not converge")
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", share(NAMES))       # every other one under `make test`
 def test_nash_bracket(name: str, tmp_path: Path) -> None:
     analysis = pipeline.analyse(_world(name, tmp_path))
     nash = baselines.nash_baseline(analysis.ts, analysis.task)

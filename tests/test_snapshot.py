@@ -8,11 +8,17 @@ from __future__ import annotations
 import json
 
 import snapshot
+from conftest import share
+
+GENERATED = share(snapshot.GENERATED)       # five of the ten under `make test`
 
 
 def test_outputs_match_the_snapshot(tmp_path):
     stored = json.loads(snapshot.SNAPSHOT.read_text())
-    fresh = snapshot.produce(tmp_path)
+    left_out = set(snapshot.GENERATED) - set(GENERATED)
+    stored.update({key: {case: files for case, files in stored[key].items()
+                         if case not in left_out} for key in ("exact", "rounded")})
+    fresh = snapshot.produce(tmp_path, generated=GENERATED)
     problems = snapshot.compare(fresh, stored)
     assert not problems, "outputs changed:\n" + "\n".join(problems)
 
