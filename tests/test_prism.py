@@ -62,7 +62,7 @@ GENERATED = [("fam00_d0_l1_w1_x2", 1000, {"delay": 0, "traps": 1, "window": 1, "
              ("fam10_d1_l2_w1_x2", 11002, {"delay": 1, "traps": 2, "window": 1, "nhyp": 2}),
              ("fam23_d2_l1_w2_x2", 24001, {"delay": 2, "traps": 1, "window": 2, "nhyp": 2})]
 CASES = (["world1"] + [f"world2_delay{d}" for d in range(2)]
-         + share(name for name, _, _ in GENERATED))           # three of the five under `make test`
+         + share(name for name, _, _ in GENERATED))           # two of the five under `make test`
 
 
 def _world(name: str, tmp: Path):

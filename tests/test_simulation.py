@@ -346,6 +346,38 @@ def test_deviating_policy_follows_the_model_first(world1) -> None:
     assert any(s.a2 != s.predicted_a2 for s in steps if s.n > 3)
 
 
+def _same_episodes(a: SimulationSummary, b: SimulationSummary) -> None:
+    assert np.array_equal(a.lengths, b.lengths) and np.array_equal(a.outcomes, b.outcomes)
+    assert (a.off_record_steps, a.p2_switched, a.p2_switches, a.p2_switched_in_play) == (
+        b.off_record_steps, b.p2_switched, b.p2_switches, b.p2_switched_in_play)
+
+
+def test_a_plain_run_plays_the_episodes_of_a_run_with_an_observer(world1, tmp_path) -> None:
+    """Without an observer, a detector or a deviating P2 (what `run` plays) the simulation
+    looks each node's step up once; with an observer it takes every step in full. Both draw
+    the same random numbers in the same order: the same episodes, switches and off-record
+    steps, where P2 runs another inference than P1's model and where she draws her hypothesis
+    (Bayesian "sample")."""
+    analysis = world1.analysis
+    hasty = build_inference(analysis.games, analysis.world.window, 0.01,
+                            analysis.world.initial_hypothesis)
+    strategy = strategy_of(world1, fallback=leader_fallback(analysis))
+    plain = run(world1, 300, seed=6, strategy=strategy, p2_inference=hasty)
+    _same_episodes(plain, run(world1, 300, seed=6, strategy=strategy, p2_inference=hasty,
+                              observer=lambda step: None))
+    assert plain.p2_switched > 0
+    text = (MODELS / "world3_bayes.toml").read_text()
+    assert 'decision = "map"' in text
+    path = tmp_path / "sample.toml"
+    path.write_text(text.replace('decision = "map"', 'decision = "sample"'))
+    sample = pipeline.check(load_world(path), tmp_path / "out")
+    steps = []
+    plain = run(sample, 300, seed=2)
+    _same_episodes(plain, run(sample, 300, seed=2, observer=steps.append))
+    # she drew, and not always her memory's most likely hypothesis
+    assert any(step.p2_drawn != step.p2_memory.hypothesis for step in steps)
+
+
 def test_p2_can_run_another_inference_model(world1) -> None:
     analysis = world1.analysis
     # P2 really switches on the slightest evidence; P1 still models the world's threshold
