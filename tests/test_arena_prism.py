@@ -18,7 +18,7 @@ import pytest
 
 import arenas
 import worldgen
-from conftest import MODELS
+from conftest import MODELS, share
 from hg2prism import pipeline, progress
 from hg2prism.engines import storm
 from hg2prism.model.arena import Arena
@@ -79,7 +79,7 @@ def _lateral(delay: int, kind: str, traps: bool, folder: str):
     return world, model, checked, out
 
 
-@pytest.fixture(params=LATERAL, ids=lambda p: f"d{p[0]}-{p[1]}-{'traps' if p[2] else 'general'}")
+@pytest.fixture(params=share(LATERAL), ids=lambda p: f"d{p[0]}-{p[1]}-{'traps' if p[2] else 'general'}")
 def lateral(request, tmp_path_factory):
     return _lateral(*request.param, str(tmp_path_factory.getbasetemp() / "lateral"))
 
