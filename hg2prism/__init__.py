@@ -6,6 +6,8 @@ The Python API (docs/api.md):
     world_from_graph(G, entries=..., task=..., ...)          -> World (an attack graph's arena)
     solve(world, *, out=None, storm_method="sound")          -> Solution (AdaptiveSolution
                                                                 with P2's types, [[type]])
+    run(world, out, *, episodes, horizon, seed, episode)     -> Run (what `hg2prism run` writes
+                                                                into out: table, figures, ...)
     baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
     simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
     deception_values(solution)                               -> V_static, V_naive, value of deception
@@ -23,14 +25,14 @@ docs/semantics.md.
 __version__ = "0.1.0"
 
 from hg2prism.api import (AdaptiveSolution, Baselines, DeceptionValues, Episode, EpisodeStep,  # noqa: E402
-                          RobustValue, Simulation, Solution, Strategy, SweepRow, SweepTable,
+                          RobustValue, Run, Simulation, Solution, Strategy, SweepRow, SweepTable,
                           baselines, deception_values, detection, draw_belief, draw_sweep,
-                          draw_world, episode, load_world, robust, simulate, solve, sweep,
+                          draw_world, episode, load_world, robust, run, simulate, solve, sweep,
                           world_from_graph, world_from_toml)
 
 from hg2prism.errors import InputError  # noqa: E402  (except hg2prism.InputError)
 
-__all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
-           "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
-           "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
+__all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "run",
+           "baselines", "simulate", "deception_values", "robust", "sweep", "detection", "episode",
+           "draw_world", "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]

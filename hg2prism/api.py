@@ -26,12 +26,12 @@ from hg2prism.model.world import World, plain
 
 from hg2prism.errors import COMMAND_LINE, InputError, listing
 from hg2prism.worldfile import load_world, world_from_toml
-from hg2prism.results import CheckResult, CheckResults
+from hg2prism.results import CheckResult, CheckResults, RunResults
 from hg2prism.strategy.records import Strategy
 
-__all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "baselines", "simulate",
-           "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
-           "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Strategy", "Baselines", "Simulation",
+__all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "run", "baselines",
+           "simulate", "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
+           "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
 
 
@@ -404,7 +404,6 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
     A world with P2's types ([[type]]) gives an `AdaptiveSolution` (docs/api.md)."""
     from hg2prism import pipeline
     from hg2prism.model import sizeguard
-    from hg2prism.outputs import staged
 
     from hg2prism.strategy.objectives import OBJECTIVES
 
@@ -421,14 +420,90 @@ def solve(world: World | str | Path, *, out: str | Path | None = None,
     sizeguard.check_size(world)
     if world.types:           # P2's type unknown: adaptive deception (docs/semantics.md §16)
         with _as_arguments("solve"):
-            return _solve_adaptive(world, out, storm_method, objective)
+            return _solve_adaptive(world, out, storm_method, objective)[0]
     with _as_arguments("solve"), contextlib.ExitStack() as stack:
-        folder = (stack.enter_context(staged(out)) if out is not None else
+        folder = (stack.enter_context(command_stage("check", out, world)) if out is not None else
                   Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="hg2prism-"))))
         checked = pipeline.check(world, folder, storm_method, objective, bound)
         records = tuple(checked.records)
     return Solution(world=world, strategy=Strategy.from_records(records, checked.analysis.ts),
                     check=checked)
+
+
+@dataclass(frozen=True, eq=False)
+class Run:
+    """What `hg2prism run` computes for a world, all of it written into `out`: the solution,
+    results.json's content and the table of table.md."""
+
+    solution: Solution | AdaptiveSolution
+    results: RunResults | dict      # results.json: typed; a world with P2's types: its content
+    table: str                      # table.md's text (the completion table, or adaptivity's)
+    out: Path                       # where the files are
+
+    def to_json(self) -> dict:
+        """The content of results.json."""
+        return self.results if isinstance(self.results, dict) else self.results.to_json()
+
+    def __repr__(self) -> str:
+        return f"Run(solution={self.solution!r}, out={str(self.out)!r})"
+
+
+def run(world: World | str | Path, out: str | Path, *, episodes: int | None = None,
+        horizon: int | None = None, seed: int | None = None, episode: str = "median",
+        storm_method: str = "sound", objective: str = "pmax") -> Run:
+    """Everything `hg2prism run` computes for `world` (a World or the path of a world file),
+    written into the folder `out` as the command writes it (atomically, stale outputs
+    removed): the check, the baselines, the PRISM-games models, the value of deception, the
+    simulations (`episodes` episodes cut after `horizon` steps from `seed`, by default the
+    world's [simulation]), table.md, the figures and the replay of the episode `episode` names
+    ("median", "shortest" or "seed=N"). With objective "bounded" the bound is the horizon. A
+    world with P2's types ([[type]]) is solved and its adaptive strategy simulated, as the
+    command does (`episode` must then be left at "median")."""
+    from hg2prism import pipeline
+    from hg2prism.analyses.episodes import parse_episode_rule
+    from hg2prism.model import sizeguard
+    from hg2prism.strategy.objectives import OBJECTIVES
+
+    _option("run", objective, "objective", "objective", OBJECTIVES)
+    storm_method = _storm_method("run", storm_method)
+    episodes, horizon, seed = _simulation_arguments("run", episodes, horizon, seed)
+    with _as_arguments("run"):
+        parse_episode_rule(episode)
+    out = _out_folder("run", out)
+    world = _world("run", world)
+    sizeguard.check_size(world)
+    if world.types:           # P2's type unknown: adaptive deception (docs/semantics.md §16)
+        if str(episode).strip() != "median":
+            raise InputError("run()", "episode", "a world with P2's types draws the episode of "
+                             "adaptive_belief.png with `seed` (its type too, from the prior); "
+                             "`episode` picks the figures' episode of a world with one "
+                             "[inference]")
+        settings = world.simulation
+        simulation = (episodes or settings.episodes, horizon or settings.horizon,
+                      settings.seed if seed is None else seed)
+        with _as_arguments("run"):
+            solution, table = _solve_adaptive(world, out, storm_method, objective, simulation,
+                                              command="run")
+        return Run(solution=solution, results=solution.results, table=table, out=out)
+    with _as_arguments("run"), command_stage("run", out, world) as stage:
+        ran = pipeline.run(world, stage, episodes, horizon, seed, show_progress=False,
+                           storm_method=storm_method, episode=episode, objective=objective)
+        records = tuple(ran.check.records)
+    solution = Solution(world=world, strategy=Strategy.from_records(records, ran.check.analysis.ts),
+                        check=ran.check)
+    return Run(solution=solution, results=ran.results, table=ran.table, out=out)
+
+
+def command_stage(command: str, out: Path, world: World):
+    """outputs.staged for what the command `command` ("check", "run", "sweep", ...) writes into
+    `out`, as the command line stages it: its stale outputs are removed, and where `out` held
+    another world's outputs (or another version of this world's), every output is."""
+    from hg2prism.experiments.sweep import owned_pattern
+    from hg2prism.outputs import OWNED, staged
+
+    owns = owned_pattern() if command == "sweep" else OWNED[command]
+    every = "|".join(f"(?:{pattern})" for pattern in (*OWNED.values(), owned_pattern()))
+    return staged(Path(out), owns=owns, world=world.name, every=every, digest=world.digest())
 
 
 def _out_folder(verb: str, out: object) -> Path:
@@ -486,21 +561,24 @@ class AdaptiveSolution:
         return self.results
 
 
-def _solve_adaptive(world: World, out, storm_method: str, objective: str) -> AdaptiveSolution:
+def _solve_adaptive(world: World, out, storm_method: str, objective: str,
+                    simulation: tuple[int, int, int] | None = None,
+                    command: str = "check") -> tuple[AdaptiveSolution, str]:
+    """The AdaptiveSolution of a world with P2's types and its table (table.md); with
+    `simulation` (episodes, horizon, seed) its adaptive strategy simulated too, as `run` does."""
     from hg2prism.experiments.adaptive import check_adaptive
-    from hg2prism.outputs import staged
 
     if objective != "pmax":
         raise InputError(str(world.path), "type", "a world with P2's types ([[type]], adaptive "
                          "deception) is solved for the pmax objective only, got "
                          f"objective={objective!r}")
     def solved(folder: Path) -> tuple:
-        found = check_adaptive(world, folder, storm_method)
+        found = check_adaptive(world, folder, storm_method, simulation=simulation)
         return found, tuple(Solution(world=c.analysis.world, strategy=Strategy.from_records(
             tuple(c.records), c.analysis.ts), check=c) for c in found.checks)
 
     if out is not None:
-        with staged(Path(out)) as stage:
+        with command_stage(command, out, world) as stage:
             found, types = solved(stage)
     else:
         with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch:
@@ -512,7 +590,7 @@ def _solve_adaptive(world: World, out, storm_method: str, objective: str) -> Ada
         v_commit={t["name"]: t["v_commit"] for t in r["types"]},
         value_of_adaptivity=r["value_of_adaptivity"],
         cost_of_not_knowing=r["cost_of_not_knowing"], strategy=tuple(found.strategy.records),
-        types=types, results=r)
+        types=types, results=r), found.table
 
 
 def _one_type(solution, verb: str) -> None:

@@ -17,8 +17,9 @@ from hg2prism.engines import default as default_engine
 from hg2prism.errors import COMMAND_LINE, InputError, SolverError, StormError
 from hg2prism.strategy.records import StrategyError
 from hg2prism.model import sizeguard
-from hg2prism.experiments.sweep import owned_pattern, sweep_parameters
-from hg2prism.outputs import OWNED, check_writable, staged
+from hg2prism.experiments.sweep import sweep_parameters
+from hg2prism.outputs import check_writable
+from hg2prism.api import command_stage
 from hg2prism.strategy.objectives import OBJECTIVES
 
 
@@ -601,10 +602,7 @@ def _perform(args: argparse.Namespace) -> int:
     command.guard(args, world)
     check_writable(out)
     command.options(args, world)
-    owns = owned_pattern() if args.command == "sweep" else OWNED[args.command]
-    every = "|".join(f"(?:{pattern})" for pattern in (*OWNED.values(), owned_pattern()))
-    with staged(out, owns=owns, world=world.name, every=every,
-                digest=world.digest()) as stage:
+    with command_stage(args.command, out, world) as stage:
         outcome = command.act(args, world, stage)
         files = sorted(p.name for p in stage.iterdir())
     print(tables.summary(outcome.results, out, files) if outcome.results is not None

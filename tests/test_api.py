@@ -523,6 +523,22 @@ def test_solve_checks_its_options_before_any_work(monkeypatch) -> None:
         _refused(lambda: hg2prism.solve(world, **kwargs), "solve()", key)
 
 
+def test_run_checks_its_arguments_before_any_work(tmp_path: Path, monkeypatch) -> None:
+    _no_solving(monkeypatch)
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    out = tmp_path / "out"
+    for kwargs, key in [(dict(episodes=0), "episodes"), (dict(horizon=1.5), "horizon"),
+                        (dict(seed=-1), "seed"), (dict(episode="longest"), "episode"),
+                        (dict(episode="seed=x"), "episode"),
+                        (dict(storm_method="bogus"), "storm_method"),
+                        (dict(objective="fastest"), "objective")]:
+        _refused(lambda: hg2prism.run(world, out, **kwargs), "run()", key)
+    _refused(lambda: hg2prism.run(world, 3), "run()", "out")
+    _refused(lambda: hg2prism.run(world, ""), "run()", "out")
+    _refused(lambda: hg2prism.run(3, out), "run()", "world")
+    assert not out.exists()
+
+
 def test_the_verbs_check_their_arguments(lateral_solution, monkeypatch) -> None:
     """Every numeric or option argument of the verbs that play a solution: InputError with the
     argument's name as the key (not the command line's --flag), before any work."""
@@ -857,3 +873,49 @@ def test_move_on_a_state_it_cannot_answer_is_an_input_error(world1_solution) -> 
         f"strategy has records at {first['state']} only in {there} other hypergame states")
     for error in (misspelt, unrecorded, elsewhere):
         assert "\n" not in str(error.value) and not isinstance(error.value, KeyError)
+
+
+
+ONE = ('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\nslip = 0.1\n'
+       '[task]\nformula = "F A"\n[adversary]\ntraps = 1\nhypotheses = ["F A"]\n[inference]\n'
+       'window = 1\nthreshold = 1.0\nrationality = 1.0\n')
+
+
+def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
+        tmp_path: Path) -> None:
+    """hg2prism.run writes what `hg2prism run` writes (the same files, results.json but its
+    timings, table.md), and, like solve(out=...), into a folder holding another world's outputs
+    it removes them, keeping the user's own files (solve(out=) used to leave world1's figures,
+    table.md and third hypothesis beside another world's results)."""
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    world_file = tmp_path / "one.toml"
+    world_file.write_text(ONE)
+    with quiet():
+        assert main(["run", str(world_file), "--out", str(tmp_path / "cli"), "--episodes", "300",
+                     "--seed", "7"]) == 0
+    cli_files = {p.name for p in (tmp_path / "cli").iterdir()}
+    assert {"table.md", "world.png", "replay.gif"} <= cli_files
+    out = tmp_path / "api"
+    out.mkdir()
+    (out / "results.json").write_text(json.dumps({"world": "world1"}))   # world1's outputs
+    for name in ("hypothesis_2.hoa", "table.md", "world.png"):
+        (out / name).write_text("world1's")
+    (out / "mine.txt").write_text("not hg2prism's")
+    ran = hg2prism.run(world_file, out, episodes=300, seed=7)
+    assert {p.name for p in out.iterdir()} == cli_files | {"mine.txt"}
+    assert ran.table == (out / "table.md").read_text() == (tmp_path / "cli" / "table.md").read_text()
+    masked = {"timings", "seconds", "software", "hg2prism_version"}
+    written = json.loads((out / "results.json").read_text())
+    assert _without(written, masked) == _without(
+        json.loads((tmp_path / "cli" / "results.json").read_text()), masked)
+    assert _without(ran.to_json(), masked) == _without(written, masked)
+    assert ran.out == out and ran.solution.deceptive_value == written["deceptive_value"]
+    assert (ran.results.simulation.deceptive.episodes, ran.results.simulation.seed) == (300, 7)
+    # solve(out=) of another world: nothing of this one's run is left but the user's file
+    world_file.write_text(ONE.replace('name = "one"', 'name = "two"'))
+    hg2prism.solve(world_file, out=out)
+    names = {p.name for p in out.iterdir()}
+    assert "mine.txt" in names and not names & {"table.md", "world.png", "replay.gif"}
+    assert json.loads((out / "results.json").read_text())["world"] == "two"
