@@ -62,6 +62,10 @@ def test_the_pipeline_checks_through_the_engine_it_is_given(world, tmp_path: Pat
     # the chain the strategy induces, checked by the engine
     within = given.engine.induced_within(given.checked, given.strategy.choice, 10**6)
     assert within == pytest.approx(given.results.deceptive_value, abs=1e-9)
+    # what the engine hands on does not change after it is built
+    assert set(default.checked.timings) == {"parse", "build", "check"}
+    with pytest.raises(TypeError):
+        default.checked.timings["check"] = 0.0
 
 
 def test_the_robust_experiment_builds_interval_models_through_the_engine(world, tmp_path: Path

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from collections.abc import Mapping
 from typing import Callable, Protocol
 
 import numpy as np
@@ -77,7 +78,7 @@ class CheckedModel:
     value: float
     values: np.ndarray             # value of every state
     formula: object                # the checked property, as the engine parsed it
-    timings: dict[str, float]      # parse, build, check
+    timings: Mapping[str, float]   # parse, build, check (read-only)
     size: tuple[int, int, int]     # the engine's states, transitions and choices
     alongside: object = None       # what check(..., alongside=...) computed beside the engine
 

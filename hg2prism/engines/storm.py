@@ -13,6 +13,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Callable
 from pathlib import Path
 
@@ -140,7 +141,7 @@ def _check(prism_path: Path, prop: str, method: str,
     initial = model.initial_states[0]
     value = probability(values[initial], "Storm's value at the initial state")
     checked = StormChecked(model=model, value=value, values=values, formula=formula,
-                           timings=timings, alongside=prepared,
+                           timings=MappingProxyType(timings), alongside=prepared,
                            size=(model.nr_states, model.nr_transitions, model.nr_choices))
     if scheduler is not None:   # the certified route has one already: no second solve for it
         checked.__dict__["scheduler"] = scheduler
