@@ -24,7 +24,11 @@ from hg2prism.strategy.objectives import OBJECTIVES
 
 
 def _out_dir(world_path: Path, out: str | None) -> Path:
-    return Path(out) if out else world_path.parent / world_path.stem
+    if out == "":       # not the default folder by accident (the API refuses out="" too)
+        raise InputError(COMMAND_LINE, "--out", "an empty path; expected a folder (\".\" for "
+                         "the current one), or leave --out out for the folder next to the "
+                         "world file")
+    return Path(out) if out is not None else world_path.parent / world_path.stem
 
 
 def _exit_on_signal(signum: int, frame: object) -> None:

@@ -168,6 +168,30 @@ def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
     return False
 
 
+# The hidden file in an output folder that lists what hg2prism placed there: only those items
+# are ever removed as stale (a file or folder of the user's whose name looks like an output,
+# such as notes/ in a sweep's folder or a table.md of their own, is never touched). A folder
+# without it (new, or written before it existed) has nothing removed.
+MANIFEST = ".hg2prism-outputs.json"
+
+
+def _placed(out: Path) -> set[str]:
+    """The names MANIFEST lists in `out` (none when it is missing or unreadable)."""
+    try:
+        items = json.loads((out / MANIFEST).read_text())["items"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
+    return {name for name in items if isinstance(name, str)} if isinstance(items, list) else set()
+
+
+def _record_placed(out: Path, names: set[str]) -> None:
+    """MANIFEST in `out`: the items of `names` that are there."""
+    present = sorted(name for name in names
+                     if (out / name).exists() or (out / name).is_symlink())
+    write_json(out / MANIFEST, {"about": "what hg2prism placed in this folder: the only items "
+                                "it ever removes as stale outputs", "items": present})
+
+
 @contextmanager
 def staged(out: Path, owns: str | None = None, world: str | None = None,
            every: str | None = None, digest: str | None = None) -> Iterator[Path]:
@@ -179,7 +203,8 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
     `out` held outputs of another world than `world` (its record files name it) or another
     version of it (their `world_digest` is not `digest`), `every` (what any command owns)
     removes all of them: the commands of one world share a folder, two worlds (or two versions
-    of one world file) do not."""
+    of one world file) do not. Only what hg2prism placed in `out` (MANIFEST lists it) is ever
+    removed."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
@@ -192,6 +217,7 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             raise
         out.mkdir(exist_ok=True)
         new_items = list(stage.iterdir())
+        placed = _placed(out)
         own = owns
         if world is not None and every is not None and _of_another_world(out, world, digest):
             owns = every
@@ -211,12 +237,12 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             except BaseException:
                 os.replace(aside, target)
                 raise
+        written = {item.name for item in new_items}
         if owns is not None:
-            written = {item.name for item in new_items}
             pattern = re.compile(owns)
             others = []          # other commands' outputs, removed as another world's
             for old in sorted(out.iterdir()):
-                if old.name not in written and pattern.fullmatch(old.name):
+                if old.name in placed and old.name not in written and pattern.fullmatch(old.name):
                     if own is None or not re.fullmatch(own, old.name):
                         others.append(old.name + ("/" if old.is_dir() else ""))
                     os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
@@ -224,5 +250,6 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
                 say(f"outputs: {out} held the outputs of another world (or of this world "
                     f"file before an edit); removed those of other commands too: "
                     f"{listing(others, 6, count=True)}")
+        _record_placed(out, placed | written)
     finally:
         shutil.rmtree(stage, ignore_errors=True)

@@ -39,6 +39,14 @@ LONGEST_FIRST = ("test_snapshot.py", "test_docs.py", "test_prism.py", "test_pack
                  "test_arena_equal.py")
 
 
+def names_in(folder: Path) -> list[str]:
+    """The names in an output folder, sorted, but hg2prism's record of what it placed there
+    (outputs.MANIFEST)."""
+    from hg2prism.outputs import MANIFEST
+
+    return sorted(p.name for p in Path(folder).iterdir() if p.name != MANIFEST)
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     rank = {name: at for at, name in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))      # stable

@@ -40,6 +40,7 @@ SNAPSHOT = Path(__file__).resolve().parent / "snapshots" / "outputs.json"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import worldgen  # noqa: E402
+from hg2prism.outputs import MANIFEST  # noqa: E402  (bookkeeping, not an output)
 
 # Ten generated worlds: delay 0-3, one and two traps, windows 1-3, one to four hypotheses.
 GENERATED = ["fam00_d0_l1_w1_x2", "fam02_d2_l1_w1_x4", "fam05_d2_l1_w2_x3",
@@ -162,8 +163,8 @@ def produce(root: Path, python: str = sys.executable,
     for name in names:
         out = root / "out" / name
         masks = [(str(out), "<OUT>"), (str(worlds), "<WORLDS>")]
-        cases[name] = {str(p.relative_to(out)): digests(p, masks)
-                       for p in sorted(out.rglob("*")) if p.is_file()}
+        cases[name] = {str(p.relative_to(out)): digests(p, masks)        # not the manifest
+                       for p in sorted(out.rglob("*")) if p.is_file() and p.name != MANIFEST}
     return {"machine": machine(),
             "exact": {case: {name: d[0] for name, d in files.items()}
                       for case, files in cases.items()},

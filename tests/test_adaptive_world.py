@@ -8,6 +8,7 @@ import pytest
 from hg2prism.errors import InputError
 from hg2prism.worldfile.loader import world_from_toml
 from hg2prism.worldfile.types import weights, world_of_type
+from conftest import names_in
 
 HEAD = '''name = "typed"
 [grid]
@@ -357,7 +358,7 @@ def test_the_weight_sweep_runs_on_the_sweeps_driver(tmp_path, capsys):
         assert sorted(line.split(" ")[1] for line in lines) == ["weight=0", "weight=0.5"]
         assert any("V_adapt 0.8712, V_oracle 0.8750, V_commit(jumpy) 0.5000, "
                    "V_commit(stubborn) 0.7500" in line for line in lines), lines
-        assert sorted(p.name for p in out.iterdir()) == ["sweep.csv", "sweep.json",
+        assert names_in(out) == ["sweep.csv", "sweep.json",
                                                          "sweep.png", "sweep.svg"]
         summary = json.loads((out / "sweep.json").read_text())
         summary.pop("seconds")

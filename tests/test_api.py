@@ -16,7 +16,7 @@ import pytest
 
 import hg2prism
 import reference
-from conftest import MODELS, ROOT, window_sweep_table
+from conftest import MODELS, ROOT, names_in, window_sweep_table
 from hg2prism.analyses import simulation
 from hg2prism.errors import InputError
 
@@ -49,7 +49,7 @@ def test_solve_a_world_from_text_writes_and_prints_nothing(tmp_path: Path, monke
 
 def test_solve_with_out_writes_what_check_writes(tmp_path: Path) -> None:
     solution = hg2prism.solve(MODELS / "world1.toml", out=tmp_path / "out")
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == sorted(
+    assert names_in(tmp_path / "out") == sorted(
         ["hypergame.prism", "hypergame.props", "results.json", "strategy.json", "task.hoa",
          "task.dot", "task.svg", "induced.tra", "induced.sta", "induced.lab", "induced.drn",
          "goal.props"]
@@ -693,11 +693,9 @@ def test_replace_takes_values_as_python_gives_them() -> None:
 
     world = hg2prism.load_world(MODELS / "world1.toml")
     listed = world.replace(hypotheses=list(world.hypotheses), window=np.int64(2),
-                           rationality=np.float32(0.5), slip=np.float64(0.1),
-                           start=(np.int64(2), np.int64(4)))
+                           rationality=np.float32(0.5), slip=np.float64(0.1))
     assert listed == world.replace(hypotheses=world.hypotheses, window=2, rationality=0.5,
-                                   slip=0.1, start=(2, 4))
-    assert all(type(c) is int for c in listed.grid.start)
+                                   slip=0.1)
     assert type(listed.hypotheses) is tuple and type(listed.window) is int
     assert type(listed.rationality) is float and type(listed.grid.slip) is float
     _refused(lambda: world.replace(window="2"), str(world.path), "inference.window")
@@ -706,6 +704,40 @@ def test_replace_takes_values_as_python_gives_them() -> None:
     _refused(lambda: world.replace(simulation=seeded), str(world.path), "simulation.seed")
     assert world.replace(simulation=dataclasses_replace(world.simulation, seed=2**62)) \
         .simulation.seed == 2**62
+
+
+def test_replace_does_not_change_a_grid_s_cells() -> None:
+    """replace(start=...) and the other fields of a grid's map are refused, naming them (they
+    were taken unchecked: solve then raised a raw KeyError, and a start on a trap candidate,
+    which no map can say, was solved); a Grid made by dataclasses.replace must be what its map
+    says; the World's path must be a path."""
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    for key, value in (("start", (0, 0)), ("start", (2, 4)), ("height", 3), ("width", 2),
+                       ("rows", ("###",)), ("regions", ()), ("trap_candidates", ())):
+        err = _refused(lambda: world.replace(**{key: value}), str(world.path), key)
+        assert "map" in err.reason and "slip" in err.reason
+    for key, value in (("start", (3, 4)), ("regions", (("A", frozenset({(0, 0)})),)),
+                       ("height", 7), ("walls", frozenset()), ("rows", ("#@#", "###"))):
+        front = dataclasses_replace(world.grid, **{key: value})
+        # another map (rows) is a grid whose other fields, first its width, are not its map's
+        _refused(lambda: dataclasses_replace(world, front=front), str(world.path),
+                 "grid.width" if key == "rows" else f"grid.{key}")
+    _refused(lambda: world.replace(path=5), "5", "path")
+    assert world.replace(slip=0.2).grid.slip == 0.2
+
+
+def test_a_variant_with_other_traps_does_not_take_its_file_s_initial_traps() -> None:
+    """A sweep over delay of world2.replace(traps=2) (delay 0) re-solved with a positive delay:
+    its file's initial_traps, one cell for one trap, are not the variant's, so the standing
+    rule goes on to the first two candidates (it stopped with the file's error about them)."""
+    from hg2prism import frontends
+
+    world = hg2prism.load_world(MODELS / "world2.toml")
+    assert world.delay == 0 and world.traps == 1
+    filed = frontends.standing_candidates(world)
+    assert [world.grid.trap_candidates[c] for c in filed] == [(2, 5)]
+    assert frontends.standing_candidates(world.replace(traps=2)) == ()
+    assert frontends.standing_candidates(world.replace(rationality=2.0)) == filed
 
 
 def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solution) -> None:
@@ -776,7 +808,10 @@ def test_move_refuses_each_bad_argument_in_one_line(world1_solution) -> None:
              (dict(window=[5]), "window", "window entry 5: expected (state, action)"),
              (dict(hypothesis=hypotheses + 4), "hypothesis",
               f"{hypotheses + 4} is not among the values the strategy has records for: 0, 1, 2"),
-             (dict(q=99), "q", "99 is not among the values the strategy has records for")]
+             (dict(q=99), "q", "99 is not among the values the strategy has records for"),
+             # world1 has delay 0: a standing action or countdown was ignored without a word
+             (dict(standing="x3_y4"), "standing", "got 'x3_y4', but this world has delay 0"),
+             (dict(countdown=0), "countdown", "got 0, but this world has delay 0")]
     for changes, key, reason in cases:
         arguments = dict(state="x2_y4", q=0, hypothesis=0) | changes
         with pytest.raises(InputError) as refused:
@@ -897,14 +932,17 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
                      "--seed", "7"]) == 0
     cli_files = {p.name for p in (tmp_path / "cli").iterdir()}
     assert {"table.md", "world.png", "replay.gif"} <= cli_files
+    from hg2prism.outputs import staged
+
     out = tmp_path / "api"
-    out.mkdir()
-    (out / "results.json").write_text(json.dumps({"world": "world1"}))   # world1's outputs
-    for name in ("hypothesis_2.hoa", "table.md", "world.png"):
-        (out / name).write_text("world1's")
+    with staged(out) as stage:          # world1's outputs, placed as a command places them
+        (stage / "results.json").write_text(json.dumps({"world": "world1"}))
+        for name in ("hypothesis_2.hoa", "table.md", "world.png"):
+            (stage / name).write_text("world1's")
     (out / "mine.txt").write_text("not hg2prism's")
+    (out / "hypothesis_7.hoa").write_text("mine too, though named like an output")
     ran = hg2prism.run(world_file, out, episodes=300, seed=7)
-    assert {p.name for p in out.iterdir()} == cli_files | {"mine.txt"}
+    assert {p.name for p in out.iterdir()} == cli_files | {"mine.txt", "hypothesis_7.hoa"}
     assert ran.table == (out / "table.md").read_text() == (tmp_path / "cli" / "table.md").read_text()
     masked = {"timings", "seconds", "software", "hg2prism_version"}
     written = json.loads((out / "results.json").read_text())
@@ -917,5 +955,57 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
     world_file.write_text(ONE.replace('name = "one"', 'name = "two"'))
     hg2prism.solve(world_file, out=out)
     names = {p.name for p in out.iterdir()}
-    assert "mine.txt" in names and not names & {"table.md", "world.png", "replay.gif"}
+    assert {"mine.txt", "hypothesis_7.hoa"} <= names
+    assert not names & {"table.md", "world.png", "replay.gif"}
     assert json.loads((out / "results.json").read_text())["world"] == "two"
+
+
+def test_a_task_no_play_completes_is_warned_about(caplog) -> None:
+    """Where no play of either player completes the task (a region behind a wall; a corridor
+    whose one trap candidate always holds the trap), the value 0 comes with one warning (a
+    review's arena whose goal no edge reached was solved without a word); where P2 can always
+    stop P1 but some play completes it (two candidates in a row: V_lead = 0), there is none."""
+    import logging
+
+    text = ONE.replace("#####\n#@tA#\n#####", "{map}")
+    for grid, warned in (("######\n#@t#A#\n######", True), ("#####\n#@tA#\n#####", True),
+                         ("######\n#@ttA#\n######", False)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            solution = hg2prism.solve(hg2prism.world_from_toml(text.format(map=grid)))
+        assert solution.deceptive_value == solution.v_lead == 0.0
+        said = [r.getMessage() for r in caplog.records if "no play completes" in r.getMessage()]
+        assert len(said) == warned, (grid, said)
+    # an arena: its task as given (no warning), and one no state satisfies
+    import arenas
+
+    for formula, warned in (("F crown", False), ("F (crown & payroll)", True)):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            value = hg2prism.solve(arenas.lateral().replace(formula=formula)).deceptive_value
+        said = [r.getMessage() for r in caplog.records if "no play completes" in r.getMessage()]
+        assert (value == 0.0) == warned and len(said) == warned, (formula, value, said)
+        assert all("arena's edges, labels" in line for line in said)
+
+
+def test_a_strategy_slower_than_the_horizon_is_warned_about(caplog) -> None:
+    """run warns when P1's strategy needs more steps on average to complete the task than the
+    simulations' horizon (exactly the horizon: no warning), except for the bounded objective,
+    which is about the horizon, and a strategy that never completes it."""
+    import logging
+
+    from hg2prism.pipeline import _warn_if_slow
+    from hg2prism.results import StrategyObjective
+
+    def warned(name: str, to_goal: float | None, horizon: int) -> bool:
+        caplog.clear()
+        objective = StrategyObjective(name=name, bound=None, value=0.7, goal_probability=0.7,
+                                      expected_steps=to_goal, expected_steps_to_goal=to_goal)
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            _warn_if_slow(objective, horizon)
+        return any("more than the simulations' horizon of" in r.getMessage()
+                   for r in caplog.records)
+
+    assert warned("pmax", 3378.2, 150) and warned("lexicographic", 150.5, 150)
+    assert not warned("pmax", 150.0, 150) and not warned("pmax", 82.4, 200)
+    assert not warned("bounded", 3378.2, 150) and not warned("pmax", None, 150)

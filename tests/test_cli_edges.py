@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from conftest import MODELS, ROOT
+from conftest import MODELS, ROOT, names_in
 from hg2prism import __version__
 from hg2prism.errors import InputError
 from hg2prism.numeric import bounded_reach
@@ -47,7 +47,7 @@ def assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> str
 
 def only(folder: Path, *names: str) -> None:
     """`folder` holds exactly `names` (no staging folder, no probe left behind)."""
-    assert sorted(p.name for p in folder.iterdir()) == sorted(names)
+    assert names_in(folder) == sorted(names)
 
 
 def small_world(tmp_path: Path, extra: dict[str, str] | None = None) -> Path:
@@ -395,6 +395,7 @@ def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
     edge-case stress test: check of world B left world A's detection and robust outputs beside
     B's results)."""
     from hg2prism.cli import main
+    from hg2prism.outputs import staged
     from hg2prism.progress import quiet
 
     out = tmp_path / "out"
@@ -405,10 +406,12 @@ def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
                      'rationality = 1.0\n')
     with quiet():
         assert main(["check", WORLD1, "--out", str(out)]) == 0
-        # what detect and robust of world1 leave there (their record names the world)
-        (out / "detection.json").write_text(json.dumps({"world": "world1"}))
-        (out / "detection.png").write_bytes(b"")
-        (out / "robust_0.1").mkdir()
+        # what detect and robust of world1 leave there (their record names the world), placed
+        # as a command places its outputs
+        with staged(out) as stage:
+            (stage / "detection.json").write_text(json.dumps({"world": "world1"}))
+            (stage / "detection.png").write_bytes(b"")
+            (stage / "robust_0.1").mkdir()
         (out / "mine.txt").write_text("not hg2prism's")
         assert main(["check", WORLD1, "--out", str(out)]) == 0          # the same world: kept
         assert {"detection.json", "detection.png", "robust_0.1"} <= {p.name for p in out.iterdir()}
@@ -419,12 +422,54 @@ def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:
     assert json.loads((out / "results.json").read_text())["world"] == "one"
 
 
+ONE = ('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\nslip = 0.1\n'
+       '[task]\nformula = "F A"\n[adversary]\ntraps = 1\nhypotheses = ["F A"]\n[inference]\n'
+       'window = 1\nthreshold = 1.0\nrationality = 1.0\n')
+
+
+def test_a_command_never_removes_what_it_did_not_write(tmp_path: Path) -> None:
+    """Files and folders of the user's own whose names look like outputs (a table.md, world.png,
+    type0/, a sweep-like delay_notes/, robust_0.5/, sweep.json) stay where a command writes,
+    whatever world it solves (found by a review: `check --out .` in a folder of notes deleted
+    them without a word); what hg2prism placed there and does not write again goes."""
+    from hg2prism.cli import main
+    from hg2prism.outputs import MANIFEST
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "notes"
+    out.mkdir()
+    mine = {"table.md": "my table", "world.png": "my picture", "replay.gif": "mine",
+            "type0/data.txt": "mine", "delay_notes/a.txt": "mine", "robust_0.5/keep.txt": "mine",
+            "traps_2023/b.txt": "mine"}
+    for name, text in mine.items():
+        (out / name).parent.mkdir(exist_ok=True)
+        (out / name).write_text(text)
+    one = tmp_path / "one.toml"
+    one.write_text(ONE)
+    two = tmp_path / "two.toml"
+    two.write_text(ONE.replace('name = "one"', 'name = "two"').replace("slip = 0.1", "slip = 0.2"))
+    with quiet():
+        assert main(["check", str(one), "--out", str(out)]) == 0
+        assert main(["sweep", str(one), "--param", "window", "--values", "1", "--out", str(out),
+                     "--workers", "1"]) == 0
+        assert (out / "window_1").is_dir()
+        assert main(["check", str(two), "--out", str(out)]) == 0     # another world
+    for name, text in mine.items():
+        assert (out / name).read_text() == text, name
+    names = {p.name for p in out.iterdir()}
+    assert not names & {"window_1", "sweep.json", "sweep.csv"}    # one's sweep: removed
+    assert json.loads((out / "results.json").read_text())["world"] == "two"
+    placed = set(json.loads((out / MANIFEST).read_text())["items"])
+    assert placed == names - {name.split("/")[0] for name in mine} - {MANIFEST}
+
+
 def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> None:
     """The same world file edited between two commands is another world: its outputs do not
     stay beside the old version's (the folder kept world1's detection outputs when `check`
     ran on an edited world1; records now carry World.digest()). The other commands' outputs
     removed are named in one line on stderr (they went in silence)."""
     from hg2prism.cli import main
+    from hg2prism.outputs import staged
     from hg2prism.progress import quiet
 
     out = tmp_path / "out"
@@ -433,8 +478,10 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> N
         assert main(["check", str(world), "--out", str(out)]) == 0
     digest = json.loads((out / "results.json").read_text())["world_digest"]
     assert digest == load_world(world).digest()
-    (out / "detection.json").write_text(json.dumps({"world": "world1", "world_digest": digest}))
-    (out / "detection.png").write_bytes(b"")
+    with staged(out) as stage:       # what detect leaves there, placed as a command does
+        (stage / "detection.json").write_text(json.dumps({"world": "world1",
+                                                          "world_digest": digest}))
+        (stage / "detection.png").write_bytes(b"")
     removal = "held the outputs of another world"
     capsys.readouterr()
     assert main(["check", str(world), "--out", str(out)]) == 0         # unchanged: kept

@@ -21,7 +21,7 @@ import stormpy.environments as environments
 import reference
 import reference_exports
 import worldgen
-from conftest import MODELS
+from conftest import MODELS, names_in
 from hg2prism import cli, pipeline
 from hg2prism.analyses import simulation
 from hg2prism.worldfile import load_world
@@ -298,13 +298,13 @@ def test_exports_are_owned_by_check(folder: str, tmp_path: Path, capsys) -> None
     assert cli.main(["check", world, "--out", str(out), "--objective", "lexicographic"]) == 0
     summary = capsys.readouterr().out
     assert "expected steps infinite" in summary
-    written = {p.name for p in out.iterdir()}
+    written = set(names_in(out))
     assert {"task.hoa", "task.dot", "task.svg", "hypothesis_0.hoa", "hypothesis_0.dot",
             "hypothesis_0.svg", "induced.tra",
             "induced.sta", "induced.lab", "induced.drn"} <= written
     assert json.loads((out / "results.json").read_text())["objective"]["name"] == "lexicographic"
     assert cli.main(["emit", world, "--out", str(out)]) == 0
-    assert {p.name for p in out.iterdir()} == {"hypergame.prism", "hypergame.props"}
+    assert set(names_in(out)) == {"hypergame.prism", "hypergame.props"}
 
 
 def test_run_simulates_the_bounded_strategy(folder: str, tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ import pytest
 
 import reference
 import worldgen
+from conftest import names_in
 from hg2prism import cli
 from hg2prism.errors import InputError
 from hg2prism.experiments import sweep
@@ -198,7 +199,7 @@ def test_two_parameters_on_the_command_line(tmp_path: Path, capsys) -> None:
     assert code == 1
     errors = [line for line in captured.err.splitlines() if line.startswith("hg2prism: error:")]
     assert len(errors) == 1 and "sweep point delay=1 window=2: size:" in errors[0]
-    assert sorted(p.name for p in out.iterdir()) == [
+    assert names_in(out) == [
         "delay_0__window_1", "delay_0__window_2", "delay_1__window_1",
         "sweep.csv", "sweep.json", "sweep.png", "sweep.svg"]
     header = (out / "sweep.csv").read_text().splitlines()[0]
@@ -210,7 +211,7 @@ def test_two_parameters_on_the_command_line(tmp_path: Path, capsys) -> None:
     # a one-parameter sweep into the same folder leaves no stale point folder behind
     assert cli.main(["sweep", str(path), "--param", "window", "--values", "1", "--out",
                      str(out), "--workers", "1"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == [
+    assert names_in(out) == [
         "sweep.csv", "sweep.json", "sweep.png", "sweep.svg", "window_1"]
 
 

@@ -29,6 +29,11 @@ def reason(parse, *args) -> tuple[str, str]:
     (lambda v: sweep.parse_sweep_values("window", v), ["1,4"], "--values",
      "window value '1,4' is not an integer >= 1; separate the values with spaces "
      "(--values 1 4)"),
+    # no hint where a part is no value either ("1,x"): the value is wrong, not its commas
+    (lambda v: sweep.parse_sweep_values("window", v), ["1,x"], "--values",
+     "window value '1,x' is not an integer >= 1"),
+    (lambda v: sweep.parse_sweep_values("prior", v), ["1,x"], "--values",
+     "prior value '1,x' is not comma-separated positive numbers, one per hypothesis"),
     (lambda v: sweep.parse_sweep_values("window", v), ["0"], "--values",
      "window value 0 must be an integer >= 1"),
     (lambda v: sweep.parse_sweep_values("window", v), [], "--values",

@@ -412,7 +412,7 @@ def test_stopped_run_leaves_nothing_half_written(tmp_path: Path, signal_name: st
 def test_staged_outputs_replace_earlier_ones(tmp_path: Path) -> None:
     """A re-run replaces the files and folders of the previous one (a sweep's delay_1/ ...) and
     keeps what it does not write."""
-    from hg2prism.outputs import staged
+    from hg2prism.outputs import MANIFEST, staged
 
     out = tmp_path / "out"
     for run, files in enumerate((["a.txt", "sub/old.txt", "sub/both.txt", "kept.txt"],
@@ -421,7 +421,8 @@ def test_staged_outputs_replace_earlier_ones(tmp_path: Path) -> None:
             for name in files:
                 (stage / name).parent.mkdir(parents=True, exist_ok=True)
                 (stage / name).write_text(f"run {run}")
-    assert sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file()) == [
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")
+                  if p.is_file() and p.name != MANIFEST) == [
         "a.txt", "kept.txt", "sub/both.txt", "sub/new.txt"]
     assert (out / "sub" / "both.txt").read_text() == "run 1"
     assert (out / "kept.txt").read_text() == "run 0"

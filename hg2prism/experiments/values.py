@@ -95,9 +95,10 @@ def parse_values(spec: ValueList, values: Sequence[object]) -> list:
             if str(err) == NOT_FORM:
                 # "1,4" for 1 4: the values are separate arguments (a prior's weights take
                 # commas, and its parser says whether they parse); the hint shows those typed
-                apart = (f"; separate the values with spaces ({spec.option} "
-                         f"{' '.join(part.strip() for part in value.split(',') if part.strip())})"
-                         if spec.hint and isinstance(value, str) and "," in value else "")
+                parts = ([part.strip() for part in value.split(",") if part.strip()]
+                         if spec.hint and isinstance(value, str) and "," in value else [])
+                apart = (f"; separate the values with spaces ({spec.option} {' '.join(parts)})"
+                         if parts and all(_parses(spec, part) for part in parts) else "")
                 reason = spec.not_form.format(value=value, shown=shown, **words) + apart
             else:
                 reason = spec.outside.format(value=value, shown=shown, **words)
@@ -109,3 +110,13 @@ def parse_values(spec: ValueList, values: Sequence[object]) -> list:
             raise InputError(COMMAND_LINE, spec.option, spec.repeated.format(
                 value=value, shown=shown, parsed=found, **words))
     return parsed
+
+
+def _parses(spec: ValueList, value: str) -> bool:
+    """Whether `value` alone is one of `spec`'s values (a hint to split "1,4" is only given
+    when its parts are values: not for a prior's "1,x")."""
+    try:
+        spec.parse(value)
+    except ValueError:
+        return False
+    return True

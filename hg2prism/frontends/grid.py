@@ -19,14 +19,14 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
 
 from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
-from hg2prism.model.validation import Vocabulary
+from hg2prism.model.validation import Checks, Vocabulary
 from hg2prism.model.world import World
 
 Cell = tuple[int, int]
@@ -73,8 +73,21 @@ class Grid:
         return ("obs",) + self.region_letters()
 
     def check(self, checks) -> None:
-        """What validation (model/validation.py) checks of a grid World's own values."""
+        """What validation (model/validation.py) checks of a grid World's own values: the slip,
+        and that the cells are those its map (`rows`) says (a Grid made by hand, or by
+        dataclasses.replace, with a start or regions of its own would not be one)."""
         check_slip(checks, self.slip)
+        if not (isinstance(self.rows, tuple) and self.rows
+                and all(isinstance(row, str) for row in self.rows)):
+            raise checks.fail("grid.rows", "must be a tuple of the map's rows (str), top row "
+                                           f"first, got {self.rows!r}")
+        mapped = read_map(checks, {"map": "\n".join(self.rows)})
+        for name in ("width", "height", "walls", "obstacles", "regions", "trap_candidates",
+                     "start"):
+            if getattr(self, name) != getattr(mapped, name):
+                raise checks.fail(f"grid.{name}", f"{getattr(self, name)!r} is not what the "
+                                  f"map (grid.rows) says, {getattr(mapped, name)!r}: a grid's "
+                                  "cells are read from its map; change the map instead")
 
     def vocabulary(self) -> Vocabulary:
         return Vocabulary(self.propositions(), "obs and the region letters of the map ("
@@ -90,7 +103,8 @@ class Grid:
 
         return f"{self.width}x{self.height} grid, {counted(len(self.trap_candidates), 'trap candidate')}"
 
-Grid.replaceable = frozenset(f.name for f in fields(Grid))
+# what World.replace changes in a grid world (its robot); the cells come from the map
+Grid.replaceable = frozenset({"slip"})
 
 ACTIONS = ("N", "E", "S", "W")
 # LEGACY: action labels in generated PRISM (E, S and W are PRISM keywords)
@@ -232,7 +246,8 @@ def standing_candidates(world: World) -> tuple[int, ...]:
 
 def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
     """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
-    file has none, an empty list, or cannot be read any more."""
+    file has none, an empty list, cannot be read any more, or describes another map or number
+    of traps than `world` (a variant, World.replace(traps=2), whose file's traps are not its)."""
     import tomllib
 
     from hg2prism.errors import InputError
@@ -242,8 +257,15 @@ def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
             data = tomllib.load(handle)
     except (OSError, tomllib.TOMLDecodeError):
         return None
-    adversary = data.get("adversary")
-    if not isinstance(adversary, dict) or "initial_traps" not in adversary:
+    adversary, grid_table = data.get("adversary"), data.get("grid")
+    try:
+        filed_rows = read_map(Checks(str(world.path)), grid_table).rows
+    except (InputError, AttributeError, KeyError, TypeError):
+        return None
+    if (filed_rows != world.grid.rows or not isinstance(adversary, dict)
+            or adversary.get("traps") != world.traps):
+        return None
+    if "initial_traps" not in adversary:
         return None
     key = "adversary.initial_traps"
     value = adversary["initial_traps"]

@@ -15,6 +15,7 @@ import numpy as np
 
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
+from hg2prism.numeric.graph import backward_reach
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,3 +73,14 @@ def product(ts: TransitionSystem, dfa: DFA) -> Product:
     return Product(ts=ts, dfa=dfa, next=nxt, prob=np.repeat(ts.prob, n_q, axis=0),
                    allowed=np.repeat(ts.allowed, n_q, axis=0), goal=goal, fail=fail,
                    start=int(start))
+
+
+def completable(ts: TransitionSystem, dfa: DFA) -> bool:
+    """Whether some play completes `dfa`'s task from the start: some moves of both players and
+    outcomes of positive probability that reach a goal state of TS x DFA. False means that
+    nothing either player does matters: every value of the world is 0 (an unreachable region,
+    an arena whose edges never lead to a labelled state)."""
+    p = product(ts, dfa)
+    step = (p.prob > 0) & p.allowed[:, None, :, None] & p.free[:, None, None, None]
+    rows = np.broadcast_to(np.arange(p.size).reshape(-1, 1, 1, 1), step.shape)[step]
+    return bool(backward_reach(rows, p.next[step], np.flatnonzero(p.goal), p.size)[p.start])

@@ -129,9 +129,9 @@ def check_games_size(world: World, limit: int | None = None) -> int:
                 if need < BEYOND else "Reduce the trap candidates, traps or delay")
         raise InputError(
             str(world.path), "size",
-            f"P2's perceptual games would need about {need / 2 ** 30:,.1f} GiB (their tables "
+            f"P2's perceptual games would need about {_gib(need)} (their tables "
             f"over TS state x P1's action x {p2_action_count(world):,} P2 actions x outcome, "
-            f"with delay {world.delay}), more than the {budget / 2 ** 30:,.1f} GiB of the "
+            f"with delay {world.delay}), more than the {_gib(budget)} of the "
             f"limit; nothing was written. {hint}")
     return need
 
@@ -380,6 +380,13 @@ def machine_bytes() -> int | None:
         return None
 
 
+def _gib(size: float) -> str:
+    """`size` bytes in GiB for a message: "1.5 GiB", "3,460,300,800 GiB" (no decimal above
+    100 GiB)."""
+    gib = size / 2 ** 30
+    return f"{gib:,.1f} GiB" if gib < 100 else f"{gib:,.0f} GiB"
+
+
 def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) -> str | None:
     """The hint when `need` bytes exceed this machine's memory: what makes the model smaller,
     then the override (which would exhaust the memory: a stress test's robust model, refused
@@ -387,9 +394,9 @@ def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) 
     memory = machine_bytes()
     if memory is None or need <= memory:
         return None
-    what = (f"That is about {need / 2 ** 30:,.1f} GiB at {BYTES_PER_STATE // 1024} KiB a "
+    what = (f"That is about {_gib(need)} at {BYTES_PER_STATE // 1024} KiB a "
             "state, more" if per_state else "That is more")
-    return (f"{what} than this machine's {memory / 2 ** 30:,.1f} GiB: {smaller} make it "
+    return (f"{what} than this machine's {_gib(memory)}: {smaller} make it "
             f"smaller ({flag} would try anyway)")
 
 

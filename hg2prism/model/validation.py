@@ -14,6 +14,7 @@ checked by the observer registry (opponent/registry.py), which hands its check t
 from __future__ import annotations
 
 import math
+from pathlib import PurePath
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -432,6 +433,9 @@ def validate(world: Any) -> None:
     """Raise InputError(world's path, key, reason) at the first value of `world` that no world
     file could give (called by World.__post_init__)."""
     checks = Checks(str(world.path))
+    if not isinstance(world.path, PurePath):
+        raise checks.fail("path", "must be the world file's pathlib.Path (a world from text: "
+                                  f"Path(its name)), got {type(world.path).__name__}")
     checks.name(world.name)
     checks.one_line(checks.string(world.description, "description"), "description")
     front = world.front

@@ -118,6 +118,14 @@ class World:
 
                 known = _FIELDS | replaceable
                 unknown = sorted(set(front) - known)[0]
+                current = own.get("front", self.front)
+                if unknown in {f.name for f in dataclasses.fields(current)}:
+                    raise InputError(str(self.path), unknown, f"part of this {current.kind} "
+                                     "world's own description (its map or graph), which replace "
+                                     "does not change: write the changed world as a world "
+                                     "file (or world_from_toml's text)"
+                                     + (f"; its own settings: {', '.join(sorted(replaceable))}"
+                                        if replaceable else ""))
                 if unknown in dict(self.settings):
                     raise InputError(str(self.path), unknown, "a setting of P2's observer: "
                                      "change it with hg2prism.opponent.registry.configure("

@@ -321,6 +321,12 @@ def _named_ts_state(ts: TransitionSystem, state: object, standing: object,
         raise InputError("move()", "state", f"{state!r} is not a state of the world, whose "
                          f"{len(names)} states are {listing(names, 5)}"
                          + (f"; did you mean {' or '.join(close)}?" if close else ""))
+    if ts.delay == 0:
+        for key, given in (("standing", standing), ("countdown", countdown)):
+            if given is not None:     # it used to be ignored without a word
+                raise InputError("move()", key, f"got {given!r}, but this world has delay 0: "
+                                 "P2's action takes effect at once, so there is no standing "
+                                 "action or countdown; leave it out")
     try:
         return _record_ts_state(ts, {"state": state, "standing": standing,
                                      "countdown": countdown}, "move()")
