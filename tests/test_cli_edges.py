@@ -78,6 +78,19 @@ def test_out_below_a_file(tmp_path: Path) -> None:
     only(tmp_path, "file")
 
 
+def test_an_empty_out_is_refused(tmp_path: Path, capsys) -> None:
+    """--out "" is refused as the API's out="" is (it wrote into the default folder next to
+    the world file)."""
+    from hg2prism.cli import main
+
+    world = tmp_path / "world1.toml"
+    world.write_text((MODELS / "world1.toml").read_text())
+    assert main(["check", str(world), "--out", ""]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("hg2prism: error: command line: --out: an empty path"), line
+    only(tmp_path, "world1.toml")
+
+
 @pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs /proc (a folder nobody can write)")
 def test_out_in_a_folder_that_cannot_be_written(tmp_path: Path) -> None:
     # /proc refuses new entries even to root, for whom permission bits would not do
