@@ -93,6 +93,7 @@ def analyse(world: World) -> Analysis:
                              "V_lead")
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {games_clock.seconds:.2f} s")
+    _say_undecided_choices(world, ts, games)
     if v_lead == 0.0 and not completable(ts, task):
         warn(f"no play completes the task {world.formula!r} from the start, whatever either "
              "player does (no state where it holds can be reached with positive probability): "
@@ -101,6 +102,22 @@ def analyse(world: World) -> Analysis:
                                                "arena's edges, labels and P2's actions"))
     return Analysis(world, ts, task, games, inference, leader, v_lead,
                     Timings().then(games=games_clock.seconds))
+
+
+def _say_undecided_choices(world: World, ts: TransitionSystem, games) -> None:
+    """A line for each hypothesis under which P2 thinks P1 can never complete his task: her
+    game's value is 0 wherever she chooses, so every trap set is as good as another there, and
+    she keeps the standing one or takes the first (docs/semantics.md §4). Her moves under it do
+    not defend anything, which a reader of the values should know (a review's warehouse: the
+    deceptive value 1 where V_lead is 0)."""
+    chooses = ~ts.terminal & (ts.allowed.sum(axis=1) > 1)
+    for i, game in enumerate(games):
+        # where she chooses and the task is not done already (its own region: value 1)
+        rows = np.flatnonzero(chooses & ~np.isin(game.fresh_q, list(game.dfa.accepting)))
+        if rows.size and not game.values[rows, game.fresh_q[rows]].any():
+            say(f"games: under hypothesis x{i} ({world.hypotheses[i]}) P2's game gives P1 no "
+                "chance anywhere, so her trap sets all tie: under it she keeps the standing "
+                "one or takes the first (docs/semantics.md §4)")
 
 
 # TS tables (state x P1's action x P2's action x outcome) from which the games take seconds:

@@ -1009,3 +1009,20 @@ def test_a_strategy_slower_than_the_horizon_is_warned_about(caplog) -> None:
     assert warned("pmax", 3378.2, 150) and warned("lexicographic", 150.5, 150)
     assert not warned("pmax", 150.0, 150) and not warned("pmax", 82.4, 200)
     assert not warned("bounded", 3378.2, 150) and not warned("pmax", None, 150)
+
+
+def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:
+    """Under a hypothesis whose game gives P1 the value 0 wherever P2 chooses (its region walled
+    off), her trap sets all tie and she takes the first: a line says so (a review's world
+    surprised its author: P2 stopped defending); world1's hypotheses get none."""
+    import logging
+
+    text = ONE.replace("#####\n#@tA#\n#####", "#######\n#@.tA##\n#.t..##\n######B").replace(
+        'hypotheses = ["F A"]', 'hypotheses = ["F A", "F B"]')
+    for world, expected in ((hg2prism.world_from_toml(text), ["x1 (F B)"]),
+                            (hg2prism.load_world(MODELS / "world1.toml"), [])):
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="hg2prism"):
+            hg2prism.solve(world)
+        said = [r.getMessage() for r in caplog.records if "no chance anywhere" in r.getMessage()]
+        assert [line.split("hypothesis ")[1].split(")")[0] + ")" for line in said] == expected
