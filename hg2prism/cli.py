@@ -448,6 +448,9 @@ def _convert(args: argparse.Namespace, world: object) -> int:
     if args.out is None:
         sys.stdout.write(text)
         return 0
+    if args.out == "":
+        raise InputError(COMMAND_LINE, "--out", "an empty path; expected a file name, or "
+                         "leave --out out to print the arena form")
     out = Path(args.out)
     if out.is_dir():
         raise InputError(COMMAND_LINE, "--out", f"{out} is a folder; expected a file name")

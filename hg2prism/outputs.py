@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from hg2prism.errors import COMMAND_LINE, InputError, listing
-from hg2prism.progress import say
+from hg2prism.progress import say, warn
 
 
 _UMASK = os.umask(0)
@@ -146,11 +146,16 @@ def _model_digest(path: Path) -> str | None:
     return None
 
 
-def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
+def _of_another_world(out: Path, world: str, digest: str | None = None,
+                      placed: set[str] | frozenset[str] = frozenset()) -> bool:
     """Whether `out` holds outputs of a world other than `world` (its name) or than the world
     of `digest` (World.digest: the same name, its file edited), by what its record files say
-    (read before the new outputs move in; a record without a digest is judged by name)."""
+    (read before the new outputs move in; a record without a digest is judged by name). Only
+    the records hg2prism placed there (`placed`, MANIFEST's list) count: one it has no record
+    of placing is never removed, so it would make every later command remove the others'."""
     for name in _RECORDS:
+        if name not in placed:
+            continue
         path = out / name
         if not path.is_file():
             continue
@@ -164,7 +169,8 @@ def _of_another_world(out: Path, world: str, digest: str | None = None) -> bool:
         if digest is not None and isinstance(digested, str) and digested != digest:
             return True
     if digest is not None:
-        return any(_model_digest(out / name) not in (None, digest) for name in _MODELS)
+        return any(_model_digest(out / name) not in (None, digest)
+                   for name in _MODELS if name in placed)
     return False
 
 
@@ -186,10 +192,31 @@ def _placed(out: Path) -> set[str]:
 
 def _record_placed(out: Path, names: set[str]) -> None:
     """MANIFEST in `out`: the items of `names` that are there."""
-    present = sorted(name for name in names
-                     if (out / name).exists() or (out / name).is_symlink())
+    present = sorted(names & {p.name for p in out.iterdir()} - {MANIFEST})
     write_json(out / MANIFEST, {"about": "what hg2prism placed in this folder: the only items "
                                 "it ever removes as stale outputs", "items": present})
+
+
+@contextmanager
+def _locked(folder: Path) -> Iterator[None]:
+    """`folder` locked against another hg2prism process finishing a command there (an
+    exclusive flock on the folder itself), so that two commands ending at once do not each
+    write MANIFEST without the other's items. Where locks are not supported, unlocked."""
+    try:
+        import fcntl
+
+        fd = os.open(folder, os.O_RDONLY)
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)        # releases the lock
 
 
 @contextmanager
@@ -216,40 +243,54 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             _join_pool_workers()    # a worker may still be writing into the stage
             raise
         out.mkdir(exist_ok=True)
-        new_items = list(stage.iterdir())
-        placed = _placed(out)
-        own = owns
-        if world is not None and every is not None and _of_another_world(out, world, digest):
-            owns = every
-        for item in new_items:
-            target = out / item.name
-            if not (item.is_dir() or target.is_dir()) or not (target.exists() or
-                                                               target.is_symlink()):
-                os.replace(item, target)      # a file over a file (or nothing): atomic
-                continue
-            # os.replace cannot put a folder over a file or replace a folder that has files
-            # (a re-run's delay_1/ ...): move the old one aside into the stage, which is
-            # removed below, and back if the new one cannot take its place.
-            aside = stage / f".replaced-{item.name}"
-            os.replace(target, aside)
-            try:
-                os.replace(item, target)
-            except BaseException:
-                os.replace(aside, target)
-                raise
-        written = {item.name for item in new_items}
-        if owns is not None:
-            pattern = re.compile(owns)
-            others = []          # other commands' outputs, removed as another world's
-            for old in sorted(out.iterdir()):
-                if old.name in placed and old.name not in written and pattern.fullmatch(old.name):
-                    if own is None or not re.fullmatch(own, old.name):
-                        others.append(old.name + ("/" if old.is_dir() else ""))
-                    os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
-            if others:
-                say(f"outputs: {out} held the outputs of another world (or of this world "
-                    f"file before an edit); removed those of other commands too: "
-                    f"{listing(others, 6, count=True)}")
-        _record_placed(out, placed | written)
+        with _locked(out):
+            _place(stage, out, owns, world, every, digest)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: str | None,
+           digest: str | None) -> None:
+    """staged's work once the command succeeded: the stage's items into `out`, the stale ones
+    that hg2prism placed there removed, MANIFEST written."""
+    new_items = list(stage.iterdir())
+    placed = _placed(out)
+    own = owns
+    if (world is not None and every is not None
+            and _of_another_world(out, world, digest, placed)):
+        owns = every
+    foreign = sorted(item.name for item in new_items if item.name not in placed
+                     and ((out / item.name).exists() or (out / item.name).is_symlink()))
+    for item in new_items:
+        target = out / item.name
+        if not (item.is_dir() or target.is_dir()) or not (target.exists() or
+                                                           target.is_symlink()):
+            os.replace(item, target)      # a file over a file (or nothing): atomic
+            continue
+        # os.replace cannot put a folder over a file or replace a folder that has files
+        # (a re-run's delay_1/ ...): move the old one aside into the stage, which is
+        # removed below, and back if the new one cannot take its place.
+        aside = stage / f".replaced-{item.name}"
+        os.replace(target, aside)
+        try:
+            os.replace(item, target)
+        except BaseException:
+            os.replace(aside, target)
+            raise
+    if foreign:
+        warn(f"outputs: replaced {listing(foreign, 6, count=True)} in {out}, which hg2prism "
+             f"has no record of writing there ({MANIFEST} lists what it wrote)")
+    written = {item.name for item in new_items}
+    if owns is not None:
+        pattern = re.compile(owns)
+        others = []          # other commands' outputs, removed as another world's
+        for old in sorted(out.iterdir()):
+            if old.name in placed and old.name not in written and pattern.fullmatch(old.name):
+                if own is None or not re.fullmatch(own, old.name):
+                    others.append(old.name + ("/" if old.is_dir() else ""))
+                os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
+        if others:
+            say(f"outputs: {out} held the outputs of another world (or of this world "
+                f"file before an edit); removed those of other commands too: "
+                f"{listing(others, 6, count=True)}")
+    _record_placed(out, placed | written)

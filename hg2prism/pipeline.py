@@ -396,9 +396,10 @@ def _warn_if_slow(objective: StrategyObjective, horizon: int) -> None:
     steps = objective.expected_steps_to_goal
     if objective.name != "bounded" and steps is not None and steps > horizon:
         warn(f"P1's strategy takes {steps:,.0f} steps on average to complete the task, more "
-             f"than the simulations' horizon of {horizon}: few episodes complete within it "
+             f"than the simulations' horizon of {horizon}: many episodes are cut by it "
              "(table.md's exact within-horizon column says how many); the bounded objective "
-             "(--objective bounded) maximises the probability within the horizon instead")
+             "(--objective bounded; objective=\"bounded\" in Python) maximises the "
+             "probability within the horizon instead")
 
 
 def _nash_stage(analysis: Analysis) -> NashBaseline:

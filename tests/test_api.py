@@ -723,6 +723,7 @@ def test_replace_does_not_change_a_grid_s_cells() -> None:
         _refused(lambda: dataclasses_replace(world, front=front), str(world.path),
                  "grid.width" if key == "rows" else f"grid.{key}")
     _refused(lambda: world.replace(path=5), "5", "path")
+    assert world.replace(path="elsewhere.toml").path == Path("elsewhere.toml")
     assert world.replace(slip=0.2).grid.slip == 0.2
 
 
@@ -917,7 +918,7 @@ ONE = ('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\nslip
 
 
 def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
-        tmp_path: Path) -> None:
+        tmp_path: Path, monkeypatch) -> None:
     """hg2prism.run writes what `hg2prism run` writes (the same files, results.json but its
     timings, table.md), and, like solve(out=...), into a folder holding another world's outputs
     it removes them, keeping the user's own files (solve(out=) used to leave world1's figures,
@@ -929,7 +930,7 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
     world_file.write_text(ONE)
     with quiet():
         assert main(["run", str(world_file), "--out", str(tmp_path / "cli"), "--episodes", "300",
-                     "--seed", "7"]) == 0
+                     "--seed", "7", "--horizon", "40"]) == 0
     cli_files = {p.name for p in (tmp_path / "cli").iterdir()}
     assert {"table.md", "world.png", "replay.gif"} <= cli_files
     from hg2prism.outputs import staged
@@ -941,7 +942,14 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
             (stage / name).write_text("world1's")
     (out / "mine.txt").write_text("not hg2prism's")
     (out / "hypothesis_7.hoa").write_text("mine too, though named like an output")
-    ran = hg2prism.run(world_file, out, episodes=300, seed=7)
+    from hg2prism import pipeline
+
+    asked = []      # run asks whether its strategy is slower than the horizon
+    slow = pipeline._warn_if_slow
+    monkeypatch.setattr(pipeline, "_warn_if_slow",
+                        lambda objective, horizon: asked.append(horizon) or slow(objective, horizon))
+    ran = hg2prism.run(world_file, out, episodes=300, seed=7, horizon=40)
+    assert asked == [40]
     assert {p.name for p in out.iterdir()} == cli_files | {"mine.txt", "hypothesis_7.hoa"}
     assert ran.table == (out / "table.md").read_text() == (tmp_path / "cli" / "table.md").read_text()
     masked = {"timings", "seconds", "software", "hg2prism_version"}
@@ -950,7 +958,8 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
         json.loads((tmp_path / "cli" / "results.json").read_text()), masked)
     assert _without(ran.to_json(), masked) == _without(written, masked)
     assert ran.out == out and ran.solution.deceptive_value == written["deceptive_value"]
-    assert (ran.results.simulation.deceptive.episodes, ran.results.simulation.seed) == (300, 7)
+    assert (ran.results.simulation.deceptive.episodes, ran.results.simulation.seed,
+            ran.results.simulation.horizon) == (300, 7, 40)
     # solve(out=) of another world: nothing of this one's run is left but the user's file
     world_file.write_text(ONE.replace('name = "one"', 'name = "two"'))
     hg2prism.solve(world_file, out=out)

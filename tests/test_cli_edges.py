@@ -85,9 +85,10 @@ def test_an_empty_out_is_refused(tmp_path: Path, capsys) -> None:
 
     world = tmp_path / "world1.toml"
     world.write_text((MODELS / "world1.toml").read_text())
-    assert main(["check", str(world), "--out", ""]) == 2
-    (line,) = capsys.readouterr().err.splitlines()
-    assert line.startswith("hg2prism: error: command line: --out: an empty path"), line
+    for command in ("check", "convert"):
+        assert main([command, str(world), "--out", ""]) == 2
+        (line,) = capsys.readouterr().err.splitlines()
+        assert line.startswith("hg2prism: error: command line: --out: an empty path"), line
     only(tmp_path, "world1.toml")
 
 

@@ -289,5 +289,5 @@ def test_sizes_in_gib_read_as_numbers() -> None:
 
     assert _gib(1.5 * 2 ** 30) == "1.5 GiB"
     assert _gib(99.94 * 2 ** 30) == "99.9 GiB"
-    assert _gib(100 * 2 ** 30) == "100 GiB"
+    assert _gib(100 * 2 ** 30) == "100 GiB" == _gib(99.97 * 2 ** 30)
     assert _gib(3_460_300_800 * 2 ** 30) == "3,460,300,800 GiB"

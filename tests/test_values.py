@@ -29,6 +29,10 @@ def reason(parse, *args) -> tuple[str, str]:
     (lambda v: sweep.parse_sweep_values("window", v), ["1,4"], "--values",
      "window value '1,4' is not an integer >= 1; separate the values with spaces "
      "(--values 1 4)"),
+    # the hint where the parts have a value's form, in range or not ("1,0")
+    (lambda v: sweep.parse_sweep_values("window", v), ["1,0"], "--values",
+     "window value '1,0' is not an integer >= 1; separate the values with spaces "
+     "(--values 1 0)"),
     # no hint where a part is no value either ("1,x"): the value is wrong, not its commas
     (lambda v: sweep.parse_sweep_values("window", v), ["1,x"], "--values",
      "window value '1,x' is not an integer >= 1"),

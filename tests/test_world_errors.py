@@ -7,13 +7,16 @@ would be seen, and in process (cli.main) for the others.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
+from conftest import names_in
 from hg2prism.errors import InputError
 from hg2prism.frontends import grid
 from hg2prism.worldfile import load_world
@@ -427,6 +430,84 @@ def test_staged_outputs_replace_earlier_ones(tmp_path: Path) -> None:
     assert (out / "sub" / "both.txt").read_text() == "run 1"
     assert (out / "kept.txt").read_text() == "run 0"
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_a_record_hg2prism_did_not_place_is_not_read(tmp_path: Path) -> None:
+    """A results.json or robust.json naming another world that hg2prism has no record of
+    placing (an older version's, a copy without the manifest) does not make the folder
+    another world's: it would never be removed, so every later command would remove the
+    other commands' outputs (a review: check and detect wiped each other's in turn)."""
+    from hg2prism.outputs import OWNED, staged
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "robust.json").write_text('{"world": "old"}')
+    every = "|".join(f"(?:{p})" for p in OWNED.values())
+    for command, name in (("check", "results.json"), ("detect", "detection.json"),
+                          ("check", "results.json")):
+        with staged(out, owns=OWNED[command], world="one", every=every) as stage:
+            (stage / name).write_text('{"world": "one"}')
+    assert names_in(out) == ["detection.json", "results.json", "robust.json"]
+
+
+def test_replacing_an_item_hg2prism_did_not_write_is_warned_about(tmp_path: Path,
+                                                                  caplog) -> None:
+    """What a command writes replaces the item of the same name; where hg2prism has no record
+    of writing that one (the user's), a warning names it, once."""
+    import logging
+
+    from hg2prism.outputs import staged
+
+    out = tmp_path / "out"
+    (out / "table.md").parent.mkdir()
+    (out / "table.md").write_text("mine")
+    for run in range(2):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            with staged(out) as stage:
+                (stage / "table.md").write_text(f"run {run}")
+                (stage / "other.md").write_text(f"run {run}")
+        said = [r.getMessage() for r in caplog.records]
+        assert said == ([f"warning: outputs: replaced table.md in {out}, which hg2prism has no "
+                         "record of writing there (.hg2prism-outputs.json lists what it wrote)"]
+                        if run == 0 else []), said
+    assert (out / "table.md").read_text() == "run 1"
+
+
+def test_two_commands_ending_at_once_both_enter_the_manifest(tmp_path: Path,
+                                                            monkeypatch) -> None:
+    """Two commands finishing in one folder at the same time: each reads the manifest, places
+    its items and writes the manifest under a lock, so neither drops the other's items (a
+    review paused one between its read and its write: the other's file was left unlisted)."""
+    import threading
+
+    from hg2prism import outputs
+
+    out = tmp_path / "out"
+    out.mkdir()
+    read = outputs._placed
+    inside = threading.Event()
+
+    def slow_read(folder):
+        found = read(folder)
+        if threading.current_thread().name == "first":
+            inside.set()
+            time.sleep(0.5)         # the second command finishes meanwhile, if it can
+        return found
+
+    monkeypatch.setattr(outputs, "_placed", slow_read)
+
+    def command(name: str) -> None:
+        with outputs.staged(out) as stage:
+            (stage / f"{name}.txt").write_text(name)
+
+    first = threading.Thread(target=command, args=("first",), name="first")
+    first.start()
+    assert inside.wait(10)
+    command("second")
+    first.join()
+    listed = json.loads((out / outputs.MANIFEST).read_text())["items"]
+    assert listed == ["first.txt", "second.txt"]
 
 
 def test_staged_outputs_replace_files_by_folders_and_back(tmp_path: Path) -> None:

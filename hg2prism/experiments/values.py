@@ -113,10 +113,11 @@ def parse_values(spec: ValueList, values: Sequence[object]) -> list:
 
 
 def _parses(spec: ValueList, value: str) -> bool:
-    """Whether `value` alone is one of `spec`'s values (a hint to split "1,4" is only given
-    when its parts are values: not for a prior's "1,x")."""
+    """Whether `value` alone has the form of one of `spec`'s values, in range or not (a hint to
+    split "1,4" or "1,0" is only given when its parts have that form: not for a prior's
+    "1,x")."""
     try:
         spec.parse(value)
-    except ValueError:
-        return False
+    except ValueError as err:
+        return str(err) != NOT_FORM
     return True

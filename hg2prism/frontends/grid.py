@@ -53,7 +53,7 @@ class Grid:
     front-end value (model.world.Front: `World.front`)."""
 
     kind: ClassVar[str] = "grid"
-    replaceable: ClassVar[frozenset[str]]      # every field (below the class)
+    replaceable: ClassVar[frozenset[str]]      # what World.replace changes (below the class)
 
     rows: tuple[str, ...]                 # the map as written, top row first
     width: int

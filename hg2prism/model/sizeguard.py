@@ -384,7 +384,7 @@ def _gib(size: float) -> str:
     """`size` bytes in GiB for a message: "1.5 GiB", "3,460,300,800 GiB" (no decimal above
     100 GiB)."""
     gib = size / 2 ** 30
-    return f"{gib:,.1f} GiB" if gib < 100 else f"{gib:,.0f} GiB"
+    return f"{gib:,.1f} GiB" if round(gib, 1) < 100 else f"{gib:,.0f} GiB"
 
 
 def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) -> str | None:

@@ -109,6 +109,8 @@ class World:
         taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
         numpy's numbers as Python's (window=np.int64(3))."""
         changes = {name: plain(value) for name, value in changes.items()}
+        if isinstance(changes.get("path"), str):       # as Python gives it: a path's text
+            changes["path"] = Path(changes["path"])
         own = {name: value for name, value in changes.items() if name in _FIELDS}
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
