@@ -78,11 +78,13 @@ def test_out_below_a_file(tmp_path: Path) -> None:
     only(tmp_path, "file")
 
 
-def test_an_empty_out_is_refused(tmp_path: Path, capsys) -> None:
-    """--out "" is refused as the API's out="" is (it wrote into the default folder next to
-    the world file)."""
+def test_an_empty_out_is_refused(tmp_path: Path, capsys, monkeypatch) -> None:
+    """--out "" is refused as the API's out="" is (check wrote into the default folder next to
+    the world file; convert said that "." is a folder). Run from tmp_path: a regression that
+    took "" for the current folder would write there, not into the repository."""
     from hg2prism.cli import main
 
+    monkeypatch.chdir(tmp_path)
     world = tmp_path / "world1.toml"
     world.write_text((MODELS / "world1.toml").read_text())
     for command in ("check", "convert"):

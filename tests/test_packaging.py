@@ -137,3 +137,23 @@ def test_the_installed_command_checks_world1_outside_the_repository(installed: P
     in_repo = hg2prism.solve(hg2prism.load_world(MODELS / "world1.toml"))
     assert abs(results["deceptive_value"] - in_repo.deceptive_value) <= 1e-10
     assert results["sound"] is True
+
+
+def test_no_command_output_is_tracked_in_the_repository() -> None:
+    """No output of a command is committed with the sources (a test run from the repository's
+    root once wrote check's files there, and they were committed): no tracked file at the root
+    or under models/ (where `make world1` writes) is named as a command's output."""
+    import re
+
+    from hg2prism.experiments.sweep import owned_pattern
+    from hg2prism.outputs import MANIFEST, OWNED
+
+    if not (ROOT / ".git").exists() or shutil.which("git") is None:
+        pytest.skip("not a git checkout")
+    tracked = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True,
+                             check=True).stdout.splitlines()
+    output = re.compile("|".join(f"(?:{p})" for p in (*OWNED.values(), owned_pattern())))
+    stray = [path for path in tracked if ("/" not in path or path.startswith("models/"))
+             and (Path(path).name == MANIFEST or any(output.fullmatch(part)
+                                                     for part in Path(path).parts))]
+    assert stray == [], stray
