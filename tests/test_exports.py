@@ -47,10 +47,12 @@ window = 1
 threshold = 1.0
 rationality = 1.0
 """
-# world1, a delayed world and a two-trap world with several hypotheses, and a world whose goal
-# cannot be reached and whose episodes never end.
+# world1, a delayed world and a two-trap world with several hypotheses, a world whose goal
+# cannot be reached and whose episodes never end, and a Bayesian world (whose states may differ
+# in P2's action in force alone: the variables o<i>_played tell them apart).
 WORLDS = {
     "world1": None,
+    "world3_bayes": None,
     "gen_d1": worldgen.make_world(20009, name="gen_d1", delay=1, traps=1, window=1, nhyp=2),
     "gen_d0_l2": worldgen.make_world(28000, name="gen_d0_l2", delay=0, traps=2, window=2, nhyp=3),
     "stuck": STUCK,
@@ -198,6 +200,7 @@ PRISM = _prism()
 @pytest.mark.skipif(PRISM is None, reason="PRISM is not installed (set PRISM=/path/to/prism "
                                           "or put prism on PATH)")
 @pytest.mark.parametrize("name,objective,bound", [("world1", "pmax", None),
+                                                  ("world3_bayes", "pmax", None),
                                                   ("gen_d1", "pmax", None),
                                                   ("gen_d1", "bounded", 7)])
 def test_prism_reads_the_induced_dtmc(name: str, objective: str, bound: int | None,

@@ -96,7 +96,9 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
     """State variables of canonical states: the arena state s (its number in the arena's
     order), P2's standing action and the countdown (delay > 0), the DFA state q, P2's
     hypothesis and her window slots o1 (oldest).., each slot's TS state as s[, standing,
-    countdown] and P1's action there (its slot: the arena's order of the state's actions)."""
+    countdown] and P1's action there (its slot: the arena's order of the state's actions), and
+    for the Bayesian observer P2's action in force there (`played`: two states may differ in it
+    alone, and no two states may share a valuation)."""
     storm = mdp.representative[states]
     delayed = ts.delay > 0
 
@@ -120,11 +122,14 @@ def _valuations(mdp: CanonicalMDP, decoded: DecodedStates, ts: TransitionSystem,
     names, columns = ts_columns(here, "")
     names += ["q", "hyp"]
     columns += [decoded.q[storm], decoded.hypothesis[storm]]
+    played = decoded.window.shape[2] > 2
     for i in range(decoded.window.shape[1]):
         slot = decoded.window[storm, i]
         slot_names, slot_columns = ts_columns(slot[:, 0], f"o{i + 1}_")
-        names += slot_names + [f"o{i + 1}_act"]
+        names += slot_names + [f"o{i + 1}_act"] + ([f"o{i + 1}_played"] if played else [])
         columns += slot_columns + [np.where(slot[:, 0] >= 0, slot[:, 1], ABSENT)]
+        if played:
+            columns.append(np.where(slot[:, 0] >= 0, slot[:, 2], ABSENT))
     return tuple(names), np.column_stack(columns).astype(np.int64)
 
 
