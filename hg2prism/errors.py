@@ -17,11 +17,15 @@ def listing(names, shown: int, count: bool = False, empty: str = "") -> str:
     return ", ".join(names[:shown]) + tail
 
 
+WHOLE_FILE = "-"     # the key of an error about a whole file (not found, not TOML ...)
+
+
 class InputError(Exception):
-    """Bad user input. The CLI prints it as one line and exits with status 2."""
+    """Bad user input. The CLI prints it as one line and exits with status 2: "file: key:
+    reason", or "file: reason" for the whole file (key WHOLE_FILE)."""
 
     def __init__(self, file: str, key: str, reason: str) -> None:
-        super().__init__(f"{file}: {key}: {reason}")
+        super().__init__(f"{file}: {reason}" if key == WHOLE_FILE else f"{file}: {key}: {reason}")
         self.file = file
         self.key = key
         self.reason = reason

@@ -194,6 +194,9 @@ def assert_one_error(proc: subprocess.CompletedProcess, file: str, key: str, wor
     assert len(lines) == 1, proc.stderr
     line = lines[0]
     assert line.startswith(f"hg2prism: error: {file}: "), line
+    if key == "-":      # the whole file: no key shown ("nope.toml: file not found")
+        assert ": -: " not in line and word in line.removeprefix(f"hg2prism: error: {file}: ")
+        return
     assert f": {key}: " in line, line
     assert word in line.split(f": {key}: ", 1)[1], line
 
