@@ -291,6 +291,16 @@ def test_world4(tmp_path):
     for k in range(2):
         own = json.loads((tmp_path / "typed_out" / f"type{k}" / "results.json").read_text())
         assert commands[f"p2_inference_t{k}"] == own["model_commands"]["p2_inference"]
+    # each file's header gives the command that re-checks it, and names only its own variables
+    # (the POMDP's header was the MDP's: no re-check line, alive_t<k> that it does not have)
+    from hg2prism.prism.adaptive import PRISM_RESOLUTION
+
+    mdp, pomdp = ((tmp_path / "typed_out" / name).read_text().split("\nmdp\n")[0].split(
+        "\npomdp\n")[0] for name in ("adaptive.prism", "adaptive_pomdp.prism"))
+    assert "prism adaptive.prism adaptive.props -ex" in mdp and "alive_t<k>" in mdp
+    assert (f"prism adaptive_pomdp.prism -pf 'Pmax=? [F \"goal\"]' -gridresolution "
+            f"{PRISM_RESOLUTION}") in pomdp
+    assert "alive_t" not in pomdp and "hidden variable `type`" in pomdp
 
 
 def _prism():

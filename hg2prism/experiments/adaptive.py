@@ -27,7 +27,7 @@ from hg2prism.errors import COMMAND_LINE, InputError, probability
 from hg2prism.experiments.values import ValueList, number, parse_values
 from hg2prism.model.world import World
 from hg2prism.outputs import write_csv, write_json, write_text
-from hg2prism.prism.adaptive import TypeModel, build_adaptive_model
+from hg2prism.prism.adaptive import PRISM_RESOLUTION, TypeModel, build_adaptive_model
 from hg2prism.prism.hypergame import PROPERTY
 from hg2prism.progress import each_warning_once, say, warn
 from hg2prism.results import CheckResult, provenance
@@ -38,10 +38,6 @@ from hg2prism.worldfile.types import world_of_type
 __all__ = ["AdaptiveResult", "check_adaptive", "adaptivity_table"]
 
 
-# PRISM's POMDP engine (its fixed-resolution grid approximation, `-gridresolution`): on world4
-# resolution 2 gives the same lower bound as PRISM's default 10 and a tighter upper one, in
-# 10 s instead of 49 s (docs/adaptive.md); a coarser grid (1) is far looser.
-PRISM_RESOLUTION = 2
 PRISM_SECONDS = 600
 # PRISM's value iterations stop at a relative difference of 1e-6 (its default -epsilon; a
 # smaller one did not finish within 5 minutes on world4)

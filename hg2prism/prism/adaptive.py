@@ -41,6 +41,12 @@ from hg2prism.prism.hypergame import PROPERTY, Layout, count_commands, template_
 from hg2prism.prism.observers import ts_state_expression
 from hg2prism.prism.rendering import cases, prism_number, render_template
 
+# PRISM's POMDP engine (its fixed-resolution grid approximation, `-gridresolution`): on world4
+# resolution 2 gives the same lower bound as PRISM's default 10 and a tighter upper one, in
+# 10 s instead of 49 s (docs/adaptive.md); a coarser grid (1) is far looser. The POMDP's header
+# gives the command with it; experiments/adaptive.py runs it so.
+PRISM_RESOLUTION = 2
+
 __all__ = ["AdaptiveModel", "TypeModel", "build_adaptive_model", "rename", "type_view"]
 
 _DEFINED = re.compile(r"^\s*formula\s+(\w+)\s*=", re.MULTILINE)
@@ -174,6 +180,7 @@ def build_adaptive_model(world: World, ts: TransitionSystem, task: DFA,
         type_action=[_type_action(n_x, part["hypothesis"], bool(ts.delay)) for part in parts],
         mass_all=mass_all, mass=mass, representative=representative, hidden=hidden,
         model_type="pomdp" if hidden else "mdp", observables=observables,
+        resolution=PRISM_RESOLUTION, property=PROPERTY,
         drawn=[k for k, t in enumerate(types) if t.weight > 0])
     properties = f"// adaptive hypergame (docs/semantics.md §16)\n{PROPERTY}\n"
     initial = Layout.initial_values(text)
