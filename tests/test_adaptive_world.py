@@ -129,6 +129,10 @@ def test_zero_weight_and_identical_types_are_allowed():
                                                                           "weight = 0"),
      "type", "sum to 0"),
     (HEAD + JUMPY.replace("weight = 1\n", "") + STUBBORN, "type[0].weight", "missing"),
+    # finite weights whose sum overflows (a traceback: fsum's OverflowError)
+    (HEAD + JUMPY.replace("weight = 1", "weight = 1e308") + STUBBORN.replace("weight = 3",
+                                                                              "weight = 1e308"),
+     "type", "too large to add up"),
     (HEAD + JUMPY.replace("weight = 1", 'weight = "a"') + STUBBORN, "type[0].weight",
      "must be a number"),
     (HEAD + JUMPY.replace("threshold = 0.3\n", "") + STUBBORN, "type[0].inference.threshold",

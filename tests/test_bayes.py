@@ -224,6 +224,8 @@ rationality = 5.0
     (("window = 2", "window = 2\nprior = [1.0, -2]"), "inference.prior[1]", "must be > 0"),
     (("window = 2", 'window = 2\nprior = [1.0, "a"]'), "inference.prior[1]", "must be a number"),
     (("window = 2", 'window = 2\nprior = "uniform"'), "inference.prior", "array"),
+    # finite numbers whose sum overflows (a traceback: fsum's OverflowError)
+    (("window = 2", "window = 2\nprior = [1e308, 1e308]"), "inference.prior", "too large"),
     (("window = 2", "window = 2\nthreshold = 1.5"), "inference.threshold", "no threshold"),
     (("traps = 1", "traps = 1\ninitial_hypothesis = 0"), "adversary.initial_hypothesis",
      "not allowed"),

@@ -92,6 +92,8 @@ CASES = [
     ("map-no-start", edit(("#t@t..B#", "#t.t..B#")), "grid.map", "no robot start"),
     ("map-two-starts", edit(("#......#", "#...@..#")), "grid.map", "exactly one"),
     ("map-forbidden-region-letter", edit(("#......#", "#...F..#")), "grid.map", "not allowed"),
+    # V is Spot's release operator: accepted, it made every formula using it fail to parse
+    ("map-region-letter-v", edit(("#......#", "#...V..#")), "grid.map", "not allowed"),
     ("map-not-a-string", edit((MAP_BLOCK, "map = 3")), "grid.map", "string"),
     # --- robot
     ("slip-too-large", edit(("slip = 0.1", "slip = 0.5")), "robot.slip", "[0, 0.5)"),
@@ -624,6 +626,9 @@ ARENA_CASES = [
      "arena.propositions[1]", "identifier"),
     ("proposition-spot-operator", arena_edit(('["crown", "payroll"]', '["crown", "F"]')),
      "arena.propositions[1]", "Spot operator"),
+    # a name alone, an operator beside others ("F (payroll | xor)" did not parse)
+    ("proposition-operator-in-a-formula", arena_edit(('["crown", "payroll"]', '["crown", "xor"]')),
+     "arena.propositions[1]", "Spot operator inside a formula"),
     ("proposition-true", arena_edit(('["crown", "payroll"]', '["crown", "true"]')),
      "arena.propositions[1]", "Spot"),
     ("proposition-read-as-operators", arena_edit(('["crown", "payroll"]', '["crown", "Fa"]')),
@@ -656,8 +661,11 @@ ARENA_CASES = [
      "arena.transition[0].action", "identifier"),
     ("probabilities-not-summing-to-1", arena_edit((PHISH, "to = { mail = 0.6, out = 0.3 }")),
      "arena.transition[0].to", "sum"),
-    ("probability-negative", arena_edit((PHISH, "to = { mail = 1.2, out = -0.2 }")),
+    ("probability-negative", arena_edit((PHISH, "to = { out = -0.2, mail = 1.2 }")),
      "arena.transition[0].to.out", "negative"),
+    # finite numbers whose sum overflows: refused one by one (a traceback before)
+    ("probability-above-one", arena_edit((PHISH, "to = { mail = 1e308, out = 1e308 }")),
+     "arena.transition[0].to.mail", "above 1"),
     ("probability-not-a-number", arena_edit((PHISH, 'to = { mail = "0.6", out = 0.4 }')),
      "arena.transition[0].to.mail", "number"),
     ("to-unknown-state", arena_edit((PHISH, "to = { mall = 0.6, out = 0.4 }")),

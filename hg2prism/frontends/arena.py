@@ -129,6 +129,13 @@ def proposition_problem(name: str) -> str | None:
         return (f"is not a plain atomic proposition for Spot (it reads it as {str(parsed)}: "
                 "a constant, operators applied to a name, or a name it must quote); choose "
                 "another name")
+    try:        # alone it may read as a name, and beside others as an operator (xor)
+        inside = spot.formula(f"({name} | {name}) U (X {name})")
+        names = {str(ap) for ap in spot.atomic_prop_collect(inside)}
+    except Exception:
+        names = set()
+    if names != {name}:
+        return "is a Spot operator inside a formula; choose another name"
     return None
 
 
@@ -393,6 +400,8 @@ class _Reader:
             p = self.ld.number(p, pkey)
             if p < 0:
                 raise self.fail(pkey, f"probability {p!r} is negative")
+            if p > 1:       # before the sum, which numbers near 1e308 would overflow
+                raise self.fail(pkey, f"probability {p!r} is above 1")
             if p > 0:
                 dist[self.number[name]] = p
         total = math.fsum(value.values())

@@ -33,7 +33,7 @@ Cell = tuple[int, int]
 
 MAP_LEGEND = ". # o t @ A-Z"
 # Region letters that Spot reads as temporal operators.
-FORBIDDEN_REGION_LETTERS = frozenset("FGMRUWX")
+FORBIDDEN_REGION_LETTERS = frozenset("FGMRUVWX")     # Spot's operators (V: release)
 # The tables a grid world has besides those of every world, and their keys (key -> required?)
 TABLE_KEYS = {"grid": {"map": True}, "robot": {"slip": True}}
 ADVERSARY_KEYS = {"traps": True, "delay": False, "initial_traps": False}
@@ -365,7 +365,7 @@ def read_map(ld, grid_table: dict) -> Grid:
             elif "A" <= ch <= "Z":
                 if ch in FORBIDDEN_REGION_LETTERS:
                     raise ld.fail(key, f"region letter {ch} at (x={x}, y={y}) is not "
-                                       "allowed: F, G, M, R, U, W and X are Spot "
+                                       "allowed: F, G, M, R, U, V, W and X are Spot "
                                        "operators; use another letter")
                 regions.setdefault(ch, set()).add(cell)
             else:

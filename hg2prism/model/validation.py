@@ -340,7 +340,13 @@ class TypeChecks:
 
     @staticmethod
     def total(checks: Checks, weights: list[float]) -> float:
-        total = math.fsum(weights)
+        try:
+            total = math.fsum(weights)
+        except OverflowError:       # fsum raises where its partial sums overflow
+            total = math.inf
+        if not math.isfinite(total):
+            raise checks.fail("type", "the types' weights are too large to add up; scale them "
+                                      "down (they are normalised)")
         if total <= 0:
             raise checks.fail("type", "the types' weights sum to 0; expected at least one "
                                       "positive weight")

@@ -160,7 +160,10 @@ def uniform_prior(n_hypotheses: int) -> tuple[float, ...]:
 
 def normalise_prior(numbers: list[float]) -> tuple[float, ...]:
     """Positive finite numbers scaled to sum 1 (ValueError when that is impossible)."""
-    total = math.fsum(numbers)
+    try:
+        total = math.fsum(numbers)
+    except OverflowError:           # fsum raises where its partial sums overflow
+        total = math.inf
     if not math.isfinite(total):
         raise ValueError("the prior's numbers are too large to add up; scale them down")
     scaled = tuple(p / total for p in numbers)
