@@ -508,7 +508,11 @@ def _printable_streams() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     _printable_streams()
-    parser = build_parser()
+    try:
+        parser = build_parser()
+    except InputError as err:       # a registered observer or front end that clashes
+        print(f"hg2prism: error: {err}", file=sys.stderr)
+        return 2
     argv = sys.argv[1:] if argv is None else argv
     memory.release_large_arrays()
     if argv[:1] == ["bench"]:

@@ -291,6 +291,11 @@ def test_world4(tmp_path):
     for k in range(2):
         own = json.loads((tmp_path / "typed_out" / f"type{k}" / "results.json").read_text())
         assert commands[f"p2_inference_t{k}"] == own["model_commands"]["p2_inference"]
+        # its model's header names the type (it named the world alone, as if P2 had no types)
+        header = (tmp_path / "typed_out" / f"type{k}" / "hypergame.prism").read_text()
+        world_line = next(line for line in header.splitlines() if line.startswith("// world "))
+        name = ("jumpy", "stubborn")[k]
+        assert world_line.endswith(f"here P2 of type '{name}' (type {k} of 2)"), world_line
     # each file's header gives the command that re-checks it, and names only its own variables
     # (the POMDP's header was the MDP's: no re-check line, alive_t<k> that it does not have)
     from hg2prism.prism.adaptive import PRISM_RESOLUTION

@@ -1020,6 +1020,42 @@ def test_a_strategy_slower_than_the_horizon_is_warned_about(caplog) -> None:
     assert not warned("bounded", 3378.2, 150) and not warned("pmax", None, 150)
 
 
+def test_a_simulation_far_from_its_exact_value_is_warned_about(caplog) -> None:
+    """run warns when a simulated rate lies outside its Wilson interval at 1 - 1e-6 around the
+    exact within-horizon probability (a registered observer whose Python update was not its
+    PRISM part's: 0 of 2000 simulated beside 0.9982 exact, in silence); at the interval's
+    bounds, and for ordinary sampling noise, nothing."""
+    import logging
+    from types import SimpleNamespace
+
+    from hg2prism.analyses.simulation import wilson_interval
+    from hg2prism.pipeline import AGREEMENT_CONFIDENCE, _warn_if_simulations_disagree
+    from hg2prism.report.tables import COMPLETION_ROWS
+
+    keys = [row.key for row in COMPLETION_ROWS]
+
+    def warned(completed: int, episodes: int, exact: float) -> list[str]:
+        caplog.clear()
+        summary = SimpleNamespace(completed=completed, episodes=episodes,
+                                  rate=completed / episodes)
+        played = SimpleNamespace(summaries={k: summary for k in keys},
+                                 within={k: exact if k == "naive" else completed / episodes
+                                         for k in keys})
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            _warn_if_simulations_disagree(played)
+        return [r.getMessage() for r in caplog.records]
+
+    (message,) = warned(0, 2000, 0.9982)
+    assert message.startswith('warning: simulated completion of "Asymmetric, P1 ignores P2\'s '
+                              'misperception" is 0.0000 (0 of 2000 episodes), far from its exact '
+                              "within-horizon probability 0.9982"), message
+    low, high = wilson_interval(700, 1000, AGREEMENT_CONFIDENCE)
+    assert warned(700, 1000, low) == [] and warned(700, 1000, high) == []
+    assert len(warned(700, 1000, high + 1e-6)) == 1 and len(warned(700, 1000, low - 1e-6)) == 1
+    assert warned(700, 1000, 0.72) == []            # 1.4 standard deviations: noise
+    assert warned(0, 100, 0.0) == [] and warned(100, 100, 1.0) == []
+
+
 def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:
     """Under a hypothesis whose game gives P1 the value 0 wherever P2 chooses (its region walled
     off), her trap sets all tie and she takes the first: a line says so (a review's world

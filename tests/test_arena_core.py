@@ -114,6 +114,36 @@ def test_sweep_parameters_on_an_arena_world() -> None:
     assert math.isfinite(sizeguard.estimate_states(point))
 
 
+def test_a_sweep_over_delay_starts_from_the_standing_action_the_file_names(tmp_path) -> None:
+    """With delay 0 an arena world's file may name the action (or trap set) standing at the
+    start, for sweeps over delay, as a grid's initial_traps: the sweep's points start from it
+    (they took P2's first action, and an unknown name was accepted); without it, or for a
+    variant of another arena, from the first."""
+    from hg2prism.frontends.arena import to_toml
+
+    text = to_toml(lateral(delay=1).replace(initial_standing=2)).replace("delay = 1", "delay = 0")
+    assert 'initial_action = "watch_hr"' in text
+    path = tmp_path / "lateral.toml"
+    path.write_text(text)
+    world = load_world(path)
+    assert (world.delay, world.initial_standing) == (0, 0)
+    assert sweep.sweep_point(world, {"delay": 2}).initial_standing == 2
+    assert sweep.sweep_point(world, {"delay": 0}).initial_standing == 0
+    other = world.replace(front=lateral(traps_mode=False).front.__class__(
+        **{**world.front.__dict__, "initial": 1}))
+    assert sweep.sweep_point(other, {"delay": 2}).initial_standing == 0
+    path.write_text(text.replace('initial_action = "watch_hr"\n', ""))
+    assert sweep.sweep_point(load_world(path), {"delay": 2}).initial_standing == 0
+
+    text = to_toml(lateral(delay=1, traps_mode=True).replace(initial_standing=1))
+    assert 'initial_traps = ["mail"]' in text
+    path.write_text(text.replace("delay = 1", "delay = 0"))
+    world = load_world(path)
+    assert sweep.sweep_point(world, {"delay": 1}).initial_standing == 1       # {mail}
+    path.write_text(text.replace("delay = 1", "delay = 0").replace('["mail"]', "[]"))
+    assert sweep.sweep_point(load_world(path), {"delay": 1}).initial_standing == 0  # {web}
+
+
 def test_strategy_records_name_states_and_actions_of_an_arena() -> None:
     """strategy.json on an arena: states and P1's actions by name, values over the actions
     available there, the initial state's record first; the file's text equals json.dumps of

@@ -118,6 +118,27 @@ def test_a_figure_draws_into_the_callers_axes(name: str, tmp_path: Path,
     assert ax.get_title() or ax.get_xlabel()
 
 
+@pytest.mark.parametrize("last, horizon, scale", [(10, 40, "symlog"), (11, 40, "linear"),
+                                                  (4, 16, "linear"), (0, 200, "linear")])
+def test_the_completion_axis_is_logarithmic_when_every_completion_is_early(
+        last: int, horizon: int, scale: str) -> None:
+    """mir100's episodes complete within 10 of 200 steps: the rise was squeezed against the
+    left edge. When every completion comes within the first quarter of the horizon (exactly a
+    quarter included; not on horizons under 20, nor without any completion) the axis is logarithmic beyond step 1, runs to
+    the horizon, and its label says so."""
+    fig, ax = _callers_axes()
+    lengths = [max(last, 1), 2, 3, horizon]
+    rows = [("deceptive", _summary(lengths, [last > 0, last > 0, last > 0, False], horizon),
+             0.7), ("naive", _summary([1, 2, 3, horizon], [False] * 4, horizon), None)]
+    plots.completion_picture("worldC", rows, ax=ax)
+    assert ax.get_xscale() == scale
+    assert ax.get_xlim() == (0, horizon)
+    assert ("logarithmic" in ax.get_xlabel()) == (scale == "symlog")
+    if scale == "symlog":
+        assert f"within {last} steps" in ax.get_xlabel()
+        assert ax.get_xticks()[-1] == horizon
+
+
 def test_without_axes_a_figure_is_its_own_and_written(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """The check above can fail: without `ax` each function makes one figure (not through

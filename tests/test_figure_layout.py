@@ -368,6 +368,81 @@ def test_belief_lines_that_coincide_stay_visible() -> None:
             assert np.all(np.abs(xs[i] - xs[j]) < 0.5)       # still at their step
 
 
+def _corridor(states: int) -> str:
+    """An arena world file: a corridor of `states` states in a row (given positions), A at
+    the west end, B at the east, P1 starting in the middle."""
+    names = [f"c{i}" for i in range(states)]
+    lines = ['name = "corridor"', "", "[arena]", f"states = {names}".replace("'", '"'),
+             f'initial = "c{states // 2}"', 'propositions = ["A", "B"]', "",
+             "[arena.labels]", 'c0 = ["A"]', f'{names[-1]} = ["B"]', "", "[arena.positions]"]
+    lines += [f"{name} = [{i}.0, 0.0]" for i, name in enumerate(names)]
+    for i, name in enumerate(names):
+        for action, j in (("L", max(i - 1, 0)), ("R", min(i + 1, states - 1))):
+            to = (f"{{ {names[j]} = 1.0 }}" if j == i
+                  else f"{{ {names[j]} = 0.9, {name} = 0.1 }}")
+            lines += ["", "[[arena.transition]]", f'state = "{name}"', f'action = "{action}"',
+                      f"to = {to}"]
+    lines += ["", "[task]", 'formula = "F A"', "", "[adversary]", "traps = 1",
+              'trap_candidates = ["c2", "c6"]', 'hypotheses = ["F A", "F B"]',
+              "initial_hypothesis = 1", "", "[inference]", "window = 2", "threshold = 0.5",
+              "rationality = 10.0"]
+    return "\n".join(lines) + "\n"
+
+
+def test_the_key_of_a_flat_map_stays_in_the_figure(tmp_path) -> None:
+    """A corridor of nine states (a flat map in a figure of the drawer's least height): the
+    map grew with the height left to it and pushed the key 40 pixels out of the figure; the
+    figure is now widened, the map as before."""
+    path = tmp_path / "corridor.toml"
+    path.write_text(_corridor(9))
+    world = load_world(path)
+    checked = pipeline.check(world, tmp_path / "out")
+    strategy = Strategy.from_records(checked.records, checked.analysis.ts)
+    episode = episodes.choose_episode(checked.analysis, strategy, 50, 0)
+    trace = episodes.belief_trace(checked.analysis.inference, episode.steps)
+    planned = plots.world_figure_inches(world, checked.analysis.ts)
+    fig, _ = plots.world_picture(world, checked.analysis.ts, episode, trace)
+    try:
+        key = fig.axes[0].get_legend().get_window_extent(fig.canvas.get_renderer())
+        assert key.x1 <= fig.bbox.width and key.x0 >= 0
+        assert fig.get_size_inches()[0] > planned[0]         # widened for its key
+    finally:
+        plots.plt.close(fig)
+    # a map that leaves its key room keeps the planned size
+    world, ts, episode, trace = showcase("mir100")
+    fig, _ = plots.world_picture(world, ts, episode, trace)
+    try:
+        assert tuple(fig.get_size_inches()) == pytest.approx(plots.world_figure_inches(world, ts))
+    finally:
+        plots.plt.close(fig)
+
+
+def test_coinciding_v_lead_lines_of_a_sweep_grid_take_turns() -> None:
+    """V_lead does not depend on the window: on a delay x window sweep its lines coincide.
+    They were translucent and blended into a colour no legend entry has; now each series
+    draws every other dash (its own offset), opaque, with its legend's colour."""
+    from matplotlib.colors import to_rgba
+
+    grid = [{"delay": d, "window": w, "deceptive_value": 0.9 - 0.1 * d - 0.01 * w,
+             "v_lead": 0.7 - 0.1 * d} for d in (0, 1) for w in (1, 2)]
+    fig = plots.new_figure((6.4, 4.4))
+    ax = fig.add_subplot()
+    plots.sweep_grid_figure(["delay", "window"], grid, None, "worldG", ax=ax)
+    lines = [line for line in ax.lines if line.get_label().startswith("V_lead")]
+    assert len(lines) == 2
+    offsets, patterns = set(), set()
+    for line in lines:
+        assert line.get_alpha() in (None, 1.0)
+        assert to_rgba(line.get_color())[3] == 1.0
+        offset, pattern = line._unscaled_dash_pattern
+        offsets.add(offset)
+        patterns.add(tuple(pattern))
+        on, off = pattern
+        assert off == on                   # one dash in two: the other series' turn
+    assert len(offsets) == 2 and len(patterns) == 1
+    assert abs(offsets.pop() - offsets.pop()) == next(iter(patterns))[0]
+
+
 def test_scaling_has_a_series_per_delay() -> None:
     rows = [{"states": n, "delay": 0, "time_games": 0.01, "time_total": 1e-4 * n}
             for n in (1000, 10000, 100000)]

@@ -151,6 +151,29 @@ def test_its_setting_bounded_at_most_one_is_checked_by_the_sweep(corridors) -> N
     assert sweep.parse_sweep_values("slip", ["0.49"]) == [0.49]
 
 
+def test_a_setting_named_as_another_kinds_is_one_line(corridors, monkeypatch, capsys) -> None:
+    """Settings share one namespace (sweep parameters): a kind whose setting is named as the
+    grid's `slip` made every command, `validate` of a grid world included, a traceback
+    (ValueError while the command line was built). Now one line naming both owners, exit 2."""
+    import dataclasses
+
+    import frontend_line
+
+    from hg2prism.cli import main
+
+    from hg2prism.experiments import sweep
+
+    clash = dataclasses.replace(frontend_line.SETTINGS[0], name="slip")
+    monkeypatch.setattr(frontend_line, "SETTINGS", (clash,))
+    monkeypatch.setattr(sweep, "_TABLES", {})      # built before, with the kind's own name
+    assert main(["validate", str(MODELS / "world1.toml")]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    assert lines[0].startswith("hg2prism: error: sweep parameters: slip: defined by both front "
+                               "end 'grid' (hg2prism.frontends.grid, SETTINGS) and front end "
+                               "'line' (frontend_line, SETTINGS)"), lines[0]
+
+
 def test_a_bad_adversary_table_is_one_line(corridors) -> None:
     """The kind's `read` looks at [adversary]: the loader has checked it is a table."""
     text = "adversary = 3\n" + TEXT[:TEXT.index("[adversary]")] + TEXT[TEXT.index("[inference]"):]

@@ -419,7 +419,8 @@ def parse_csg(text: str) -> Csg:
     modules = {}
     for name, body in re.findall(r"\bmodule\s+(\w+)\b(.*?)\bendmodule\b", text, re.S):
         commands = []
-        for line in body.splitlines():
+        # statements end with ';' (a long one is wrapped over several lines)
+        for line in (" ".join(part.split()) + ";" for part in body.split(";")[:-1]):
             if "->" in line:
                 match = _COMMAND.match(line)
                 assert match, f"unreadable command in module {name}: {line!r}"
@@ -470,7 +471,8 @@ def csg_to_mdp(csg: Csg) -> str:
     out = re.sub(r"\bplayer\s+\w+\s+.*?\bendplayer\b", "", csg.text, flags=re.S)
     out = re.sub(r"^\s*csg\b", "mdp", out, count=1)
     for name, (body, commands) in csg.modules.items():
-        lines = [line for line in body.splitlines() if "->" not in line]
+        lines = ["  " + " ".join(part.split()) + ";" for part in body.split(";")[:-1]
+                 if "->" not in part]           # statements: a long one is wrapped
         by_label: dict[str, list[str]] = {}
         for labels, guard, update in commands:
             for a1, a2 in joint:

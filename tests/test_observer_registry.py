@@ -138,6 +138,40 @@ def test_never_revising_p2_runs_and_her_value_is_v_static(never, name: str, firs
     assert result.check.results.states <= sizeguard.estimate_states(world)
 
 
+def test_detection_speaks_of_a_registered_kind_in_its_own_terms(never) -> None:
+    """`detect` on an observer that is neither CUSUM nor Bayesian: its report showed
+    "(window 2, decision None)" and "the largest CUSUM score P2 reaches ... is 0"."""
+    import hg2prism
+    from hg2prism.experiments.detect import detection_summary_lines
+
+    world = _never_world("world3", 0)
+    with progress.quiet():
+        result = hg2prism.detection(hg2prism.solve(world), episodes=20, horizon=30)
+    assert result["p1_model"] == {"inference": "never", "window": world.window}
+    text = "\n".join(detection_summary_lines(result))
+    assert f"P1's model (window {world.window}); P1 keeps" in text
+    assert f"| as modelled (window {world.window}) |" in text
+    assert "CUSUM" not in text and "None" not in text and "decision" not in text
+
+
+def test_an_observer_whose_python_is_not_its_prism_is_named(never, monkeypatch,
+                                                              tmp_path: Path) -> None:
+    """An observer whose Python update goes where its PRISM part does not (here it moves to
+    the other hypothesis, which its model never does): `run` stopped on "the strategy has no
+    record for the hypergame state ..." alone; the line now says where to look."""
+    from hg2prism.strategy.records import StrategyError
+
+    world = _never_world("world3", 0)
+    monkeypatch.setattr(NeverRevises, "update",
+                        lambda self, memory, observation: Memory(1, ()))
+    with progress.quiet(), pytest.raises(StrategyError) as caught:
+        pipeline.run(world, tmp_path / "run", episodes=20)
+    text = str(caught.value)
+    assert "the strategy has no record for the hypergame state" in text
+    assert text.endswith("does P2's observer update her memory in Python as its PRISM part "
+                         'does? docs/architecture.md, "An observer")'), text
+
+
 def test_configure_refuses_what_the_observer_does_not_have() -> None:
     """registry.configure (the sweeps' and the API's way to change P2's observer): a setting
     her kind does not have, or a kind nobody registered, is one InputError naming it (both

@@ -92,3 +92,34 @@ def test_runs_split_at_their_boundaries() -> None:
     table = np.array([0] * 10 + [1] * 3 + [0] * 7)
     expression = lookup(table, [("cell", 0)])
     assert expression == "(cell<10 ? 0 : (cell<13 ? 1 : 0))"
+
+
+# ---- long lines ----
+
+def test_long_lines_are_wrapped_between_tokens() -> None:
+    """A model's code lines longer than 100 characters are broken at spaces outside quotes into
+    lines of at most 100, continuations indented 4 more; the tokens stay the same and in order
+    (PRISM reads a line break as a space); an end-of-line comment goes above; comment lines and
+    lines of exactly 100 stay as they are."""
+    from hg2prism.prism.rendering import WRAP, wrapped
+
+    table = lookup(np.arange(64) % 7, [("place", 0)])
+    long = f"  formula to_0 = {table};   // to_0: \"where\" it leads"
+    exact = "x" * (WRAP - 4) + " = 1"
+    comment = "// " + "word " * 40
+    quoted = '  label "a b c" = ' + " | ".join(f"place={i}" for i in range(30)) + ";"
+    text = "\n".join([long, exact, comment, quoted, ""])
+    lines = wrapped(text).split("\n")
+    assert exact in lines and comment in lines and lines[-1] == ""
+    assert lines[0] == '  // to_0: "where" it leads'
+    assert all(len(line) <= WRAP for line in lines if not line.lstrip().startswith("//"))
+    formula = lines[1:lines.index(exact)]
+    assert len(formula) > 1 and formula[0].startswith("  formula to_0 = (")
+    assert all(line.startswith("      ") and not line.startswith("       ")
+               for line in formula[1:])
+    assert " ".join(formula).split() == f"formula to_0 = {table};".split()
+    label = lines[lines.index(comment) + 1:-1]
+    assert label[0].startswith('  label "a b c" =') and len(label) > 1
+    assert " ".join(label).split() == quoted.split()
+    assert wrapped(exact + "y") != exact + "y"          # one over: wrapped
+    assert wrapped("a" * 150) == "a" * 150              # one token: nothing to break at

@@ -681,6 +681,10 @@ ARENA_CASES = [
     ("p2-action-named-twice", arena_edit(("to = { db = 0.5, mail = 0.5 }", "p2 = [\"idle\", "
                                           "\"watch_db\"]\nto = { db = 0.5, mail = 0.5 }")),
      "arena.transition[3].p2", "named again"),
+    # an entry without p2 where every P2 action has its own: it was accepted, and never read
+    ("entry-without-p2-covering-nothing",
+     arena_edit(('p2 = "watch_db"', 'p2 = ["idle", "watch_db", "watch_hr"]')),
+     "arena.transition[3]", "covers no P2 action"),
     ("two-entries-without-p2", arena_edit((P2_ENTRY, P2_ENTRY.replace('p2 = "watch_db"\n', ""))),
      "arena.transition[3]", "second entry"),
     # --- P2
@@ -694,6 +698,11 @@ ARENA_CASES = [
     ("initial-action-missing", arena_edit(("delay = 0", "delay = 1")),
      "adversary.initial_action", "required"),
     ("initial-action-not-in-a2", arena_edit(("delay = 0", 'delay = 1\ninitial_action = "nap"')),
+     "adversary.initial_action", "unknown P2 action"),
+    # with delay 0 the standing action is what a sweep over delay starts from: checked too
+    # (an unknown name was accepted, and the sweep took P2's first action)
+    ("initial-action-not-in-a2-delay-0", arena_edit(("delay = 0",
+                                                     'delay = 0\ninitial_action = "nap"')),
      "adversary.initial_action", "unknown P2 action"),
     ("trap-candidates-with-actions", arena_edit((GENERAL, GENERAL + '\ntrap_candidates = ["web"]')),
      "adversary.trap_candidates", "only with traps"),
@@ -715,6 +724,12 @@ ARENA_CASES = [
     ("initial-traps-not-a-candidate", arena_edit(("delay = 0", 'delay = 1\ninitial_traps = ["db"]'),
                                                  base=TRAPS_BASE),
      "adversary.initial_traps[0]", "not a trap candidate"),
+    ("initial-traps-not-a-candidate-delay-0",
+     arena_edit(("delay = 0", 'delay = 0\ninitial_traps = ["db"]'), base=TRAPS_BASE),
+     "adversary.initial_traps[0]", "not a trap candidate"),
+    ("initial-traps-wrong-count-delay-0",
+     arena_edit(("delay = 0", 'delay = 0\ninitial_traps = ["web", "mail"]'), base=TRAPS_BASE),
+     "adversary.initial_traps", "expected 1"),
     ("initial-traps-wrong-count-arena",
      arena_edit(("delay = 0", 'delay = 1\ninitial_traps = ["web", "mail"]'), base=TRAPS_BASE),
      "adversary.initial_traps", "expected 1"),

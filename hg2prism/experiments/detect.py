@@ -467,7 +467,8 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
     mismatch = []
     for variant in registry.mismatches(world, max_score):
         say(f"detection: {episodes} episodes, P2's inference uses {variant.label} "
-            f"(P1 models window {world.window}, {_setting(world.threshold, world.decision)})")
+            f"(P1 models window {world.window}"
+            f"{_setting(world.threshold, world.setting('decision'))})")
         summary, batch = batches.run(p2_inference=registry.build_observer(variant.world, games))
         rejections = batch.rejections(episodes)
         detected = sum(1 for n in rejections if n is not None)
@@ -561,8 +562,11 @@ def _check_deviation_fits(world: World, horizon: int | None) -> None:
 
 
 def _setting(threshold: float | None, decision: str | None) -> str:
-    """P2's second inference setting in reports: CUSUM's threshold or the Bayesian decision."""
-    return f"threshold {threshold:g}" if threshold is not None else f"decision {decision}"
+    """P2's second inference setting in reports, after her window: ", threshold 1.5" (CUSUM),
+    ", decision map" (Bayesian), nothing for a kind with neither (a registered one)."""
+    if threshold is not None:
+        return f", threshold {threshold:g}"
+    return f", decision {decision}" if decision is not None else ""
 
 
 def _rate(c: dict) -> str:
@@ -596,7 +600,7 @@ def detection_summary_lines(result: dict) -> list[str]:
         f"({comp['false_alarm_rate']:.2%}, 95% CI [{comp['false_alarm_rate_ci95'][0]:.4f}, "
         f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
         "",
-        f"P2's real inference differs from P1's model (window {result['p1_model']['window']}, "
+        f"P2's real inference differs from P1's model (window {result['p1_model']['window']}"
         f"{_setting(result['p1_model'].get('threshold'), result['p1_model'].get('decision'))}); "
         "P1 keeps playing its strategy:",
         "",
@@ -606,7 +610,7 @@ def detection_summary_lines(result: dict) -> list[str]:
         "|---|---|---|---|---|---|---|---|",
     ]
     ref = result["model_mismatch"]["reference"]
-    lines.append(f"| as modelled (window {ref['p2_window']}, "
+    lines.append(f"| as modelled (window {ref['p2_window']}"
                  f"{_setting(ref['p2_threshold'], result['p1_model'].get('decision'))}) "
                  f"| 0 / 0 | {ref['detection_rate']:.1%} (false alarms) | - | - "
                  f"| {_rate(ref['completion'])} | - | {ref['completion']['off_record_steps']} |")
@@ -640,7 +644,7 @@ def detection_summary_lines(result: dict) -> list[str]:
                          f"| {with_['rate'] - without['rate']:+.4f} "
                          f"| {with_['detected_episodes']} / {with_['episodes']} |")
     lines.append("")
-    if result["p1_model"].get("inference") == "bayes":
+    if result["p1_model"].get("threshold") is None:        # no CUSUM score to report
         lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
                      f"{result['horizon']})")
     else:

@@ -231,6 +231,7 @@ def _built_table() -> dict[str, SweepParameter]:
     """The sweep parameters, in the order `--help` lists them: every world's, the observers'
     own (opponent/registry.py) and the front ends' own (frontends/__init__.py)."""
     table: dict[str, SweepParameter] = {}
+    observers = {parameter.name for parameter in _observer_parameters()}
     for parameter in (
         # first: the other parameters apply to the observer it chooses
         SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
@@ -253,8 +254,18 @@ def _built_table() -> dict[str, SweepParameter]:
                        number(int, 0, False), _with_first_guess),
     ):
         if parameter.name in table:
-            raise ValueError(f"sweep parameter {parameter.name!r} is defined twice (a front "
-                             "end's or an observer's own setting takes another's name)")
+            # one namespace for every world's parameters, the observers' settings and every
+            # front end's: a clash is a registration's mistake, said in one line (the command
+            # line's help lists the table, so it was a traceback in every command)
+            def owner(p: SweepParameter) -> str:
+                if p.front_end is not None:
+                    return (f"front end {p.front_end!r} "
+                            f"({frontends.FRONT_ENDS.get(p.front_end, '?')}, SETTINGS)")
+                return "an observer kind's settings" if p.name in observers else "every world"
+            raise InputError("sweep parameters", parameter.name, f"defined by both "
+                             f"{owner(table[parameter.name])} and {owner(parameter)}: a front "
+                             "end's and an observer's own settings share one namespace with "
+                             "the world's parameters; rename one (docs/architecture.md)")
         table[parameter.name] = parameter
     return table
 
@@ -328,7 +339,7 @@ def standing_at(world: World, traps: int) -> int:
     (an index into A2; the rule in the module docstring)."""
     arena = arena_of(world)
     if not arena.traps_mode:
-        return world.initial_standing
+        return frontends.standing_action(world)
     n = len(arena.trap_candidates)
     chosen = list(frontends.standing_candidates(world))[:traps]
     chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]

@@ -29,6 +29,8 @@ below and one line in FRONT_ENDS (docs/architecture.md, "How to add …", "A wor
   SETTINGS             its own sweep parameters (frontends/settings.py: Setting)
   STANDING_RULE        how a sweep point's standing action at the start is chosen
 and optionally
+  standing_action(world)           with general P2 actions: the action standing at the start of
+                                   a re-solved world (an index into A2)
   DRAWER               "module.Class" of what draws its worlds, made with (world, ts)
                        (default: the arena as a graph, report/arena_graph.py)
 """
@@ -115,9 +117,21 @@ def transition_system(world: World) -> TransitionSystem:
 
 def standing_candidates(world: World) -> tuple[int, ...]:
     """In trap mode, the trap candidates (numbers) a re-solved world with a positive delay keeps
-    standing at the start: the world's own standing set when its delay is positive; a grid world
-    with delay 0 may name them in its file (frontends/grid.py); otherwise none."""
+    standing at the start: the world's own standing set when its delay is positive; a world
+    with delay 0 may name them in its file (frontends/grid.py, frontends/arena.py); otherwise
+    none."""
     return front_end(world).standing_candidates(world)
+
+
+def standing_action(world: World) -> int:
+    """With general P2 actions (arena worlds only), the action a re-solved world with a
+    positive delay keeps standing at the start: the world's own when its delay is positive;
+    one with delay 0 may name it in its file (frontends/arena.py); otherwise the first (a
+    front end without `standing_action`: the world's own, else the first)."""
+    own = getattr(front_end(world), "standing_action", None)
+    if own is None:
+        return world.initial_standing if world.delay else 0
+    return own(world)
 
 
 def standing_rule(world: World) -> str:

@@ -287,22 +287,19 @@ class _Reader:
 
     def general(self, adv: dict, delay: int) -> dict:
         actions = self.names(adv["actions"], "adversary.actions", "P2 action")
-        standing = 0
         key = "adversary.initial_action"
+        filed = None        # the action the file names, also with delay 0 (sweeps over delay)
         if "initial_action" in adv:
             name = self.ld.string(adv["initial_action"], key)
-            if delay == 0:          # as a grid's initial_traps: only matters when delay > 0
-                return dict(p2_actions=tuple(actions), trap_candidates=(), traps=0, delay=0,
-                            initial_standing=0)
             if name not in actions:
                 raise self.fail(key, f"unknown P2 action {name!r}; adversary.actions are "
                                      + _listing(actions))
-            standing = actions.index(name)
+            filed = actions.index(name)
         elif delay > 0:
             raise self.fail(key, "initial_action is required when delay > 0; expected the P2 "
                                  "action standing at the start, one of " + _listing(actions))
         return dict(p2_actions=tuple(actions), trap_candidates=(), traps=0, delay=delay,
-                    initial_standing=standing)
+                    initial_standing=filed if delay else 0, filed_standing=filed)
 
     def trapping(self, adv: dict, delay: int) -> dict:
         traps = self.ld.integer(adv["traps"], "adversary.traps", 1)
@@ -312,12 +309,10 @@ class _Reader:
                             + MISSING_HINT[key])
         candidates = self.state_list(adv["trap_candidates"], key, "trap candidate")
         self.ld.traps(traps, len(candidates), TRAPS_BEYOND)
-        standing = 0
+        filed = None        # the set the file names, also with delay 0 (sweeps over delay)
         key = "adversary.initial_traps"
-        if "initial_traps" in adv and delay == 0:   # as for grids: only its type is checked
-            for i, item in enumerate(self.ld.array(adv["initial_traps"], key,
-                                                   "an array of state names")):
-                self.ld.string(item, f"{key}[{i}]")
+        if "initial_traps" in adv and delay == 0 and adv["initial_traps"] == []:
+            pass                # what a world written with delay 0 may hold: none named
         elif "initial_traps" in adv:
             chosen = self.state_list(adv["initial_traps"], key, "initial trap", empty_ok=True)
             for i, s in enumerate(chosen):
@@ -329,12 +324,12 @@ class _Reader:
                 raise self.fail(key, f"expected {traps} distinct trap candidates (traps = "
                                      f"{traps}), got {len(chosen)}")
             members = tuple(sorted(candidates.index(s) for s in chosen))
-            standing = list(itertools.combinations(range(len(candidates)), traps)).index(members)
+            filed = list(itertools.combinations(range(len(candidates)), traps)).index(members)
         elif delay > 0:
             raise self.fail(key, f"initial_traps is required when delay > 0; expected {traps} "
                                  "distinct trap candidates (state names)")
         return dict(p2_actions=(), trap_candidates=tuple(candidates), traps=traps, delay=delay,
-                    initial_standing=standing)
+                    initial_standing=filed if delay else 0, filed_standing=filed)
 
     def state_list(self, value: object, key: str, what: str, empty_ok: bool = False) -> list[int]:
         items = self.ld.array(value, key, "an array of state names")
@@ -463,6 +458,12 @@ class _Reader:
                                 f"{self.states[state]!r} has no entry for P2 action(s) "
                                 f"{_listing(missing)} and no entry without p2; every (state, "
                                 "action, P2 action) must be covered")
+            if (state, action) in default and all((state, action, j) in named
+                                                   for j in range(n_p2)):
+                raise self.fail(f"arena.transition[{default[state, action]}]", "the entry "
+                                f"without p2 for action {action!r} at state "
+                                f"{self.states[state]!r} covers no P2 action (each has its own "
+                                "entry); remove it or give p2 to fewer entries")
             for j in range(n_p2):
                 cover[state, action, j] = named.get((state, action, j), default.get((state, action)))
         return cover
@@ -504,7 +505,8 @@ TABLE_KEYS = {"arena": ARENA_KEYS}
 DESCRIBED = "an arena world ([arena])"
 SETTINGS = ()
 STANDING_RULE = ("delay > 0: the world's standing action ([adversary] initial_action or "
-                 "initial_traps)")
+                 "initial_traps), else the one its file names, else the first action or the "
+                 "first `traps` candidates")
 
 
 def to_arena(world) -> Arena:
@@ -525,13 +527,52 @@ def outcome_name(action: str, outcome: int) -> str:
 
 
 def standing_candidates(world) -> tuple[int, ...]:
-    """The trap candidates standing at the start: the world's standing set when its delay is
-    positive, else none."""
-    if not world.delay:
-        return ()
+    """In trap mode, the trap candidates standing at the start when the world is re-solved with
+    a positive delay (a sweep): the world's standing set when its delay is positive, else the
+    set its file names (`_filed_standing`), else none."""
     from hg2prism.model.dynamics import a2_actions
 
-    return tuple(a2_actions(world.front, world.traps)[1][world.initial_standing])
+    standing = world.initial_standing if world.delay else _filed_standing(world)
+    if standing is None:
+        return ()
+    return tuple(a2_actions(world.front, world.traps)[1][standing])
+
+
+def standing_action(world) -> int:
+    """With general P2 actions, the action (its index) standing at the start when the world is
+    re-solved with a positive delay: the world's own when its delay is positive, else the
+    `initial_action` its file names, else the first."""
+    if world.delay:
+        return world.initial_standing
+    filed = _filed_standing(world)
+    return 0 if filed is None else filed
+
+
+def _filed_standing(world) -> int | None:
+    """The standing action the `[adversary]` of the world's file names (`initial_action`, or
+    `initial_traps` as a set's index), which the loader checked but drops when delay = 0;
+    None when the file names none, cannot be read any more, or describes another arena or
+    number of traps than `world` (a variant, World.replace(traps=2))."""
+    import tomllib
+
+    from hg2prism.errors import InputError
+    from hg2prism.model.validation import Checks
+    from hg2prism.worldfile.loader import load_world
+
+    if world.path is None:
+        return None
+    try:
+        filed = load_world(world.path)
+        with open(world.path, "rb") as handle:
+            adversary = tomllib.load(handle)["adversary"]
+    except (InputError, OSError, tomllib.TOMLDecodeError, KeyError):
+        return None
+    if filed.front != world.front or filed.traps != world.traps:
+        return None
+    reader = _Reader(Checks(str(world.path)))
+    reader.states = world.front.states
+    reader.number = {name: i for i, name in enumerate(reader.states)}
+    return reader.adversary(adversary)["filed_standing"]
 
 
 def parameters(world) -> dict[str, object]:

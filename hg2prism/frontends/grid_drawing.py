@@ -15,8 +15,8 @@ import numpy as np
 
 from hg2prism.frontends.grid import ACTIONS, GridGeometry, geometry, outcome_directions
 from hg2prism.model.world import World
-from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, hypothesis_colour,
-                                   hypothesis_handles, steps_text)
+from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, change_handle,
+                                   hypothesis_colour, hypothesis_handles, steps_text)
 
 __all__ = ["CELL_STYLE", "WORLD_CELL_INCHES", "Move", "Segment", "grid_moves", "cell_kind",
            "draw_grid", "draw_move", "place_labels", "draw_key", "GridDrawer"]
@@ -345,6 +345,8 @@ def _draw_moves(ax: plt.Axes, world: World, moves: list[Move],
     if any(m.trapped for m in moves):
         handles.append(plt.Line2D([], [], color=TRAPPED_COLOUR, marker="X", ms=9, ls="",
                                   label="robot trapped"))
+    if any(n in landing for n, _ in changes):
+        handles.append(change_handle())
     return handles, labels
 
 

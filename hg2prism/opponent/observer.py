@@ -6,8 +6,9 @@ P2 acts on. The hypergame, Storm's
 decoding, the strategy export and the simulations use only this interface; `ObserverKind` is
 what the rest of the package knows of each kind of observer (the world file's keys, how to
 build it, its PRISM renderer, its memory's size), and `registry.py` holds one per kind, so a
-new observer is one new module beside `inference.py` (CUSUM) and `bayes.py` (§12), its template
-and renderer, and one registration line.
+new observer is one new module beside `inference.py` (CUSUM) and `bayes.py` (§12), with its
+renderer (in the module, as its kind's `render`, or in prism/observers.py with a template), and
+one registration line (docs/architecture.md, "How to add …", for the PRISM model's contract).
 An observer may also implement `ReportsBelief`, the per-hypothesis numbers its decisions rest
 on, which the figures and the replay of an episode show (§8 "The episode drawn").
 """
@@ -62,7 +63,9 @@ TOLERANCE = 1e-9
 
 class Observer(Protocol):
     """P2's inference: memory, update and the hypothesis she acts on (its PRISM rendering is
-    its kind's `render`)."""
+    its kind's `render`). One whose PRISM part keeps no `hyp` variable (the hypothesis a
+    function of the window) also gives `window_hypotheses(window)`, by which the engine's
+    states are decoded (prism/decoding.py)."""
 
     kind: str                  # the world file's `[inference] kind`
     window: int

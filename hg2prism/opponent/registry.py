@@ -4,7 +4,8 @@ The world loader (which kinds exist, which keys each accepts), the pipeline (bui
 observer), the hypergame model (its PRISM part), detection (P2's variants), sweeps (which
 parameters apply to which kind) and the size guard (how big her memory is) ask this registry,
 never the kind's name. A new observer is a module defining its observer and its `ObserverKind`
-(opponent/observer.py), its template and renderer, and one `register` line below.
+(opponent/observer.py) with its PRISM renderer (or a renderer and template beside the others),
+and one `register` line below.
 """
 
 from __future__ import annotations

@@ -154,7 +154,70 @@ def _environment() -> jinja2.Environment:
 
 
 def render_template(name: str, **context: object) -> str:
-    return _environment().get_template(name).render(**context)
+    """The text of template `name`; a PRISM model's long lines wrapped (`wrapped`)."""
+    text = _environment().get_template(name).render(**context)
+    return wrapped(text) if name.endswith(".prism.j2") else text
+
+
+# A model's lines longer than this are wrapped (formulas of tables ran to 13,642 characters on
+# one line, which editors, diffs and PRISM's GUI show poorly); comment lines are left as they are
+WRAP = 100
+CONTINUED = 4           # a continuation line's indent beyond its line's own
+
+
+def wrapped(text: str, width: int = WRAP) -> str:
+    """`text` (PRISM) with every code line longer than `width` broken between its tokens (at
+    spaces outside "quoted" names) into lines of at most `width` characters where the tokens
+    allow, continuations indented by CONTINUED more; a wrapped line's end-of-line comment goes
+    on a line of its own above it. PRISM reads line breaks as spaces, so the model is the
+    same."""
+    lines = []
+    for line in text.split("\n"):
+        body = line.lstrip()
+        if len(line) <= width or body.startswith("//"):
+            lines.append(line)
+            continue
+        indent = line[:len(line) - len(body)]
+        code, comment = _code_and_comment(body)
+        if comment:
+            lines.append(indent + comment)
+        lines += _broken(code, indent, width)
+    return "\n".join(lines)
+
+
+def _code_and_comment(body: str) -> tuple[str, str]:
+    """A line's code and its end-of-line comment ("" when none): the first // outside quotes."""
+    quoted = False
+    for i, char in enumerate(body):
+        if char == '"':
+            quoted = not quoted
+        elif not quoted and body.startswith("//", i):
+            return body[:i].rstrip(), body[i:]
+    return body, ""
+
+
+def _broken(code: str, indent: str, width: int) -> list[str]:
+    """`code` in lines of at most `width` characters (a token longer than that alone on its
+    line), breaking only at spaces outside quotes."""
+    tokens, quoted, start = [], False, 0
+    for i, char in enumerate(code):
+        if char == '"':
+            quoted = not quoted
+        elif char == " " and not quoted:
+            if i > start:
+                tokens.append(code[start:i])
+            start = i + 1
+    tokens.append(code[start:])
+    more = indent + " " * CONTINUED
+    lines, current = [], indent + tokens[0]
+    for token in tokens[1:]:
+        if len(current) + 1 + len(token) > width:
+            lines.append(current)
+            current = more + token
+        else:
+            current += " " + token
+    lines.append(current)
+    return lines
 
 
 def render_macro(name: str, macro: str, **context: object) -> str:

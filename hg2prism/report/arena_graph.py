@@ -33,7 +33,7 @@ from matplotlib.transforms import offset_copy
 from hg2prism.model.arena import Arena
 from hg2prism.model.world import World
 from hg2prism.report.style import (TRAP_COLOUR, TRAPPED_COLOUR, Box, Placer,
-                                   hypothesis_colour, hypothesis_handles, steps_text)
+                                   change_handle, hypothesis_colour, hypothesis_handles, steps_text)
 
 __all__ = ["NODE_STYLE", "graph_edges", "layout", "ArenaDrawer"]
 
@@ -309,7 +309,10 @@ class ArenaDrawer:
         handles = hypothesis_handles(self.world.hypotheses, used)
         what = "P1's action (P2's)" if self.general else "P1's action"
         handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker=">",
-                                  label=f"episode step (n=step numbers: {what})"))
+                                  label=f"episode step (n=step numbers: {what};\nits colour: "
+                                        "P2's hypothesis during it)"))
+        if self.changes_shown:
+            handles.append(change_handle())
         if any(s.stays for s in self.steps):
             handles.append(plt.Line2D([], [], color="0.2", lw=2.2, marker="o", mfc="none", ms=9,
                                       ls="", label="a step that stays (loop)"))

@@ -133,12 +133,32 @@ def world_picture(world: World, ts: TransitionSystem, episode, trace,
     ax.set_title(f"{world.name}: one deceptive episode, {episode.describe()}\n"
                  f"seed {episode.seed}, {episode.n_steps} steps, {episode.outcome}; "
                  f"task {world.formula}\n{STEP_RULE}", fontsize=8.5, loc="left")
+    if given is None:
+        _widen_for_the_key(fig, ax)
     drawer.finish(ax)      # measures the laid-out map, then freezes the layout
     if given is not None:
         # the caller's figure is not ours to freeze: its other panels, drawn after this one,
         # are laid out by its own engine (frozen, a belief panel beside it lost its legend)
         fig.set_layout_engine(engine)
     return fig, drawer
+
+
+KEY_MARGIN_INCHES = 0.1     # between the world figure's key and the figure's right edge
+
+
+def _widen_for_the_key(fig: Figure, ax: plt.Axes) -> None:
+    """Widen the figure when its key (beside the map) would end beyond its right edge: a flat
+    map in a figure of the drawer's least height grows with the height left to it and pushed
+    the key out (a corridor of nine states: 40 pixels of the key cut)."""
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)             # laid out as it will be, nothing drawn
+    ax.apply_aspect()
+    key = ax.get_legend().get_window_extent(fig.canvas.get_renderer())
+    beyond = (key.x1 - fig.bbox.width) / fig.dpi + KEY_MARGIN_INCHES
+    if beyond > KEY_MARGIN_INCHES:
+        width, height = fig.get_size_inches()
+        fig.set_size_inches(width + beyond, height)
 
 
 def world_figure(world: World, ts: TransitionSystem, episode, trace, path: Path | None,
@@ -223,10 +243,15 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
 
     given = ax
     fig, ax = figure_axes(ax, COMPLETION_INCHES, FIGURE_DPI)
-    horizon = 1
+    horizon = max([1] + [summary.horizon for _, summary, _ in rows])
     episodes = sorted({summary.episodes for _, summary, _ in rows})
+    # the last step at which some curve still rises; when every curve is flat over the last
+    # three quarters of the horizon (mir100's episodes end within 10 of 200 steps), the axis is
+    # logarithmic beyond step 1, so that the rise is not squeezed against the left edge
+    last = max([0] + [int(summary.lengths[summary.outcomes == GOAL].max(initial=0))
+                      for _, summary, _ in rows])
+    stretched = 0 < 4 * last <= horizon and horizon >= 20
     for i, (label, summary, exact) in enumerate(rows):
-        horizon = max(horizon, summary.horizon)
         done = np.sort(summary.lengths[summary.outcomes == GOAL])
         steps = np.arange(0, summary.horizon + 1)
         counts = np.searchsorted(done, steps, side="right")
@@ -235,9 +260,11 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
         colour = f"C{i}"
         dash, marker = COMPLETION_STYLES[i % len(COMPLETION_STYLES)]
         every = max(1, summary.horizon // 8)
+        # markers evenly spaced along the drawn axis (by distance on the figure when stretched)
+        markevery = ((i / len(rows) / 8, 1 / 8) if stretched
+                     else (i * every // len(rows), every))
         ax.fill_between(steps, low, high, color=colour, alpha=0.18, lw=0)
-        ax.plot(steps, rate, ls=dash, marker=marker, ms=4, markevery=(i * every // len(rows),
-                                                                      every),
+        ax.plot(steps, rate, ls=dash, marker=marker, ms=4, markevery=markevery,
                 color=colour, lw=1.4, label=label if len(episodes) == 1
                 else f"{label} ({summary.episodes} episodes)")
         if exact is not None:
@@ -249,6 +276,14 @@ def completion_picture(world_name: str, rows: Sequence[tuple[str, object, float 
     ax.set_xlim(0, horizon)
     ax.set_ylim(0, 1.02)
     ax.set_xlabel("step n")
+    if stretched:
+        ax.set_xscale("symlog", linthresh=1, linscale=0.5)
+        ticks = [t for t in (0, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000)
+                 if t < horizon * 0.8] + [horizon]
+        ax.set_xticks(ticks, [str(t) for t in ticks])
+        ax.minorticks_off()
+        ax.set_xlabel(f"step n (logarithmic beyond 1: every completion came within {last} "
+                      "steps)")
     ax.set_ylabel("share completed within n steps")
     ax.grid(alpha=0.3)
     _legend(fig, ax, given, ncol=2, fontsize=7, frameon=False)
@@ -331,7 +366,8 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
     the first parameter, one colour per combination of the others' values; the same axis and
     legend rules as :func:`sweep_figure`. Each series' markers are smaller than the one's
     before, so that series that coincide (traps 1 and 2 on mir100) show as rings around dots
-    rather than one hiding the other."""
+    rather than one hiding the other; V_lead's markers are hollow squares and its lines' dashes
+    take turns between the series."""
     given = ax
     fig, ax = figure_axes(ax, SWEEP_INCHES)
     first, others = parameters[0], list(parameters[1:])
@@ -340,6 +376,10 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
         series.setdefault(tuple(_value_text(row[p]) for p in others), []).append(row)
     colours = matplotlib.rcParams["axes.prop_cycle"].by_key()["color"]
     x_of = _parameter_axis(ax, first, [row[first] for row in rows])
+    # V_lead's dashes take turns: series n draws the n-th of every len(series) dashes, so that
+    # lines that coincide (V_lead does not depend on the observer's window) alternate their
+    # colours along the line; they were translucent and blended into a colour no legend has
+    dash, turns = (4.0 if len(series) <= 3 else 2.5), len(series)
     for n, (key, members) in enumerate(series.items()):
         members = sorted(members, key=lambda r: x_of(r[first]))
         xs = [x_of(r[first]) for r in members]
@@ -348,7 +388,8 @@ def sweep_grid_figure(parameters: Sequence[str], rows: Sequence[dict], path: Pat
         size = max(3.0, 9.0 - 2.0 * n)
         ax.plot(xs, [r["deceptive_value"] for r in members], "o-", color=colour, ms=size,
                 lw=max(0.8, 2.4 - 0.5 * n), label=f"deceptive, {label}")
-        ax.plot(xs, [r["v_lead"] for r in members], "s--", color=colour, alpha=0.5, ms=size,
+        ax.plot(xs, [r["v_lead"] for r in members], marker="s", mfc="none", color=colour,
+                ms=size, ls=(n * dash, (dash, dash * max(1, turns - 1))), lw=1.4,
                 label=f"V_lead, {label}")
     return _finish_sweep(fig, ax, path, " x ".join(parameters), world_name, ncol=2, fontsize=7,
                          given=given)

@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 __all__ = ["HYPOTHESIS_COLOURS", "TRAP_COLOUR", "TRAPPED_COLOUR", "STEP_RULE", "hypothesis_colour",
-           "steps_text", "hypothesis_handles", "Box", "Placer"]
+           "steps_text", "hypothesis_handles", "change_handle", "Box", "Placer"]
 
 # The one step-numbering rule of the world picture, the belief plot and the replay
 # (docs/semantics.md §15 "Figures"), in the short form the figures print.
@@ -45,6 +45,15 @@ def hypothesis_handles(hypotheses: Sequence[str], used: Sequence[int]) -> list:
     return [plt.Line2D([], [], color=hypothesis_colour(i), lw=2.2,
                        label=f"P2 believes x{i}: {hypotheses[i]}")
             for i in range(len(hypotheses)) if i in used]
+
+
+def change_handle() -> plt.Line2D:
+    """The key's entry for the bold labels "n=k: P2 now x" of a world picture. An arrow's
+    colour is the hypothesis P2 held during its step, a bold label her hypothesis after
+    observing it: on world3 step 2's arrow is blue beside "n=2: P2 now x1" in orange, which the
+    key did not explain (a figure review)."""
+    return plt.Line2D([], [], color="0.2", ls="", marker=r"$\mathbf{x}$", ms=8,
+                      label="n=k: P2 now x (bold): her change of mind\non observing step k")
 
 
 Box = tuple[float, float, float, float]      # x0, y0, x1, y1 in data units

@@ -87,10 +87,14 @@ def _read_type(loader, table: dict, i: int, adversary: dict) -> PlayerType:
 
 
 def world_of_type(world: World, k: int) -> World:
-    """The ordinary world (one `[inference]`) in which P2 is of type k."""
+    """The ordinary world (one `[inference]`) in which P2 is of type k; its description says
+    so (the header of `type<k>/hypergame.prism` shows it)."""
     t = world.types[k]
+    which = f"P2 of type {t.name!r} (type {k} of {len(world.types)})"
     return replace(world, inference=t.inference, window=t.window, rationality=t.rationality,
-                   settings=t.settings, initial_hypothesis=t.initial_hypothesis, types=())
+                   settings=t.settings, initial_hypothesis=t.initial_hypothesis, types=(),
+                   description=f"{world.description}; here {which}" if world.description
+                   else which)
 
 
 def weights(world: World) -> tuple[float, ...]:
