@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from hg2prism import __version__, memory, progress
+from hg2prism import __version__, memory, plugins, progress
 from hg2prism.engines import default as default_engine
 from hg2prism.errors import COMMAND_LINE, InputError, SolverError, StormError
 from hg2prism.strategy.records import StrategyError
@@ -509,8 +509,9 @@ def _printable_streams() -> None:
 def main(argv: list[str] | None = None) -> int:
     _printable_streams()
     try:
+        plugins.load_plugins()      # HG2PRISM_PLUGINS: observers, world kinds from outside
         parser = build_parser()
-    except InputError as err:       # a registered observer or front end that clashes
+    except InputError as err:       # a plugin that fails, or a setting's name taken twice
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
     argv = sys.argv[1:] if argv is None else argv

@@ -28,7 +28,8 @@ from hg2prism.strategy.exports import (InducedDTMC, drn, expected_steps, goal_pr
                                        prism_explicit, stationary_dtmc, unfolded_dtmc)
 from hg2prism.strategy.objectives import (OBJECTIVES, Bounded, bounded_actions,
                                           lexicographic_actions)
-from hg2prism.strategy.records import RecordExtras, Strategy, strategy_json_chunks
+from hg2prism.strategy.records import (RecordExtras, Strategy, StrategyError,
+                                       strategy_json_chunks)
 from hg2prism.strategy.stepped import SteppedStrategy
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states
 from hg2prism.prism.hypergame import PROPERTY, PrismModel, build_model, write_model
@@ -403,30 +404,34 @@ def _warn_if_slow(objective: StrategyObjective, horizon: int) -> None:
              "probability within the horizon instead")
 
 
-# a simulated rate this improbable under its exact value means the two were computed on
-# different processes, not sampling noise (about one false warning in 2e5 runs of five rows)
-AGREEMENT_CONFIDENCE = 1 - 1e-6
+# a simulated count this improbable under its exact value (the two-sided p-value of the exact
+# binomial test) means the two were computed on different processes, not sampling noise
+AGREEMENT_P_VALUE = 1e-6
 
 
 def _warn_if_simulations_disagree(played: _Played) -> None:
-    """A warning for each simulated pair whose rate is far from its exact probability of
-    completing within the horizon (outside the rate's Wilson interval at AGREEMENT_CONFIDENCE):
-    the episodes and the model then play different games. A registered observer whose Python
-    update differs from its PRISM part's showed 0.0000 [0, 0.0004] simulated beside 0.9982
-    exact, without a word."""
-    from hg2prism.analyses.simulation import wilson_interval
+    """A warning for each simulated pair whose count of completed episodes is implausible under
+    its exact probability of completing within the horizon (the exact binomial test's p-value
+    below AGREEMENT_P_VALUE, so about one false warning in a million rows): the episodes and
+    the model then play different games. A registered observer whose Python update differed
+    from its PRISM part's showed 0.0000 [0, 0.0004] simulated beside 0.9982 exact, without a
+    word. (A Wilson interval at the same confidence covers badly where only a few episodes
+    fail: it warned falsely 3.6 % of the time at n - 1 of n completed.)"""
+    from scipy.stats import binomtest
+
     from hg2prism.report.tables import COMPLETION_ROWS
 
     for row in COMPLETION_ROWS:
         summary, exact = played.summaries[row.key], played.within[row.key]
-        low, high = wilson_interval(summary.completed, summary.episodes, AGREEMENT_CONFIDENCE)
-        if not low - 1e-9 <= exact <= high + 1e-9:
-            warn(f"simulated completion of \"{row.information}\" is {summary.rate:.4f} "
+        p = binomtest(summary.completed, summary.episodes,
+                      min(max(exact, 0.0), 1.0)).pvalue
+        if p < AGREEMENT_P_VALUE:
+            warn(f"simulated completion of \"{row.information}\" is {summary.rate:.6f} "
                  f"({summary.completed} of {summary.episodes} episodes), far from its exact "
-                 f"within-horizon probability {exact:.4f} (outside [{low:.4f}, {high:.4f}], "
-                 "its interval at 1 - 1e-6): the simulation and the model disagree (for an "
-                 "observer of your own: does its Python update do what its PRISM part does? "
-                 "docs/architecture.md, \"An observer\")")
+                 f"within-horizon probability {exact:.6f} (exact binomial test: p = {p:.1e}): "
+                 "the simulation and the model disagree (for an observer of your own: does "
+                 "its Python update do what its PRISM part does? docs/architecture.md, "
+                 "\"An observer\")")
 
 
 def _nash_stage(analysis: Analysis) -> NashBaseline:
@@ -493,8 +498,16 @@ def _simulations(checked: CheckResult, nash: NashBaseline, worth: DeceptionValue
     pairs = {"nash": (nash.p1.reshape(-1, ts.n_actions), nash.p2.reshape(ts.n_states * task.n_states, -1)),
              "leader": _leader_strategies(analysis),
              "static": (worth.static.policy.mixed(), np.eye(ts.n_sets)[worth.static.p2])}
-    summaries = {"deceptive": simulation.simulate_deceptive(
-        played, strategy, n_episodes, horizon, seed, progress=show_progress)}
+    try:
+        summaries = {"deceptive": simulation.simulate_deceptive(
+            played, strategy, n_episodes, horizon, seed, progress=show_progress)}
+    except StrategyError as err:
+        # the records of this run's own strategy cover every state the model reaches, and the
+        # episodes follow P1's model of P2: her observer's memory went where its PRISM part
+        # does not go
+        raise StrategyError(f"{err} (the records cover every state the model reaches: does "
+                            "P2's observer update her memory in Python as its PRISM part does? "
+                            "docs/architecture.md, \"An observer\")") from None
     for name, (p1, p2) in pairs.items():
         summaries[name] = simulation.simulate_nash(
             ts, task, p1, p2, n_episodes, horizon, seed, progress=show_progress,

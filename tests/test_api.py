@@ -948,8 +948,13 @@ def test_run_writes_what_the_command_writes_and_one_worlds_outputs_per_folder(
     slow = pipeline._warn_if_slow
     monkeypatch.setattr(pipeline, "_warn_if_slow",
                         lambda objective, horizon: asked.append(horizon) or slow(objective, horizon))
+    compared = []   # ... and whether each simulated row agrees with its exact value
+    agree = pipeline._warn_if_simulations_disagree
+    monkeypatch.setattr(pipeline, "_warn_if_simulations_disagree",
+                        lambda played: compared.append(sorted(played.summaries)) or agree(played))
     ran = hg2prism.run(world_file, out, episodes=300, seed=7, horizon=40)
     assert asked == [40]
+    assert compared == [["deceptive", "leader", "naive", "nash", "static"]]
     assert {p.name for p in out.iterdir()} == cli_files | {"mine.txt", "hypothesis_7.hoa"}
     assert ran.table == (out / "table.md").read_text() == (tmp_path / "cli" / "table.md").read_text()
     masked = {"timings", "seconds", "software", "hg2prism_version"}
@@ -1021,15 +1026,16 @@ def test_a_strategy_slower_than_the_horizon_is_warned_about(caplog) -> None:
 
 
 def test_a_simulation_far_from_its_exact_value_is_warned_about(caplog) -> None:
-    """run warns when a simulated rate lies outside its Wilson interval at 1 - 1e-6 around the
-    exact within-horizon probability (a registered observer whose Python update was not its
-    PRISM part's: 0 of 2000 simulated beside 0.9982 exact, in silence); at the interval's
-    bounds, and for ordinary sampling noise, nothing."""
+    """run warns when a simulated count of completed episodes is implausible under the exact
+    within-horizon probability (exact binomial test, p-value below 1e-6): a registered
+    observer whose Python update was not its PRISM part's showed 0 of 2000 simulated beside
+    0.9982 exact, in silence. Sampling noise gives nothing, also where only a few episodes
+    fail (a Wilson interval at the same confidence warned at 9,999 of 10,000 beside 0.9999963,
+    an outcome of probability 0.036)."""
     import logging
     from types import SimpleNamespace
 
-    from hg2prism.analyses.simulation import wilson_interval
-    from hg2prism.pipeline import AGREEMENT_CONFIDENCE, _warn_if_simulations_disagree
+    from hg2prism.pipeline import _warn_if_simulations_disagree
     from hg2prism.report.tables import COMPLETION_ROWS
 
     keys = [row.key for row in COMPLETION_ROWS]
@@ -1047,13 +1053,18 @@ def test_a_simulation_far_from_its_exact_value_is_warned_about(caplog) -> None:
 
     (message,) = warned(0, 2000, 0.9982)
     assert message.startswith('warning: simulated completion of "Asymmetric, P1 ignores P2\'s '
-                              'misperception" is 0.0000 (0 of 2000 episodes), far from its exact '
-                              "within-horizon probability 0.9982"), message
-    low, high = wilson_interval(700, 1000, AGREEMENT_CONFIDENCE)
-    assert warned(700, 1000, low) == [] and warned(700, 1000, high) == []
-    assert len(warned(700, 1000, high + 1e-6)) == 1 and len(warned(700, 1000, low - 1e-6)) == 1
+                              'misperception" is 0.000000 (0 of 2000 episodes), far from its '
+                              "exact within-horizon probability 0.998200 (exact binomial test: "
+                              "p = "), message
+    assert warned(9999, 10000, 0.9999963) == [] and warned(1, 10000, 3.7e-6) == []
     assert warned(700, 1000, 0.72) == []            # 1.4 standard deviations: noise
+    assert len(warned(700, 1000, 0.80)) == 1        # 7.9 standard deviations
     assert warned(0, 100, 0.0) == [] and warned(100, 100, 1.0) == []
+    assert len(warned(1, 100, 0.0)) == 1 and len(warned(99, 100, 1.0)) == 1   # impossible
+    # about the threshold: 0 completions of 1000 have probability (1 - p)^1000, and the test's
+    # two-sided p-value adds the other tail's outcomes no more likely than that
+    assert len(warned(0, 1000, 0.016)) == 1         # (1 - 0.016)^1000 = 1.0e-7
+    assert warned(0, 1000, 0.012) == []             # 5.7e-6, already above 1e-6
 
 
 def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:

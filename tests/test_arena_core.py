@@ -132,8 +132,23 @@ def test_a_sweep_over_delay_starts_from_the_standing_action_the_file_names(tmp_p
     other = world.replace(front=lateral(traps_mode=False).front.__class__(
         **{**world.front.__dict__, "initial": 1}))
     assert sweep.sweep_point(other, {"delay": 2}).initial_standing == 0
+    # convert keeps it (it wrote the standing action only with delay > 0): the arena form
+    # sweeps as the world does, a grid world's arena form as the grid world
+    again = tmp_path / "again.toml"
+    again.write_text(to_toml(world))
+    assert 'initial_action = "watch_hr"' in again.read_text()
+    assert sweep.sweep_point(load_world(again), {"delay": 2}).initial_standing == 2
+    (tmp_path / "world2.toml").write_text((MODELS / "world2.toml").read_text().replace(
+        "initial_traps = [[2, 5]]", "initial_traps = [[5, 3]]"))     # not the first candidate
+    grid = load_world(tmp_path / "world2.toml")        # delay 0
+    assert sweep.sweep_point(grid, {"delay": 1}).initial_standing == 2
+    (tmp_path / "world2_arena.toml").write_text(to_toml(grid))
+    converted = load_world(tmp_path / "world2_arena.toml")
+    assert (sweep.sweep_point(converted, {"delay": 1}).initial_standing
+            == sweep.sweep_point(grid, {"delay": 1}).initial_standing)
     path.write_text(text.replace('initial_action = "watch_hr"\n', ""))
     assert sweep.sweep_point(load_world(path), {"delay": 2}).initial_standing == 0
+    assert "initial_action" not in to_toml(load_world(path))
 
     text = to_toml(lateral(delay=1, traps_mode=True).replace(initial_standing=1))
     assert 'initial_traps = ["mail"]' in text

@@ -170,7 +170,7 @@ def v_coop(w: reference.World) -> float:
     return float(x[nodes[(s0[0], s0[1])]])
 
 
-@pytest.mark.parametrize("i", share(range(N_ARENAS)), ids=share(NAMES))   # every third under `make test`
+@pytest.mark.parametrize("i", share(range(N_ARENAS)), ids=share(NAMES))   # every fourth under `make test`
 def test_reference_solves_random_arenas(i: int, world_dir: Path) -> None:
     path = arena_path(i, str(world_dir))
     ref = solved(path)
@@ -524,7 +524,7 @@ def package_check(i: int, folder: str):
         return pipeline.check(load_world(path), Path(folder) / f"{NAMES[i]}_out")
 
 
-@pytest.mark.parametrize("i", share(range(N_ARENAS)), ids=share(NAMES))   # every third under `make test`
+@pytest.mark.parametrize("i", share(range(N_ARENAS)), ids=share(NAMES))   # every fourth under `make test`
 def test_package_matches_the_reference_on_random_arenas(i: int, world_dir: Path) -> None:
     """Mirrors tests/test_core.py and tests/test_bayes.py on grid worlds: the deceptive value,
     V_lead and the canonical size equal the reference's, and the strategy Storm's scheduler

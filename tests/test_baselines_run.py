@@ -30,7 +30,7 @@ def _world(name: str, folder: Path):
     return load_world(path)
 
 
-@pytest.mark.parametrize("name", share(SAMPLE) + ["world1"])      # every third under `make test`
+@pytest.mark.parametrize("name", share(SAMPLE) + ["world1"])      # every fourth under `make test`
 def test_nash_below_leader_everywhere(name: str, tmp_path: Path) -> None:
     world = load_world(MODELS / "world1.toml") if name == "world1" else _world(name, tmp_path)
     ts = build_transition_system(world)

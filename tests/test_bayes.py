@@ -95,7 +95,7 @@ def run(name: str, folder: str) -> pipeline.CheckResult:
         return pipeline.check(load_world(path), Path(folder) / name)
 
 
-@pytest.fixture(params=share(CASE_NAMES))      # every third under `make test`
+@pytest.fixture(params=share(CASE_NAMES))      # every fourth under `make test`
 def case(request: pytest.FixtureRequest, world_dir: Path):
     return request.param, run(request.param, str(world_dir)), world_path(request.param,
                                                                        str(world_dir))

@@ -40,7 +40,7 @@ def _model(name: str, folder: str) -> tuple[object, object]:
     return model, formula
 
 
-@pytest.mark.parametrize("name", share(name for name, _ in FAMILY))    # every third under `make test`
+@pytest.mark.parametrize("name", share(name for name, _ in FAMILY))    # every fourth under `make test`
 def test_certified_values_equal_storms_sound_solver(name: str, world_dir: Path) -> None:
     model, formula = _model(name, str(world_dir))
     certified = storm.certificate(model, formula)

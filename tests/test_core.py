@@ -26,7 +26,7 @@ from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 from conftest import share
 
 FAMILY = dict(worldgen.world_family())
-CASES = ["world1"] + share(sorted(FAMILY))        # every third under `make test`
+CASES = ["world1"] + share(sorted(FAMILY))        # every fourth under `make test`
 TOL = 1e-6
 
 

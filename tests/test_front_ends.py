@@ -174,6 +174,40 @@ def test_a_setting_named_as_another_kinds_is_one_line(corridors, monkeypatch, ca
                                "'line' (frontend_line, SETTINGS)"), lines[0]
 
 
+def test_a_plugin_named_in_the_environment_registers_a_kind(monkeypatch, tmp_path,
+                                                            capsys) -> None:
+    """HG2PRISM_PLUGINS: the command line imports the modules it names before reading its
+    arguments, so a kind that a module outside the package registers is a world kind of every
+    command, its setting a sweep parameter (the command line could not load one before);
+    a module that cannot be imported, or fails, is one line naming the variable."""
+    from hg2prism.cli import main
+    from hg2prism.experiments import sweep
+
+    (tmp_path / "corridor_plugin.py").write_text(
+        "from hg2prism import frontends\nfrontends.FRONT_ENDS['line'] = 'frontend_line'\n")
+    (tmp_path / "broken_plugin.py").write_text("raise RuntimeError('no licence found')\n")
+    (tmp_path / "corridor.toml").write_text(TEXT)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(frontends, "FRONT_ENDS", dict(frontends.FRONT_ENDS))   # restored after
+    monkeypatch.setattr(sweep, "_TABLES", {})
+    world = str(tmp_path / "corridor.toml")
+
+    assert main(["validate", world]) == 2                     # not registered: not a world
+    capsys.readouterr()
+    monkeypatch.setenv("HG2PRISM_PLUGINS", "corridor_plugin")
+    assert main(["validate", world]) == 0
+    assert "corridor" in capsys.readouterr().out
+    assert "advance" in sweep.sweep_parameters()
+    for value, words in (("nope_plugin", "HG2PRISM_PLUGINS: nope_plugin: no such module"),
+                         ("broken_plugin", "HG2PRISM_PLUGINS: broken_plugin: importing it "
+                                           "failed: RuntimeError: no licence found"),
+                         ("corridor_plugin, 3x", "HG2PRISM_PLUGINS: 3x: not a module name")):
+        monkeypatch.setenv("HG2PRISM_PLUGINS", value)
+        assert main(["validate", world]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"hg2prism: error: {words}"), err
+
+
 def test_a_bad_adversary_table_is_one_line(corridors) -> None:
     """The kind's `read` looks at [adversary]: the loader has checked it is a table."""
     text = "adversary = 3\n" + TEXT[:TEXT.index("[adversary]")] + TEXT[TEXT.index("[inference]"):]

@@ -55,7 +55,7 @@ def _plain_iteration(game: baselines.ConcurrentGame, p1: np.ndarray | None,
     raise AssertionError("plain value iteration did not converge")
 
 
-@pytest.mark.parametrize("name", share(NAMES))       # every third under `make test`
+@pytest.mark.parametrize("name", share(NAMES))       # every fourth under `make test`
 def test_nash_bracket(name: str, tmp_path: Path) -> None:
     analysis = pipeline.analyse(_world(name, tmp_path))
     nash = baselines.nash_baseline(analysis.ts, analysis.task)

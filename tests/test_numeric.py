@@ -341,7 +341,7 @@ def dense_steps(succs: list[list[tuple]]) -> tuple[float, float]:
             float(np.linalg.solve(system, np.ones(n))[0]))
 
 
-@pytest.mark.parametrize("name", share(name for name, _ in FAMILY))     # every third under `make test`
+@pytest.mark.parametrize("name", share(name for name, _ in FAMILY))     # every fourth under `make test`
 def test_family_against_reference(name: str, folder: str) -> None:
     rows_of, succs = reference_models(name, folder)
     if rows_of is not None:

@@ -230,6 +230,24 @@ def test_a_kinds_swept_setting_is_a_sweep_parameter(monkeypatch: pytest.MonkeyPa
         found["patience"].apply(cusum, 2)
 
 
+def test_a_kinds_setting_named_as_a_world_parameter_is_one_line(monkeypatch, capsys) -> None:
+    """An observer's swept setting named `rationality` (every world's): one line naming the
+    kind and "every world" (it named "an observer kind's settings" twice), exit 2."""
+    from dataclasses import replace
+
+    from hg2prism.cli import main
+    from hg2prism.experiments import sweep
+
+    kind = _patient(NEVER)
+    clash = replace(kind, settings=(replace(kind.settings[0], key="rationality"),))
+    monkeypatch.setitem(registry.KINDS, "patient", clash)
+    monkeypatch.setattr(sweep, "_TABLES", {})
+    assert main(["validate", str(MODELS / "world3.toml")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("hg2prism: error: sweep parameters: rationality: defined by both "
+                           "observer kind 'patient' (its settings) and every world"), line
+
+
 def _patient(never_kind: ObserverKind) -> ObserverKind:
     """The never-revising observer with a setting a sweep may vary (patience, which changes
     nothing she does)."""

@@ -10,7 +10,7 @@ import json
 import snapshot
 from conftest import share
 
-GENERATED = share(snapshot.GENERATED)       # four of the ten under `make test`
+GENERATED = share(snapshot.GENERATED)       # three of the ten under `make test`
 
 
 def test_outputs_match_the_snapshot(tmp_path):

@@ -514,12 +514,7 @@ class _DeceptiveRun:
             try:
                 a1 = self.chain.a1[node] = int(self.strategy.action(v, q, m1))
             except StrategyError as err:
-                # the records cover every state the model reaches, and the episode follows P1's
-                # model of P2: her observer's memory went where its PRISM part does not go
-                raise StrategyError(f"episode {episode}, step {steps}: {err} (the records cover "
-                                    "every state the model reaches: does P2's observer update "
-                                    "her memory in Python as its PRISM part does? "
-                                    "docs/architecture.md, \"An observer\")") from None
+                raise StrategyError(f"episode {episode}, step {steps}: {err}") from None
             if self.recorded is not None and (v, q, m1) not in self.recorded:
                 self.off_record.add(node)
         return a1

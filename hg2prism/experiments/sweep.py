@@ -85,6 +85,7 @@ class SweepParameter:
     apply: Callable[[World, Value], World]
     moves_traps: bool = False
     front_end: str | None = None    # a front end's own parameter: refused on other kinds
+    observer: str | None = None     # the observer kind whose setting it is (the first's)
 
     def refuse_unless_applies(self, world: World) -> None:
         """InputError (one line) when this parameter does not apply to `world`."""
@@ -188,7 +189,7 @@ def _observer_parameters() -> list[SweepParameter]:
             if setting.swept is not None and setting.key not in found:
                 found[setting.key] = SweepParameter(
                     setting.key, setting.swept.expected, parsers[setting.swept.form](
-                        setting.swept), _with_setting(setting.key))
+                        setting.swept), _with_setting(setting.key), observer=kind.name)
     return list(found.values())
 
 
@@ -231,7 +232,16 @@ def _built_table() -> dict[str, SweepParameter]:
     """The sweep parameters, in the order `--help` lists them: every world's, the observers'
     own (opponent/registry.py) and the front ends' own (frontends/__init__.py)."""
     table: dict[str, SweepParameter] = {}
-    observers = {parameter.name for parameter in _observer_parameters()}
+    owners: dict[str, str] = {}
+
+    def owner(p: SweepParameter) -> str:
+        if p.front_end is not None:
+            return (f"front end {p.front_end!r} "
+                    f"({frontends.FRONT_ENDS.get(p.front_end, '?')}, SETTINGS)")
+        if p.observer is not None:
+            return f"observer kind {p.observer!r} (its settings)"
+        return "every world"
+
     for parameter in (
         # first: the other parameters apply to the observer it chooses
         SweepParameter("inference", " or ".join(f'"{kind}"' for kind in KINDS), _observer_kind,
@@ -257,15 +267,11 @@ def _built_table() -> dict[str, SweepParameter]:
             # one namespace for every world's parameters, the observers' settings and every
             # front end's: a clash is a registration's mistake, said in one line (the command
             # line's help lists the table, so it was a traceback in every command)
-            def owner(p: SweepParameter) -> str:
-                if p.front_end is not None:
-                    return (f"front end {p.front_end!r} "
-                            f"({frontends.FRONT_ENDS.get(p.front_end, '?')}, SETTINGS)")
-                return "an observer kind's settings" if p.name in observers else "every world"
             raise InputError("sweep parameters", parameter.name, f"defined by both "
-                             f"{owner(table[parameter.name])} and {owner(parameter)}: a front "
+                             f"{owners[parameter.name]} and {owner(parameter)}: a front "
                              "end's and an observer's own settings share one namespace with "
                              "the world's parameters; rename one (docs/architecture.md)")
+        owners[parameter.name] = owner(parameter)
         table[parameter.name] = parameter
     return table
 

@@ -653,6 +653,18 @@ def _arena_lines(arena: Arena) -> list[str]:
     return lines + _entries(arena)
 
 
+def _filed_candidates(world) -> tuple[int, ...]:
+    """A delay-0 world's standing trap candidates as its file names them (any kind:
+    frontends.standing_candidates), none when the file's are not valid ones."""
+    from hg2prism import frontends
+    from hg2prism.errors import InputError
+
+    try:
+        return tuple(sorted(frontends.standing_candidates(world)))
+    except InputError:
+        return ()
+
+
 def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
     from hg2prism.model.dynamics import a2_actions
     from hg2prism.opponent.registry import observer_kind
@@ -667,11 +679,16 @@ def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
         if write_standing:
             _, sets = a2_actions(arena, world.traps)
             lines.append("initial_traps = " + toml_value([cands[c] for c in sets[standing]]))
+        elif len(filed := _filed_candidates(world)) == world.traps:
+            # with delay 0, what the world's file names for sweeps over delay, kept
+            lines.append("initial_traps = " + toml_value([cands[c] for c in filed]))
     else:
         lines.append("actions = " + toml_value(list(arena.p2_actions)))
         lines.append(f"delay = {world.delay}")
         if write_standing:
             lines.append(f"initial_action = {toml_string(arena.p2_actions[standing])}")
+        elif (filed := _filed_standing(world)) is not None:
+            lines.append(f"initial_action = {toml_string(arena.p2_actions[filed])}")
     lines.append("hypotheses = " + toml_value(list(world.hypotheses)))
     if observer_kind(world.inference).first_guess is None:
         lines.append(f"initial_hypothesis = {world.initial_hypothesis}")

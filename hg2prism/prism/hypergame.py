@@ -182,7 +182,7 @@ def count_commands(text: str) -> dict[str, int]:
             counts[module] = 0
         elif stripped == "endmodule":
             module = None
-        elif module and re.match(r"\[[\w,]*\] ", stripped):   # a command, not a wrapped line
+        elif module and re.match(r"\[[\w,]*\](\s|$)", stripped):   # a command, not a wrapped line
             counts[module] += 1
     return counts
 

@@ -5,8 +5,10 @@ the macros they share are in templates/common.prism.j2)."""
 from __future__ import annotations
 
 import functools
+import itertools
 import importlib.resources
 import math
+import re
 from pathlib import Path
 
 import jinja2
@@ -154,35 +156,90 @@ def _environment() -> jinja2.Environment:
 
 
 def render_template(name: str, **context: object) -> str:
-    """The text of template `name`; a PRISM model's long lines wrapped (`wrapped`)."""
+    """The text of template `name`; a PRISM model's long lines wrapped (`wrapped`) and its
+    blank lines single (the templates' optional parts left some doubled)."""
     text = _environment().get_template(name).render(**context)
-    return wrapped(text) if name.endswith(".prism.j2") else text
+    if not name.endswith(".prism.j2"):
+        return text
+    return re.sub(r"\n{3,}", "\n\n", wrapped(text))
 
 
 # A model's lines longer than this are wrapped (formulas of tables ran to 13,642 characters on
-# one line, which editors, diffs and PRISM's GUI show poorly); comment lines are left as they are
+# one line, which editors, diffs and PRISM's GUI show poorly)
 WRAP = 100
-CONTINUED = 4           # a continuation line's indent beyond its line's own
+CONTINUED = 4           # a code line's continuations are indented this much more
 
 
 def wrapped(text: str, width: int = WRAP) -> str:
-    """`text` (PRISM) with every code line longer than `width` broken between its tokens (at
-    spaces outside "quoted" names) into lines of at most `width` characters where the tokens
-    allow, continuations indented by CONTINUED more; a wrapped line's end-of-line comment goes
-    on a line of its own above it. PRISM reads line breaks as spaces, so the model is the
-    same."""
+    """`text` (PRISM) with every line longer than `width` broken into lines of at most `width`
+    characters where its words allow. Code is broken between tokens (at spaces outside
+    "quoted" names), at the least nested break of the line's last stretch (`_broken`),
+    continuations indented by CONTINUED more, a wrapped line's end-of-line comment on a line of
+    its own above it; PRISM reads line breaks as spaces, so the model is the same. A comment
+    goes on in comment lines whose text starts under its own (a header's value column)."""
     lines = []
-    for line in text.split("\n"):
+    given = text.split("\n")
+    n = 0
+    while n < len(given):
+        line = given[n]
+        n += 1
         body = line.lstrip()
-        if len(line) <= width or body.startswith("//"):
-            lines.append(line)
-            continue
         indent = line[:len(line) - len(body)]
-        code, comment = _code_and_comment(body)
-        if comment:
-            lines.append(indent + comment)
-        lines += _broken(code, indent, width)
+        if len(line) <= width:
+            lines.append(line)
+        elif body.startswith("//"):
+            hang = _hang(body[2:])
+            # the sentence goes on in the comment lines under it: one paragraph, reflowed
+            while n < len(given) and _goes_on(given[n], indent, hang, body):
+                body += " " + given[n].strip()[2:].strip()
+                n += 1
+            lines += _comment_broken(indent, body, width, hang)
+        else:
+            code, comment = _code_and_comment(body)
+            if comment:
+                lines += _comment_broken(indent, comment, width, _hang(comment[2:]))
+            lines += _broken(code, indent, width)
     return "\n".join(lines)
+
+
+def _hang(text: str) -> int:
+    """Where a comment's text (after //) goes on: under its value when a run of spaces sets one
+    off within its first 24 characters (`// world        world1 (...)`), else under its first
+    word."""
+    column = re.search(r"^ *\S+(?: \S+)*? {2,}(?=\S)", text)
+    if column is not None and column.end() <= 24:
+        return column.end()
+    return len(text) - len(text.lstrip(" "))
+
+
+def _goes_on(line: str, indent: str, hang: int, before: str) -> bool:
+    """Whether comment `line` continues the sentence of the long comment line `before` (with
+    `indent` and `hang`): its text starts under the hang, in lower case or with "(", it is no
+    header line of its own (`// digest   ...`), and `before` does not end a sentence."""
+    if not line.startswith(indent + "//") or before.rstrip().endswith((".", ":", ";")):
+        return False
+    text = line[len(indent) + 2:]
+    if len(text) <= hang or text[:hang].strip() or text[hang] == " ":
+        return False
+    start = text[hang]
+    return (start.islower() or start == "(") and _hang(text) == hang
+
+
+def _comment_broken(indent: str, body: str, width: int, hang: int) -> list[str]:
+    """A comment (`body` starts with //) in lines of at most `width` characters where its
+    words allow: continuations are comment lines whose text starts at `hang` after the //."""
+    text = body[2:]
+    first, rest = text[:hang], text[hang:].split()
+    prefix, more = indent + "//" + first, indent + "//" + " " * hang
+    lines, current = [], prefix.rstrip(" ") if not rest else prefix + rest[0]
+    for word in rest[1:]:
+        if len(current) + 1 + len(word) > width:
+            lines.append(current)
+            current = more + word
+        else:
+            current += " " + word
+    lines.append(current)
+    return lines
 
 
 def _code_and_comment(body: str) -> tuple[str, str]:
@@ -196,27 +253,72 @@ def _code_and_comment(body: str) -> tuple[str, str]:
     return body, ""
 
 
+# operators a wrapped code line would rather begin with (between outcomes, updates, branches)
+_LEADING = {"+": 0, "&": 1, "|": 1, ":": 2, "?": 3}
+
+
 def _broken(code: str, indent: str, width: int) -> list[str]:
     """`code` in lines of at most `width` characters (a token longer than that alone on its
-    line), breaking only at spaces outside quotes."""
-    tokens, quoted, start = [], False, 0
+    line), breaking only at spaces outside quotes. A line is filled, then broken at the least
+    nested space of its last half (parentheses counted), preferring one before `+` (between
+    outcomes), then `&` or `|`, `:` and `?`, and the latest of equals: `(place<16 ? 21 : 22)`
+    and an outcome's probability stay whole where the line allows."""
+    if '"' not in code:              # the usual line: no quoted name to keep whole
+        tokens = [token for token in code.split(" ") if token]
+        depths = list(itertools.accumulate(t.count("(") - t.count(")") for t in tokens))
+        return _filled(tokens, depths, indent, width)
+    tokens, depths, quoted, start, depth = [], [], False, 0, 0
     for i, char in enumerate(code):
         if char == '"':
             quoted = not quoted
-        elif char == " " and not quoted:
+        elif quoted:
+            continue
+        elif char == " ":
             if i > start:
                 tokens.append(code[start:i])
+                depths.append(depth)
             start = i + 1
+            continue
+        if char == "(":
+            depth += 1
+        elif char == ")":
+            depth -= 1
     tokens.append(code[start:])
+    depths.append(depth)
+    return _filled(tokens, depths, indent, width)
+
+
+def _filled(tokens: list[str], depths: list[int], indent: str, width: int) -> list[str]:
+    """The lines of `_broken`: `depths[k]` is the nesting after token k."""
+    # depth before each token: the nesting a break in front of it leaves open
+    before = [0] + depths[:-1]
     more = indent + " " * CONTINUED
-    lines, current = [], indent + tokens[0]
-    for token in tokens[1:]:
-        if len(current) + 1 + len(token) > width:
-            lines.append(current)
-            current = more + token
-        else:
-            current += " " + token
-    lines.append(current)
+    lines: list[str] = []
+    head, line, length = indent, [0], len(indent) + len(tokens[0])   # the line being filled
+    i = 1
+    while i < len(tokens):
+        if length + 1 + len(tokens[i]) <= width:
+            line.append(i)
+            length += 1 + len(tokens[i])
+            i += 1
+            continue
+        best, key = i, None          # no break in the line's last half: break here
+        half = len(head) + (width - len(head)) // 2
+        upto = len(head) + len(tokens[line[0]])      # the line's length before line[pos]
+        for pos in range(1, len(line)):
+            k = line[pos]
+            if upto >= half:
+                rank = (before[k], _LEADING.get(tokens[k], 4), -k)
+                if key is None or rank < key:
+                    best, key = k, rank
+            upto += 1 + len(tokens[k])
+        kept = [m for m in line if m < best]
+        lines.append(head + " ".join(tokens[m] for m in kept))
+        head, line = more, [m for m in line if m >= best]
+        if not line:
+            line, i = [i], i + 1
+        length = len(head) + sum(len(tokens[m]) for m in line) + len(line) - 1
+    lines.append(head + " ".join(tokens[k] for k in line))
     return lines
 
 

@@ -12,7 +12,7 @@ The model of §13 has eps = 0. PRISM and Storm read it (Storm's interval builder
 IMDP) but check interval models only when every lower bound is positive, so `eps` is a
 constant the file leaves undefined: hg2prism builds it with eps = 0 (`EXACT_CONSTANTS`), the
 cross-checks, and PRISM or Storm on the command line, with eps = 1e-9 (`CHECK_CONSTANTS`; `prism
-robust.prism robust.props -const eps=1e-9`): a slightly weaker adversary, a value at least
+robust.prism robust.props -const eps=1e-9 -ex -epsilon 1e-12`): a slightly weaker adversary, a value at least
 R_delta.
 """
 

@@ -151,12 +151,14 @@ def _widen_for_the_key(fig: Figure, ax: plt.Axes) -> None:
     map in a figure of the drawer's least height grows with the height left to it and pushed
     the key out (a corridor of nine states: 40 pixels of the key cut)."""
     engine = fig.get_layout_engine()
-    if engine is not None:
-        engine.execute(fig)             # laid out as it will be, nothing drawn
-    ax.apply_aspect()
-    key = ax.get_legend().get_window_extent(fig.canvas.get_renderer())
-    beyond = (key.x1 - fig.bbox.width) / fig.dpi + KEY_MARGIN_INCHES
-    if beyond > KEY_MARGIN_INCHES:
+    for attempt in range(3):            # the wider figure is laid out anew: measured again
+        if engine is not None:
+            engine.execute(fig)         # laid out as it will be, nothing drawn
+        ax.apply_aspect()
+        key = ax.get_legend().get_window_extent(fig.canvas.get_renderer())
+        beyond = (key.x1 - fig.bbox.width) / fig.dpi + KEY_MARGIN_INCHES
+        if beyond <= 0 or (attempt == 0 and beyond <= KEY_MARGIN_INCHES):
+            return                      # inside (a figure planned well is left as it is)
         width, height = fig.get_size_inches()
         fig.set_size_inches(width + beyond, height)
 
