@@ -150,6 +150,11 @@ def _widen_for_the_key(fig: Figure, ax: plt.Axes) -> None:
     """Widen the figure when its key (beside the map) would end beyond its right edge: a flat
     map in a figure of the drawer's least height grows with the height left to it and pushed
     the key out (a corridor of nine states: 40 pixels of the key cut)."""
+    width, height = fig.get_size_inches()
+    key = ax.get_legend().get_window_extent(fig.canvas.get_renderer()).width / fig.dpi
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    if height * abs(x1 - x0) / abs(y1 - y0) + key + 0.02 * width + 2 * KEY_MARGIN_INCHES <= width:
+        return      # even a map as high as the figure leaves its key room: no layout needed
     engine = fig.get_layout_engine()
     for attempt in range(3):            # the wider figure is laid out anew: measured again
         if engine is not None:
