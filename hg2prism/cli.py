@@ -408,6 +408,10 @@ def _validate(args: argparse.Namespace, world: object) -> int:
           f"{len(world.hypotheses)} hypothes{'is' if len(world.hypotheses) == 1 else 'es'}"
           f"{types})")
     print(_validate_details(world))
+    if not world.types:         # as `check` would warn (a world with types: each type's check)
+        from hg2prism.pipeline import warn_if_not_completable
+
+        warn_if_not_completable(world)
     return 0
 
 

@@ -17,6 +17,17 @@ def listing(names, shown: int, count: bool = False, empty: str = "") -> str:
     return ", ".join(names[:shown]) + tail
 
 
+def did_you_mean(name: object, names) -> str:
+    """"; did you mean 'plc'?" when `name` is close to some of `names` (difflib, at most three),
+    else ""."""
+    import difflib
+
+    if not isinstance(name, str):
+        return ""
+    close = difflib.get_close_matches(name, [str(n) for n in names], n=3, cutoff=0.75)
+    return f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+
+
 WHOLE_FILE = "-"     # the key of an error about a whole file (not found, not TOML ...)
 
 

@@ -42,6 +42,7 @@ from hg2prism.results import (Analysis, CheckResult, CheckResults, DrawnEpisode,
                               Timings, provenance)
 
 if TYPE_CHECKING:
+    from hg2prism.model.automata import DFA
     from hg2prism.analyses.baselines import NashBaseline
     from hg2prism.analyses.deception_value import DeceptionValues
     from hg2prism.analyses.episodes import ChosenEpisode, EpisodeRule
@@ -95,30 +96,47 @@ def analyse(world: World) -> Analysis:
     say(f"games: {len(games)} perceptual game(s) and the leader game solved "
              f"({ts.n_states} TS states) in {games_clock.seconds:.2f} s")
     _say_undecided_choices(world, ts, games)
-    if v_lead == 0.0 and not completable(ts, task):
-        warn(f"no play completes the task {world.formula!r} from the start, whatever either "
-             "player does (no state where it holds can be reached with positive probability): "
-             "every value is 0; check the " + ("map's walls, regions and trap candidates"
-                                               if world.grid else
-                                               "arena's edges, labels and P2's actions"))
+    if v_lead == 0.0:       # else some play completes it
+        warn_if_not_completable(world, ts, task)
     return Analysis(world, ts, task, games, inference, leader, v_lead,
                     Timings().then(games=games_clock.seconds))
 
 
+def warn_if_not_completable(world: World, ts: TransitionSystem | None = None,
+                            task: DFA | None = None) -> bool:
+    """A warning when no play completes the world's task from the start, whatever either
+    player does (`check` and `validate`); whether it was given. `ts` and `task`: the world's
+    own, built here when not given."""
+    if ts is None:
+        ts = build_transition_system(world)
+    if task is None:
+        task = translate(world.formula, ts.label_names, ts.letters)
+    if completable(ts, task):
+        return False
+    warn(f"no play completes the task {world.formula!r} from the start, whatever either "
+         "player does (no state where it holds can be reached with positive probability): "
+         "every value is 0; check the " + ("map's walls, regions and trap candidates"
+                                           if world.grid else
+                                           "arena's edges, labels and P2's actions"))
+    return True
+
+
 def _say_undecided_choices(world: World, ts: TransitionSystem, games) -> None:
-    """A line for each hypothesis under which P2 thinks P1 can never complete his task: her
-    game's value is 0 wherever she chooses, so every trap set is as good as another there, and
-    she keeps the standing one or takes the first (docs/semantics.md §4). Her moves under it do
-    not defend anything, which a reader of the values should know (a review's warehouse: the
-    deceptive value 1 where V_lead is 0)."""
+    """A line for each hypothesis under which P2's actions all tie wherever she chooses (P1
+    could not complete x whatever she did, say its region is walled off): she keeps the
+    standing one or takes the first (docs/semantics.md §4), and her moves under it do not
+    defend anything, which a reader of the values should know (a review's warehouse: the
+    deceptive value 1 where V_lead is 0). A value of 0 alone does not say it: it may be 0
+    because she plays the one action that stops P1."""
     chooses = ~ts.terminal & (ts.allowed.sum(axis=1) > 1)
+    what = "trap sets" if world.traps else "actions"
     for i, game in enumerate(games):
         # where she chooses and the task is not done already (its own region: value 1)
         rows = np.flatnonzero(chooses & ~np.isin(game.fresh_q, list(game.dfa.accepting)))
-        if rows.size and not game.values[rows, game.fresh_q[rows]].any():
-            say(f"games: under hypothesis x{i} ({world.hypotheses[i]}) P2's game gives P1 no "
-                "chance anywhere, so her trap sets all tie: under it she keeps the standing "
-                "one or takes the first (docs/semantics.md §4)")
+        if rows.size and game.all_tied is not None and game.all_tied[rows].all():
+            say(f"games: under hypothesis x{i} ({world.hypotheses[i]}) P2's {what} all tie "
+                "wherever she chooses (none changes P1's chance of completing it): under it she "
+                "keeps the standing one or takes the first (docs/semantics.md §4)")
 
 
 # TS tables (state x P1's action x P2's action x outcome) from which the games take seconds:

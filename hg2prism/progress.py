@@ -1,8 +1,10 @@
 """Progress reports: the `hg2prism` logger and the episode progress bar.
 
-The library reports each stage at INFO level (warnings at WARNING) on the `hg2prism` logger and
-prints nothing by itself: a notebook sees the reports after `logging.basicConfig(level=
-logging.INFO)`, and the command line shows them on stderr (`on_stderr`). Long simulations and
+The library reports each stage at INFO level (warnings at WARNING) on the `hg2prism` logger.
+It prints no report by itself: a notebook sees them after `logging.basicConfig(level=
+logging.INFO)`, and the command line shows them on stderr (`on_stderr`). A warning is something
+the user must know about a result, so where logging is not configured it reaches stderr all the
+same (Python's handler of last resort: the logger has no NullHandler). Long simulations and
 sweeps draw a bar on stderr (`Bar`, the one progress bar) only when asked to (`progress=True`,
 `show_progress=True`).
 """
@@ -15,7 +17,6 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 LOGGER = logging.getLogger("hg2prism")
-LOGGER.addHandler(logging.NullHandler())
 
 
 def say(message: str) -> None:

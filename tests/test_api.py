@@ -729,16 +729,21 @@ def test_replace_does_not_change_a_grid_s_cells() -> None:
 
 def test_a_variant_with_other_traps_does_not_take_its_file_s_initial_traps() -> None:
     """A sweep over delay of world2.replace(traps=2) (delay 0) re-solved with a positive delay:
-    its file's initial_traps, one cell for one trap, are not the variant's, so the standing
-    rule goes on to the first two candidates (it stopped with the file's error about them)."""
+    its file's initial_traps, one cell for one trap, are not the variant's, so the variant
+    starts from the first two candidates (World.replace; it stopped with the file's error about
+    them), and one with another standing set, given with the traps, starts from that."""
     from hg2prism import frontends
 
     world = hg2prism.load_world(MODELS / "world2.toml")
     assert world.delay == 0 and world.traps == 1
     filed = frontends.standing_candidates(world)
     assert [world.grid.trap_candidates[c] for c in filed] == [(2, 5)]
-    assert frontends.standing_candidates(world.replace(traps=2)) == ()
+    assert frontends.standing_candidates(world.replace(traps=2)) == (0, 1)
+    assert frontends.standing_candidates(world.replace(traps=2, initial_standing=2)) == (1, 2)
     assert frontends.standing_candidates(world.replace(rationality=2.0)) == filed
+    moved = world.replace(initial_standing=2)       # the third candidate, for a later delay
+    assert frontends.standing_candidates(moved.replace(traps=2)) == (0, 1)
+    assert frontends.standing_candidates(moved.replace(delay=1)) == (2,)
 
 
 def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solution) -> None:
@@ -886,7 +891,7 @@ def test_move_on_a_state_it_cannot_answer_is_an_input_error(world1_solution) -> 
     assert (misspelt.value.file, misspelt.value.key) == ("move()", "state")
     assert misspelt.value.reason.startswith(
         f"'x1_y7' is not a state of the world, whose {len(states)} states are "
-        f"{', '.join(states[:5])}, ...; did you mean x1_y6")
+        f"{', '.join(states[:5])}, ...; did you mean 'x1_y6'")
     recorded = [record["state"] for record in strategy.records]
     never = sorted(set(states) - set(recorded))
     assert never                             # world1's obstacle: the task fails there
@@ -1067,18 +1072,58 @@ def test_a_simulation_far_from_its_exact_value_is_warned_about(caplog) -> None:
     assert warned(0, 1000, 0.012) == []             # 5.7e-6, already above 1e-6
 
 
+GUARDED = """name = "guarded"
+[arena]
+states = ["start", "mid", "a", "b"]
+initial = "start"
+[arena.labels]
+a = ["A"]
+b = ["B"]
+[[arena.transition]]
+state = "start"
+action = "go"
+to = { mid = 1.0 }
+[[arena.transition]]
+state = "mid"
+action = "to_a"
+to = { a = 1.0 }
+[[arena.transition]]
+state = "mid"
+action = "to_b"
+to = { b = 1.0 }
+[task]
+formula = "F A"
+[adversary]
+traps = 1
+trap_candidates = ["b", "a"]
+hypotheses = ["F A", "F B"]
+[inference]
+window = 1
+threshold = 1.0
+rationality = 1.0
+"""
+
+
 def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:
-    """Under a hypothesis whose game gives P1 the value 0 wherever P2 chooses (its region walled
-    off), her trap sets all tie and she takes the first: a line says so (a review's world
-    surprised its author: P2 stopped defending); world1's hypotheses get none."""
+    """Under a hypothesis none of whose P2 actions changes P1's chance wherever she chooses
+    (its region walled off, or reached round any trap), her trap sets all tie and she takes the first: a line says so (a
+    review's world surprised its author: P2 stopped defending); world1's hypotheses get none.
+    A value of 0 alone does not: on `GUARDED` P2 keeps P1 from either target by trapping it
+    (each game's value is 0 wherever she chooses), and the line said her sets all tie."""
     import logging
 
     text = ONE.replace("#####\n#@tA#\n#####", "#######\n#@.tA##\n#.t..##\n######B").replace(
         'hypotheses = ["F A"]', 'hypotheses = ["F A", "F B"]')
-    for world, expected in ((hg2prism.world_from_toml(text), ["x1 (F B)"]),
-                            (hg2prism.load_world(MODELS / "world1.toml"), [])):
+    # x0 too: P1 walks round either trap to A (her sets all give him 1)
+    for world, expected in ((hg2prism.world_from_toml(text), ["x0 (F A)", "x1 (F B)"]),
+                            (hg2prism.load_world(MODELS / "world1.toml"), []),
+                            (hg2prism.world_from_toml(GUARDED), [])):
         caplog.clear()
         with caplog.at_level(logging.INFO, logger="hg2prism"):
-            hg2prism.solve(world)
-        said = [r.getMessage() for r in caplog.records if "no chance anywhere" in r.getMessage()]
+            solution = hg2prism.solve(world)
+        said = [r.getMessage() for r in caplog.records if "all tie" in r.getMessage()]
         assert [line.split("hypothesis ")[1].split(")")[0] + ")" for line in said] == expected
+        if world.name == "guarded":
+            games = solution.check.analysis.games
+            assert all(not g.values[1, g.fresh_q[1]] for g in games)   # 0 at mid
+            assert [int(g.trap_choice[1]) for g in games] == [1, 0]     # a under F A, b under F B

@@ -117,8 +117,8 @@ def test_sweep_parameters_on_an_arena_world() -> None:
 def test_a_sweep_over_delay_starts_from_the_standing_action_the_file_names(tmp_path) -> None:
     """With delay 0 an arena world's file may name the action (or trap set) standing at the
     start, for sweeps over delay, as a grid's initial_traps: the sweep's points start from it
-    (they took P2's first action, and an unknown name was accepted); without it, or for a
-    variant of another arena, from the first."""
+    (they took P2's first action, and an unknown name was accepted); without it from the
+    first. The world keeps it (World.initial_standing), so a variant keeps it too."""
     from hg2prism.frontends.arena import to_toml
 
     text = to_toml(lateral(delay=1).replace(initial_standing=2)).replace("delay = 1", "delay = 0")
@@ -126,12 +126,12 @@ def test_a_sweep_over_delay_starts_from_the_standing_action_the_file_names(tmp_p
     path = tmp_path / "lateral.toml"
     path.write_text(text)
     world = load_world(path)
-    assert (world.delay, world.initial_standing) == (0, 0)
+    assert (world.delay, world.initial_standing) == (0, 2)
     assert sweep.sweep_point(world, {"delay": 2}).initial_standing == 2
-    assert sweep.sweep_point(world, {"delay": 0}).initial_standing == 0
+    assert sweep.sweep_point(world, {"delay": 0}) == world
     other = world.replace(front=lateral(traps_mode=False).front.__class__(
         **{**world.front.__dict__, "initial": 1}))
-    assert sweep.sweep_point(other, {"delay": 2}).initial_standing == 0
+    assert sweep.sweep_point(other, {"delay": 2}).initial_standing == 2
     # convert keeps it (it wrote the standing action only with delay > 0): the arena form
     # sweeps as the world does, a grid world's arena form as the grid world
     again = tmp_path / "again.toml"

@@ -437,6 +437,29 @@ def test_world_from_graph_warns_of_likely_mistakes(caplog) -> None:
     assert "label it in labels=" in bare[0]
 
 
+def test_a_script_sees_the_warnings_without_configuring_logging(tmp_path) -> None:
+    """A plain script (logging not configured) gets world_from_graph's warnings on stderr, one
+    line each (they showed only after logging.basicConfig), and no progress report."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "script.py"
+    script.write_text("import networkx as nx, hg2prism\n"
+                      "g = nx.DiGraph()\n"
+                      "g.add_edge(1, 2, p=0.5); g.add_edge(2, 3, p=1); g.add_edge(1, 3, p=0.0)\n"
+                      "g.add_edge(1, 5, p=0.5); g.add_edge(5, 3, p=1)\n"
+                      "w = hg2prism.world_from_graph(g, entries=[1], task='F asset3', "
+                      "trap_candidates=[2, 5], name='g')\n"
+                      "print(round(hg2prism.solve(w).deceptive_value, 6))\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines() == [
+        "warning: g: edge (1, 3): probability 0, so the attacker's action along it never "
+        "succeeds (he stays where he is); remove the edge if the step is impossible"]
+    assert float(done.stdout) > 0
+
+
 @pytest.mark.parametrize("change,key,word", [
     (lambda g: g.add_edge(3, 5, p=1.5), "edge (3, 5)", "outside [0, 1]"),
     (lambda g: g.add_edge(3, 5, p=-0.1), "edge (3, 5)", "outside [0, 1]"),

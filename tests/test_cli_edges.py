@@ -379,6 +379,12 @@ def test_validate_counts_one_trap_candidate(tmp_path: Path) -> None:
     proc = run_cli(["validate", str(world)], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "5x3 grid, 1 trap candidate, 1 hypothesis)" in proc.stdout, proc.stdout
+    # its one candidate always holds the trap: no play completes the task, which validate
+    # says as check does (it said only "ok"); world1 gets no such line
+    assert proc.stderr.startswith("warning: no play completes the task 'F A' from the start")
+    assert proc.stderr.count("\n") == 1
+    proc = run_cli(["validate", WORLD1], tmp_path)
+    assert proc.returncode == 0 and "no play completes" not in proc.stderr, proc.stderr
 
 
 def test_validate_says_the_observer_and_whether_the_size_guard_refuses(tmp_path: Path) -> None:

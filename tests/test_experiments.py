@@ -238,20 +238,26 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
         table = list(csv.DictReader(handle))
     assert [int(r["delay"]) for r in table] == [0, 1, 2, 3]
     assert [float(r["deceptive_value"]) for r in table] == values
+    # the trap standing at the start of a delayed point (the values depend on it): sweep.csv
+    # and the printed table give it, as sweep.json's rows do
+    assert [r["standing"] for r in table] == ["", "x2_y5", "x2_y5", "x2_y5"]
+    assert [r["standing"] for r in rows] == [None, "x2_y5", "x2_y5", "x2_y5"]
     assert (out / "sweep.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "delay_2" / "results.json").exists()
     assert not list(out.glob(".*.tmp"))
     lines = sweep.sweep_summary_lines("delay", rows, "world2")
-    assert any(line.startswith("| 3 | 0.8592 |") for line in lines)
+    assert lines[2].startswith("| delay | standing at the start | deceptive value |")
+    assert any(line.startswith("| 0 | - | 0.7090 |") for line in lines)
+    assert any(line.startswith("| 3 | x2_y5 | 0.8592 |") for line in lines)
     assert "V_static" not in lines[2]
     # with --deception's values, the printed table shows them as sweep.csv does
     worth = [{**row, "v_static": 0.5 + i / 10, "v_naive": 0.25, "value_of_deception": 0.125}
              for i, row in enumerate(rows)]
     lines = sweep.sweep_summary_lines("delay", worth, "world2")
-    assert lines[2].split(" | ")[4:7] == ["V_static", "V_naive", "value of deception"]
+    assert lines[2].split(" | ")[5:8] == ["V_static", "V_naive", "value of deception"]
     assert lines[3].count("---|") == len(lines[2].split(" | "))
-    assert any(line.startswith("| 3 | 0.8592 |") and " | 0.8000 | 0.2500 | 0.1250 | " in line
-               for line in lines)
+    assert any(line.startswith("| 3 | x2_y5 | 0.8592 |")
+               and " | 0.8000 | 0.2500 | 0.1250 | " in line for line in lines)
 
 
 def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsys) -> None:
@@ -315,8 +321,12 @@ def test_sweep_progress_is_the_package_bar(tmp_path: Path, capsys, monkeypatch) 
     ("delay", [1.5], "--values", "must be an integer"),
     ("delay", [True], "--values", "must be an integer"),
     ("threshold", [0], "--values", "must be a number > 0"),
-    ("threshold", ["nan"], "--values", "must be a number > 0"),
+    ("threshold", ["nan"], "--values", "threshold value nan is not a finite number; expected "
+                                       "a number > 0"),
+    ("threshold", ["1e309"], "--values", "threshold value 1e309 is not a finite number"),
     ("rationality", [-2.0], "--values", "must be a number > 0"),
+    # the world's own limit: the value's fault, said under --values (it named the world file)
+    ("rationality", ["1e200"], "--values", "rationality must be at most 1e+100, got 1e+200"),
     ("delay", [], "--values", "at least one value"),
     ("delay", [1, "1"], "--values", "repeated"),
 ])
@@ -329,13 +339,38 @@ def test_sweep_rejects_bad_parameters(tmp_path: Path, parameter, values, key, fr
     assert not (tmp_path / "out").exists()
 
 
-def test_bad_initial_traps_in_the_file_are_reported_when_sweeping_delay(tmp_path: Path) -> None:
-    text = SMALL.replace("hypotheses = [", "initial_traps = [[1, 1]]\nhypotheses = [")
-    world = load_world(write_world(tmp_path, "bad", text))    # ignored while delay = 0
+def test_a_sweep_refused_whole_names_its_largest_point(tmp_path: Path) -> None:
+    """When the size guard refuses every point, the refusal is the largest point's, so that
+    the --max-states it gives lets every point through (it was the first point's: following
+    it, delay 2 still failed); one point alone is refused in its own words."""
+    from hg2prism.model import sizeguard
+
+    world = load_world(WORLD2)
+    sizes = [sizeguard.check_size(sweep.sweep_point(world, {"delay": d}), 10**9) for d in (1, 2)]
+    assert sizes[0] < sizes[1]
     with pytest.raises(InputError) as caught:
-        sweep.sweep(world, "delay", [0, 1], tmp_path / "out", show_progress=False)
-    assert caught.value.key == "adversary.initial_traps"
-    assert not (tmp_path / "out").exists()
+        sweep.guard_points(world, [{"delay": 1}, {"delay": 2}], 10)      # the first smaller
+    assert caught.value.key == "size" and caught.value.reason.startswith(
+        "every point is refused; the largest, delay=2: the hypergame may have up to "
+        f"{sizes[1]:,} states")
+    assert caught.value.reason.endswith(f"pass --max-states {sizes[1]}")
+    sweep.guard_points(world, [{"delay": 1}, {"delay": 2}], sizes[0])     # one fits: no refusal
+    with pytest.raises(InputError) as caught:
+        sweep.guard_points(world, [{"delay": 1}], 10)
+    assert caught.value.reason.startswith("the hypergame may have up to ")
+
+
+def test_bad_initial_traps_in_the_file_are_refused_with_delay_0(tmp_path: Path) -> None:
+    """With delay 0 initial_traps are what a sweep over delay starts from: checked when the
+    world is loaded (they were checked only when a sweep over delay needed them), an empty
+    list naming none."""
+    text = SMALL.replace("hypotheses = [", "initial_traps = [[1, 1]]\nhypotheses = [")
+    with pytest.raises(InputError) as caught:
+        load_world(write_world(tmp_path, "bad", text))
+    assert caught.value.key == "adversary.initial_traps[0]"
+    assert "not a trap candidate" in caught.value.reason
+    world = load_world(write_world(tmp_path, "none", text.replace("[[1, 1]]", "[]")))
+    assert world.initial_standing == 0
 
 
 # ---------------------------------------------------------------------------------------------

@@ -315,6 +315,8 @@ def test_writes_every_game_and_property(exported) -> None:
         else:
             assert text.startswith("// ")
             assert analysis.world.name in text.split("\n\n")[0]
+            # the world it is of, as hypergame.prism says it (a reader can cite it)
+            assert f"\n// digest       {analysis.world.digest()}\n" in text
             # PRISM keywords that Storm would accept but PRISM-games would not
             assert not re.search(r"\[(A|C|E|F|G|I|P|R|S|U|W|X)\]", text)
             assert not re.search(r"\bformula label\b", text)

@@ -395,6 +395,8 @@ def test_robust_command_writes_its_outputs(world_dir: Path, tmp_path: Path) -> N
     for item in ("robust.csv", "robust.png", "robust.svg", "robust_0/strategy.json",
                  "robust_0.1/strategy.json", "robust_0.1/robust.prism", "robust_0.1/robust.props"):
         assert (tmp_path / item).is_file(), item
+    assert f"\n// digest       {world.digest()}\n" in (
+        tmp_path / "robust_0.1" / "robust.prism").read_text()         # the world it is of
     lines = (tmp_path / "robust.csv").read_text().splitlines()
     assert lines[0].startswith("delta,robust_value,nominal_worst_case") and len(lines) == 3
 

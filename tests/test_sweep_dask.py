@@ -203,8 +203,8 @@ def test_two_parameters_on_the_command_line(tmp_path: Path, capsys) -> None:
         "delay_0__window_1", "delay_0__window_2", "delay_1__window_1",
         "sweep.csv", "sweep.json", "sweep.png", "sweep.svg"]
     header = (out / "sweep.csv").read_text().splitlines()[0]
-    assert header.startswith("delay,window,deceptive_value,")
-    assert "| delay | window | deceptive value |" in captured.out
+    assert header.startswith("delay,window,standing,deceptive_value,")
+    assert "| delay | window | standing at the start | deceptive value |" in captured.out
     summary = json.loads((out / "sweep.json").read_text())
     assert [(r["delay"], r["window"]) for r in summary["rows"]] == [(0, 1), (0, 2), (1, 1)]
     assert [(f["delay"], f["window"]) for f in summary["failed"]] == [(1, 2)]
@@ -249,6 +249,8 @@ def test_swept_traps_keep_the_worlds_standing_traps_first(tmp_path: Path) -> Non
     assert [list(c) for c in cells(sweep.sweep_world(world, "traps", 2))] == [cands[0], last]
     assert [list(c) for c in cells(sweep.sweep_world(world, "traps", 1))] == [last]
     point = sweep.sweep_point(world, {"traps": 2, "delay": 0})
-    assert cells(point) == () and point.initial_standing == 0
+    # nothing stands with delay 0; the point keeps the set for a re-solve with delay
+    assert cells(point) == () and point.initial_standing == sweep.sweep_point(
+        world, {"traps": 2, "delay": 1}).initial_standing == 1
     with pytest.raises(InputError):
         sweep.sweep_world(world, "traps", 0)

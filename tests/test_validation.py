@@ -41,7 +41,7 @@ INVALID = [
     (GRID, "traps", 0, "adversary.traps"),
     (GRID, "traps", 5, "adversary.traps"),
     (GRID, "delay", -1, "adversary.delay"),
-    (GRID, "initial_standing", 1, "adversary.initial_traps"),      # delay 0: nothing stands
+    (GRID, "initial_standing", 4, "adversary.initial_traps"),      # 4 candidates, 1 trap
     (GRID, "initial_standing", 1.0, "adversary.initial_traps"),
     (GRID, "inference", "oracle", "inference.kind"),
     (GRID, "settings", (("threshold", 0.0),), "inference.threshold"),
@@ -103,6 +103,12 @@ def test_the_arena_standing_action_is_checked_when_it_stands() -> None:
     assert standing.initial_standing == 11
     with pytest.raises(InputError, match="adversary.initial_traps"):
         ARENA.replace(delay=1, initial_standing=12)
+    # with delay 0 it is what a re-solve with delay starts from: checked alike
+    assert ARENA.delay == 0 and ARENA.replace(initial_standing=11).initial_standing == 11
+    with pytest.raises(InputError, match=r"adversary.initial_traps: P2's standing action a "
+                                         r"re-solve with delay > 0 starts from \(delay is 0\) "
+                                         r"\(initial_standing = 12\) must index one of her 12"):
+        ARENA.replace(initial_standing=12)
 
 
 def test_valid_variants_pass_and_keep_every_other_field() -> None:

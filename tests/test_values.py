@@ -86,8 +86,11 @@ def test_what_parses() -> None:
             whole(bad)
     unit = number(float, 0.0, exclusive=True, maximum=1.0)
     assert unit("1") == 1.0
-    for bad in ("0", "1.0001", "inf", float("nan")):
+    for bad in ("0", "1.0001"):
         with pytest.raises(ValueError, match="must be"):
+            unit(bad)
+    for bad in ("inf", float("nan"), "1e309"):      # said apart: "must be" read wrong for 1e309
+        with pytest.raises(ValueError, match="finite"):
             unit(bad)
 
 

@@ -144,6 +144,12 @@ CASES = [
     ("initial-traps-bad-item", edit(("delay = 0", "delay = 1"),
                                     ("initial_traps = []", "initial_traps = [[1, true]]")),
      "adversary.initial_traps[0]", "integers"),
+    ("initial-traps-not-candidate-delay-0", edit(("initial_traps = []",
+                                                  "initial_traps = [[2, 4]]")),
+     "adversary.initial_traps[0]", "candidate"),
+    ("initial-traps-wrong-count-delay-0", edit(("initial_traps = []",
+                                                "initial_traps = [[1, 4], [3, 4]]")),
+     "adversary.initial_traps", "what a sweep over delay starts from"),
     ("initial-traps-bad-type", edit(("initial_traps = []", 'initial_traps = "1,4"')),
      "adversary.initial_traps", "array"),
     ("hypotheses-empty", edit(('hypotheses = ["!obs U A", "!obs U B", "!obs U C"]',
@@ -669,7 +675,9 @@ ARENA_CASES = [
     ("probability-not-a-number", arena_edit((PHISH, 'to = { mail = "0.6", out = 0.4 }')),
      "arena.transition[0].to.mail", "number"),
     ("to-unknown-state", arena_edit((PHISH, "to = { mall = 0.6, out = 0.4 }")),
-     "arena.transition[0].to.mall", "unknown state"),
+     "arena.transition[0].to.mall", "unknown state 'mall'; did you mean 'mail'?; states are "),
+    ("to-unknown-state-far", arena_edit((PHISH, "to = { exfil = 0.6, out = 0.4 }")),
+     "arena.transition[0].to.exfil", "unknown state 'exfil'; states are "),
     ("to-empty", arena_edit((PHISH, "to = {}")), "arena.transition[0].to", "empty"),
     ("p2-unknown-action", arena_edit(('p2 = "watch_db"', 'p2 = "watch_dv"')),
      "arena.transition[2].p2", "unknown P2 action"),
@@ -769,6 +777,24 @@ def test_bad_arena_world(tmp_path: Path, capsys, text: str, key: str, word: str)
         assert captured.out == ""
         assert captured.err == f"hg2prism: error: {err.value}\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
+
+
+def test_an_entry_table_written_with_one_bracket_is_said(tmp_path: Path) -> None:
+    """[arena.transition] for [[arena.transition]]: the TOML parser's words ("Cannot declare
+    ('arena', 'transition') twice") and the fix, in one line."""
+    bad = tmp_path / "bad.toml"
+    text = ARENA_BASE.replace("[[arena.transition]]", "[arena.transition]")
+    assert text != ARENA_BASE
+    bad.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert err.value.key.startswith("line ") and err.value.reason.startswith("not valid TOML: ")
+    assert err.value.reason.endswith("; each entry of [[arena.transition]] starts with two "
+                                     "brackets (a line [arena.transition] is one table)")
+    bad.write_text(ARENA_BASE.replace("[adversary]", "[adversary]]"))     # another mistake
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert "two brackets" not in err.value.reason
 
 
 def test_arena_base_worlds_validate(tmp_path: Path) -> None:

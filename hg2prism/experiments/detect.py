@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hg2prism.errors import COMMAND_LINE, InputError
+from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
 from hg2prism import progress
 from hg2prism.outputs import write_json
@@ -355,6 +356,7 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
         "horizon": batches.horizon,
         "seed": batches.seed,
         "episodes": batches.episodes,
+        "p2_plays": "trap sets" if arena_of(world).traps_mode else "actions",
         "deceptive_value": check_result.results.deceptive_value,
         "storm_method": check_result.results.storm_method,
         "sound": check_result.results.sound,
@@ -368,8 +370,10 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
         "deviation": deviation,
         "compliant": compliant,
         "model_mismatch": {
+            "shown_setting": _shown_setting(world),
             "reference": {"p2_inference": "as modelled", "p2_window": world.window,
-                          "p2_threshold": world.threshold,
+                          **({f"p2_{name}": world.setting(name)}
+                             if (name := _shown_setting(world)) else {}),
                           "detection_rate": compliant["false_alarm_rate"],
                           "completion": compliant["completion"]},
             "variants": mismatch,
@@ -464,11 +468,12 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
     from hg2prism.opponent import registry
 
     games, episodes = batches.analysis.games, batches.episodes
+    shown = _shown_setting(world)
     mismatch = []
     for variant in registry.mismatches(world, max_score):
         say(f"detection: {episodes} episodes, P2's inference uses {variant.label} "
             f"(P1 models window {world.window}"
-            f"{_setting(world.threshold, world.setting('decision'))})")
+            f"{_setting(shown, world.setting(shown))})")
         summary, batch = batches.run(p2_inference=registry.build_observer(variant.world, games))
         rejections = batch.rejections(episodes)
         detected = sum(1 for n in rejections if n is not None)
@@ -479,7 +484,7 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
             "p2_inference": variant.label,
             "chosen_as": variant.why,
             "p2_window": variant.world.window,
-            "p2_threshold": variant.shown,
+            **({f"p2_{shown}": variant.shown} if shown else {}),
             "episodes": episodes,
             "detected": detected,
             "detection_rate": detected / episodes,
@@ -561,12 +566,31 @@ def _check_deviation_fits(world: World, horizon: int | None) -> None:
                          f"above {after}")
 
 
-def _setting(threshold: float | None, decision: str | None) -> str:
-    """P2's second inference setting in reports, after her window: ", threshold 1.5" (CUSUM),
-    ", decision map" (Bayesian), nothing for a kind with neither (a registered one)."""
-    if threshold is not None:
-        return f", threshold {threshold:g}"
-    return f", decision {decision}" if decision is not None else ""
+def _setting(name: str | None, value: object) -> str:
+    """P2's setting shown after her window in reports (ObserverKind.shown_setting):
+    ", threshold 1.5" (CUSUM), ", decision map" (Bayesian), nothing for a kind without one."""
+    if name is None or value is None:
+        return ""
+    return f", {name} {value:g}" if isinstance(value, float) else f", {name} {value}"
+
+
+def _shown_setting(world: World) -> str | None:
+    from hg2prism.opponent.registry import observer_kind
+
+    return observer_kind(world.inference).shown_setting
+
+
+def _recorded_setting(result: dict) -> tuple[str | None, object]:
+    """The setting a detection.json shows beside P2's window and P1's model's value of it
+    (records written before it was named: CUSUM's threshold, else the Bayesian decision, each
+    from `p1_model`)."""
+    mismatch, model = result["model_mismatch"], result["p1_model"]
+    if "shown_setting" in mismatch:
+        name = mismatch["shown_setting"]
+        return name, mismatch["reference"].get(f"p2_{name}")
+    name = ("threshold" if model.get("threshold") is not None
+            else "decision" if model.get("decision") is not None else None)
+    return name, model.get(name)
 
 
 def _rate(c: dict) -> str:
@@ -583,6 +607,9 @@ def detection_summary_lines(result: dict) -> list[str]:
     seeded, dev, comp = result["seeded_episode"], result["deviation"], result["compliant"]
     k = result["deviate_after"]
     hist = ", ".join(f"{n}: {c}" for n, c in dev["histogram"].items())
+    # what P2 plays, in the table's words (records before it was written: trap sets)
+    moves = "action" if result.get("p2_plays") == "actions" else "traps"
+    shown, modelled = _recorded_setting(result)
     lines = [
         f"Mismatch detection in {result['world']} (alpha {result['alpha']}, epsilon "
         f"{result['epsilon']}, P2 follows the model for {k} step(s), then plays at random)",
@@ -601,17 +628,17 @@ def detection_summary_lines(result: dict) -> list[str]:
         f"{comp['false_alarm_rate_ci95'][1]:.4f}])",
         "",
         f"P2's real inference differs from P1's model (window {result['p1_model']['window']}"
-        f"{_setting(result['p1_model'].get('threshold'), result['p1_model'].get('decision'))}); "
+        f"{_setting(shown, modelled)}); "
         "P1 keeps playing its strategy:",
         "",
-        "| P2's inference | episodes where P2's hypothesis / traps differed from P1's model "
-        "| detected | detected where the traps differed | mean detection step "
+        f"| P2's inference | episodes where her hypothesis differed from P1's model / where "
+        f"her {moves} did | detected | detected where her {moves} differed | mean detection step "
         "| completion (95% CI) | change | off-record steps |",
         "|---|---|---|---|---|---|---|---|",
     ]
     ref = result["model_mismatch"]["reference"]
     lines.append(f"| as modelled (window {ref['p2_window']}"
-                 f"{_setting(ref['p2_threshold'], result['p1_model'].get('decision'))}) "
+                 f"{_setting(shown, modelled)}) "
                  f"| 0 / 0 | {ref['detection_rate']:.1%} (false alarms) | - | - "
                  f"| {_rate(ref['completion'])} | - | {ref['completion']['off_record_steps']} |")
     for v in result["model_mismatch"]["variants"]:

@@ -55,6 +55,7 @@ DELTAS = ValueList("--deltas", "deviation budget", "in [0, 1)", number(float, 0.
                    empty="expected at least one {name} {expected}",
                    not_form="{value!r} is not a {name} {expected}",
                    outside="{value!r} is not a {name} {expected}",
+                   not_finite="{value!r} is not a {name} {expected}",
                    repeated="{value} is repeated; expected distinct budgets")
 
 

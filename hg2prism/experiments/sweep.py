@@ -22,13 +22,13 @@ parameters and the others go on; only when the size guard refuses every point is
 refused as a whole, before anything is solved.
 
 The action P2 has standing at the start when a point has a positive delay (docs/semantics.md §2
-and §7, Sweeps): the world's own (general P2 actions; in trap mode the world's standing trap set
-when its delay is positive, or, for a grid world loaded with delay 0, the `[adversary]
-initial_traps` written in its file: frontends.standing_candidates). When ``traps`` is swept to k,
-the standing set is the first k of those candidates (in candidate order), followed, when k
-exceeds them, by the first other candidates in the arena's order; with none given, the first k
-candidates. A delay of 0 has no standing action. A point's row names it under ``standing``
-(None when delay is 0).
+and §7, Sweeps): the world's own, `World.initial_standing`, which a world loaded with delay 0
+keeps as its file's `[adversary] initial_traps` or `initial_action` names it (the first when it
+names none; frontends.standing_candidates, frontends.standing_action). When ``traps`` is swept
+to k, the standing set is the first k of those candidates (in candidate order), followed, when k
+exceeds them, by the first other candidates in the arena's order. A delay of 0 has no standing
+action (a point with delay 0 keeps it for a re-solve with delay). A point's row names it under
+``standing`` (None when delay is 0).
 
 A front end may add its own parameters (frontends.sweep_settings: the grid's robot); they are
 refused, in one InputError line, on worlds of another kind. ``traps`` applies only when P2 sets
@@ -363,14 +363,23 @@ def sweep_point(world: World, assignment: dict[str, Value]) -> World:
             parameter.refuse_unless_applies(world)
             if parameter.moves_traps:
                 moved[name] = assignment[name]
-            else:
+                continue
+            try:
                 point = parameter.apply(point, assignment[name])
+            except InputError as err:
+                if err.file != str(world.path):
+                    raise
+                # the world refuses the value (its own limits): the value's fault, not the file's
+                raise InputError(COMMAND_LINE, "--values", err.reason if name in err.reason
+                                 else f"{name} value {assignment[name]!r}: {err.reason}"
+                                 ) from None
     if moved:
         traps, delay = moved.get("traps", point.traps), moved.get("delay", point.delay)
         if "traps" in moved:
             _check_traps(world, traps)
-        standing = standing_at(world, traps) if delay > 0 else 0
-        point = replace(point, traps=traps, delay=delay, initial_standing=standing)
+        # a point with delay 0 keeps it too, for a re-solve with delay (World.initial_standing)
+        point = replace(point, traps=traps, delay=delay,
+                        initial_standing=standing_at(world, traps))
     return point
 
 
@@ -758,8 +767,9 @@ def check_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]],
 def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: int | None,
                  at: Callable[[World, dict[str, Value]], World] = sweep_point) -> None:
     """The size guard over a sweep's points (each point's world `at(world, point)`; a value
-    that does not fit the world counts as refused): the sweep is refused (the first point's
-    InputError) only when every point is; a single refused point fails alone when reached."""
+    that does not fit the world counts as refused): the sweep is refused only when every point
+    is, by the InputError of the point estimated largest (so that its --max-states lets every
+    point through); a single refused point fails alone when reached."""
     from hg2prism.model import sizeguard
 
     refusals = []
@@ -769,7 +779,13 @@ def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: i
         except InputError as err:
             refusals.append(err)
     if refusals and len(refusals) == len(points):
-        raise refusals[0]
+        if len(points) == 1:
+            raise refusals[0]
+        at_most = [getattr(err, "estimate", -1) for err in refusals]
+        largest = max(range(len(points)), key=lambda i: at_most[i])     # the first of equals
+        err = refusals[largest]
+        raise InputError(err.file, err.key, f"every point is refused; the largest, "
+                         f"{point_label(points[largest])}: {err.reason}")
 
 
 def _standing_rule(world: World, traps_swept: bool) -> str:
@@ -878,9 +894,17 @@ def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
     if rows and all("v_static" in row for row in rows):
         at = columns.index("v_ne_p1_guaranteed") + 1
         columns = columns[:at] + _DECEPTION_COLUMNS + columns[at:]
+    if _with_standing(rows):
+        columns = ("standing",) + columns
     return csv_text(tuple(names) + columns,
                     ([_value_text(row[n]) if isinstance(row[n], list) else row[n]
-                      for n in names] + [row[c] for c in columns] for row in rows))
+                      for n in names] + [row.get(c) for c in columns] for row in rows))
+
+
+def _with_standing(rows: Sequence[dict]) -> bool:
+    """Whether sweep.csv and the printed table give P2's action standing at the start: when
+    some point has one (a positive delay), since the values depend on it."""
+    return any(row.get("standing") is not None for row in rows)
 
 
 def _write_summary(world: World, run: SweepRun, out: Path, storm_method: str,
@@ -934,13 +958,15 @@ def sweep_summary_lines(parameter: str | Sequence[str], rows: Sequence[dict],
     # with the deception's values where every row has them (`sweep --deception`), as sweep.csv
     worth = bool(rows) and all("v_static" in row for row in rows)
     extra = " V_static | V_naive | value of deception |" if worth else ""
+    standing = _with_standing(rows)
     lines = [title, "",
-             "| " + " | ".join(names) + " | deceptive value | V_lead | V_NE |" + extra
-             + " hypergame states | transitions |",
-             "|" + "---|" * (len(names) + 5 + 3 * worth)]
+             "| " + " | ".join(names) + (" | standing at the start" if standing else "")
+             + " | deceptive value | V_lead | V_NE |" + extra + " hypergame states | transitions |",
+             "|" + "---|" * (len(names) + standing + 5 + 3 * worth)]
     for row in rows:
         values = "".join(f" {row[c]:.4f} |" for c in _DECEPTION_COLUMNS) if worth else ""
-        lines.append("| " + " | ".join(_value_text(row[n]) for n in names)
+        shown = (" | " + (row.get("standing") or "-")) if standing else ""
+        lines.append("| " + " | ".join(_value_text(row[n]) for n in names) + shown
                      + f" | {row['deceptive_value']:.4f} | {row['v_lead']:.4f} "
                      f"| {row['v_ne']:.4f} |{values} {row['states']} | {row['transitions']} |")
     return lines

@@ -3,11 +3,11 @@ of them, and of the numbers in them.
 
 A value's parser (:func:`number`, or a sweep parameter's own) turns a value as typed (a string)
 or given in Python into the value, raising ``ValueError("is not")`` when the text is not of the
-expected form and ``ValueError("must be")`` when it is but is out of range (or of the wrong
-type). :func:`parse_values` applies one to every value of a list and turns the first failure
-into one InputError line under the option's key, in its option's wording (:class:`ValueList`),
-with the hint to separate values with spaces when a value that is not of the form holds a
-comma.
+expected form, ``ValueError("must be")`` when it is but is out of range (or of the wrong
+type) and ``ValueError("finite")`` when it is a number too large for a float, inf or nan.
+:func:`parse_values` applies one to every value of a list and turns the first failure into one
+InputError line under the option's key, in its option's wording (:class:`ValueList`), with the
+hint to separate values with spaces when a value that is not of the form holds a comma.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ __all__ = ["number", "ValueList", "parse_values"]
 
 NOT_FORM = "is not"      # the ValueError of a value that is not of the expected form
 OUTSIDE = "must be"      # ... of one that is, but out of range or of the wrong type
+NOT_FINITE = "finite"    # ... of one that is, but overflows (1e309) or is inf or nan
 
 
 def number(kind: type, minimum: float | None = None, exclusive: bool = False,
@@ -52,7 +53,7 @@ def number(kind: type, minimum: float | None = None, exclusive: bool = False,
         else:
             result = float(found)
             if not math.isfinite(result):
-                raise ValueError(OUTSIDE)
+                raise ValueError(NOT_FINITE)
         if minimum is not None and (result < minimum or (exclusive and result == minimum)):
             raise ValueError(OUTSIDE)
         if (below is not None and result >= below) or (maximum is not None and result > maximum):
@@ -74,6 +75,7 @@ class ValueList:
     empty: str = "expected at least one {name} ({expected})"
     not_form: str = "{name} {shown!r} is not {expected}"
     outside: str = "{name} {shown} must be {expected}"
+    not_finite: str = "{name} {shown} is not a finite number; expected {expected}"
     repeated: str | None = "{name} {parsed} is repeated; expected distinct values"
     hint: bool = True               # values joined by commas: say to separate them (False:
                                     # an option of one value)
@@ -100,6 +102,8 @@ def parse_values(spec: ValueList, values: Sequence[object]) -> list:
                 apart = (f"; separate the values with spaces ({spec.option} {' '.join(parts)})"
                          if parts and all(_parses(spec, part) for part in parts) else "")
                 reason = spec.not_form.format(value=value, shown=shown, **words) + apart
+            elif str(err) == NOT_FINITE:
+                reason = spec.not_finite.format(value=value, shown=shown, **words)
             else:
                 reason = spec.outside.format(value=value, shown=shown, **words)
             raise InputError(COMMAND_LINE, spec.option, reason) from None

@@ -117,20 +117,18 @@ def transition_system(world: World) -> TransitionSystem:
 
 def standing_candidates(world: World) -> tuple[int, ...]:
     """In trap mode, the trap candidates (numbers) a re-solved world with a positive delay keeps
-    standing at the start: the world's own standing set when its delay is positive; a world
-    with delay 0 may name them in its file (frontends/grid.py, frontends/arena.py); otherwise
-    none."""
+    standing at the start: the world's standing set (`initial_standing`, which a world with
+    delay 0 keeps as its file names it, else the first)."""
     return front_end(world).standing_candidates(world)
 
 
 def standing_action(world: World) -> int:
     """With general P2 actions (arena worlds only), the action a re-solved world with a
-    positive delay keeps standing at the start: the world's own when its delay is positive;
-    one with delay 0 may name it in its file (frontends/arena.py); otherwise the first (a
-    front end without `standing_action`: the world's own, else the first)."""
+    positive delay keeps standing at the start: the world's `initial_standing` (a front end
+    without `standing_action` too)."""
     own = getattr(front_end(world), "standing_action", None)
     if own is None:
-        return world.initial_standing if world.delay else 0
+        return world.initial_standing
     return own(world)
 
 

@@ -39,8 +39,9 @@ outcomes of an entry in the order of its `to`, zero-probability ones dropped, pa
 the state itself and probability 0 (so are missing action slots); `p2_actions` = A2 (general)
 or () (traps); `trap_candidates` the candidates' state numbers in the order written;
 `positions` when given. The World's fields from here: `traps` (l, 0 for general actions),
-`delay`, `initial_standing` (with delay > 0 the index into A2 of initial_action, or of the
-sorted initial trap set among the l-subsets in itertools.combinations order; 0 when delay is 0) and
+`delay`, `initial_standing` (the index into A2 of initial_action, or of the sorted initial trap
+set among the l-subsets in itertools.combinations order; with delay 0 what a sweep over delay
+starts from, 0 when the file names none) and
 `front` (the arena itself).
 
 Writing (`to_toml`, `hg2prism convert`): a world's arena (a grid world compiled by
@@ -59,7 +60,7 @@ import re
 
 import numpy as np
 
-from hg2prism.errors import listing
+from hg2prism.errors import did_you_mean, listing
 from hg2prism.model.arena import TRAPS_BEYOND, Arena
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -180,9 +181,14 @@ class _Reader:
     def state(self, value: object, key: str) -> int:
         name = self.ld.string(value, key)
         if name not in self.number:
-            raise self.fail(key, f"unknown state {name!r}; states are "
-                                 + _listing(self.states))
+            raise self.unknown(key, "state", name, self.states, "states are ")
         return self.number[name]
+
+    def unknown(self, key: str, what: str, name: str, names, known: str) -> Exception:
+        """The error of a name that names no `what` ("state", "P2 action"): the close ones,
+        then the known ones after `known` ("states are ")."""
+        return self.fail(key, f"unknown {what} {name!r}{did_you_mean(name, names)}; {known}"
+                         + _listing(names))
 
     def read_states(self, table: dict) -> None:
         names = self.names(table["states"], "arena.states", "state")
@@ -221,8 +227,7 @@ class _Reader:
         for state, value in labels_table.items():
             key = f"arena.labels.{toml_key(state)}"
             if state not in self.number:
-                raise self.fail(key, f"unknown state {state!r}; states are "
-                                     + _listing(self.states))
+                raise self.unknown(key, "state", state, self.states, "states are ")
             items = self.ld.array(value, key, "an array of propositions")
             props: list[str] = []
             for i, item in enumerate(items):
@@ -249,8 +254,7 @@ class _Reader:
         for state, xy in value.items():
             key = f"arena.positions.{toml_key(state)}"
             if state not in self.number:
-                raise self.fail(key, f"unknown state {state!r}; states are "
-                                     + _listing(self.states))
+                raise self.unknown(key, "state", state, self.states, "states are ")
             if not isinstance(xy, list) or len(xy) != 2:
                 raise self.fail(key, "a position is [x, y], two numbers")
             where[self.number[state]] = (self.ld.number(xy[0], f"{key}[0]"),
@@ -292,14 +296,13 @@ class _Reader:
         if "initial_action" in adv:
             name = self.ld.string(adv["initial_action"], key)
             if name not in actions:
-                raise self.fail(key, f"unknown P2 action {name!r}; adversary.actions are "
-                                     + _listing(actions))
+                raise self.unknown(key, "P2 action", name, actions, "adversary.actions are ")
             filed = actions.index(name)
         elif delay > 0:
             raise self.fail(key, "initial_action is required when delay > 0; expected the P2 "
                                  "action standing at the start, one of " + _listing(actions))
         return dict(p2_actions=tuple(actions), trap_candidates=(), traps=0, delay=delay,
-                    initial_standing=filed if delay else 0, filed_standing=filed)
+                    initial_standing=filed or 0)
 
     def trapping(self, adv: dict, delay: int) -> dict:
         traps = self.ld.integer(adv["traps"], "adversary.traps", 1)
@@ -329,7 +332,7 @@ class _Reader:
             raise self.fail(key, f"initial_traps is required when delay > 0; expected {traps} "
                                  "distinct trap candidates (state names)")
         return dict(p2_actions=(), trap_candidates=tuple(candidates), traps=traps, delay=delay,
-                    initial_standing=filed if delay else 0, filed_standing=filed)
+                    initial_standing=filed or 0)
 
     def state_list(self, value: object, key: str, what: str, empty_ok: bool = False) -> list[int]:
         items = self.ld.array(value, key, "an array of state names")
@@ -373,8 +376,7 @@ class _Reader:
             ikey = key if isinstance(value, str) else f"{key}[{i}]"
             name = self.ld.string(item, ikey)
             if name not in a2:
-                raise self.fail(ikey, f"unknown P2 action {name!r}; adversary.actions are "
-                                      + _listing(a2))
+                raise self.unknown(ikey, "P2 action", name, a2, "adversary.actions are ")
             if a2.index(name) in found:
                 raise self.fail(ikey, f"P2 action {name!r} is repeated")
             found.append(a2.index(name))
@@ -390,8 +392,7 @@ class _Reader:
         for name, p in value.items():
             pkey = f"{key}.{toml_key(name)}"
             if name not in self.number:
-                raise self.fail(pkey, f"unknown state {name!r}; states are "
-                                      + _listing(self.states))
+                raise self.unknown(pkey, "state", name, self.states, "states are ")
             p = self.ld.number(p, pkey)
             if p < 0:
                 raise self.fail(pkey, f"probability {p!r} is negative")
@@ -528,51 +529,20 @@ def outcome_name(action: str, outcome: int) -> str:
 
 def standing_candidates(world) -> tuple[int, ...]:
     """In trap mode, the trap candidates standing at the start when the world is re-solved with
-    a positive delay (a sweep): the world's standing set when its delay is positive, else the
-    set its file names (`_filed_standing`), else none."""
+    a positive delay (a sweep): its standing set, which a world with delay 0 keeps as its file
+    names it (the first `traps` candidates when it names none); with general P2 actions none."""
     from hg2prism.model.dynamics import a2_actions
 
-    standing = world.initial_standing if world.delay else _filed_standing(world)
-    if standing is None:
+    if not world.front.traps_mode:
         return ()
-    return tuple(a2_actions(world.front, world.traps)[1][standing])
+    return tuple(a2_actions(world.front, world.traps)[1][world.initial_standing])
 
 
 def standing_action(world) -> int:
     """With general P2 actions, the action (its index) standing at the start when the world is
-    re-solved with a positive delay: the world's own when its delay is positive, else the
-    `initial_action` its file names, else the first."""
-    if world.delay:
-        return world.initial_standing
-    filed = _filed_standing(world)
-    return 0 if filed is None else filed
-
-
-def _filed_standing(world) -> int | None:
-    """The standing action the `[adversary]` of the world's file names (`initial_action`, or
-    `initial_traps` as a set's index), which the loader checked but drops when delay = 0;
-    None when the file names none, cannot be read any more, or describes another arena or
-    number of traps than `world` (a variant, World.replace(traps=2))."""
-    import tomllib
-
-    from hg2prism.errors import InputError
-    from hg2prism.model.validation import Checks
-    from hg2prism.worldfile.loader import load_world
-
-    if world.path is None:
-        return None
-    try:
-        filed = load_world(world.path)
-        with open(world.path, "rb") as handle:
-            adversary = tomllib.load(handle)["adversary"]
-    except (InputError, OSError, tomllib.TOMLDecodeError, KeyError):
-        return None
-    if filed.front != world.front or filed.traps != world.traps:
-        return None
-    reader = _Reader(Checks(str(world.path)))
-    reader.states = world.front.states
-    reader.number = {name: i for i, name in enumerate(reader.states)}
-    return reader.adversary(adversary)["filed_standing"]
+    re-solved with a positive delay: its own, which a world with delay 0 keeps as its file's
+    `initial_action` names it (the first when it names none)."""
+    return world.initial_standing
 
 
 def parameters(world) -> dict[str, object]:
@@ -653,24 +623,13 @@ def _arena_lines(arena: Arena) -> list[str]:
     return lines + _entries(arena)
 
 
-def _filed_candidates(world) -> tuple[int, ...]:
-    """A delay-0 world's standing trap candidates as its file names them (any kind:
-    frontends.standing_candidates), none when the file's are not valid ones."""
-    from hg2prism import frontends
-    from hg2prism.errors import InputError
-
-    try:
-        return tuple(sorted(frontends.standing_candidates(world)))
-    except InputError:
-        return ()
-
-
 def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
     from hg2prism.model.dynamics import a2_actions
     from hg2prism.opponent.registry import observer_kind
 
     lines = ["", "[adversary]"]
-    write_standing = world.delay > 0
+    # with delay 0, the standing action a sweep over delay starts from, when not the first
+    write_standing = world.delay > 0 or standing != 0
     if arena.traps_mode:
         cands = [arena.states[c] for c in arena.trap_candidates]
         lines += [f"traps = {world.traps}", *_wrapped("trap_candidates",
@@ -679,16 +638,11 @@ def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
         if write_standing:
             _, sets = a2_actions(arena, world.traps)
             lines.append("initial_traps = " + toml_value([cands[c] for c in sets[standing]]))
-        elif len(filed := _filed_candidates(world)) == world.traps:
-            # with delay 0, what the world's file names for sweeps over delay, kept
-            lines.append("initial_traps = " + toml_value([cands[c] for c in filed]))
     else:
         lines.append("actions = " + toml_value(list(arena.p2_actions)))
         lines.append(f"delay = {world.delay}")
         if write_standing:
             lines.append(f"initial_action = {toml_string(arena.p2_actions[standing])}")
-        elif (filed := _filed_standing(world)) is not None:
-            lines.append(f"initial_action = {toml_string(arena.p2_actions[filed])}")
     lines.append("hypotheses = " + toml_value(list(world.hypotheses)))
     if observer_kind(world.inference).first_guess is None:
         lines.append(f"initial_hypothesis = {world.initial_hypothesis}")

@@ -4,7 +4,8 @@ compiling a grid world to its arena.
 Reading (`read`): `[grid] map`, `[robot] slip` and `[adversary]`'s traps, delay and
 initial_traps (cells), each key checked with one error line; the loader (worldfile/loader.py)
 reads the tables every world has. The `Grid` value keeps the map and the slip; the world's
-`initial_standing` is the index of the initial traps among the trap sets.
+`initial_standing` is the index of the initial traps among the trap sets (with delay 0 those a
+sweep over delay starts from; 0, the first set, when the file names none).
 
 Compiling (`to_arena`):
 one arena state per free cell, in map reading order (top row first, left to right), named by
@@ -26,7 +27,7 @@ import numpy as np
 
 from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
-from hg2prism.model.validation import Checks, Vocabulary
+from hg2prism.model.validation import Vocabulary
 from hg2prism.model.world import World
 
 Cell = tuple[int, int]
@@ -234,62 +235,9 @@ def parameters(world: World) -> dict[str, object]:
 
 def standing_candidates(world: World) -> tuple[int, ...]:
     """The trap candidates (numbers) standing at the start when the world is re-solved with a
-    positive delay (a sweep, docs/semantics.md §7 Sweeps): the world's own initial traps when it
-    has them (delay > 0); otherwise the `[adversary] initial_traps` written in its file (the
-    loader drops them when delay = 0; here they are checked as if delay were positive, and an
-    empty list counts as none); otherwise none."""
-    if world.delay:
-        return trap_sets(world.grid, world.traps)[world.initial_standing]
-    cells = _file_initial_traps(world)
-    return () if cells is None else _numbers(world.grid, cells)
-
-
-def _file_initial_traps(world: World) -> tuple[Cell, ...] | None:
-    """The `[adversary] initial_traps` of the world file, checked as if delay > 0; None when the
-    file has none, an empty list, cannot be read any more, or describes another map or number
-    of traps than `world` (a variant, World.replace(traps=2), whose file's traps are not its)."""
-    import tomllib
-
-    from hg2prism.errors import InputError
-
-    try:
-        with open(world.path, "rb") as handle:
-            data = tomllib.load(handle)
-    except (OSError, tomllib.TOMLDecodeError):
-        return None
-    adversary, grid_table = data.get("adversary"), data.get("grid")
-    try:
-        filed_rows = read_map(Checks(str(world.path)), grid_table).rows
-    except (InputError, AttributeError, KeyError, TypeError):
-        return None
-    if (filed_rows != world.grid.rows or not isinstance(adversary, dict)
-            or adversary.get("traps") != world.traps):
-        return None
-    if "initial_traps" not in adversary:
-        return None
-    key = "adversary.initial_traps"
-    value = adversary["initial_traps"]
-    if value == []:          # what a delay-0 world writes: nothing given, so the rule goes on
-        return None
-    grid = world.grid
-    numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
-    cells: list[Cell] = []
-    if isinstance(value, list):
-        for item in value:
-            if (isinstance(item, list) and len(item) == 2
-                    and all(isinstance(c, int) and not isinstance(c, bool) for c in item)):
-                cells.append((item[0], item[1]))
-            else:
-                cells = []
-                break
-        else:
-            if (len(cells) == world.traps and len(set(cells)) == len(cells)
-                    and all(c in numbering for c in cells)):
-                return tuple(sorted(cells, key=numbering.__getitem__))
-    candidates = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
-    raise InputError(str(world.path), key,
-                     f"sweeping delay > 0 needs initial_traps to be {world.traps} distinct trap "
-                     f"candidate cells (candidates are {candidates}), got {value!r}")
+    positive delay (a sweep, docs/semantics.md §7 Sweeps): its initial traps, which a world with
+    delay 0 keeps as its file names them (the first `traps` candidates when it names none)."""
+    return trap_sets(world.grid, world.traps)[world.initial_standing]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -317,7 +265,7 @@ def read_adversary(ld, adv: dict, grid: Grid) -> dict:
     traps = ld.traps(adv["traps"], len(grid.trap_candidates), TRAPS_BEYOND)
     delay = ld.delay(adv.get("delay", 0))
     cells = initial_traps(ld, adv, grid, traps, delay)
-    standing = trap_sets(grid, traps).index(_numbers(grid, cells)) if delay else 0
+    standing = trap_sets(grid, traps).index(_numbers(grid, cells)) if cells else 0
     return dict(traps=traps, delay=delay, initial_standing=standing)
 
 
@@ -396,8 +344,9 @@ def _cells(ld, value: object, key: str) -> list[Cell]:
 
 
 def initial_traps(ld, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Cell, ...]:
-    """Parse [[x, y], ...]. Its shape is always checked when present; the cells only matter
-    (and are only checked) when delay > 0. Returns cells sorted by candidate number."""
+    """Parse [[x, y], ...], the traps standing at the start when delay > 0; with delay 0 what a
+    re-solve with a positive delay starts from (a sweep over delay), checked alike, and an empty
+    list names none. Returns cells sorted by candidate number (none: empty)."""
     key = "adversary.initial_traps"
     if "initial_traps" not in adv:
         if delay > 0:
@@ -405,7 +354,7 @@ def initial_traps(ld, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Ce
                                f"{traps} distinct trap candidate cells as [[x, y], ...]")
         return ()
     cells = _cells(ld, adv["initial_traps"], key)
-    if delay == 0:
+    if delay == 0 and not cells:
         return ()
     numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
     cand_text = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
@@ -419,7 +368,9 @@ def initial_traps(ld, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Ce
                                          "traps must be distinct cells")
     if len(cells) != traps:
         raise ld.fail(key, f"expected {traps} distinct trap candidate cells (traps = "
-                           f"{traps}) because delay > 0, got {len(cells)}")
+                           f"{traps}), got {len(cells)}"
+                      + ("" if delay else "; with delay 0 they are what a sweep over delay "
+                         "starts from, and [] names none"))
     return tuple(sorted(cells, key=numbering.__getitem__))
 
 

@@ -411,11 +411,13 @@ def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: 
                                 "or delay")
                 or f"To build it anyway, pass --max-states {estimate}") if estimate < BEYOND \
             else f"Reduce {window} or the world"
-        raise InputError(
+        refused = InputError(
             str(world.path), key,
             f"the {what} may have {size} states (estimated from the arena, the "
             f"task's DFA, {made}), more than "
             + (f"the limit of {limit:,} that fits in memory" if limit == DEFAULT_LIMIT
                else f"the limit of {limit:,} (--max-states)")
             + f"; nothing was written. {hint}")
+        refused.estimate = estimate     # a sweep's refusal gives the largest of its points'
+        raise refused
     return estimate

@@ -479,14 +479,15 @@ def validate(world: Any) -> None:
 
 
 def _adversary(checks: Checks, world: Any) -> None:
-    """traps, delay, and what stands at the start when delay > 0: P2's standing action, an
-    index into her actions (the trap sets in combinations order, or an arena's P2 actions)."""
+    """traps, delay, and what stands at the start: P2's standing action, an index into her
+    actions (the trap sets in combinations order, or an arena's P2 actions). With delay 0
+    nothing stands; the index is then what a re-solve with a positive delay starts from (a
+    sweep over delay: the file's initial_traps or initial_action, else 0)."""
     delay = checks.delay(world.delay)
     n_actions, key = world.front.count_p2_actions(checks, world.traps)
     standing = checks.integer(world.initial_standing, key, 0)
-    if delay == 0 and standing != 0:
-        raise checks.fail(key, "must be 0 when delay is 0 (nothing stands at the start), got "
-                               f"initial_standing = {standing}")
-    if delay > 0 and standing >= n_actions:
-        raise checks.fail(key, f"P2's standing action at the start (initial_standing = "
+    if standing >= n_actions:
+        when = ("at the start" if delay > 0 else
+                "a re-solve with delay > 0 starts from (delay is 0)")
+        raise checks.fail(key, f"P2's standing action {when} (initial_standing = "
                                f"{standing}) must index one of her {n_actions} actions")

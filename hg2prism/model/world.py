@@ -91,7 +91,9 @@ class World:
     # threshold (§5), the Bayesian prior (normalised) and decision (§12)
     settings: tuple[tuple[str, object], ...] = ()
     # P2's action standing at the start when delay > 0, an index into A2 (the trap sets in
-    # combinations order, or the arena's P2 actions); 0 when delay is 0
+    # combinations order, or the arena's P2 actions). With delay 0 nothing stands: it is then
+    # the one a re-solve with a positive delay starts from (a sweep over delay), as the file
+    # names it (initial_traps, initial_action), else 0
     initial_standing: int = 0
     # P2's possible types (docs/semantics.md §16; empty: one, as [inference] sets it). The
     # world's own observer is then its first type's; `worldfile.types.world_of_type` gives each
@@ -107,11 +109,16 @@ class World:
         world's own robot settings too), validated: InputError(file, key, reason) on a value
         no world file could give or on a name that is no setting of this world. Values are
         taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
-        numpy's numbers as Python's (window=np.int64(3))."""
+        numpy's numbers as Python's (window=np.int64(3)). Another number of traps with delay
+        0 and no initial_standing starts a later re-solve with delay from the first set."""
         changes = {name: plain(value) for name, value in changes.items()}
         if isinstance(changes.get("path"), str):       # as Python gives it: a path's text
             changes["path"] = Path(changes["path"])
         own = {name: value for name, value in changes.items() if name in _FIELDS}
+        if ("traps" in own and own["traps"] != self.traps and "initial_standing" not in own
+                and own.get("delay", self.delay) == 0):
+            # the standing set of a delay-0 world was named for its own number of traps
+            own["initial_standing"] = 0
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
             replaceable = getattr(own.get("front", self.front), "replaceable", frozenset())

@@ -259,5 +259,6 @@ KIND = ObserverKind(
     report=lambda world: {"inference": "bayes", "window": world.window, "threshold": None,
                           "decision": world.setting("decision"),
                           "prior": list(world.setting("prior"))},
+    shown_setting="decision",
     first_guess=lambda settings: prior_argmax(settings["prior"]),
     first_guess_rule="the prior's most probable hypothesis")

@@ -168,4 +168,5 @@ KIND = ObserverKind(
     settings=(Setting("threshold", "a number > 0", _read_threshold,
                       swept=Swept("number", "a number > 0")),),
     build=_build, memory=_memory, mismatches=_mismatches,
-    report=lambda world: {"window": world.window, "threshold": world.setting("threshold")})
+    report=lambda world: {"window": world.window, "threshold": world.setting("threshold")},
+    shown_setting="threshold")

@@ -163,8 +163,8 @@ class MemoryBound:
 class Mismatch:
     """P2's real inference in the detection experiment's other mismatch (docs/semantics.md §9):
     the world with her settings, the label and reason shown, and the setting the report shows
-    beside her window (`p2_threshold` in detection.json: CUSUM's threshold, the Bayesian
-    decision)."""
+    beside her window (`p2_<setting>` in detection.json, ObserverKind.shown_setting: CUSUM's
+    threshold, the Bayesian decision)."""
 
     label: str
     world: World
@@ -198,6 +198,9 @@ class ObserverKind:
     # (registry.configure: the opponent layer does not import the registry above it)
     mismatches: Callable[[World, float, Callable[..., World]], list[Mismatch]]
     report: Callable[[World], dict]            # P1's model of P2 in detection.json
+    # the setting the detection experiment shows beside P2's window (a Mismatch's `shown`:
+    # detection.json's `p2_<setting>`); None: her window alone
+    shown_setting: str | None = None
     # the bound once P2's games are solved, when they make it tighter (None: `memory` only)
     solved_memory: Callable[[World, list[PerceptualGame]], MemoryBound] | None = None
     # P2's first hypothesis from the settings, and the rule in words ("the prior's most

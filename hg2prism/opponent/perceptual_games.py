@@ -81,6 +81,9 @@ class PerceptualGame:
     trap_choice: np.ndarray   # [n_ts] pi2_x(v): index of P2's action (a trap set in trap mode)
     log_policy: np.ndarray    # [n_ts, n_a2, A1max] ln pi1_x(a1 | v, a2), softmax at q_x0(v) over
                               # the actions enabled at v (-inf at the slots that are not)
+    # [n_ts] every action P2 may take at v ties under the rule of §4 (her choice there is the
+    # standing one or the first, and decides nothing); None when not computed
+    all_tied: np.ndarray | None = None
 
 
 class TurnBasedGame:
@@ -678,9 +681,11 @@ def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
     q = game.q_values(flat, g)                                        # [S, A1, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
     choice = trap_rule(worst, _standing_sets(ts))
+    all_tied = (~ts.allowed | (worst <= worst.min(axis=1, keepdims=True) + TIE)).all(axis=1)
     # A padded slot repeats action 0, so the max above is right unmasked; the softmax is not.
     scaled = np.where(ts.enabled[:, None, :], rationality * q.transpose(0, 2, 1), -np.inf)
     top = scaled.max(axis=2, keepdims=True)                           # [S, A2, A1max]
     log_policy = scaled - (top + np.log(np.exp(scaled - top).sum(axis=2, keepdims=True)))
     return PerceptualGame(formula=dfa.formula, dfa=dfa, values=solution.values,
-                          fresh_q=fresh_q, trap_choice=choice, log_policy=log_policy)
+                          fresh_q=fresh_q, trap_choice=choice, log_policy=log_policy,
+                          all_tied=all_tied)

@@ -81,8 +81,10 @@ def _objective_line(results: CheckResults) -> str:
     o = results.objective
     what = {"pmax": "Pmax", "lexicographic": "Pmax, then fewest expected steps",
             "bounded": f"Pmax=? [F<={o.bound} \"goal\"] = {o.value:.6f}"}[o.name]
+    to_goal = (f"{o.expected_steps_to_goal:.2f} to the goal when reached"
+               if o.expected_steps_to_goal is not None else "the goal is never reached")
     return (f"  strategy         {what}; expected steps {_steps(o.expected_steps, 'infinite')} "
-            f"to the end, {_steps(o.expected_steps_to_goal, 'none')} to the goal when reached")
+            f"to the end, {to_goal}")
 
 
 def summary(results: CheckResults, out: Path, files: list[str]) -> str:

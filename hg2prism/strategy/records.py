@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from hg2prism.engines.engine import Transitions
-from hg2prism.errors import InputError, listing
+from hg2prism.errors import InputError, did_you_mean, listing
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.opponent.observer import Memory
@@ -311,16 +311,12 @@ def _named_ts_state(ts: TransitionSystem, state: object, standing: object,
                     countdown: object) -> int:
     """`Strategy.move`'s state, standing action and countdown as a TS state (InputError naming
     the argument that names nothing)."""
-    import difflib
-
     states, _ = _numbering(ts)
     if not isinstance(state, str) or state not in states:
         names = list(ts.arena.states)
-        close = (difflib.get_close_matches(state, names, n=3, cutoff=0.8)
-                 if isinstance(state, str) else [])
         raise InputError("move()", "state", f"{state!r} is not a state of the world, whose "
                          f"{len(names)} states are {listing(names, 5)}"
-                         + (f"; did you mean {' or '.join(close)}?" if close else ""))
+                         + did_you_mean(state, names))
     if ts.delay == 0:
         for key, given in (("standing", standing), ("countdown", countdown)):
             if given is not None:     # it used to be ignored without a word

@@ -36,6 +36,8 @@ _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "simulation": {"episodes": False, "horizon": False, "seed": False},
     "detection": {"alpha": False, "epsilon": False, "deviate_after": False},
 }
+# The tables of entries ([[...]]): a TOML error in a file that writes one with one bracket says so
+ARRAY_TABLES = ("arena.transition", "type")
 _MISSING_HINT = {
     "task.formula": "a syntactically co-safe LTL formula in Spot syntax",
     "adversary.traps": "an integer >= 1",
@@ -91,6 +93,11 @@ class _Loader(Checks):
             m = re.search(r"\(at (line \d+, column \d+|end of document)\)\s*$", msg)
             key = m.group(1) if m else "-"
             detail = msg[: m.start()].strip() if m else msg
+            single = re.search(r"^[ \t]*\[[ \t]*(" + "|".join(re.escape(t) for t in ARRAY_TABLES)
+                               + r")[ \t]*\]", text, re.MULTILINE)
+            if single:          # a table of entries written as one table: said in its words
+                detail += (f"; each entry of [[{single.group(1)}]] starts with two brackets "
+                           f"(a line [{single.group(1)}] is one table)")
             raise self.fail(key, f"not valid TOML: {detail}") from None
 
     # -- typed getters -----------------------------------------------------------------------
