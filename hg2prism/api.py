@@ -242,7 +242,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     is terminal: the episode ends there. Labels: `labels` maps nodes to propositions (a name
     or a list); by default each target v carries `asset<v>` (`asset_<name>` for a named node).
     P2 (the defender) sets `traps` traps (honeypots) among `trap_candidates` (default: every
-    node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0.
+    node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0 (with
+    delay 0, what a sweep over delay starts from).
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
     (keys not given: CUSUM, window 2, rationality 1 and, for CUSUM, threshold 0.6); `simulation` and `detection` the
     optional tables; `positions` (node -> [x, y], every node) where the figures draw the nodes,

@@ -408,11 +408,20 @@ def _validate(args: argparse.Namespace, world: object) -> int:
           f"{len(world.hypotheses)} hypothes{'is' if len(world.hypotheses) == 1 else 'es'}"
           f"{types})")
     print(_validate_details(world))
-    if not world.types:         # as `check` would warn (a world with types: each type's check)
+    from hg2prism.model import sizeguard
+
+    # as `check` would warn (a world with types: each type's check), where the tables it takes
+    # are small: validate stays quick, and never builds what the size guard would refuse
+    if not world.types and sizeguard.game_table_bytes(world) <= VALIDATE_TABLE_BYTES:
         from hg2prism.pipeline import warn_if_not_completable
 
         warn_if_not_completable(world)
     return 0
+
+
+# The largest tables (P2's games' estimate) `validate` builds to see whether some play completes
+# the task: 256 MiB, a fraction of a second.
+VALIDATE_TABLE_BYTES = 256 * 2**20
 
 
 def _validate_details(world) -> str:
@@ -437,6 +446,11 @@ def _validate_details(world) -> str:
                    "commands refuse it unless "
                    + ("the tighter bound from P2's games fits or " if tighter else "")
                    + "--max-states allows it")
+    need = sizeguard.game_table_bytes(world)
+    if need > sizeguard.DEFAULT_LIMIT * sizeguard.BYTES_PER_STATE:
+        verdict += (f"; P2's games would need about {sizeguard.gib(need)}, above the size "
+                    "guard's memory limit: the solving commands refuse it unless --max-states "
+                    "allows it")
     traps = (f"{world.traps} trap{'' if world.traps == 1 else 's'}"
              if frontends.arena_of(world).traps_mode else "P2's own actions")
     return (f"  {observer}; {traps}, delay {world.delay}; hypergame: {size} canonical states "

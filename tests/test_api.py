@@ -733,6 +733,7 @@ def test_a_variant_with_other_traps_does_not_take_its_file_s_initial_traps() -> 
     starts from the first two candidates (World.replace; it stopped with the file's error about
     them), and one with another standing set, given with the traps, starts from that."""
     from hg2prism import frontends
+    from hg2prism.experiments import sweep
 
     world = hg2prism.load_world(MODELS / "world2.toml")
     assert world.delay == 0 and world.traps == 1
@@ -742,8 +743,17 @@ def test_a_variant_with_other_traps_does_not_take_its_file_s_initial_traps() -> 
     assert frontends.standing_candidates(world.replace(traps=2, initial_standing=2)) == (1, 2)
     assert frontends.standing_candidates(world.replace(rationality=2.0)) == filed
     moved = world.replace(initial_standing=2)       # the third candidate, for a later delay
-    assert frontends.standing_candidates(moved.replace(traps=2)) == (0, 1)
     assert frontends.standing_candidates(moved.replace(delay=1)) == (2,)
+    # another number of traps keeps it as a sweep does, whatever the delay and in any order
+    # (replace(traps=3, delay=1) was refused: the index 2 of a 1-set among one 3-set)
+    assert frontends.standing_candidates(moved.replace(traps=2)) == (0, 2)
+    for traps in (2, 3):
+        carried = sweep.sweep_point(moved, {"traps": traps, "delay": 1}).initial_standing
+        assert (moved.replace(traps=traps, delay=1).initial_standing
+                == moved.replace(traps=traps).replace(delay=1).initial_standing
+                == moved.replace(delay=1).replace(traps=traps).initial_standing == carried)
+    # the rule keeps the first in candidate order: back to one trap, the first candidate
+    assert moved.replace(traps=2).replace(traps=1).initial_standing == 0
 
 
 def test_an_episode_of_another_world_is_refused(world1_solution, lateral_solution) -> None:

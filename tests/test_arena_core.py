@@ -199,3 +199,24 @@ def test_strategy_records_name_states_and_actions_of_an_arena() -> None:
     strategy = Strategy.from_records(records, ts)
     assert strategy.move("web", 0, 1, [("mail", "wait", "idle", 0)], "watch_db", 1) == "scan"
     assert strategy.move("mail", 0, 0, (), "idle", 0) == "wait"
+
+
+def test_trap_sets_are_numbered_without_listing_them() -> None:
+    """trap_set_index / trap_set_at: the combinations order a2_actions lists, computed (a
+    sweep over traps or World.replace(traps=k) listed every set: 30M for 10 of 30); and
+    carried_standing, the sweep's rule for another number of traps."""
+    import itertools
+    import math
+
+    from hg2prism.model.dynamics import carried_standing, trap_set_at, trap_set_index
+
+    for n in range(1, 8):
+        for k in range(1, n + 1):
+            for i, members in enumerate(itertools.combinations(range(n), k)):
+                assert trap_set_index(n, members) == i and trap_set_at(n, k, i) == members
+    assert trap_set_at(30, 10, math.comb(30, 10) - 1) == tuple(range(20, 30))
+    assert trap_set_index(30, range(20, 30)) == math.comb(30, 10) - 1
+    assert trap_set_index(4, (3, 0)) == 2                  # {0, 3}: the order given is no matter
+    assert carried_standing(4, (2,), 2) == trap_set_index(4, (0, 2))   # then the first other
+    assert carried_standing(4, (1, 3), 1) == trap_set_index(4, (1,))   # the first of them
+    assert carried_standing(4, (1, 3), 4) == 0                          # all four

@@ -370,6 +370,81 @@ def test_sigterm_stops_storm_while_it_computes(tmp_path: Path) -> None:
         assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
 
 
+BIG_GAMES = """name = "big"
+[grid]
+map = \"\"\"
+#########
+#@......#
+#ttttttt#
+#ttttttt#
+#ttttttt#
+#tttt..A#
+#.......#
+#########
+\"\"\"
+[robot]
+slip = 0.1
+[task]
+formula = "F A"
+[adversary]
+traps = 3
+delay = 1
+initial_traps = [[1, 5], [2, 5], [3, 5]]
+hypotheses = ["F A"]
+[inference]
+window = 1
+threshold = 1.5
+rationality = 1.0
+"""
+
+
+def test_validate_builds_nothing_the_size_guard_refuses(tmp_path: Path, monkeypatch,
+                                                         capsys) -> None:
+    """A world whose games `check` refuses (2,300 trap sets with delay 1: about 1,430 GiB):
+    validate says so, and does not build its transition system to see whether a play
+    completes the task (it tried, and ran out of memory)."""
+    from hg2prism import pipeline
+    from hg2prism.cli import main
+
+    def refused(*args, **kwargs):
+        raise AssertionError("validate built the transition system")
+
+    monkeypatch.setattr(pipeline, "build_transition_system", refused)
+    path = tmp_path / "big.toml"
+    path.write_text(BIG_GAMES)
+    assert main(["validate", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "; P2's games would need about 1,430 GiB, above the size guard's memory limit: the " \
+           "solving commands refuse it unless --max-states allows it" in out, out
+    assert main(["check", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert "P2's perceptual games would need about 1,430 GiB" in capsys.readouterr().err
+
+
+def test_a_sweep_refused_for_its_games_names_the_largest_point(tmp_path: Path) -> None:
+    """The games' refusal carries the --max-states it asks for too (it was counted as none,
+    and the first point's was given); values the world refuses ask for none: the first."""
+    from hg2prism.experiments import sweep
+    from hg2prism.model import sizeguard
+
+    path = tmp_path / "big.toml"
+    path.write_text(BIG_GAMES)
+    world = load_world(path)
+    asked = {}
+    for delay in (1, 3):
+        with pytest.raises(InputError) as caught:
+            sizeguard.check_games_size(world.replace(delay=delay))
+        asked[delay] = caught.value.estimate
+    assert asked[1] < asked[3]
+    with pytest.raises(InputError) as caught:
+        sweep.guard_points(world, [{"delay": 1}, {"delay": 3}], None)
+    assert caught.value.reason.startswith("every point is refused; the largest, delay=3: P2's "
+                                          "perceptual games would need about ")
+    assert f"--max-states {asked[3]}" in caught.value.reason
+    with pytest.raises(InputError) as caught:
+        sweep.guard_points(world, [{"rationality": 1e200}, {"rationality": 1e300}], None)
+    assert caught.value.reason == "rationality must be at most 1e+100, got 1e+200"
+
+
 def test_validate_counts_one_trap_candidate(tmp_path: Path) -> None:
     world = tmp_path / "one.toml"
     world.write_text('name = "one"\n[grid]\nmap = """\n#####\n#@tA#\n#####\n"""\n[robot]\n'

@@ -3,9 +3,10 @@ converge" on small worlds that `check` solves. Now
 
 * `run` completes on the issue's world (deceptive value 0.9, V_lead 0), on maze 113, where
   P2's Nash strategy plays a trap set with probability 2e-9 and the old solve cycled, and on
-  every fifth of the 200 random mazes (tests/mazegen.py) and maze 3 (`make mazes`, or
-  HG2PRISM_ALL_MAZES=1, runs all 200, each with its figures; by default 11 of the 41 draw
-  theirs: every twentieth and maze 3); on those 11, where PRISM is installed, PRISM-games' csg
+  every fifth of the 200 random mazes (tests/mazegen.py; `make test`: every fortieth) and
+  maze 3 (`make mazes`, or HG2PRISM_ALL_MAZES=1, runs all 200, each with its figures; by
+  default 11 of the 41 draw theirs: every twentieth and maze 3; under `make test` all six);
+  on those, where PRISM is installed, PRISM-games' csg
   engine computes V_NE from the exported symmetric.prism, an engine independent of ours, and
   it lies in our bracket (within 1e-6, as in tests/test_prism.py);
 * on 200 random small mazes (walls at random, trap candidates on the shortest paths to the
@@ -37,7 +38,7 @@ from hg2prism.analyses import baselines, deception_value
 from hg2prism.cli import main
 from hg2prism.worldfile import load_world
 from test_prism import PRISM, TOL as PRISM_TOL, prism_value
-from conftest import share
+from conftest import QUICK, share
 
 TOL = 1e-9
 NASH_TOLERANCE = 1e-6
@@ -49,7 +50,7 @@ RUNS = {"issue": mazegen.ISSUE_WORLD, "maze113": mazegen.maze_world(113),
 # figures and a few slow Nash iterations: `make mazes` runs them all). Maze 3 stopped `run`
 # with a StrategyError until Storm's dropped constant variables were decoded (test_engine).
 RUN_SEEDS = (list(range(200)) if os.environ.get("HG2PRISM_ALL_MAZES")
-             else [3] + share(range(0, 200, 5)))       # every twentieth under `make test`
+             else [3] + list(range(0, 200, 40 if QUICK else 5)))   # every fortieth: `make test`
 
 
 # Mazes (not in the default selection) where the reference's bracket stays wider than 1e-6

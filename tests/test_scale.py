@@ -285,9 +285,9 @@ def test_huge_record_counts_for_the_ten_million(tmp_path: Path) -> None:
 def test_sizes_in_gib_read_as_numbers() -> None:
     """The size guard's messages give GiB with one decimal below 100 GiB and none above (a
     review saw "about 3,460,300,800.0 GiB")."""
-    from hg2prism.model.sizeguard import _gib
+    from hg2prism.model.sizeguard import gib
 
-    assert _gib(1.5 * 2 ** 30) == "1.5 GiB"
-    assert _gib(99.94 * 2 ** 30) == "99.9 GiB"
-    assert _gib(100 * 2 ** 30) == "100 GiB" == _gib(99.97 * 2 ** 30)
-    assert _gib(3_460_300_800 * 2 ** 30) == "3,460,300,800 GiB"
+    assert gib(1.5 * 2 ** 30) == "1.5 GiB"
+    assert gib(99.94 * 2 ** 30) == "99.9 GiB"
+    assert gib(100 * 2 ** 30) == "100 GiB" == gib(99.97 * 2 ** 30)
+    assert gib(3_460_300_800 * 2 ** 30) == "3,460,300,800 GiB"

@@ -112,8 +112,9 @@ CASES = [
      "task.formula", "empty"),
     # --- unknown keys / tables, missing keys / tables, table types
     ("unknown-key-in-table", edit(("slip = 0.1", "slip = 0.1\nspeed = 2")), "robot.speed",
-     "unknown"),
-    ("unknown-top-level-key", edit(('name = "world1"', 'nmae = "world1"')), "nmae", "unknown"),
+     "unknown key in [robot]; expected one of: slip"),       # nothing close
+    ("unknown-top-level-key", edit(('name = "world1"', 'nmae = "world1"')), "nmae",
+     "unknown key at the top level; did you mean 'name'?; expected one of: "),
     ("unknown-table", append("[extras]\nx = 1\n"), "extras", "unknown"),
     ("unknown-subtable", append("[inference.extra]\nx = 1\n"), "inference.extra", "unknown"),
     ("missing-required-key", edit(("window = 2\n", "")), "inference.window", "missing"),
@@ -791,10 +792,14 @@ def test_an_entry_table_written_with_one_bracket_is_said(tmp_path: Path) -> None
     assert err.value.key.startswith("line ") and err.value.reason.startswith("not valid TOML: ")
     assert err.value.reason.endswith("; each entry of [[arena.transition]] starts with two "
                                      "brackets (a line [arena.transition] is one table)")
-    bad.write_text(ARENA_BASE.replace("[adversary]", "[adversary]]"))     # another mistake
-    with pytest.raises(InputError) as err:
-        load_world(bad)
-    assert "two brackets" not in err.value.reason
+    for other in (ARENA_BASE.replace("[adversary]", "[adversary]]"),       # another mistake
+                  text.replace('name = "lateral"', 'name = "lateral'),       # ... beside it
+                  ARENA_BASE.replace('name = "lateral"', 'name = "lateral"\ndescription = '
+                                     '"""\n[type]\n"""\nbad = = 1')):
+        bad.write_text(other)
+        with pytest.raises(InputError) as err:
+            load_world(bad)
+        assert "two brackets" not in err.value.reason, err.value
 
 
 def test_arena_base_worlds_validate(tmp_path: Path) -> None:

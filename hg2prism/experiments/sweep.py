@@ -52,6 +52,7 @@ from hg2prism import frontends
 from hg2prism.experiments.values import NOT_FORM, OUTSIDE, ValueList, number, parse_values
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
+from hg2prism.model.dynamics import carried_standing
 from hg2prism.opponent.observer import ObserverKind
 from hg2prism.opponent.registry import (KINDS, configure, observer_kind, owner, register,
                                         run_time_kinds)
@@ -346,10 +347,8 @@ def standing_at(world: World, traps: int) -> int:
     arena = arena_of(world)
     if not arena.traps_mode:
         return frontends.standing_action(world)
-    n = len(arena.trap_candidates)
-    chosen = list(frontends.standing_candidates(world))[:traps]
-    chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]
-    return list(itertools.combinations(range(n), traps)).index(tuple(sorted(chosen)))
+    return carried_standing(len(arena.trap_candidates), frontends.standing_candidates(world),
+                            traps)
 
 
 def sweep_point(world: World, assignment: dict[str, Value]) -> World:
@@ -779,10 +778,12 @@ def guard_points(world: World, points: Sequence[dict[str, Value]], max_states: i
         except InputError as err:
             refusals.append(err)
     if refusals and len(refusals) == len(points):
-        if len(points) == 1:
+        # the --max-states each asks for (the size guard's refusals carry it; a value the
+        # world refuses asks for none)
+        at_most = [getattr(err, "estimate", None) for err in refusals]
+        if len(points) == 1 or all(size is None for size in at_most):
             raise refusals[0]
-        at_most = [getattr(err, "estimate", -1) for err in refusals]
-        largest = max(range(len(points)), key=lambda i: at_most[i])     # the first of equals
+        largest = max(range(len(points)), key=lambda i: at_most[i] or 0)   # the first of equals
         err = refusals[largest]
         raise InputError(err.file, err.key, f"every point is refused; the largest, "
                          f"{point_label(points[largest])}: {err.reason}")
@@ -812,7 +813,7 @@ def sweep_grid(world: World, grid: Sequence[tuple[str, Sequence[object]]], out: 
     """Solve the world at every point of the cartesian product of `grid`'s values (the first
     parameter varies slowest) and record the values at the initial state: per point
     ``{<parameter>: value, ..., deceptive_value, v_lead, v_ne, v_ne_p1_guaranteed, v_ne_bounds,
-    states, transitions, storm_states, storm_transitions, initial_traps, seconds}``; with
+    states, transitions, storm_states, storm_transitions, standing, seconds}``; with
     `deception`, also ``v_static, v_naive, value_of_deception`` (docs/semantics.md §11).
 
     Points run serially here when ``workers == 1`` and no `scheduler` is given, otherwise on

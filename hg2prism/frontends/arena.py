@@ -19,12 +19,14 @@ Reading (`read`, called by worldfile/loader.py, which reads the other tables as 
 
   [adversary] (beside hypotheses and initial_hypothesis, as for grids), either
     actions = ["idle", ...]        general P2 actions A2 (identifiers, distinct), with
-    initial_action = "idle"        required when delay > 0 (ignored when 0, as initial_traps)
+    initial_action = "idle"        required when delay > 0 (with delay 0 optional: what a sweep
+                                   over delay starts from, as initial_traps)
   or
     traps = l                      l-subsets of the candidates, the grid's trap rule, with
     trap_candidates = [states]     distinct states, at least l of them, and
-    initial_traps = [states]       l distinct candidates, required when delay > 0 (when 0
-                                   only its type is checked: as a grid's, it is ignored)
+    initial_traps = [states]       l distinct candidates, required when delay > 0 (with delay
+                                   0 optional, checked alike, [] naming none: what a sweep
+                                   over delay starts from, as a grid's)
   delay = k                        optional, default 0
 
 Names (states, P1's and P2's actions) are identifiers ([A-Za-z_][A-Za-z0-9_]*). A proposition
@@ -54,7 +56,6 @@ with the P2 actions it is for. Numbers are written as Python's repr, which reads
 
 from __future__ import annotations
 
-import itertools
 import math
 import re
 
@@ -62,6 +63,8 @@ import numpy as np
 
 from hg2prism.errors import did_you_mean, listing
 from hg2prism.model.arena import TRAPS_BEYOND, Arena
+from hg2prism.model.dynamics import trap_set_index
+from hg2prism.model.validation import DELAY_0_STANDING
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 RESERVED_STATES = ("trapped",)
@@ -184,11 +187,12 @@ class _Reader:
             raise self.unknown(key, "state", name, self.states, "states are ")
         return self.number[name]
 
-    def unknown(self, key: str, what: str, name: str, names, known: str) -> Exception:
+    def unknown(self, key: str, what: str, name: str, names, known: str,
+                more: str = "") -> Exception:
         """The error of a name that names no `what` ("state", "P2 action"): the close ones,
-        then the known ones after `known` ("states are ")."""
+        then the known ones after `known` ("states are "), then `more`."""
         return self.fail(key, f"unknown {what} {name!r}{did_you_mean(name, names)}; {known}"
-                         + _listing(names))
+                         + _listing(names) + more)
 
     def read_states(self, table: dict) -> None:
         names = self.names(table["states"], "arena.states", "state")
@@ -296,7 +300,8 @@ class _Reader:
         if "initial_action" in adv:
             name = self.ld.string(adv["initial_action"], key)
             if name not in actions:
-                raise self.unknown(key, "P2 action", name, actions, "adversary.actions are ")
+                raise self.unknown(key, "P2 action", name, actions, "adversary.actions are ",
+                                   "" if delay else DELAY_0_STANDING)
             filed = actions.index(name)
         elif delay > 0:
             raise self.fail(key, "initial_action is required when delay > 0; expected the P2 "
@@ -317,17 +322,17 @@ class _Reader:
         if "initial_traps" in adv and delay == 0 and adv["initial_traps"] == []:
             pass                # what a world written with delay 0 may hold: none named
         elif "initial_traps" in adv:
+            why = "" if delay else DELAY_0_STANDING
             chosen = self.state_list(adv["initial_traps"], key, "initial trap", empty_ok=True)
             for i, s in enumerate(chosen):
                 if s not in candidates:
                     raise self.fail(f"{key}[{i}]", f"{self.states[s]!r} is not a trap "
                                     "candidate; trap_candidates are "
-                                    + _listing(self.states[c] for c in candidates))
+                                    + _listing(self.states[c] for c in candidates) + why)
             if len(chosen) != traps:
                 raise self.fail(key, f"expected {traps} distinct trap candidates (traps = "
-                                     f"{traps}), got {len(chosen)}")
-            members = tuple(sorted(candidates.index(s) for s in chosen))
-            filed = list(itertools.combinations(range(len(candidates)), traps)).index(members)
+                                     f"{traps}), got {len(chosen)}{why}")
+            filed = trap_set_index(len(candidates), [candidates.index(s) for s in chosen])
         elif delay > 0:
             raise self.fail(key, f"initial_traps is required when delay > 0; expected {traps} "
                                  "distinct trap candidates (state names)")

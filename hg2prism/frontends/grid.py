@@ -27,7 +27,7 @@ import numpy as np
 
 from hg2prism.frontends.settings import Setting
 from hg2prism.model.arena import Arena
-from hg2prism.model.validation import Vocabulary
+from hg2prism.model.validation import DELAY_0_STANDING, Vocabulary
 from hg2prism.model.world import World
 
 Cell = tuple[int, int]
@@ -358,19 +358,18 @@ def initial_traps(ld, adv: dict, grid: Grid, traps: int, delay: int) -> tuple[Ce
         return ()
     numbering = {cell: n for n, cell in enumerate(grid.trap_candidates)}
     cand_text = ", ".join(f"[{x}, {y}]" for x, y in grid.trap_candidates)
+    why = "" if delay else DELAY_0_STANDING
     for i, cell in enumerate(cells):
         if cell not in numbering:
             raise ld.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is not a trap candidate "
-                                         f"'t' cell; candidates are {cand_text}")
+                                         f"'t' cell; candidates are {cand_text}{why}")
     for i, cell in enumerate(cells):
         if cell in cells[:i]:
             raise ld.fail(f"{key}[{i}]", f"[{cell[0]}, {cell[1]}] is repeated; initial "
-                                         "traps must be distinct cells")
+                                         f"traps must be distinct cells{why}")
     if len(cells) != traps:
         raise ld.fail(key, f"expected {traps} distinct trap candidate cells (traps = "
-                           f"{traps}), got {len(cells)}"
-                      + ("" if delay else "; with delay 0 they are what a sweep over delay "
-                         "starts from, and [] names none"))
+                           f"{traps}), got {len(cells)}{why}")
     return tuple(sorted(cells, key=numbering.__getitem__))
 
 

@@ -12,6 +12,7 @@ maximum over slots is right even unmasked; a softmax or a choice over actions re
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -148,6 +149,39 @@ def a2_actions(arena: Arena, traps: int) -> tuple[tuple[str, ...], tuple[tuple[i
     names = tuple("+".join(arena.states[arena.trap_candidates[c]] for c in members)
                   for members in sets)
     return names, sets
+
+
+def trap_set_index(n: int, members) -> int:
+    """The index of the set `members` (distinct candidate numbers below n) among the
+    len(members)-subsets of range(n) in combinations order (a2_actions), without listing them."""
+    chosen, k = sorted(members), len(members)
+    index, previous = 0, -1
+    for i, c in enumerate(chosen):
+        index += sum(math.comb(n - 1 - j, k - 1 - i) for j in range(previous + 1, c))
+        previous = c
+    return index
+
+
+def trap_set_at(n: int, k: int, index: int) -> tuple[int, ...]:
+    """The `index`-th k-subset of range(n) in combinations order (trap_set_index's inverse)."""
+    members, c = [], 0
+    for i in range(k):
+        while index >= (before := math.comb(n - 1 - c, k - 1 - i)):
+            index -= before
+            c += 1
+        members.append(c)
+        c += 1
+    return tuple(members)
+
+
+def carried_standing(n: int, standing, traps: int) -> int:
+    """The standing set of `traps` traps that keeps one of another size (`standing`: candidate
+    numbers among n): the first `traps` of them in candidate order and, when they are fewer, the
+    first other candidates; its index (trap_set_index). A sweep over traps and World.replace
+    use it (docs/semantics.md §7, Sweeps)."""
+    chosen = sorted(standing)[:traps]
+    chosen += [c for c in range(n) if c not in chosen][:traps - len(chosen)]
+    return trap_set_index(n, chosen)
 
 
 def build_transition_system(arena: Arena, traps: int = 0, delay: int = 0,

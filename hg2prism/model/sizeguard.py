@@ -127,12 +127,14 @@ def check_games_size(world: World, limit: int | None = None) -> int:
         hint = ((_beyond_machine(need, flag, "fewer trap candidates or traps, or a smaller "
                                  "delay", per_state=False) or f"To solve them anyway, pass {flag}")
                 if need < BEYOND else "Reduce the trap candidates, traps or delay")
-        raise InputError(
+        refused = InputError(
             str(world.path), "size",
-            f"P2's perceptual games would need about {_gib(need)} (their tables "
+            f"P2's perceptual games would need about {gib(need)} (their tables "
             f"over TS state x P1's action x {p2_action_count(world):,} P2 actions x outcome, "
-            f"with delay {world.delay}), more than the {_gib(budget)} of the "
+            f"with delay {world.delay}), more than the {gib(budget)} of the "
             f"limit; nothing was written. {hint}")
+        refused.estimate = -(-need // BYTES_PER_STATE)      # the --max-states it asks for
+        raise refused
     return need
 
 def _adjacency(arena: Arena) -> sp.csr_matrix:
@@ -380,7 +382,7 @@ def machine_bytes() -> int | None:
         return None
 
 
-def _gib(size: float) -> str:
+def gib(size: float) -> str:
     """`size` bytes in GiB for a message: "1.5 GiB", "3,460,300,800 GiB" (no decimal above
     100 GiB)."""
     gib = size / 2 ** 30
@@ -394,9 +396,9 @@ def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) 
     memory = machine_bytes()
     if memory is None or need <= memory:
         return None
-    what = (f"That is about {_gib(need)} at {BYTES_PER_STATE // 1024} KiB a "
+    what = (f"That is about {gib(need)} at {BYTES_PER_STATE // 1024} KiB a "
             "state, more" if per_state else "That is more")
-    return (f"{what} than this machine's {_gib(memory)}: {smaller} make it "
+    return (f"{what} than this machine's {gib(memory)}: {smaller} make it "
             f"smaller ({flag} would try anyway)")
 
 
@@ -419,5 +421,6 @@ def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: 
                else f"the limit of {limit:,} (--max-states)")
             + f"; nothing was written. {hint}")
         refused.estimate = estimate     # a sweep's refusal gives the largest of its points'
+                                        # (sweep.guard_points)
         raise refused
     return estimate

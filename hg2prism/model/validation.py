@@ -478,6 +478,12 @@ def validate(world: Any) -> None:
     _types(checks, world)
 
 
+# What a world file's refused initial_traps (or initial_action) adds when its delay is 0
+# (frontends/grid.py, frontends/arena.py).
+DELAY_0_STANDING = ("; with delay 0 it names what a sweep over delay starts from (without it, "
+                    "the first)")
+
+
 def _adversary(checks: Checks, world: Any) -> None:
     """traps, delay, and what stands at the start: P2's standing action, an index into her
     actions (the trap sets in combinations order, or an arena's P2 actions). With delay 0

@@ -109,16 +109,15 @@ class World:
         world's own robot settings too), validated: InputError(file, key, reason) on a value
         no world file could give or on a name that is no setting of this world. Values are
         taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
-        numpy's numbers as Python's (window=np.int64(3)). Another number of traps with delay
-        0 and no initial_standing starts a later re-solve with delay from the first set."""
+        numpy's numbers as Python's (window=np.int64(3)). Another number of traps without
+        initial_standing keeps the standing traps as a sweep does: the first of them, then the
+        first other candidates (dynamics.carried_standing)."""
         changes = {name: plain(value) for name, value in changes.items()}
         if isinstance(changes.get("path"), str):       # as Python gives it: a path's text
             changes["path"] = Path(changes["path"])
         own = {name: value for name, value in changes.items() if name in _FIELDS}
-        if ("traps" in own and own["traps"] != self.traps and "initial_standing" not in own
-                and own.get("delay", self.delay) == 0):
-            # the standing set of a delay-0 world was named for its own number of traps
-            own["initial_standing"] = 0
+        if "traps" in own and own["traps"] != self.traps and "initial_standing" not in own:
+            own["initial_standing"] = self._carried_standing(own["traps"], "front" in own)
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
         if front:
             replaceable = getattr(own.get("front", self.front), "replaceable", frozenset())
@@ -143,6 +142,18 @@ class World:
                                  "one of " + ", ".join(sorted(known)))
             own["front"] = dataclasses.replace(own.get("front", self.front), **front)
         return dataclasses.replace(self, **own)
+
+    def _carried_standing(self, traps: object, new_front: bool) -> int:
+        """The standing trap set for another number of traps, as a sweep carries it (the first
+        of the world's standing traps, then the first other candidates); 0 when it cannot be
+        (another front, a number of traps validation will refuse)."""
+        from hg2prism.model.dynamics import carried_standing, trap_set_at
+
+        n = len(getattr(self.front, "trap_candidates", ()))
+        if (new_front or not isinstance(traps, int) or isinstance(traps, bool)
+                or not 1 <= traps <= n or not 1 <= self.traps <= n):
+            return 0
+        return carried_standing(n, trap_set_at(n, self.traps, self.initial_standing), traps)
 
     @property
     def grid(self) -> object | None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hg2prism.errors import InputError
+from hg2prism.errors import InputError, did_you_mean
 from hg2prism.model.validation import Checks, Vocabulary
 from hg2prism.model.validation import key_part as _key_part
 from hg2prism.model.validation import toml_repr as _toml_repr
@@ -95,7 +95,8 @@ class _Loader(Checks):
             detail = msg[: m.start()].strip() if m else msg
             single = re.search(r"^[ \t]*\[[ \t]*(" + "|".join(re.escape(t) for t in ARRAY_TABLES)
                                + r")[ \t]*\]", text, re.MULTILINE)
-            if single:          # a table of entries written as one table: said in its words
+            if single and detail.startswith(("Cannot declare", "Cannot overwrite")):
+                # a table of entries written as one table, declared again: said in its words
                 detail += (f"; each entry of [[{single.group(1)}]] starts with two brackets "
                            f"(a line [{single.group(1)}] is one table)")
             raise self.fail(key, f"not valid TOML: {detail}") from None
@@ -109,8 +110,8 @@ class _Loader(Checks):
                 key = f"{prefix}.{_key_part(name)}" if prefix else _key_part(name)
                 what = "table" if isinstance(table[name], dict) else "key"
                 where = f"in [{prefix}]" if prefix else "at the top level"
-                raise self.fail(key, f"unknown {what} {where}; expected one of: "
-                                     + ", ".join(allowed))
+                raise self.fail(key, f"unknown {what} {where}{did_you_mean(name, allowed)}; "
+                                     "expected one of: " + ", ".join(allowed))
         for name, required in allowed.items():
             if required and name not in table:
                 key = f"{prefix}.{name}" if prefix else name
