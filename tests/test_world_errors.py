@@ -780,6 +780,37 @@ def test_bad_arena_world(tmp_path: Path, capsys, text: str, key: str, word: str)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]
 
 
+def test_an_entry_s_error_says_where_the_entry_starts(tmp_path: Path) -> None:
+    """Entries are counted from 0 in keys (arena.transition[2] is the third): the reason adds
+    the line of the entry's [[arena.transition]] (a review searched a long file for the 17th);
+    [[type]] entries alike; a key that names no entry gets no line."""
+    headers = [n for n, line in enumerate(ARENA_BASE.splitlines(), 1)
+               if line == "[[arena.transition]]"]
+    bad = tmp_path / "bad.toml"
+    bad.write_text(arena_edit(('p2 = "watch_db"', 'p2 = "watch_dv"')))
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert err.value.key == "arena.transition[2].p2"
+    assert err.value.reason.endswith(f"(the entry at line {headers[2]})"), err.value
+    bad.write_text(arena_edit(('states = ["out", "web", "mail", "db", "hr"]',
+                               'states = ["out", "web", "mail", "db", "hr", "hr"]')))
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    assert "line" not in err.value.reason
+    typed = ARENA_BASE.replace("[inference]\nwindow = 2\nthreshold = 0.6\nrationality = 1.0\n",
+                               '[[type]]\nname = "a"\nweight = 1\n[type.inference]\n'
+                               'window = 1\nthreshold = 0.6\nrationality = 1.0\n'
+                               '\n[[type]]\nname = "b"\nweight = 1\n[type.inference]\n'
+                               'window = 0\nthreshold = 0.6\nrationality = 1.0\n')
+    assert typed != ARENA_BASE
+    bad.write_text(typed)
+    with pytest.raises(InputError) as err:
+        load_world(bad)
+    second = [n for n, line in enumerate(typed.splitlines(), 1) if line == "[[type]]"][1]
+    assert err.value.key.startswith("type[1]") and err.value.reason.endswith(
+        f"(the entry at line {second})"), err.value
+
+
 def test_an_entry_table_written_with_one_bracket_is_said(tmp_path: Path) -> None:
     """[arena.transition] for [[arena.transition]]: the TOML parser's words ("Cannot declare
     ('arena', 'transition') twice") and the fix, in one line."""

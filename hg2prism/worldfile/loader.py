@@ -61,6 +61,28 @@ class _Loader(Checks):
         self.path = path
         self.text = text        # the file's text when it does not come from a file
         self.data = data        # or the parsed file (a world built in Python)
+        self.source: str | None = None      # the text parsed, once read
+
+    def fail(self, key: str, reason: str) -> InputError:
+        line = self._entry_line(key)
+        if line is not None:    # entries are counted from 0: where the entry is, in the file
+            reason = f"{reason} (the entry at line {line})"
+        return super().fail(key, reason)
+
+    def _entry_line(self, key: str) -> int | None:
+        """The line of the `[[table]]` header that starts the entry `key` names
+        ("arena.transition[16].to.plc": the 17th [[arena.transition]]), None when the key names
+        no entry or the text is not known."""
+        import re
+
+        found = re.match(r"(" + "|".join(re.escape(t) for t in ARRAY_TABLES) + r")\[(\d+)\]",
+                         key)
+        if found is None or self.source is None:
+            return None
+        header = re.compile(r"[ \t]*\[\[[ \t]*" + re.escape(found.group(1)) + r"[ \t]*\]\]")
+        starts = [n for n, text in enumerate(self.source.splitlines(), 1) if header.match(text)]
+        index = int(found.group(2))
+        return starts[index] if index < len(starts) else None
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -87,7 +109,9 @@ class _Loader(Checks):
         except UnicodeDecodeError as err:
             raise self.fail("-", f"not valid TOML: not UTF-8 text (byte {err.start})") from None
         try:
-            return tomllib.loads(text)
+            parsed = tomllib.loads(text)
+            self.source = text
+            return parsed
         except tomllib.TOMLDecodeError as err:
             msg = str(err)
             m = re.search(r"\(at (line \d+, column \d+|end of document)\)\s*$", msg)
