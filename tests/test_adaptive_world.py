@@ -232,6 +232,29 @@ def test_the_size_guard_bounds_every_type_and_the_adaptive_hypergame():
     assert sizeguard.check_size(world, adaptive) == adaptive      # at the limit: accepted
 
 
+def test_a_refused_type_advises_the_max_states_every_part_needs():
+    """A type above the limit is named, but the --max-states advised (and the refusal's
+    estimate, which a sweep compares across its points) is the largest part's, here the
+    adaptive hypergame's: following the advice does not meet the adaptive refusal next."""
+    from pathlib import Path
+
+    from hg2prism.model import sizeguard
+
+    world = load((Path(__file__).resolve().parent.parent / "models" / "world4.toml").read_text())
+    own = [sizeguard.estimate_states(world_of_type(world, k)) for k in range(2)]
+    adaptive = sizeguard.estimate_adaptive(world)
+    assert adaptive > max(own)              # else this test shows nothing
+    first = next(k for k in range(2) if own[k] == max(own))
+    with pytest.raises(InputError) as caught:
+        sizeguard.check_size(world, max(own) - 1)
+    assert caught.value.key == f"type[{first}]"
+    assert f"up to {max(own):,} states" in str(caught.value)
+    assert (f"To build it and every other part of the world anyway, pass --max-states "
+            f"{adaptive}") in str(caught.value)
+    assert caught.value.estimate == adaptive
+    assert sizeguard.check_size(world, adaptive) == adaptive      # the advice lets it through
+
+
 def test_a_type_too_big_is_refused_before_any_work(tmp_path):
     """`hg2prism run` refuses it with one line naming the type, writing nothing."""
     import subprocess

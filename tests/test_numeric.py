@@ -446,3 +446,70 @@ def test_min_expected_steps_against_closed_forms() -> None:
     assert found.choice[:2].tolist() == [0, 2] and found.rounds == 2
     kept = min_expected_steps(model, states, np.array([False, True, True]), start)
     assert kept.values.tolist() == pytest.approx([5.0, 4.0, 0.0]) and kept.rounds == 1
+
+
+def _fastest_by_definition(states, choices, goal, optimal, stop, tie=1e-12):
+    """The fastest-first rule in plain Python (docs/semantics.md §6): `choices` lists per
+    state its choices, each a list of (target, probability); W iterated from 0 until it changes
+    by less than `stop`; the first optimal choice within a relative `tie` of the best."""
+    w = [0.0] * states
+
+    def score(c):
+        return sum(p if goal[t] else 0.9 * p * w[t] for t, p in c)
+
+    numbered = [[(k, c) for k, c in enumerate(cs)] for cs in choices]
+    index, flat = 0, []
+    for s in range(states):
+        flat.append([(index + k, c) for k, c in numbered[s] if optimal[index + k]])
+        index += len(choices[s])
+    for _ in range(1000):
+        new = [max((score(c) for _, c in flat[s]), default=0.0) for s in range(states)]
+        change = max(abs(a - b) for a, b in zip(new, w))
+        w = new
+        if change < stop:
+            break
+    chosen = []
+    for s in range(states):
+        scored = [(i, score(c)) for i, c in flat[s]]
+        top = max((x for _, x in scored), default=None)
+        chosen.append(-1 if top is None else next(i for i, x in scored if x >= top - tie * abs(top)))
+    return chosen, w
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_fastest_first_against_its_definition(seed: int, monkeypatch) -> None:
+    """numeric.fastest.fastest_first, which every strategy's fastest-first rule calls, against
+    the rule in plain Python on random MDPs with repeated targets, exact ties (probabilities
+    1/4 and 1/2, symmetric choices), states without an optimal choice and goal states; and its
+    two-thread sweep (for large models) gives the same numbers bit for bit."""
+    from hg2prism.numeric import fastest
+
+    rng = np.random.default_rng(seed)
+    states = 40
+    goal = rng.random(states) < 0.1
+    choices = []
+    for s in range(states):
+        own = []
+        for _ in range(0 if goal[s] else int(rng.integers(0, 4))):
+            shape = [0.5, 0.25, 0.25] if rng.random() < 0.7 else [1.0]
+            own.append([(int(rng.integers(states)), p) for p in shape])
+        if own and rng.random() < 0.3:
+            own.append(list(own[0]))                        # the same choice again: a tie
+        choices.append(own)
+    optimal = np.array([rng.random() < 0.7 for cs in choices for _ in cs])
+    choice_state = np.array([s for s, cs in enumerate(choices) for _ in cs], dtype=np.int64)
+    entries = [(k, t, p) for k, c in enumerate(c for cs in choices for c in cs) for t, p in c]
+    entry_choice, entry_target, entry_prob = (np.array(x) for x in zip(*entries))
+    expected, w = _fastest_by_definition(states, choices, goal, optimal, 1e-12)
+    got = fastest.fastest_first(choice_state, entry_choice.astype(np.int64),
+                                entry_target.astype(np.int64), entry_prob.astype(float), goal,
+                                optimal, 1e-12)
+    assert got.choice.tolist() == expected
+    assert got.scores == pytest.approx(w, abs=1e-11)
+    assert (got.choice >= 0).sum() < states and (got.choice >= 0).any()   # both kinds present
+    monkeypatch.setattr(fastest, "THREADED_GROUPS", 2)
+    threaded = fastest.fastest_first(choice_state, entry_choice.astype(np.int64),
+                                     entry_target.astype(np.int64), entry_prob.astype(float),
+                                     goal, optimal, 1e-12)
+    assert np.array_equal(threaded.choice, got.choice)
+    assert np.array_equal(threaded.scores, got.scores)

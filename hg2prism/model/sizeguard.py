@@ -326,14 +326,21 @@ def check_size(world: World, limit: int | None = None) -> int:
                        f"{len(world.hypotheses)} hypotheses and window {world.window}")
     from hg2prism.worldfile.types import world_of_type
 
-    for k, t in enumerate(world.types):
-        _refuse(world, f"type[{k}]", f"hypergame of type {t.name!r}",
-                estimate_states(world_of_type(world, k)), limit,
-                f"{len(world.hypotheses)} hypotheses and the type's window {t.window}")
-    return _refuse(world, "type", "adaptive hypergame (P2's type unknown)",
-                   estimate_adaptive(world), limit,
-                   f"{len(world.hypotheses)} hypotheses and the {len(world.types)} types' "
-                   "windows " + ", ".join(str(t.window) for t in world.types))
+    parts = [(f"type[{k}]", f"hypergame of type {t.name!r}",
+              estimate_states(world_of_type(world, k)),
+              f"{len(world.hypotheses)} hypotheses and the type's window {t.window}")
+             for k, t in enumerate(world.types)]
+    adaptive = estimate_adaptive(world)
+    parts.append(("type", "adaptive hypergame (P2's type unknown)", adaptive,
+                  f"{len(world.hypotheses)} hypotheses and the {len(world.types)} types' "
+                  "windows " + ", ".join(str(t.window) for t in world.types)))
+    # The first part above the limit is refused, naming it (a type's window is what to
+    # reduce), with the --max-states that lets every part through (the adaptive hypergame's
+    # is usually the largest), so that following its advice does not meet the next refusal.
+    needed = max(part[2] for part in parts)
+    for key, what, estimate, made in parts:
+        _refuse(world, key, what, estimate, limit, made, needed)
+    return adaptive
 
 
 def check_robust_size(world: World, limit: int | None = None) -> int:
@@ -402,16 +409,20 @@ def _beyond_machine(need: int, flag: str, smaller: str, per_state: bool = True) 
             f"smaller ({flag} would try anyway)")
 
 
-def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str) -> int:
-    """`estimate`, or InputError(world, key) when it exceeds `limit`."""
+def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: str,
+            needed: int | None = None) -> int:
+    """`estimate`, or InputError(world, key) when it exceeds `limit`. `needed` (at least
+    `estimate`): the --max-states to advise, when other parts of the world need more."""
     if estimate > limit:
+        needed = max(estimate, needed or 0)
         size = "more than 10^18" if estimate >= BEYOND else f"up to {estimate:,}"
         window = f"{key}.inference.window" if key.startswith("type[") else (
             "the types' windows" if key == "type" else "inference.window")
-        hint = (_beyond_machine(estimate * BYTES_PER_STATE, f"--max-states {estimate}",
+        other = "" if needed == estimate else " and every other part of the world"
+        hint = (_beyond_machine(needed * BYTES_PER_STATE, f"--max-states {needed}",
                                 f"fewer traps, trap candidates or hypotheses, a smaller {window} "
                                 "or delay")
-                or f"To build it anyway, pass --max-states {estimate}") if estimate < BEYOND \
+                or f"To build it{other} anyway, pass --max-states {needed}") if needed < BEYOND \
             else f"Reduce {window} or the world"
         refused = InputError(
             str(world.path), key,
@@ -420,7 +431,7 @@ def _refuse(world: World, key: str, what: str, estimate: int, limit: int, made: 
             + (f"the limit of {limit:,} that fits in memory" if limit == DEFAULT_LIMIT
                else f"the limit of {limit:,} (--max-states)")
             + f"; nothing was written. {hint}")
-        refused.estimate = estimate     # a sweep's refusal gives the largest of its points'
+        refused.estimate = needed       # a sweep's refusal gives the largest of its points'
                                         # (sweep.guard_points)
         raise refused
     return estimate

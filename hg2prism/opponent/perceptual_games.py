@@ -34,7 +34,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.numeric import (alternating_attractor, backward_reach, downstream_first,
                               move_predecessors, solve_plain)
-from hg2prism.numeric.fastest import DISCOUNT, EXACT_SCORE_STOP, EXACT_SLACK
+from hg2prism.numeric.fastest import DISCOUNT, EXACT_SCORE_STOP, EXACT_SLACK, fastest_first
 from hg2prism.numeric.tables import fold, outcome_sum
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError
@@ -649,22 +649,23 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
     A move is optimal when its one-step value is within 1e-9 of values[g]. The scores are
     W(g) = max over optimal a1 of sum_k P(k) * (1 if the outcome is a goal else discount *
     W(next_k)), iterated from 0 until the change is below 1e-12 (0 on absorbing states); P1
-    plays the optimal move with the largest score, exact ties to the first action slot (a
-    padded slot repeats the state's first action, so it never wins a tie)."""
+    plays the optimal move with the largest score, scores within a relative 1e-12 tied and
+    ties to the first action slot (a padded slot repeats the state's first action, so it never
+    wins a tie), by the rule every strategy is read with (numeric.fastest.fastest_first)."""
     game = TurnBasedGame(ts, dfa)
     v = np.asarray(values, dtype=float)
     rows = np.arange(game.size)
     nxt = game.next[rows, :, p2]                                      # [G, A1, K]
     prob = game.prob[rows, :, p2]
     optimal = (prob * v[nxt]).sum(-1) >= v[:, None] - EXACT_SLACK
-    w = np.zeros(game.size)
-    for _ in range(MAX_SWEEPS):
-        gain = (prob * np.where(game.goal[nxt], 1.0, discount * w[nxt])).sum(-1)
-        new = np.where(game.free, np.where(optimal, gain, 0.0).max(axis=1), 0.0)
-        if np.abs(new - w).max() < EXACT_SCORE_STOP:
-            break
-        w = new
-    return FastestMoves(answers=np.where(optimal, gain, -1.0).argmax(axis=1), scores=w)
+    optimal &= game.free[:, None]                       # absorbing states: no move, score 0
+    n_a1, n_k = nxt.shape[1:]
+    choices = np.arange(game.size * n_a1)
+    fastest = fastest_first(choices // n_a1, np.repeat(choices, n_k), nxt.reshape(-1),
+                            prob.reshape(-1), game.goal, optimal.reshape(-1), EXACT_SCORE_STOP,
+                            discount=discount)
+    answers = np.where(fastest.choice >= 0, fastest.choice - rows * n_a1, 0)
+    return FastestMoves(answers=answers, scores=fastest.scores)
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
