@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: world1 world2 world3 world4 mir100 sweep-demo test test-all mazes bench bench-huge clean docs docs-all world1-bayes
+.PHONY: world1 world2 world3 world4 mir100 sweep-demo test test-all mazes bench bench-huge clean docs docs-all world1-bayes world1-ties
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -60,11 +60,11 @@ mazes: $(STAMP)
 # (docs/cli.md, "Documentation that cannot go stale"): the fast worlds afresh, the others from
 # docs/data (docs-all runs them all afresh, about five minutes; `make bench` renews
 # docs/performance.md's data, bench/results.json, which make docs copies when present).
-docs: world1 world3 world4 mir100 world1-bayes
+docs: world1 world3 world4 mir100 world1-bayes world1-ties
 	$(BIN)/python -m hg2prism.report.docs
 	cp models/world3/explorer.html docs/world3_explorer.html
 
-docs-all: world1 world2 world3 world4 mir100 world1-bayes
+docs-all: world1 world2 world3 world4 mir100 world1-bayes world1-ties
 	$(BIN)/hg2prism robust models/world1.toml --out models/world1_robust
 	$(BIN)/python -m hg2prism.report.docs
 
@@ -72,6 +72,11 @@ docs-all: world1 world2 world3 world4 mir100 world1-bayes
 world1-bayes: $(STAMP)
 	$(BIN)/hg2prism sweep models/world1.toml --param inference --values bayes \
 		--param decision --values map sample --out models/world1_bayes
+
+# world1 with P2's ties broken the other way (docs/results.md, semantics §4)
+world1-ties: $(STAMP)
+	$(BIN)/hg2prism sweep models/world1.toml --param tie_break --values first last \
+		--out models/world1_ties
 
 bench: $(STAMP)
 	$(BIN)/hg2prism bench --out bench

@@ -80,8 +80,9 @@ def analyse(world: World) -> Analysis:
             jobs = sorted([(task, -1)] + [(dfa, i) for i, dfa in enumerate(hypotheses)],
                           key=lambda job: -job[0].n_states)
             shared = SharedParts()      # a part two games have in common is solved once
-            futures = {i: (pool.submit(solve_game, ts, dfa, shared) if i < 0 else
-                           pool.submit(perceptual_game, ts, dfa, world.rationality, shared))
+            futures = {i: (pool.submit(solve_game, ts, dfa, shared, world.tie_break) if i < 0
+                           else pool.submit(perceptual_game, ts, dfa, world.rationality, shared,
+                                            world.tie_break))
                        for dfa, i in jobs}
             if ts.succ.size >= LONG_GAMES:      # seconds to minutes: say how it goes
                 _say_games_progress(futures, ts)

@@ -116,6 +116,7 @@ class Parameters:
     # (CUSUM's threshold, §5; the Bayesian prior and decision, §12)
     inference: str = "cusum"
     settings: tuple[tuple[str, object], ...] = ()
+    tie_break: str = "first"        # which of P2's tied actions she takes (§4)
 
     @classmethod
     def of(cls, world: World) -> Parameters:
@@ -125,18 +126,19 @@ class Parameters:
                    traps=world.traps, delay=world.delay, hypotheses=tuple(world.hypotheses),
                    initial_hypothesis=world.initial_hypothesis, window=world.window,
                    rationality=world.rationality, inference=world.inference,
-                   settings=world.settings)
+                   settings=world.settings, tie_break=world.tie_break)
 
     def to_json(self) -> dict:
         """The parameters in file order: the observer's kind is named unless it is the default
         one (CUSUM's results.json has always omitted it), then the window, the kind's own
-        settings and P2's rationality."""
+        settings and P2's rationality; P2's tie break when it is not the rule's ("first")."""
         from hg2prism.model.world import World
 
         default = next(f.default for f in fields(World) if f.name == "inference")
         kind = {} if self.inference == default else {"inference": self.inference}
+        ties = {} if self.tie_break == "first" else {"tie_break": self.tie_break}
         return {"formula": self.formula, **dict(self.front_end), "traps": self.traps,
-                "delay": self.delay, "hypotheses": list(self.hypotheses),
+                "delay": self.delay, **ties, "hypotheses": list(self.hypotheses),
                 "initial_hypothesis": self.initial_hypothesis, **kind, "window": self.window,
                 **{key: list(value) if isinstance(value, tuple) else value
                    for key, value in self.settings},

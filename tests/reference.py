@@ -707,6 +707,9 @@ class World:
         self.delay = arena["delay"]
         self.hyps = list(adv["hypotheses"])
         self.h0 = int(adv.get("initial_hypothesis", 0))
+        # which tied action P2 takes where the standing one is not tied: the first (the
+        # rule) or, with [adversary] tie_break = "last", the last
+        self.tie_last = adv.get("tie_break", "first") == "last"
         inf = doc["inference"]
         self.window = int(inf["window"])
         self.threshold = float(inf["threshold"]) if "threshold" in inf else None   # none for "bayes"
@@ -946,7 +949,8 @@ class World:
         if self.delay > 0 and self.standing(v) in tied:
             res = self.standing(v)
         else:
-            res = tied[0]   # A2 is in its order: as listed, or itertools.combinations order
+            # A2 is in its order: as listed, or itertools.combinations order
+            res = tied[-1] if self.tie_last else tied[0]
         self._pi2_cache[key] = res
         return res
 

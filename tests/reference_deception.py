@@ -118,7 +118,8 @@ class Deception:
             acts = w.A2(v)
             m = [max(w.Q(task, v, q, a1, a2) for a1 in w.actions(v)) for a2 in acts]
             tied = [a2 for a2, mv in zip(acts, m) if mv <= min(m) + TIE_P2]
-            self._leader_a2[key] = w.standing(v) if w.delay > 0 and w.standing(v) in tied else tied[0]
+            self._leader_a2[key] = (w.standing(v) if w.delay > 0 and w.standing(v) in tied
+                                    else tied[-1] if w.tie_last else tied[0])
         return self._leader_a2[key]
 
     def _gain(self, v, q, a1, a2, scores):

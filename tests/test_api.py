@@ -196,7 +196,11 @@ def test_example_runs(script: str, tmp_path: Path) -> None:
 
 # What the examples' comments say they print (checked against the strategy in
 # test_quick_start_claims_match_the_strategy).
-EXAMPLE_CLAIMS = {"quick_start.py": ("start state: x2_y4", "first move: W")}
+EXAMPLE_CLAIMS = {"quick_start.py": ("start state: x2_y4", "first move: W"),
+                  "sweep_rationality.py": ("V_lead 0.7500, V_NE in [0.324992, 0.324992]",
+                                           "rationality   0.5: deceptive value 0.7500",
+                                           "rationality   2.0: deceptive value 0.7500",
+                                           "rationality  10.0: deceptive value 1.0000")}
 
 
 def test_quick_start_claims_match_the_strategy() -> None:

@@ -295,3 +295,118 @@ def test_deceptive_moves_are_the_fastest_optimal_ones(case) -> None:
     np.minimum.at(first, mdp.choice_state[at_best], np.flatnonzero(at_best))
     wrong = np.flatnonzero(exported & (action != mdp.choice_action[np.minimum(first, n_choices - 1)]))
     assert wrong.size == 0, wrong[:10]
+
+
+def _tie_break_cases() -> list[str]:
+    """world1 and three generated worlds (delay 0 and positive, one and two traps) on which
+    P2's tie break changes her play."""
+    worlds = {name: load_world_text(text)["adversary"] for name, text in FAMILY.items()}
+    picks = [next(n for n, a in sorted(worlds.items()) if a.get("delay", 0) == 0),
+             next(n for n, a in sorted(worlds.items()) if a.get("delay", 0) > 0 and a["traps"] == 1),
+             next(n for n, a in sorted(worlds.items()) if a.get("delay", 0) > 0 and a["traps"] == 2)]
+    return ["world1"] + picks
+
+
+@pytest.mark.parametrize("name", _tie_break_cases())
+def test_the_last_tie_break_against_the_reference(name: str, world_dir: Path) -> None:
+    """[adversary] tie_break = "last" (docs/semantics.md §4): P2 takes the last of her tied
+    sets where the standing one is not tied. Values, canonical sizes and her strategies agree
+    with the independent reference reading the same key, and the strategies differ from the
+    rule's (first) somewhere, so the key does something."""
+    text = world_path(name, str(world_dir)).read_text()
+    last = world_dir / f"{name}_last.toml"
+    last.write_text(text.replace("[adversary]\n", '[adversary]\ntie_break = "last"\n', 1))
+    result = pipeline.check(load_world(last), world_dir / f"{name}_last")
+    ref = reference.solve(last)
+    assert result.results.deceptive_value == pytest.approx(ref.value, abs=TOL)
+    assert result.results.v_lead == pytest.approx(ref.v_lead, abs=TOL)
+    assert (result.results.states, result.results.transitions) == (ref.states, ref.transitions)
+    ts = gridview.view(result.analysis)
+    first, _ = run(name, str(world_dir))
+    compared = differ = 0
+    for h, game in enumerate(result.analysis.games):
+        differ += int((game.trap_choice != first.analysis.games[h].trap_choice).sum())
+        for state in range(ts.n_states - 1):
+            try:     # the reference solves P2's games on the TS states reachable from the start
+                theirs = ref.trap_strategy(h, _reference_state(ts, state))
+            except KeyError:
+                continue
+            assert set(ts.trap_cells(int(game.trap_choice[state]))) == set(theirs), (h, state)
+            compared += 1
+    assert compared > 0 and differ > 0
+
+
+def test_the_last_tie_break_is_the_first_with_the_candidates_reversed(tmp_path: Path) -> None:
+    """With one trap, P2 taking the last of her tied sets is P2 taking the first with the
+    trap candidates listed in reverse (world1's arena form, `convert`): the same deceptive
+    value (0.9636 against the rule's 0.9498: the tie decides part of world1's value) and
+    sizes; and `convert` writes the key."""
+    from hg2prism.frontends.arena import to_toml
+
+    world = load_world(MODELS / "world1.toml")
+    last = world.replace(tie_break="last")
+    arena = to_toml(world)
+    assert 'tie_break = "last"' in to_toml(last) and "tie_break" not in arena
+    assert last.digest() != world.digest()      # another world (the rule's keeps its digest)
+    start = arena.index("trap_candidates = [")
+    end = arena.index("]", start)
+    names = [n.strip() for n in arena[start + len("trap_candidates = ["):end].split(",")]
+    reversed_text = arena[:start] + "trap_candidates = [" + ", ".join(names[::-1]) + arena[end:]
+    (tmp_path / "world1_reversed.toml").write_text(reversed_text)
+    reversed_world = load_world(tmp_path / "world1_reversed.toml")
+    ours = pipeline.check(last, tmp_path / "last").results
+    theirs = pipeline.check(reversed_world, tmp_path / "reversed").results
+    rule = pipeline.check(world, tmp_path / "first").results
+    assert ours.deceptive_value == pytest.approx(theirs.deceptive_value, abs=1e-9)
+    assert (ours.states, ours.transitions) == (theirs.states, theirs.transitions)
+    # the numbers docs/semantics.md §4 gives (the reference computes both in the test above)
+    assert (round(rule.deceptive_value, 4), round(ours.deceptive_value, 4)) == (0.9498, 0.9636)
+
+
+CORRIDORS = '''name = "corridors"
+description = "A and B at the ends of two corridors, the first candidate A's chokepoint"
+
+[grid]
+map = """
+#########
+#A#...#B#
+#t#...#t#
+#.#.o.#.#
+#.......#
+#...t...#
+#.......#
+#...@...#
+#########
+"""
+
+[robot]
+slip = 0.1
+
+[task]
+formula = "!obs U A"
+
+[adversary]
+traps = 1
+hypotheses = ["!obs U A", "!obs U B"]
+initial_hypothesis = 1
+
+[inference]
+window = 2
+threshold = 1.5
+rationality = 5.0
+'''
+
+
+@pytest.mark.parametrize("tie_break, value", [("first", 0.0), ("last", 1.0)])
+def test_the_tie_decides_everything_in_the_corridors(tie_break: str, value: float,
+                                                     tmp_path: Path) -> None:
+    """docs/semantics.md §4, "What the tie decides": P2, believing B, is indifferent between
+    her three candidates while P1 walks up A's corridor; by the rule she takes the first, A's
+    chokepoint, and P1 never arrives (0); taking the last (the middle cell) she lets him pass
+    (1). The reference agrees both ways."""
+    path = tmp_path / f"corridors_{tie_break}.toml"
+    path.write_text(CORRIDORS.replace("initial_hypothesis = 1\n",
+                                      f'initial_hypothesis = 1\ntie_break = "{tie_break}"\n'))
+    result = pipeline.check(load_world(path), tmp_path / "out")
+    assert result.results.deceptive_value == pytest.approx(value, abs=1e-9)
+    assert reference.solve(path).value == pytest.approx(value, abs=TOL)

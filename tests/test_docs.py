@@ -77,7 +77,8 @@ RUN_HERE = {case: args for case, args in FRESH.items() if not QUICK or args[0] !
 
 def test_make_docs_runs_the_showcase_worlds() -> None:
     assert set(FRESH) == {"world1", "world3", "world3_bayes", "world4", "world4_weight",
-                          "mir100", "mir100_sweep", "mir100_guess", "world1_bayes"}
+                          "mir100", "mir100_sweep", "mir100_guess", "world1_bayes",
+                          "world1_ties"}
     assert FRESH["world1"] == ["run", "models/world1.toml"]
     assert set(FRESH) <= set(docs.SOURCES)
 

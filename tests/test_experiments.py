@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import MODELS
+from conftest import MODELS, QUICK
 from gridview import GridView
 from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
@@ -217,14 +217,16 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
     for row in rows:
         k = row["delay"]
         assert row["standing"] == ("x2_y5" if k else None)
+        # docs/semantics.md §7: V_NE <= V_lead <= deceptive value at the initial state
+        assert row["v_ne"] <= row["v_lead"] + 1e-6 <= row["deceptive_value"] + 2e-6
+        if QUICK and k in (1, 2):       # make test: the first and last points re-solved alone
+            continue
         single_path = write_world(tmp_path, f"world2_k{k}", text.replace("delay = 0\n", f"delay = {k}\n"))
         single = pipeline.check(load_world(single_path), tmp_path / f"single_{k}")
         assert row["deceptive_value"] == pytest.approx(single.results.deceptive_value, abs=1e-9)
         assert row["v_lead"] == pytest.approx(single.results.v_lead, abs=1e-9)
         assert row["states"] == single.results.states
         assert row["transitions"] == single.results.transitions
-        # docs/semantics.md §7: V_NE <= V_lead <= deceptive value at the initial state
-        assert row["v_ne"] <= row["v_lead"] + 1e-6 <= row["deceptive_value"] + 2e-6
     values = [r["deceptive_value"] for r in rows]
     assert all(a < b for a, b in zip(values, values[1:]))          # the paper's Fig. 4
     assert values[0] == pytest.approx(0.709, abs=1e-3)

@@ -30,6 +30,8 @@ INVALID = [
     (GRID, "window", 0, "inference.window"),
     (GRID, "window", 1.5, "inference.window"),
     (GRID, "initial_hypothesis", 7, "adversary.initial_hypothesis"),
+    (GRID, "tie_break", "random", "adversary.tie_break"),
+    (ARENA, "tie_break", None, "adversary.tie_break"),
     (GRID, "name", "", "name"),
     (GRID, "description", 3, "description"),
     (GRID, "formula", "G obs", "task.formula"),

@@ -169,6 +169,8 @@ CASES = [
      "string"),
     ("initial-hypothesis-out-of-range", edit(("initial_hypothesis = 0", "initial_hypothesis = 3")),
      "adversary.initial_hypothesis", "index"),
+    ("tie-break-unknown", edit(("initial_hypothesis = 0", 'initial_hypothesis = 0\ntie_break = "worst"')),
+     "adversary.tie_break", 'expected "first" or "last"'),
     # --- inference
     ("window-below-one", edit(("window = 2", "window = 0")), "inference.window", ">= 1"),
     ("threshold-not-positive", edit(("threshold = 1.5", "threshold = 0")),

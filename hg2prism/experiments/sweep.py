@@ -53,6 +53,7 @@ from hg2prism.experiments.values import NOT_FORM, OUTSIDE, ValueList, number, pa
 from hg2prism.frontends import arena_of
 from hg2prism.model.world import World
 from hg2prism.model.dynamics import carried_standing
+from hg2prism.model.validation import TIE_BREAKS
 from hg2prism.opponent.observer import ObserverKind
 from hg2prism.opponent.registry import (KINDS, configure, observer_kind, owner, register,
                                         run_time_kinds)
@@ -107,6 +108,12 @@ def _field(name: str) -> Callable[[World, Value], World]:
 
 def _observer_kind(value: object) -> str:
     if value not in KINDS:
+        raise ValueError(OUTSIDE)
+    return str(value)
+
+
+def _tie_break(value: object) -> str:
+    if value not in TIE_BREAKS:
         raise ValueError(OUTSIDE)
     return str(value)
 
@@ -263,6 +270,9 @@ def _built_table() -> dict[str, SweepParameter]:
                        number(int, 1, False), _with_traps, moves_traps=True),
         SweepParameter("initial_hypothesis", "an index into the hypotheses (P2's first guess)",
                        number(int, 0, False), _with_first_guess),
+        SweepParameter("tie_break", " or ".join(f'"{rule}"' for rule in TIE_BREAKS)
+                       + " (which of P2's tied actions she takes)", _tie_break,
+                       _field("tie_break")),
     ):
         if parameter.name in table:
             # one namespace for every world's parameters, the observers' settings and every

@@ -75,7 +75,7 @@ ARENA_KEYS = {"states": True, "initial": True, "propositions": False, "labels": 
 TRANSITION_KEYS = {"state": True, "action": True, "p2": False, "to": True}
 ADVERSARY_KEYS = {"actions": False, "initial_action": False, "traps": False,
                   "trap_candidates": False, "initial_traps": False, "delay": False,
-                  "hypotheses": True, "initial_hypothesis": False}
+                  "hypotheses": True, "initial_hypothesis": False, "tie_break": False}
 MISSING_HINT = {
     "arena.states": "an array of state names",
     "arena.initial": "the name of the initial state",
@@ -651,6 +651,8 @@ def _adversary_lines(world, arena: Arena, standing: int) -> list[str]:
     lines.append("hypotheses = " + toml_value(list(world.hypotheses)))
     if observer_kind(world.inference).first_guess is None:
         lines.append(f"initial_hypothesis = {world.initial_hypothesis}")
+    if world.tie_break != "first":
+        lines.append(f"tie_break = {toml_string(world.tie_break)}")
     return lines
 
 

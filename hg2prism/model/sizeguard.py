@@ -375,7 +375,8 @@ def solved_games(world: World) -> list[PerceptualGame]:
     from hg2prism.opponent.perceptual_games import perceptual_game
 
     ts = transition_system(world)
-    return [perceptual_game(ts, translate(h, ts.label_names, ts.letters), world.rationality)
+    return [perceptual_game(ts, translate(h, ts.label_names, ts.letters), world.rationality,
+                            tie_break=world.tie_break)
             for h in world.hypotheses]
 
 

@@ -21,6 +21,9 @@ from typing import Any
 
 from hg2prism.errors import InputError
 
+# which of P2's tied actions she takes where the standing one is not tied ([adversary]
+# tie_break, docs/semantics.md §4): the first in A2's order (the rule), or the last
+TIE_BREAKS = ("first", "last")
 MAX_RATIONALITY = 1e100     # P2's softmax in double precision (docs/semantics.md §1)
 
 # Limits that keep every accepted world within bounded time and memory. Simulated episodes run
@@ -201,6 +204,9 @@ class Checks:
 
     def window(self, value: object) -> int:
         return self.integer(value, "inference.window", 1)
+
+    def tie_break(self, value: object) -> str:
+        return self.choice(value, "adversary.tie_break", "tie break", TIE_BREAKS)
 
     def rationality(self, value: object) -> float:
         rationality = self.number(value, "inference.rationality")
@@ -490,6 +496,7 @@ def _adversary(checks: Checks, world: Any) -> None:
     nothing stands; the index is then what a re-solve with a positive delay starts from (a
     sweep over delay: the file's initial_traps or initial_action, else 0)."""
     delay = checks.delay(world.delay)
+    checks.tie_break(world.tie_break)
     n_actions, key = world.front.count_p2_actions(checks, world.traps)
     standing = checks.integer(world.initial_standing, key, 0)
     if standing >= n_actions:

@@ -69,6 +69,12 @@ class PlayerType:
     settings: tuple[tuple[str, object], ...] = ()
 
 
+# Fields added after digests were first written, left out of the digest at their default, so
+# that a world that does not use them keeps its digest (and its output folders).
+_LATER = {"tie_break": "first"}
+_NONE = object()
+
+
 @dataclass(frozen=True)
 class World:
     path: Path
@@ -95,6 +101,9 @@ class World:
     # the one a re-solve with a positive delay starts from (a sweep over delay), as the file
     # names it (initial_traps, initial_action), else 0
     initial_standing: int = 0
+    # which of the tied actions P2 takes where the standing one is not tied (docs/semantics.md
+    # §4): "first" (the rule: the lowest number) or "last", to see what the tie decides
+    tie_break: str = "first"
     # P2's possible types (docs/semantics.md §16; empty: one, as [inference] sets it). The
     # world's own observer is then its first type's; `worldfile.types.world_of_type` gives each
     # type's ordinary world.
@@ -175,7 +184,7 @@ class World:
         import json
 
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                  if f.name != "path"}
+                  if f.name != "path" and getattr(self, f.name) != _LATER.get(f.name, _NONE)}
         text = json.dumps(_canonical(fields), sort_keys=True, separators=(",", ":"))
         return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
 

@@ -306,11 +306,13 @@ class SharedParts:
         return future.result()[0], 0
 
 
-def solve_game(ts: TransitionSystem, dfa: DFA, shared: SharedParts | None = None) -> GameSolution:
-    return _solve(TurnBasedGame(ts, dfa), shared)
+def solve_game(ts: TransitionSystem, dfa: DFA, shared: SharedParts | None = None,
+               tie_break: str = "first") -> GameSolution:
+    return _solve(TurnBasedGame(ts, dfa), shared, tie_break)
 
 
-def _solve(game: TurnBasedGame, shared: SharedParts | None = None) -> GameSolution:
+def _solve(game: TurnBasedGame, shared: SharedParts | None = None,
+           tie_break: str = "first") -> GameSolution:
     """The game's values and strategies. The free states are solved one part at a time
     (`TurnBasedGame.parts`: one per strongly connected set of DFA states), downstream first,
     each on its own with the values of what it can enter fixed (on delay worlds a part is a
@@ -330,16 +332,17 @@ def _solve(game: TurnBasedGame, shared: SharedParts | None = None) -> GameSoluti
                 values, used = shared.solved(part)
             x[states] = values[:states.size]
             sweeps += used
-        certified = _finish(game, x, game.allowed_q(x))
+        certified = _finish(game, x, game.allowed_q(x), tie_break)
     if certified is None:
-        certified = _solve_whole(game)
+        certified = _solve_whole(game, tie_break)
         sweeps = certified[3]
     values, p1, p2 = certified[:3]
     return GameSolution(values=values.reshape(game.ts.n_states, game.dfa.n_states),
                         p2_strategy=p2, p1_strategy=p1, sweeps=sweeps)
 
 
-def _solve_whole(game: TurnBasedGame) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def _solve_whole(game: TurnBasedGame, tie_break: str = "first"
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Values (certified), P1's answers, P2's trap sets and the sweeps of value iteration used:
     value iteration seeds strategy iteration (`_certify`), with a tolerance 100 times smaller
     each time certification fails."""
@@ -351,7 +354,8 @@ def _solve_whole(game: TurnBasedGame) -> tuple[np.ndarray, np.ndarray, np.ndarra
     while True:
         lower, used = _value_iteration(game, lower, fixed, tolerance)
         sweeps += used
-        certified = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11))
+        certified = _certify(game, lower, zero, optimal_slack=max(100 * tolerance, 1e-11),
+                             tie_break=tie_break)
         if certified is not None:
             return (*certified, sweeps)
         if tolerance < 1e-15:
@@ -372,8 +376,8 @@ def _value_iteration(game: TurnBasedGame, v: np.ndarray, fixed: np.ndarray,
     raise SolverError(f"value iteration did not converge in {MAX_SWEEPS} sweeps")
 
 
-def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack: float,
+             tie_break: str = "first") -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Greedy strategies for both players from v, evaluated exactly and, if that pair is not
     optimal yet, improved by strategy iteration (`_strategy_iteration`); if certified (see the
     module docstring), the exact values x, P1's answers greedy for x (which guarantee x) and
@@ -392,10 +396,10 @@ def _certify(game: TurnBasedGame, v: np.ndarray, zero: np.ndarray, optimal_slack
     else:
         x = _strategy_iteration(game, p1, p2, zero)
         q = game.allowed_q(x)
-    return _finish(game, x, q)
+    return _finish(game, x, q, tie_break)
 
 
-def _finish(game: TurnBasedGame, x: np.ndarray, q: np.ndarray
+def _finish(game: TurnBasedGame, x: np.ndarray, q: np.ndarray, tie_break: str = "first"
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(x, P1's answers greedy for x, P2's trap sets by `trap_rule`) if the values x of a pair
     of strategies (q = allowed_q(x)) are certified (module docstring), else None."""
@@ -406,7 +410,7 @@ def _finish(game: TurnBasedGame, x: np.ndarray, q: np.ndarray
     if not is_certified(game, p1_x, x):
         return None
     worst = np.where(game.allowed, best_answer(q), np.inf)
-    return x, p1_x, trap_rule(worst, game.standing)
+    return x, p1_x, trap_rule(worst, game.standing, tie_break)
 
 
 def _residual(game: TurnBasedGame, x: np.ndarray, q: np.ndarray) -> float:
@@ -568,13 +572,17 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     return p1, p2
 
 
-def trap_rule(worst: np.ndarray, standing: np.ndarray | None) -> np.ndarray:
+def trap_rule(worst: np.ndarray, standing: np.ndarray | None, tie_break: str = "first"
+              ) -> np.ndarray:
     """P2's choice of trap set (docs/semantics.md §4): worst[i, a2] is the value of P1's best answer to a2
     (inf where a2 is not allowed); the sets within TIE of the lowest are tied, and among them
     P2 keeps the standing set (standing[i], -1 for none) when it is tied, else takes the
-    first."""
+    first (`tie_break` "first", the rule) or the last ("last")."""
     tied = worst <= worst.min(axis=1, keepdims=True) + TIE
-    choice = tied.argmax(axis=1)
+    if tie_break == "last":
+        choice = tied.shape[1] - 1 - tied[:, ::-1].argmax(axis=1)
+    else:
+        choice = tied.argmax(axis=1)
     if standing is not None:
         keep = (standing >= 0) & tied[np.arange(len(choice)), np.maximum(standing, 0)]
         choice = np.where(keep, standing, choice)
@@ -669,19 +677,21 @@ def fastest_moves(ts: TransitionSystem, dfa: DFA, values: np.ndarray, p2: np.nda
 
 
 def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
-                    shared: SharedParts | None = None) -> PerceptualGame:
+                    shared: SharedParts | None = None, tie_break: str = "first"
+                    ) -> PerceptualGame:
     """Solve G(x) and derive P2's strategy and her softmax model of P1 (docs/semantics.md
     §§4, 15): the softmax and the max over a1 range over the actions enabled at v. `shared`:
-    the parts solved for the world's other games (`SharedParts`)."""
+    the parts solved for the world's other games (`SharedParts`); `tie_break`: which of the
+    tied sets P2 takes (`trap_rule`: [adversary] tie_break)."""
     game = TurnBasedGame(ts, dfa)
-    solution = _solve(game, shared)
+    solution = _solve(game, shared, tie_break)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
     g = product_state(np.arange(ts.n_states), fresh_q, dfa.n_states)
     q = game.q_values(flat, g)                                        # [S, A1, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
-    choice = trap_rule(worst, _standing_sets(ts))
+    choice = trap_rule(worst, _standing_sets(ts), tie_break)
     all_tied = (~ts.allowed | (worst <= worst.min(axis=1, keepdims=True) + TIE)).all(axis=1)
     # A padded slot repeats action 0, so the max above is right unmasked; the softmax is not.
     scaled = np.where(ts.enabled[:, None, :], rationality * q.transpose(0, 2, 1), -np.inf)

@@ -46,6 +46,7 @@ SOURCES: dict[str, tuple[str, ...]] = {
     "mir100_sweep": ("sweep.json",),
     "world1_robust": ("robust.json",),      # make docs-all
     "world1_bayes": ("sweep.json",),        # world1 against the Bayesian observer (map, sample)
+    "world1_ties": ("sweep.json",),         # world1 with P2's ties broken either way
     "world2_bayes": ("sweep.json",),        # the same on world2 (make world2)
     "world2_replan_02": ("detection.json",),        # make world2: re-planning, budget 0.2
     "world2_replan_leader": ("detection.json",),    # and to the leader-game strategy

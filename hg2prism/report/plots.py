@@ -407,7 +407,7 @@ def _finish_sweep(fig, ax, path: Path | None, against: str, world_name: str | No
     """The axis, legend and title every sweep figure shares; saves the figure (not the
     caller's: in given axes the legend is the axes')."""
     ax.set_ylabel("P1's completion probability")
-    ax.set_ylim(0, 1.02)
+    ax.set_ylim(-0.02, 1.02)        # a value of 0 drawn whole, not cut in half by the axis
     ax.grid(alpha=0.3)
     _legend(fig, ax, given, ncol=ncol, fontsize=fontsize, frameon=False)
     title = f"completion probability at the initial state against {against}"

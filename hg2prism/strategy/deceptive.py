@@ -46,7 +46,9 @@ def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
     best = fastest_first(mdp.choice_state, mdp.entry_choice, mdp.entry_target, mdp.entry_prob,
                          mdp.goal, optimal, SCORE_STOP).choice
     del optimal
-    return np.where(best >= 0, mdp.choice_action[np.maximum(best, 0)], -1).astype(np.int64)
+    action = np.full(mdp.n, -1, dtype=np.int64)
+    action[best >= 0] = mdp.choice_action[best[best >= 0]]
+    return action
 
 
 def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np.ndarray,

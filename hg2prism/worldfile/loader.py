@@ -27,7 +27,7 @@ from hg2prism.model.world import DetectionSettings, SimulationSettings, World
 # description and task) and its [adversary] keys (frontends/__init__.py).
 _TOP_KEYS = {"name": False, "description": False, "task": True, "adversary": True,
              "inference": True, "simulation": False, "detection": False}
-_ADVERSARY_KEYS = {"hypotheses": True, "initial_hypothesis": False}
+_ADVERSARY_KEYS = {"hypotheses": True, "initial_hypothesis": False, "tie_break": False}
 _TABLE_KEYS: dict[str, dict[str, bool]] = {
     "task": {"formula": True},
     "adversary": _ADVERSARY_KEYS,
@@ -216,12 +216,13 @@ class _Loader(Checks):
         return name, description
 
     def guesses(self, adv: dict, vocabulary: Vocabulary) -> dict:
-        """[adversary]: the World fields hypotheses and initial_hypothesis (which P2's
-        observer may set instead: `inference`)."""
+        """[adversary]: the World fields hypotheses, initial_hypothesis (which P2's
+        observer may set instead: `inference`) and tie_break."""
         hypotheses = self.hypotheses(adv["hypotheses"], vocabulary)
         initial_hypothesis = self.initial_hypothesis(adv.get("initial_hypothesis", 0),
                                                      len(hypotheses))
-        return dict(hypotheses=hypotheses, initial_hypothesis=initial_hypothesis)
+        return dict(hypotheses=hypotheses, initial_hypothesis=initial_hypothesis,
+                    tie_break=self.tie_break(adv.get("tie_break", "first")))
 
     def inference(self, root: dict, adv: dict, adversary: dict) -> dict:
         """[inference]: the World fields inference (the observer's kind), window, settings
