@@ -339,7 +339,7 @@ def world1_headline(out: Outputs) -> str:
     r = out.read("world1")
     rows = [("deceptive value", r["deceptive_value"], "P1 against P2's inference (Storm's Pmax)"),
             ("V_static", r["v_static"], "P2 never revises her first guess"),
-            ("V_naive", r["v_naive"], "P1 plays the leader game against P2's inference"),
+            ("V_naive", r["v_naive"], "P1 plays as if P2 knew the task, against her inference"),
             ("V_lead", r["v_lead"], "P2 knows the task and commits first each step"),
             ("V_NE", r["v_ne"], "P2 knows the task; both players mix"),
             ("value of deception", r["value_of_deception"], "deceptive value − V_naive")]

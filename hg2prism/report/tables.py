@@ -97,7 +97,7 @@ def summary(results: CheckResults, out: Path, files: list[str]) -> str:
     ] + ([f"  v_ne             {results.v_ne:.6f}   in [{results.v_ne_bounds[0]:.10f}, "
           f"{results.v_ne_bounds[1]:.10f}], both players mixing, P2 knowing the task",
           f"  v_static         {results.v_static:.6f}   P2 never revises her first guess",
-          f"  v_naive          {results.v_naive:.6f}   P1 plays the leader game against P2's inference",
+          f"  v_naive          {results.v_naive:.6f}   P1 plays as if P2 knew the task, against her inference",
           f"  deception worth  {results.value_of_deception:.6f}   deceptive value - v_naive"]
          if isinstance(results, RunResults) else []) + [
         _objective_line(results),
