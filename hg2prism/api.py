@@ -230,7 +230,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
                      initial_hypothesis: int | None = None, inference: dict | None = None,
                      simulation: dict | None = None, detection: dict | None = None,
                      probability: str = "p", name: str = "attack_graph",
-                     description: str = "", positions=None) -> World:
+                     description: str = "", positions=None, tie_break: str = "first") -> World:
     """The arena world (docs/semantics.md §15) of an attack graph: a networkx.DiGraph whose
     edges carry the attack step's success probability (attribute `probability`).
 
@@ -243,7 +243,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     or a list); by default each target v carries `asset<v>` (`asset_<name>` for a named node).
     P2 (the defender) sets `traps` traps (honeypots) among `trap_candidates` (default: every
     node with outgoing edges); `initial_traps` (nodes) stand at the start when delay > 0 (with
-    delay 0, what a sweep over delay starts from).
+    delay 0, what a sweep over delay starts from); `tie_break` which of her tied sets P2 takes
+    (docs/semantics.md §4: "first", the rule, or "last").
     `hypotheses` default to `F <p>` for each proposition; `inference` is the [inference] table
     (keys not given: CUSUM, window 2, rationality 1 and, for CUSUM, threshold 0.6); `simulation` and `detection` the
     optional tables; `positions` (node -> [x, y], every node) where the figures draw the nodes,
@@ -290,6 +291,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
         adversary["initial_traps"] = [names[v] for v in initial_traps]
     if initial_hypothesis is not None:
         adversary["initial_hypothesis"] = initial_hypothesis
+    if tie_break != "first":
+        adversary["tie_break"] = tie_break
     data = {"name": name, "description": description, "arena": arena,
             "task": {"formula": task}, "adversary": adversary,
             "inference": _inference_table(inference)}

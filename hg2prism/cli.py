@@ -453,7 +453,8 @@ def _validate_details(world) -> str:
                     "allows it")
     traps = (f"{world.traps} trap{'' if world.traps == 1 else 's'}"
              if frontends.arena_of(world).traps_mode else "P2's own actions")
-    return (f"  {observer}; {traps}, delay {world.delay}; hypergame: {size} canonical states "
+    ties = "" if world.tie_break == "first" else f", ties to the {world.tie_break}"
+    return (f"  {observer}; {traps}, delay {world.delay}{ties}; hypergame: {size} canonical states "
             f"(the size guard's bound from the world alone){verdict}")
 
 

@@ -125,7 +125,8 @@ def warn_if_not_completable(world: World, ts: TransitionSystem | None = None,
 def _say_undecided_choices(world: World, ts: TransitionSystem, games) -> None:
     """A line for each hypothesis under which P2's actions all tie wherever she chooses (P1
     could not complete x whatever she did, say its region is walled off): she keeps the
-    standing one or takes the first (docs/semantics.md §4), and her moves under it do not
+    standing one or takes the first (the last with tie_break "last", docs/semantics.md §4), and
+    her moves under it do not
     defend anything, which a reader of the values should know (a review's warehouse: the
     deceptive value 1 where V_lead is 0). A value of 0 alone does not say it: it may be 0
     because she plays the one action that stops P1."""
@@ -137,7 +138,7 @@ def _say_undecided_choices(world: World, ts: TransitionSystem, games) -> None:
         if rows.size and game.all_tied is not None and game.all_tied[rows].all():
             say(f"games: under hypothesis x{i} ({world.hypotheses[i]}) P2's {what} all tie "
                 "wherever she chooses (none changes P1's chance of completing it): under it she "
-                "keeps the standing one or takes the first (docs/semantics.md §4)")
+                f"keeps the standing one or takes the {world.tie_break} (docs/semantics.md §4)")
 
 
 # TS tables (state x P1's action x P2's action x outcome) from which the games take seconds:

@@ -1129,7 +1129,9 @@ def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:
     text = ONE.replace("#####\n#@tA#\n#####", "#######\n#@.tA##\n#.t..##\n######B").replace(
         'hypotheses = ["F A"]', 'hypotheses = ["F A", "F B"]')
     # x0 too: P1 walks round either trap to A (her sets all give him 1)
-    for world, expected in ((hg2prism.world_from_toml(text), ["x0 (F A)", "x1 (F B)"]),
+    walled = hg2prism.world_from_toml(text)
+    for world, expected in ((walled, ["x0 (F A)", "x1 (F B)"]),
+                            (walled.replace(tie_break="last"), ["x0 (F A)", "x1 (F B)"]),
                             (hg2prism.load_world(MODELS / "world1.toml"), []),
                             (hg2prism.world_from_toml(GUARDED), [])):
         caplog.clear()
@@ -1137,7 +1139,31 @@ def test_a_hypothesis_whose_game_p1_never_wins_is_said(caplog) -> None:
             solution = hg2prism.solve(world)
         said = [r.getMessage() for r in caplog.records if "all tie" in r.getMessage()]
         assert [line.split("hypothesis ")[1].split(")")[0] + ")" for line in said] == expected
+        # the set she takes, as the line says: the first or, with tie_break "last", the last
+        assert all(line.endswith(f"takes the {world.tie_break} (docs/semantics.md §4)")
+                   for line in said)
+        if said:
+            n_sets = solution.check.analysis.ts.n_sets
+            taken = 0 if world.tie_break == "first" else n_sets - 1
+            assert all((g.trap_choice[:-1] == taken).all() for g in solution.check.analysis.games)
         if world.name == "guarded":
             games = solution.check.analysis.games
             assert all(not g.values[1, g.fresh_q[1]] for g in games)   # 0 at mid
             assert [int(g.trap_choice[1]) for g in games] == [1, 0]     # a under F A, b under F B
+
+
+def test_world_from_graph_takes_the_tie_break() -> None:
+    """`tie_break` as the other [adversary] keys are: the world's, and refused in one line
+    naming the world and the key when it is no rule."""
+    import networkx as nx
+
+    graph = nx.DiGraph()
+    graph.add_edge(1, 2, p=0.5)
+    graph.add_edge(1, 3, p=0.5)
+    made = hg2prism.world_from_graph(graph, entries=[1], task="F asset2", tie_break="last")
+    assert made.tie_break == "last"
+    assert hg2prism.world_from_graph(graph, entries=[1], task="F asset2").tie_break == "first"
+    refused = _refused(lambda: hg2prism.world_from_graph(graph, entries=[1], task="F asset2",
+                                                         tie_break="worst"),
+                       "attack_graph", "adversary.tie_break")
+    assert 'expected "first" or "last"' in refused.reason

@@ -484,6 +484,12 @@ def test_validate_says_the_observer_and_whether_the_size_guard_refuses(tmp_path:
                              "refuse it unless --max-states allows it" if refused else ""))
         check = run_cli(["check", str(world), "--out", str(tmp_path / f"o{window}")], tmp_path)
         assert (check.returncode == 2 and "size" in check.stderr) == refused, check.stderr
+    # P2's tie break when it is not the rule's (docs/semantics.md §4)
+    last = tmp_path / "last.toml"
+    last.write_text((MODELS / "world1.toml").read_text().replace(
+        "[adversary]\n", '[adversary]\ntie_break = "last"\n', 1))
+    proc = run_cli(["validate", str(last)], tmp_path)
+    assert "; 1 trap, delay 0, ties to the last; hypergame: " in proc.stdout, proc.stdout
 
 
 def test_a_folder_holds_one_worlds_outputs(tmp_path: Path) -> None:

@@ -513,3 +513,24 @@ def test_fastest_first_against_its_definition(seed: int, monkeypatch) -> None:
                                      goal, optimal, 1e-12)
     assert np.array_equal(threaded.choice, got.choice)
     assert np.array_equal(threaded.scores, got.scores)
+
+
+def test_fastest_first_ties_scores_equal_but_for_rounding() -> None:
+    """Two moves with the same chance of the goal, 0.1 + 0.2 + 0.3 and 0.3 + 0.2 + 0.1, whose
+    sums differ in the last bit (the second larger): within the relative 1e-12 they tie and the
+    first wins, as every strategy's rule says; with no tolerance the second would."""
+    from hg2prism.numeric import fastest
+
+    assert 0.1 + 0.2 + 0.3 > 0.3 + 0.2 + 0.1
+    choice_state = np.array([0, 0])
+    entry_choice = np.array([0, 0, 0, 0, 1, 1, 1, 1])
+    entry_target = np.array([1, 1, 1, 2, 1, 1, 1, 2])
+    entry_prob = np.array([0.3, 0.2, 0.1, 0.4, 0.1, 0.2, 0.3, 0.4])
+    goal = np.array([False, True, False])
+    optimal = np.array([True, True])
+    tied = fastest.fastest_first(choice_state, entry_choice, entry_target, entry_prob, goal,
+                                 optimal, 1e-12)
+    strict = fastest.fastest_first(choice_state, entry_choice, entry_target, entry_prob, goal,
+                                   optimal, 1e-12, relative_tie=0.0)
+    assert tied.choice.tolist() == [0, -1, -1] and strict.choice.tolist() == [1, -1, -1]
+    assert tied.scores[0] == 0.1 + 0.2 + 0.3

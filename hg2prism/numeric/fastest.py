@@ -99,11 +99,10 @@ def fastest_first(choice_state: np.ndarray, entry_choice: np.ndarray, entry_targ
     finally:
         if pool:
             pool.shutdown()
-    score = np.full(len(choice_state), -1.0)
-    score[opt_choices] = reached + onward @ w
+    score = reached + onward @ w                                    # [optimal choices]
     # Scores equal but for rounding (symmetric moves) count as tied, so that the first move
     # wins whatever order the sums were taken in.
-    best = first_best(score[opt_choices], choice_state[opt_choices], relative_tie=relative_tie)
+    best = first_best(score, choice_state[opt_choices], relative_tie=relative_tie)
     choice = np.full(n_states, -1, dtype=np.int64)
     choice[choice_state[opt_choices[best]]] = opt_choices[best]
     scores = np.zeros(n_states)

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.numeric import min_expected_steps
+from hg2prism.numeric.fastest import RELATIVE_TIE     # scores this close are tied, as for pmax
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
 
 OBJECTIVES = ("pmax", "bounded", "lexicographic")
-RELATIVE_TIE = 1e-12        # scores this close (relative) are tied, as for the default
 MAX_POLICY_ITERATIONS = 1000
 
 
