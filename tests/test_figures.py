@@ -189,6 +189,19 @@ def test_sweep_and_detection_figures(tmp_path: Path) -> None:
     # every swept value is a tick label, once
     for label in ("0.1", "1", "10", "100"):
         assert text.count(f">{label}<") == 1
+    assert "V_static" not in text
+    # a sweep with --deception's values draws V_static and V_naive too, and their legend
+    import matplotlib.pyplot as plt
+
+    worth = [{**row, "v_static": 0.8, "v_naive": 0.8} for row in rows]
+    lines = plots.sweep_figure("rationality", worth, None, "worldX",
+                               ax=plt.figure().add_subplot())
+    assert lines == []
+    ax = plt.gcf().axes[0]
+    assert [line.get_label() for line in ax.get_lines()][-2:] == [
+        "P2 never revises (V_static)", "P1 ignores her inference (V_naive)"]
+    assert list(ax.get_lines()[-1].get_ydata()) == [0.8] * 4
+    plt.close("all")
     statistics_ = [0.0] * 4 + [3.0, 12.0] + [12.0 + i for i in range(150)]
     thresholds = [None] + [3.84 + 0.5 * i for i in range(len(statistics_) - 1)]
     plots.detection_figure(statistics_, thresholds, 4, 6, tmp_path / "detection.png",

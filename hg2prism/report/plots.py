@@ -347,20 +347,26 @@ def _parameter_axis(ax: plt.Axes, parameter: str, values: Sequence[object]):
 
 def sweep_figure(parameter: str, rows: Sequence[dict], path: Path | None,
                  world_name: str | None = None, ax: plt.Axes | None = None) -> list[Path]:
-    """Completion probability against a swept parameter, one line per value; a logarithmic
-    axis for rationality and threshold (LOG_PARAMETERS), the legend below the axes (into `ax`
-    when given, then writing nothing)."""
+    """Completion probability against a swept parameter, one line per value (with a sweep's
+    --deception values, V_static and V_naive too); a logarithmic axis for rationality and
+    threshold (LOG_PARAMETERS), the legend below the axes (into `ax` when given, then writing
+    nothing)."""
     given = ax
     fig, ax = figure_axes(ax, SWEEP_INCHES)
     x_of = _parameter_axis(ax, parameter, [row[parameter] for row in rows])
     # along the axis, whatever order the values were given in (--values 2 0 1 drew 2 -> 0 -> 1)
     rows = sorted(rows, key=lambda row: x_of(row[parameter]))
     xs = [x_of(row[parameter]) for row in rows]
-    for key, label, style in (("deceptive_value", "deceptive (asymmetric)", "o-"),
-                              ("v_lead", "symmetric, leader", "s--"),
-                              ("v_ne", "symmetric, Nash", "^:")):
+    # each series' markers smaller than the one's before: values that coincide (V_lead,
+    # V_static and V_naive often do) show as rings around dots rather than one hiding another
+    for n, (key, label, style) in enumerate((
+            ("deceptive_value", "deceptive (asymmetric)", "o-"),
+            ("v_lead", "symmetric, leader", "s--"),
+            ("v_ne", "symmetric, Nash", "^:"),
+            ("v_static", "P2 never revises (V_static)", "d-."),
+            ("v_naive", "P1 ignores her inference (V_naive)", "v-."))):
         if all(key in row for row in rows):
-            ax.plot(xs, [row[key] for row in rows], style, label=label)
+            ax.plot(xs, [row[key] for row in rows], style, label=label, ms=10.0 - 1.5 * n)
     return _finish_sweep(fig, ax, path, parameter, world_name, ncol=3, fontsize=8, given=given)
 
 
