@@ -89,6 +89,12 @@ def test_canonical_size_matches_reference(case) -> None:
 
 def test_trap_strategy_matches_reference(case) -> None:
     result, ref = case
+    assert _trap_strategies_compared(result, ref) > 0
+
+
+def _trap_strategies_compared(result, ref) -> int:
+    """P2's trap set under each hypothesis at every TS state the reference solved, asserted
+    equal to the reference's; how many were compared."""
     ts = gridview.view(result.analysis)
     compared = 0
     for h, game in enumerate(result.analysis.games):
@@ -99,7 +105,7 @@ def test_trap_strategy_matches_reference(case) -> None:
                 continue
             assert set(ts.trap_cells(int(game.trap_choice[state]))) == set(theirs), (h, state)
             compared += 1
-    assert compared > 0
+    return compared
 
 
 def test_exported_strategy_is_optimal(case) -> None:
@@ -321,19 +327,10 @@ def test_the_last_tie_break_against_the_reference(name: str, world_dir: Path) ->
     assert result.results.deceptive_value == pytest.approx(ref.value, abs=TOL)
     assert result.results.v_lead == pytest.approx(ref.v_lead, abs=TOL)
     assert (result.results.states, result.results.transitions) == (ref.states, ref.transitions)
-    ts = gridview.view(result.analysis)
+    assert _trap_strategies_compared(result, ref) > 0
     first, _ = run(name, str(world_dir))
-    compared = differ = 0
-    for h, game in enumerate(result.analysis.games):
-        differ += int((game.trap_choice != first.analysis.games[h].trap_choice).sum())
-        for state in range(ts.n_states - 1):
-            try:     # the reference solves P2's games on the TS states reachable from the start
-                theirs = ref.trap_strategy(h, _reference_state(ts, state))
-            except KeyError:
-                continue
-            assert set(ts.trap_cells(int(game.trap_choice[state]))) == set(theirs), (h, state)
-            compared += 1
-    assert compared > 0 and differ > 0
+    assert any((game.trap_choice != rule.trap_choice).any()
+               for game, rule in zip(result.analysis.games, first.analysis.games))
 
 
 def test_the_last_tie_break_is_the_first_with_the_candidates_reversed(tmp_path: Path) -> None:
