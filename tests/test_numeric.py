@@ -10,7 +10,9 @@
   positive value of the reference's solver and a naive level-by-level fixed point, its
   optimal values equal `reference.solve_reach_game`'s, its chain values `reference.dtmc_reach`'s,
   its bounded reachability a step-by-step iteration over dictionaries, and its expected steps a
-  dense solve.
+  dense solve;
+* the lexicographic objective (strategy/objectives.py, built on the attractor) on random MDPs
+  against its definition in plain Python: finite states, expected steps and moves.
 """
 
 from __future__ import annotations
@@ -446,6 +448,94 @@ def test_min_expected_steps_against_closed_forms() -> None:
     assert found.choice[:2].tolist() == [0, 2] and found.rounds == 2
     kept = min_expected_steps(model, states, np.array([False, True, True]), start)
     assert kept.values.tolist() == pytest.approx([5.0, 4.0, 0.0]) and kept.rounds == 1
+
+
+def _lexicographic_by_definition(n, choices, absorbing, values, slack=1e-8):
+    """The lexicographic objective's finite states and expected steps in plain Python
+    (docs/semantics.md §6): `choices` lists per state its choices (lists of (target,
+    probability)); a choice is optimal when its value is within `slack` of its state's. Φ is
+    the greatest set from which the absorbing states are reached by optimal choices whose
+    successors stay in Φ or are absorbing; E by value iteration over those choices."""
+    optimal = [[sum(p * values[t] for t, p in c) >= values[s] - slack for c in choices[s]]
+               for s in range(n)]
+    phi = {s for s in range(n) if not absorbing[s]}
+    while True:
+        def stays(s, k):
+            return optimal[s][k] and all(t in phi or absorbing[t] for t, _ in choices[s][k])
+        reached = {s for s in range(n) if absorbing[s]}
+        grown = True
+        while grown:
+            grown = False
+            for s in phi - reached:
+                if any(stays(s, k) and any(t in reached for t, _ in c)
+                       for k, c in enumerate(choices[s])):
+                    reached.add(s)
+                    grown = True
+        now = reached - {s for s in range(n) if absorbing[s]}
+        if now == phi:
+            break
+        phi = now
+    e = [0.0] * n
+    for _ in range(20_000):
+        e = [min(1.0 + sum(p * e[t] for t, p in c) for k, c in enumerate(choices[s])
+                 if stays(s, k)) if s in phi else 0.0 for s in range(n)]
+    return phi, e, stays
+
+
+@pytest.mark.parametrize("seed", [0, 1, 3, 4, 5, 6, 7, 8])    # seeds with both kinds of state
+def test_lexicographic_objective_against_its_definition(seed: int) -> None:
+    """strategy.objectives.lexicographic_actions on random MDPs (4 action slots, some missing,
+    self-loops, states with no optimal way out) against _lexicographic_by_definition: the
+    same finite states, expected steps within 1e-9, an allowed move of least expected steps
+    at every finite state and the default's move elsewhere."""
+    from hg2prism.strategy.canonical import CanonicalMDP
+    from hg2prism.strategy.objectives import lexicographic_actions
+
+    rng = np.random.default_rng(seed)
+    n = 14
+    absorbing = [s >= n - 2 for s in range(n)]          # n - 2 goal, n - 1 fail
+    values = np.r_[rng.choice([0.0, 0.5, 1.0], size=n - 2), 1.0, 0.0]
+    choices, state, action, entry_choice, entry_target, entry_prob = [], [], [], [], [], []
+    for s in range(n):
+        mine = []
+        if not absorbing[s]:
+            for a in range(4):
+                if rng.random() < 0.3:
+                    continue
+                targets = rng.choice(n, size=int(rng.integers(1, 3)), replace=False)
+                probs = rng.dirichlet(np.ones(len(targets)))
+                mine.append(list(zip(targets.tolist(), probs.tolist())))
+                for t, p in mine[-1]:
+                    entry_choice.append(len(state))
+                    entry_target.append(t)
+                    entry_prob.append(p)
+                state.append(s)
+                action.append(a)
+        choices.append(mine)
+    goal, fail = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    goal[n - 2], fail[n - 1] = True, True
+    mdp = CanonicalMDP(n=n, representative=np.arange(n), goal=goal, fail=fail,
+                       choice_state=np.array(state), choice_action=np.array(action),
+                       choice_storm=np.arange(len(state)), entry_choice=np.array(entry_choice),
+                       entry_target=np.array(entry_target), entry_prob=np.array(entry_prob),
+                       n_actions=4)
+    default = np.full(n, -1)
+    for s in range(n - 2):
+        if choices[s]:
+            default[s] = action[state.index(s)]
+    found = lexicographic_actions(mdp, values, default)
+    phi, e, stays = _lexicographic_by_definition(n, choices, absorbing, values)
+    assert set(np.flatnonzero(found.finite).tolist()) == phi
+    assert 0 < len(phi) < n - 2            # the seeds give both kinds of state
+    for s in range(n):
+        if s in phi:
+            assert found.expected[s] == pytest.approx(e[s], rel=1e-9)
+            slots = [a for a, st in zip(action, state) if st == s]
+            k = slots.index(int(found.action[s]))
+            assert stays(s, k)
+            assert 1.0 + sum(p * e[t] for t, p in choices[s][k]) == pytest.approx(e[s], rel=1e-9)
+        elif not absorbing[s]:
+            assert np.isinf(found.expected[s]) and found.action[s] == default[s]
 
 
 def _fastest_by_definition(states, choices, goal, optimal, stop, tie=1e-12):

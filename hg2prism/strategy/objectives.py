@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.numeric import min_expected_steps
+from hg2prism.numeric import attractor, min_expected_steps, progress_choices
 from hg2prism.numeric.fastest import RELATIVE_TIE     # scores this close are tied, as for pmax
 from hg2prism.strategy.canonical import CanonicalMDP
 from hg2prism.strategy.deceptive import OPTIMAL_SLACK
@@ -68,46 +68,25 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     two parts never mix within an episode that has entered a finite state."""
     optimal = optimal_choices(mdp, values)
     absorbing = mdp.absorbing
-    finite = ~absorbing.copy()
-    rank = np.full(mdp.n, -1, dtype=np.int64)
-    first_move = np.full(mdp.n, -1, dtype=np.int64)
+    model = mdp.model
+    finite = ~absorbing
     while True:
+        # the optimal moves that never leave the finite states, and the states from which
+        # they reach the absorbing ones (an attractor: rank > 0), until nothing changes
         inside = finite | absorbing
-        stays = optimal & (np.bincount(mdp.entry_choice, weights=~inside[mdp.entry_target],
-                                       minlength=len(optimal)) == 0)
-        # Backward search, level by level, from the absorbing states along staying moves.
-        reached = absorbing.copy()
-        rank[:] = -1
-        first_move[:] = -1
-        level = 0
-        while True:
-            hits = np.bincount(mdp.entry_choice, weights=reached[mdp.entry_target],
-                               minlength=len(optimal)) > 0
-            new = stays & hits & ~reached[mdp.choice_state]
-            if not new.any():
-                break
-            level += 1
-            chosen = np.flatnonzero(new)
-            states, first = np.unique(mdp.choice_state[chosen], return_index=True)
-            rank[states] = level
-            first_move[states] = mdp.choice_action[chosen[first]]
-            reached[states] = True
-        now = reached & ~absorbing
+        allowed = optimal & finite[mdp.choice_state] & (np.bincount(
+            mdp.entry_choice, weights=~inside[mdp.entry_target], minlength=len(optimal)) == 0)
+        rank = attractor(model, absorbing, allowed=allowed)
+        now = rank > 0
         if (now == finite).all():
             break
         finite = now
-    inside = finite | absorbing
-    allowed = optimal & finite[mdp.choice_state] & (np.bincount(
-        mdp.entry_choice, weights=~inside[mdp.entry_target], minlength=len(optimal)) == 0)
 
     # Policy iteration for the expected steps on the finite states (numeric core), from the
-    # proper strategy of the backward search (each move gets one level closer with positive
+    # proper strategy of the attractor (each move gets one rank closer with positive
     # probability).
     states = np.flatnonzero(finite)
-    choice_of = np.full((mdp.n, mdp.n_actions), -1, dtype=np.int64)
-    choice_of[mdp.choice_state, mdp.choice_action] = np.arange(len(mdp.choice_state))
-    first = np.full(mdp.n, -1, dtype=np.int64)
-    first[states] = choice_of[states, first_move[states]]
+    first = progress_choices(model, rank, allowed)
     expected = min_expected_steps(mdp.model, states, allowed, first,
                                   MAX_POLICY_ITERATIONS).values.copy()
     # Final moves: the first of the (numerically) best, so that exact ties follow move order.
