@@ -321,7 +321,7 @@ def _number_after(text: str, prefix: str = "") -> float:
 
 def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
     """Every PRISM command of docs/cli.md's re-checking tables, run on a fresh world1, prints
-    the result the table shows (to its last digit)."""
+    the result the table shows, as PRISM prints it."""
     prism = _prism()
     if prism is None:
         pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
@@ -334,9 +334,7 @@ def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
         done = subprocess.run([prism, *words[1:]], cwd=folder, capture_output=True, text=True,
                               timeout=300)
         shown = prints.split("`")[1]
-        digits = len(shown.split(".")[1])
-        assert _number_after(done.stdout, "Result: ") == pytest.approx(
-            _number_after(shown, "Result: "), abs=10.0 ** -digits), (command, done.stdout[-500:])
+        assert shown in done.stdout, (command, done.stdout[-500:])
     # "As with the model, PRISM's default stopping rule stops short (`0.9497436…` without
     # `-epsilon`)": the chain's command without it
     short = re.search(r"\(`([0-9.]+)…` without `-epsilon`\)",
