@@ -122,7 +122,9 @@ def _check_parser(sub: Subparsers) -> None:
     _solving_parser(sub, "check", "Emit, then check with Storm: writes OUT/strategy.json and "
                     "OUT/results.json too, the automata (task.hoa/.dot/.svg, hypothesis_<i>.hoa/.dot/.svg) "
                     "and the DTMC P1's strategy induces (induced.tra/.sta/.lab for PRISM, "
-                    "induced.drn for Storm, goal.props the property that re-checks it).")
+                    "induced.drn for Storm, goal.props the property that re-checks it). On a "
+                    "world with P2's types ([[type]]): adaptive deception (adaptive.prism, "
+                    "docs/adaptive.md).")
 
 
 def _run_parser(sub: Subparsers) -> None:
@@ -131,7 +133,9 @@ def _run_parser(sub: Subparsers) -> None:
                         "perceptual_<i>.prism), online simulation, the completion table "
                         "(table.md), the figures (world, belief, completion; PNG and SVG), the "
                         "replay of one episode (replay.gif) and explorer.html, a self-contained "
-                        "page stepping through it and its candidate episodes.")
+                        "page stepping through it and its candidate episodes. On a world "
+                        "with P2's types ([[type]]): adaptive deception, its simulation and "
+                        "adaptive_belief.png (docs/adaptive.md).")
     _episode_options(p, "simulated episodes (default: the world's)")
     p.add_argument("--episode", metavar="RULE", default=None,
                    help="the episode world.png, belief.png, replay.gif and explorer.html draw: median "
@@ -618,6 +622,9 @@ def _perform(args: argparse.Namespace) -> int:
                          + (f" --objective {args.objective}" if args.command in ("check", "run")
                             else ""))
     if world.types and getattr(args, "episode", None) is not None:
+        from hg2prism.analyses.episodes import parse_episode_rule
+
+        parse_episode_rule(args.episode)      # a bad rule is said as such first
         raise InputError(COMMAND_LINE, "--episode", "a world with P2's types draws the episode "
                          "of adaptive_belief.png with --seed (its type too, from the prior); "
                          "--episode picks the figures' episode of a world with one [inference]")

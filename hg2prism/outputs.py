@@ -256,8 +256,9 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
     new_items = list(stage.iterdir())
     placed = _placed(out)
     own = owns
-    if (world is not None and every is not None
-            and _of_another_world(out, world, digest, placed)):
+    another = (world is not None and every is not None
+               and _of_another_world(out, world, digest, placed))
+    if another:
         owns = every
     foreign = sorted(item.name for item in new_items if item.name not in placed
                      and ((out / item.name).exists() or (out / item.name).is_symlink()))
@@ -289,8 +290,9 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
                 if own is None or not re.fullmatch(own, old.name):
                     others.append(old.name + ("/" if old.is_dir() else ""))
                 os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
-        if others:
+        if another:
             say(f"outputs: {out} held the outputs of another world (or of this world "
-                f"file before an edit); removed those of other commands too: "
-                f"{listing(others, 6, count=True)}")
+                f"file before an edit); " + (
+                    f"removed those of other commands too: {listing(others, 6, count=True)}"
+                    if others else "replaced them"))
     _record_placed(out, placed | written)

@@ -184,6 +184,9 @@ def test_cli(tmp_path, capsys):
     assert main(["validate", str(world)]) == 0
     assert "P2's types jumpy, stubborn" in capsys.readouterr().out
     for command, key in ((["emit"], ": type: "), (["detect"], ": type: "),
+                         (["robust"], ": type: "), (["convert"], ": type: "),
+                         (["run", "--episode", "bogus"], ": --episode: expected median"),
+                         (["run", "--episode", "seed=3"], ": --episode: a world with P2's types"),
                          (["check", "--objective", "lexicographic"], ": type: "),
                          (["sweep", "--param", "delay", "--values", "0"], ": --param: "),
                          (["sweep", "--param", "weight", "--values", "1.5"], ": --values: ")):
@@ -435,3 +438,23 @@ def test_the_weight_sweep_refuses_deception(tmp_path, capsys):
         "one [inference]; a world with P2's types reports V_adapt, V_oracle and each V_commit "
         "per weight (docs/adaptive.md)"], err
     assert not (tmp_path / "s").exists()
+
+
+def test_a_type_name_with_a_bar_keeps_table_md_a_table(tmp_path):
+    """A type's name may hold `|` (a world file's name is any one line); in table.md it is
+    escaped, so that every row of the adaptivity table has its three cells (it ended a cell)."""
+    import dataclasses
+    import re
+
+    from pathlib import Path
+
+    import hg2prism
+
+    world = hg2prism.load_world(Path(__file__).resolve().parent.parent / "models" / "world4.toml")
+    jumpy, stubborn = world.types
+    named = world.replace(types=(dataclasses.replace(jumpy, name="jumpy|fast"), stubborn))
+    hg2prism.solve(named, out=tmp_path / "out")
+    rows = [line for line in (tmp_path / "out" / "table.md").read_text().splitlines()
+            if line.startswith("| ") and "V_" in line]
+    assert any("jumpy\\|fast" in row for row in rows)
+    assert all(len(re.findall(r"(?<!\\)\|", row)) == 4 for row in rows), rows

@@ -570,7 +570,8 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> N
     """The same world file edited between two commands is another world: its outputs do not
     stay beside the old version's (the folder kept world1's detection outputs when `check`
     ran on an edited world1; records now carry World.digest()). The other commands' outputs
-    removed are named in one line on stderr (they went in silence)."""
+    removed are named in one line on stderr (they went in silence); with none, the line says
+    the outputs were replaced."""
     from hg2prism.cli import main
     from hg2prism.outputs import staged
     from hg2prism.progress import quiet
@@ -598,6 +599,12 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> N
                     f"before an edit); removed those of other commands too: detection.json, "
                     f"detection.png"), line
     assert json.loads((out / "results.json").read_text())["world_digest"] != digest
+    # only its own kind's outputs to replace: said too (it went in silence)
+    world.write_text(world.read_text().replace("window = 1", "window = 2"))
+    assert main(["check", str(world), "--out", str(out)]) == 0
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if removal in x]
+    assert line == (f"outputs: {out} held the outputs of another world (or of this world file "
+                    f"before an edit); replaced them"), line
 
 
 def test_emits_model_is_judged_by_the_digest_in_its_header(tmp_path: Path) -> None:

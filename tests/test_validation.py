@@ -216,6 +216,12 @@ def test_a_typed_world_keeps_its_own_observer_its_first_types() -> None:
     with pytest.raises(InputError) as caught:
         TYPED.replace(window=2)
     assert caught.value.key == "type[0]"
+    assert caught.value.reason.startswith("the world's own window (2) and its first type's (")
+    # settings as a world file writes them, not a tuple of pairs
+    with pytest.raises(InputError) as caught:
+        TYPED.replace(settings=(("threshold", 2.0),))
+    assert caught.value.reason.startswith("the world's own settings (threshold = 2.0) and its "
+                                          "first type's (threshold = "), caught.value.reason
     moved = TYPED.replace(window=2, types=(dataclasses.replace(JUMPY, window=2), STUBBORN))
     assert moved.types[0].window == 2
     weighted = TYPED.replace(types=(dataclasses.replace(JUMPY, weight=0.0),

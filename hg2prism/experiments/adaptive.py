@@ -324,10 +324,11 @@ def adaptivity_table(results: dict) -> str:
     lines = [f"Adaptive deception in {results['world']} (docs/semantics.md §16)", "",
              "| strategy | against | value |", "|---|---|---|"]
     for t in results["types"]:
-        lines.append(f"| type {t['name']}'s deceptive strategy | type {t['name']} "
+        name = _cell(t["name"])
+        lines.append(f"| type {name}'s deceptive strategy | type {name} "
                      f"(weight {t['weight']:.4g}) | V_k = {t['deceptive_value']:.6f} |")
     for t in results["types"]:
-        lines.append(f"| committed to type {t['name']} | the prior | V_commit = "
+        lines.append(f"| committed to type {_cell(t['name'])} | the prior | V_commit = "
                      f"{t['v_commit']:.6f} |")
     lines += [f"| adaptive | the prior | V_adapt = {results['v_adapt']:.6f} |",
               f"| oracle (knows the type) | the prior | V_oracle = {results['v_oracle']:.6f} |",
@@ -338,6 +339,12 @@ def adaptivity_table(results: dict) -> str:
               f"cost of not knowing (V_oracle - V_adapt): "
               f"{_difference(results['cost_of_not_knowing'])}"]
     return "\n".join(lines)
+
+
+def _cell(text: str) -> str:
+    """A type's name in a markdown table cell: a `|` escaped, so that it does not end the
+    cell."""
+    return text.replace("|", "\\|")
 
 
 def _difference(value: float) -> str:

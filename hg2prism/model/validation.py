@@ -425,10 +425,19 @@ def _types(checks: Checks, world: Any) -> None:
     first = types[0]
     for name in OBSERVER_FIELDS:
         if getattr(world, name) != getattr(first, name):
-            raise checks.fail("type[0]", f"the world's own {name} ({getattr(world, name)!r}) "
-                                         f"is not its first type's ({getattr(first, name)!r}): "
-                                         "a world with types observes as its first type; "
-                                         "change a type through types=(...)")
+            mine, its = (_shown(name, getattr(w, name)) for w in (world, first))
+            raise checks.fail("type[0]", f"the world's own {name} ({mine}) and its first "
+                                         f"type's ({its}) differ: a world with types observes "
+                                         "as its first type; change a type through "
+                                         "types=(...)")
+
+
+def _shown(name: str, value: object) -> str:
+    """An observer field as a world file writes it: settings as `key = value` pairs."""
+    if name == "settings" and isinstance(value, tuple):
+        return ", ".join(f"{pair[0]} = {pair[1]!r}" for pair in value
+                         if isinstance(pair, tuple) and len(pair) == 2) or "none"
+    return repr(value)
 
 
 # The observer registry's check of [inference] kind and the kind's settings (and of P2's first
