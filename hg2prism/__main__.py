@@ -1,3 +1,3 @@
-from hg2prism.cli import main
+from hg2prism.cli import entry
 
-raise SystemExit(main())
+raise SystemExit(entry())

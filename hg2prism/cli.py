@@ -32,8 +32,17 @@ def _out_dir(world_path: Path, out: str | None) -> Path:
 
 
 def _exit_on_signal(signum: int, frame: object) -> None:
-    print(f"hg2prism: stopped by signal {signum}; nothing was written", file=sys.stderr)
+    print(f"hg2prism: stopped by signal {signum}{_what_was_written()}", file=sys.stderr)
     raise SystemExit(128 + signum)
+
+
+def _what_was_written() -> str:
+    """The end of a stopped command's line: its outputs are placed whole or not at all (a
+    stop while they move into OUT waits for them, outputs.staged)."""
+    from hg2prism.outputs import placement
+
+    state, out = placement()
+    return f" after placing its outputs in {out}" if state == "done" else "; nothing was written"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -529,6 +538,27 @@ def _printable_streams() -> None:
             pass
 
 
+def entry() -> int:
+    """The program (`hg2prism`, `python -m hg2prism`): main(), then the exit. A command
+    stopped while Storm computed left its worker thread running (engines/storm.py); Python's
+    exit would then tear the interpreter down under it, and Storm's C++ aborted the process
+    (SIGABRT instead of the exit status of the signal): such an exit skips that teardown."""
+    import threading
+
+    try:
+        status = main()
+    except SystemExit as stop:      # a signal's handler, argparse's --help and usage errors
+        status = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    if any(t.name == "storm" for t in threading.enumerate()):     # ending or not: abandoned
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(status)
+    return status
+
+
 def main(argv: list[str] | None = None) -> int:
     _printable_streams()
     try:
@@ -597,12 +627,21 @@ def _command(args: argparse.Namespace) -> int:
         return 141
     except OSError as err:
         # the output folder was checked up front; this is the disk filling up or a folder
-        # changing under us. Nothing was placed: the staging folder is gone.
+        # changing under us. The staging folder is gone; where it failed while moving the
+        # outputs into OUT, some are there (and MANIFEST lists old and new: outputs.staged)
+        from hg2prism.outputs import MANIFEST, placement
+
         where = err.filename or getattr(args, "out", None) or args.world
-        print(f"hg2prism: error: {where}: {err.strerror or err}", file=sys.stderr)
+        state, out = placement()
+        partly = (f"; {out} may hold some of the new outputs beside old ones (its {MANIFEST} "
+                  f"lists both, so the next command into it removes the stale ones)"
+                  if state == "begun" else "")
+        print(f"hg2prism: error: {where}: {err.strerror or err}{partly}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("hg2prism: interrupted", file=sys.stderr)
+        written = _what_was_written()
+        print("hg2prism: interrupted" + (written if written.startswith(" after") else ""),
+              file=sys.stderr)
         return 130
 
 

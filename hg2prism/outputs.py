@@ -90,6 +90,7 @@ def check_writable(out: Path, what: str = "--out") -> None:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(COMMAND_LINE, what, f"{out} exists and is not a folder")
+    _short_enough(out, what)
     existing = out
     while not existing.exists():
         if existing.parent == existing:
@@ -103,6 +104,28 @@ def check_writable(out: Path, what: str = "--out") -> None:
         made = "" if existing == out else f", so {out} cannot be made"
         raise InputError(COMMAND_LINE, what, f"cannot write in {existing} "
                          f"({err.strerror or err}){made}") from None
+
+
+# What a staging folder's name adds to OUT's (`staged`: ".OUT.staging-" and mkdtemp's 8)
+_STAGING_EXTRA = len("..staging-") + 8
+
+
+def _short_enough(out: Path, what: str) -> None:
+    """InputError where the staging folder beside `out` would have a name longer than its
+    file system allows (it would fail after the work, naming a hidden folder)."""
+    existing = out.absolute().parent
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent
+    try:
+        most = os.pathconf(existing, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        return
+    length = len(os.fsencode(out.name))
+    if length + _STAGING_EXTRA > most:
+        raise InputError(COMMAND_LINE, what, f"the folder name {out.name[:40]}... is {length} "
+                         f"bytes long; at most {most - _STAGING_EXTRA} here (hg2prism stages "
+                         f"its outputs in a folder beside it whose name is {_STAGING_EXTRA} "
+                         f"bytes longer)")
 
 
 def _join_pool_workers(timeout: float = 10.0) -> None:
@@ -192,9 +215,13 @@ def _placed(out: Path) -> set[str]:
 
 def _record_placed(out: Path, names: set[str]) -> None:
     """MANIFEST in `out`: the items of `names` that are there."""
-    present = sorted(names & {p.name for p in out.iterdir()} - {MANIFEST})
+    _write_manifest(out, names & {p.name for p in out.iterdir()})
+
+
+def _write_manifest(out: Path, names: set[str]) -> None:
     write_json(out / MANIFEST, {"about": "what hg2prism placed in this folder: the only items "
-                                "it ever removes as stale outputs", "items": present})
+                                "it ever removes as stale outputs",
+                                "items": sorted(names - {MANIFEST})})
 
 
 @contextmanager
@@ -224,8 +251,10 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
            every: str | None = None, digest: str | None = None) -> Iterator[Path]:
     """A scratch folder beside `out` for a command's outputs: they move into `out` only when
     the command succeeds, so a failure leaves nothing half-written. Each item replaces its
-    predecessor in one rename (a stop between two items leaves some new, some old, none
-    broken); an item that cannot be placed puts its predecessor back. `owns` (a regular
+    predecessor in one rename, and Ctrl-C or SIGTERM waits until every item is in
+    (`_signals_deferred`); a failure partway (a full disk) leaves some new, some old, none
+    broken, with MANIFEST listing both; an item that cannot be placed puts its predecessor
+    back. `owns` (a regular
     expression over names, see OWNED) removes the command's stale outputs afterwards; where
     `out` held outputs of another world than `world` (its record files name it) or another
     version of it (their `world_digest` is not `digest`), `every` (what any command owns)
@@ -243,10 +272,48 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
             _join_pool_workers()    # a worker may still be writing into the stage
             raise
         out.mkdir(exist_ok=True)
-        with _locked(out):
+        with _locked(out), _signals_deferred():
             _place(stage, out, owns, world, every, digest)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+# This process's last placement of a command's outputs (`staged`), for the messages of a
+# command stopped or failing around it.
+_placement: dict[str, object] = {"state": None, "out": None}
+
+
+def placement() -> tuple[str | None, Path | None]:
+    """(state, folder) of the last placement of a command's outputs: state None (none yet),
+    "begun" (it failed partway, a full disk: some items new, some old) or "done"."""
+    return _placement["state"], _placement["out"]      # type: ignore[return-value]
+
+
+@contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM held back while a command's outputs move into OUT (on the main
+    thread, where Python runs its handlers), then delivered: a stop no longer leaves some new
+    items beside some old ones; it takes effect once OUT is whole."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    kept = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
+            kept[signum] = signal.signal(signum, lambda number, frame: caught.append(number))
+        except (ValueError, OSError):
+            pass
+    try:
+        yield
+    finally:
+        for signum, handler in kept.items():
+            signal.signal(signum, handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: str | None,
@@ -255,6 +322,11 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
     that hg2prism placed there removed, MANIFEST written."""
     new_items = list(stage.iterdir())
     placed = _placed(out)
+    _placement.update(state=None, out=out)
+    # MANIFEST first lists the old items and the new: whatever stops the placement (a full
+    # disk), the next command still knows every item hg2prism put here
+    _write_manifest(out, placed | {item.name for item in new_items})
+    _placement.update(state="begun")
     own = owns
     another = (world is not None and every is not None
                and _of_another_world(out, world, digest, placed))
@@ -296,3 +368,4 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
                     f"removed those of other commands too: {listing(others, 6, count=True)}"
                     if others else "replaced them"))
     _record_placed(out, placed | written)
+    _placement.update(state="done")

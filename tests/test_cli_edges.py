@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from conftest import MODELS, ROOT, names_in
 from hg2prism import __version__
 from hg2prism.errors import InputError
+from hg2prism.outputs import MANIFEST
 from hg2prism.numeric import bounded_reach
 from hg2prism.worldfile import load_world
 
@@ -809,3 +810,135 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path: Path) -> None:
     finally:
         os.close(write)
     assert (done.returncode, done.stderr) == (141, "")
+
+
+def test_a_folder_name_too_long_for_the_staging_folder_is_refused(tmp_path: Path,
+                                                                   capsys) -> None:
+    """A valid --out whose staging folder's name would be too long for the file system was
+    accepted, and the command failed after its work naming the hidden staging folder (exit 1,
+    a stress test); it is now refused before any work, naming the user's folder (exit 2). A
+    name that leaves room passes."""
+    import os
+
+    from hg2prism.cli import main
+
+    most = os.pathconf(tmp_path, "PC_NAME_MAX")
+    long = tmp_path / ("o" * (most - 10))
+    assert main(["emit", WORLD1, "--out", str(long)]) == 2
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("hg2prism: error: command line: --out: the folder name ooo"), line
+    assert f"is {most - 10} bytes long; at most {most - 18} here" in line, line
+    only(tmp_path)
+    fits = tmp_path / ("o" * (most - 18))
+    from hg2prism.progress import quiet
+
+    with quiet():
+        assert main(["emit", WORLD1, "--out", str(fits)]) == 0
+    assert (fits / "hypergame.prism").exists()
+
+
+def test_a_stop_while_outputs_move_in_waits_for_them(tmp_path: Path, monkeypatch,
+                                                      capsys) -> None:
+    """SIGTERM (or Ctrl-C) while a command's outputs move into OUT used to stop it between two
+    items: some new, some of the old world's, the manifest not updated, and "nothing was
+    written" said (a stress test slowed each rename to hit it). The stop now waits until OUT
+    is whole, then takes effect: status 143 and a line saying the outputs were placed."""
+    import signal
+
+    from hg2prism import outputs
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "out"
+    other = small_world(tmp_path, {"slip = 0.1": "slip = 0.15"})
+    with quiet():
+        assert main(["check", str(other), "--out", str(out)]) == 0
+    replace, calls = os.replace, []
+
+    def stopped_midway(source, target):
+        if Path(target).parent == out:
+            calls.append(target)
+        if len(calls) == 3 and Path(target).parent == out:    # the third item placed: stop
+            os.kill(os.getpid(), signal.SIGTERM)
+        return replace(source, target)
+
+    monkeypatch.setattr(outputs.os, "replace", stopped_midway)
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as stop:
+        main(["check", WORLD1, "--out", str(out)])
+    assert stop.value.code == 143
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == f"hg2prism: stopped by signal 15 after placing its outputs in {out}", err
+    results = json.loads((out / "results.json").read_text())
+    assert results["world_digest"] == load_world(WORLD1).digest()
+    assert f"// digest       {load_world(WORLD1).digest()}\n" in (
+        out / "hypergame.prism").read_text()
+    placed = set(json.loads((out / MANIFEST).read_text())["items"])
+    assert placed == set(names_in(out)) - {MANIFEST}
+    assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
+
+
+def test_a_failure_while_outputs_move_in_is_said_and_the_next_command_cleans_up(
+        tmp_path: Path, monkeypatch, capsys) -> None:
+    """A full disk as the manifest is written, after the outputs moved in (a stress test,
+    through a plugin): the command said only the error, as if nothing had been placed, and the
+    manifest kept the old list, so a later command left the unrecorded robust_0.1/ beside its
+    own robust_0.2/. The manifest is now written first with the old and new items, the error
+    says OUT may hold some of each, and the next command removes what is stale."""
+    import errno
+
+    from hg2prism import outputs
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "out"
+    world = small_world(tmp_path)
+    with quiet():
+        assert main(["robust", str(world), "--deltas", "0", "--out", str(out)]) == 0
+    record = outputs._record_placed
+
+    def full(folder, names):
+        raise OSError(errno.ENOSPC, "No space left on device", str(folder / MANIFEST))
+
+    monkeypatch.setattr(outputs, "_record_placed", full)
+    capsys.readouterr()
+    with quiet():
+        assert main(["robust", str(world), "--deltas", "0.1", "--out", str(out)]) == 1
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if "error" in x]
+    assert line == (f"hg2prism: error: {out / MANIFEST}: No space left on device; {out} may "
+                    f"hold some of the new outputs beside old ones (its {MANIFEST} lists both, "
+                    f"so the next command into it removes the stale ones)"), line
+    assert "robust_0.1" in json.loads((out / MANIFEST).read_text())["items"]
+    monkeypatch.setattr(outputs, "_record_placed", record)
+    with quiet():
+        assert main(["robust", str(world), "--deltas", "0.2", "--out", str(out)]) == 0
+    assert {p.name for p in out.iterdir() if p.name.startswith("robust_")} == {"robust_0.2"}
+
+
+def test_the_program_exits_without_tearing_down_an_abandoned_storm_thread(monkeypatch) -> None:
+    """Stopped while Storm computed on its worker thread (engines/storm.py), `robust` ended
+    with SIGABRT ("terminate called without an active exception") in 3 of 8 tries instead of
+    status 143: Python's exit tore the interpreter down under the ending thread (a stress
+    test). `cli.entry` then leaves by os._exit with the command's status; otherwise it returns
+    it."""
+    import threading
+
+    from hg2prism import cli
+
+    exits = []
+
+    def stopped(argv=None):
+        raise SystemExit(143)
+
+    monkeypatch.setattr(cli, "main", stopped)
+    monkeypatch.setattr(cli.os, "_exit", exits.append)
+    assert cli.entry() == 143 and exits == []          # no Storm thread: a normal exit
+    release = threading.Event()
+    worker = threading.Thread(target=release.wait, name="storm", daemon=True)
+    worker.start()
+    try:
+        cli.entry()
+    finally:
+        release.set()
+        worker.join()
+    assert exits == [143]
