@@ -942,3 +942,6 @@ def test_the_program_exits_without_tearing_down_an_abandoned_storm_thread(monkey
         release.set()
         worker.join()
     assert exits == [143]
+    # both ways of starting the program go through it
+    assert 'hg2prism = "hg2prism.cli:entry"' in (ROOT / "pyproject.toml").read_text()
+    assert "raise SystemExit(entry())" in (ROOT / "hg2prism" / "__main__.py").read_text()
