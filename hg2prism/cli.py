@@ -88,6 +88,13 @@ def _objective_options(p: argparse.ArgumentParser) -> None:
                    help="steps of the bounded objective (default: the simulation horizon)")
 
 
+def _type_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--type", metavar="NAME", help="on a world with P2's types ([[type]]): the "
+                   "command on the world where P2 is of this type (its name or number); OUT "
+                   "then defaults to the folder named after the world file and the type's "
+                   "number, models/world4_type1/ (docs/adaptive.md)")
+
+
 def _validate_parser(sub: Subparsers) -> None:
     _add(sub, "validate", "Check a world file and print a summary; writes nothing.")
 
@@ -98,12 +105,14 @@ def _convert_parser(sub: Subparsers) -> None:
              "arena world normalised. `check` and every other command accept it.")
     p.add_argument("--out", metavar="FILE", help="the world file to write (atomically; "
                    "default: print it on standard output)")
+    _type_option(p)
 
 
 def _emit_parser(sub: Subparsers) -> None:
     p = _add(sub, "emit", "Write the hypergame PRISM model: OUT/hypergame.prism and "
              "OUT/hypergame.props." + OUT_DEFAULT)
     p.add_argument("--out", metavar="OUT", help="output folder")
+    _type_option(p)
     _max_states_option(p)
 
 
@@ -118,6 +127,7 @@ def _solving_parser(sub: Subparsers, name: str, help: str) -> argparse.ArgumentP
     """The parser of a command that solves the world and writes into OUT (check, run)."""
     p = _add(sub, name, help + OUT_DEFAULT)
     p.add_argument("--out", metavar="OUT", help="output folder")
+    _type_option(p)
     _solver_options(p)
     _objective_options(p)
     p.add_argument("--prism-pomdp", action="store_true",
@@ -184,6 +194,7 @@ def _detect_parser(sub: Subparsers) -> None:
              "distribution, the false-alarm rate, and P2 running another window or threshold; "
              "writes OUT/detection.json and OUT/detection.png and detection.svg.")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    _type_option(p)
     _episode_options(p, "episodes per batch (default: min(world's, 2000))")
     p.add_argument("--fallback", choices=("robust", "leader"),
                    help="re-planning (docs/semantics.md §14): after the detector's first rejection P1 "
@@ -202,6 +213,7 @@ def _robust_parser(sub: Subparsers) -> None:
     p.add_argument("--deltas", nargs="+", metavar="DELTA", default=["0", "0.02", "0.05", "0.1", "0.2"],
                    help="deviation budgets in [0, 1) (default: 0 0.02 0.05 0.1 0.2)")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
+    _type_option(p)
     p.add_argument("--no-cross-check", dest="cross_check", action="store_false",
                    help="skip the cross-check of each budget by Storm's robust mode and numpy on "
                         "the model with eps = 1e-9 (storm_check null in robust.json): most of the "
@@ -248,8 +260,10 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
         from hg2prism.experiments.adaptive import check_weights
 
         if args.param != ["weight"]:
-            raise InputError(COMMAND_LINE, "--param", "a world with P2's types sweeps "
-                             "--param weight (the first type's prior weight) only")
+            raise InputError(COMMAND_LINE, "--param", "weight is given twice; give all its "
+                             "values after one --values" if set(args.param) == {"weight"} else
+                             "a world with P2's types sweeps --param weight (the first "
+                             "type's prior weight) only")
         if args.deception:
             raise InputError(COMMAND_LINE, "--deception", "V_static and V_naive are of a world "
                              "with one [inference]; a world with P2's types reports V_adapt, "
@@ -645,6 +659,26 @@ def _command(args: argparse.Namespace) -> int:
         return 130
 
 
+def _one_type(world: object, chosen: str, path: str) -> tuple[object, int]:
+    """--type: the world in which P2 is of the type named (or numbered) `chosen`, and its
+    number."""
+    from hg2prism.worldfile.types import world_of_type
+
+    names = [t.name for t in world.types]
+    if not names:
+        raise InputError(COMMAND_LINE, "--type", f"{path} lists no [[type]] of P2; --type picks "
+                         "one of the types of a world that has them (docs/adaptive.md)")
+    if chosen in names:
+        k = names.index(chosen)
+    elif chosen.strip().isdigit() and int(chosen) < len(names):
+        k = int(chosen)
+    else:
+        raise InputError(COMMAND_LINE, "--type", f"no type {chosen!r} in {path}; expected one "
+                         f"of {', '.join(repr(n) for n in names)} or a number from 0 to "
+                         f"{len(names) - 1}")
+    return world_of_type(world, k), k
+
+
 def _perform(args: argparse.Namespace) -> int:
     """Load the world, refuse what the command cannot do before any work, then do it in a
     staging folder that becomes OUT, and print what was written."""
@@ -653,6 +687,9 @@ def _perform(args: argparse.Namespace) -> int:
 
     world = load_world(args.world)
     command = COMMANDS[args.command]
+    typed = None
+    if getattr(args, "type", None) is not None:
+        world, typed = _one_type(world, args.type, args.world)
     if world.types and (args.command not in ("validate", "check", "run", "sweep")
                         or getattr(args, "objective", "pmax") != "pmax"):
         raise InputError(args.world, "type", f"a world with P2's types (adaptive deception, "
@@ -674,6 +711,8 @@ def _perform(args: argparse.Namespace) -> int:
     if command.alone is not None:
         return command.alone(args, world)
     out = _out_dir(Path(args.world), args.out)
+    if typed is not None and args.out is None:
+        out = out.with_name(f"{out.name}_type{typed}")     # models/world4_type1/
     if args.max_states is not None and args.max_states < 1:
         raise InputError(COMMAND_LINE, "--max-states", "must be at least 1")
     command.guard(args, world)

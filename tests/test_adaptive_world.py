@@ -189,6 +189,8 @@ def test_cli(tmp_path, capsys):
                          (["run", "--episode", "seed=3"], ": --episode: a world with P2's types"),
                          (["check", "--objective", "lexicographic"], ": type: "),
                          (["sweep", "--param", "delay", "--values", "0"], ": --param: "),
+                         (["sweep", "--param", "weight", "--values", "0.5", "--param", "weight",
+                           "--values", "1"], ": --param: weight is given twice"),
                          (["sweep", "--param", "weight", "--values", "1.5"], ": --values: ")):
         assert main([command[0], str(world), *command[1:], "--out", str(tmp_path / "r")]) == 2
         err = capsys.readouterr().err
@@ -458,3 +460,46 @@ def test_a_type_name_with_a_bar_keeps_table_md_a_table(tmp_path):
             if line.startswith("| ") and "V_" in line]
     assert any("jumpy\\|fast" in row for row in rows)
     assert all(len(re.findall(r"(?<!\\)\|", row)) == 4 for row in rows), rows
+
+
+def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
+    """`--type NAME` (or its number) runs a command on the world where P2 is of that type: the
+    commands that play one model of P2 refused a world with types, and the docs said to copy
+    the type into a world file of its own (a user review). `robust --type stubborn` gives what
+    the API gives for the AdaptiveSolution's stubborn type; `check --type 0` the adaptive
+    check's V_k of jumpy; OUT defaults to <world>_type<k>/. A world without types, or a type it
+    does not list, is one line."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    import hg2prism
+    from hg2prism.cli import main
+    from hg2prism.progress import quiet
+
+    world = tmp_path / "world4.toml"
+    shutil.copy(Path(__file__).resolve().parent.parent / "models" / "world4.toml", world)
+    with quiet():
+        assert main(["robust", str(world), "--type", "stubborn", "--deltas", "0.1",
+                     "--no-cross-check"]) == 0
+        assert main(["check", str(world), "--type", "0"]) == 0
+    adaptive = hg2prism.solve(world)
+    (row,) = json.loads((tmp_path / "world4_type1" / "robust.json").read_text())["rows"]
+    (expected,) = hg2prism.robust(adaptive.types[1], [0.1])
+    assert row["robust_value"] == expected.robust_value
+    assert row["nominal_worst_case"] == expected.nominal_worst_case
+    results = json.loads((tmp_path / "world4_type0" / "results.json").read_text())
+    assert results["deceptive_value"] == adaptive.v_k["jumpy"]
+    assert "here P2 of type 'jumpy'" in (tmp_path / "world4_type0" / "hypergame.prism").read_text()
+    capsys.readouterr()
+    for args, reason in (
+            (["emit", str(Path(__file__).resolve().parent.parent / "models" / "world1.toml"),
+              "--type", "jumpy"], "lists no [[type]] of P2"),
+            (["detect", str(world), "--type", "lazy"],
+             "no type 'lazy' in " + str(world) + "; expected one of 'jumpy', 'stubborn' or a "
+             "number from 0 to 1"),
+            (["robust", str(world), "--type", "2"], "no type '2'")):
+        assert main([*args, "--out", str(tmp_path / "refused")]) == 2
+        (line,) = capsys.readouterr().err.splitlines()
+        assert line.startswith("hg2prism: error: command line: --type: ") and reason in line, line
+    assert not (tmp_path / "refused").exists()
