@@ -539,7 +539,7 @@ def _out_file(verb: str, path: object) -> Path:
     if Path(path).is_dir():
         raise InputError(f"{verb}()", "path", f"{path} is a folder; expected a file name")
     with _as_arguments(verb, {"out": "path"}):
-        check_writable(Path(path).parent, "out")
+        check_writable(Path(path).parent, "out", staged=False)
     return Path(path)
 
 

@@ -42,7 +42,11 @@ def _what_was_written() -> str:
     from hg2prism.outputs import placement
 
     state, out = placement()
-    return f" after placing its outputs in {out}" if state == "done" else "; nothing was written"
+    if state == "done":
+        return f" after placing its outputs in {out}"
+    if state == "begun":
+        return f"; {out} may hold some of the new outputs beside old ones"
+    return "; nothing was written"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -500,7 +504,7 @@ def _convert(args: argparse.Namespace, world: object) -> int:
     out = Path(args.out)
     if out.is_dir():
         raise InputError(COMMAND_LINE, "--out", f"{out} is a folder; expected a file name")
-    check_writable(out.parent)
+    check_writable(out.parent, staged=False)
     write_text(out, text)
     print(f"{out}: written, the arena form of {world.name} ({arena_of(world).n_states} states)")
     return 0
@@ -562,7 +566,11 @@ def entry() -> int:
     try:
         status = main()
     except SystemExit as stop:      # a signal's handler, argparse's --help and usage errors
+        if isinstance(stop.code, str):
+            print(stop.code, file=sys.stderr)
         status = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
+    except KeyboardInterrupt:       # a second Ctrl-C while the first was being reported
+        status = 130
     if any(t.name == "storm" for t in threading.enumerate()):     # ending or not: abandoned
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -654,8 +662,8 @@ def _command(args: argparse.Namespace) -> int:
         return 1
     except KeyboardInterrupt:
         written = _what_was_written()
-        print("hg2prism: interrupted" + (written if written.startswith(" after") else ""),
-              file=sys.stderr)
+        print("hg2prism: interrupted" + ("" if written.endswith("nothing was written")
+                                         else written), file=sys.stderr)
         return 130
 
 

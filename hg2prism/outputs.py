@@ -84,13 +84,16 @@ OWNED = {
 }
 
 
-def check_writable(out: Path, what: str = "--out") -> None:
+def check_writable(out: Path, what: str = "--out", staged: bool = True) -> None:
     """InputError unless `out` is (or can be created as) a folder this process can write, so
-    that a command fails before its work rather than after it."""
+    that a command fails before its work rather than after it; `staged`: a command's output
+    folder, whose staging folder beside it (`staged`) must have a name the file system takes
+    (not for the folder of an output file)."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(COMMAND_LINE, what, f"{out} exists and is not a folder")
-    _short_enough(out, what)
+    if staged:
+        _short_enough(out, what)
     existing = out
     while not existing.exists():
         if existing.parent == existing:
@@ -122,7 +125,8 @@ def _short_enough(out: Path, what: str) -> None:
         return
     length = len(os.fsencode(out.name))
     if length + _STAGING_EXTRA > most:
-        raise InputError(COMMAND_LINE, what, f"the folder name {out.name[:40]}... is {length} "
+        shown = out.name if len(out.name) <= 40 else out.name[:40] + "..."
+        raise InputError(COMMAND_LINE, what, f"the folder name {shown} is {length} "
                          f"bytes long; at most {most - _STAGING_EXTRA} here (hg2prism stages "
                          f"its outputs in a folder beside it whose name is {_STAGING_EXTRA} "
                          f"bytes longer)")
@@ -262,6 +266,7 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
     of one world file) do not. Only what hg2prism placed in `out` (MANIFEST lists it) is ever
     removed."""
     out = Path(out)
+    _placement.update(state=None, out=None)     # this command's, not an earlier one's
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
     os.chmod(stage, 0o777 & ~_UMASK)
@@ -303,17 +308,24 @@ def _signals_deferred() -> Iterator[None]:
     caught: list[int] = []
     kept = {}
     for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) is None:    # installed from C: it could not be put back
+            continue
         try:
             kept[signum] = signal.signal(signum, lambda number, frame: caught.append(number))
         except (ValueError, OSError):
             pass
     try:
         yield
-    finally:
+    except BaseException:
+        # a failure while placing (a full disk) is what the command reports; a stop asked
+        # meanwhile changes nothing more
         for signum, handler in kept.items():
             signal.signal(signum, handler)
-        if caught:
-            signal.raise_signal(caught[0])
+        raise
+    for signum, handler in kept.items():
+        signal.signal(signum, handler)
+    if caught:
+        signal.raise_signal(caught[0])
 
 
 def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: str | None,
@@ -324,8 +336,11 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
     placed = _placed(out)
     _placement.update(state=None, out=out)
     # MANIFEST first lists the old items and the new: whatever stops the placement (a full
-    # disk), the next command still knows every item hg2prism put here
-    _write_manifest(out, placed | {item.name for item in new_items})
+    # disk), the next command still knows every item hg2prism put here (not a file of the
+    # user's that a new item will replace: it is listed once replaced, at the end)
+    _write_manifest(out, placed | {item.name for item in new_items
+                                   if not (out / item.name).exists()
+                                   and not (out / item.name).is_symlink()})
     _placement.update(state="begun")
     own = owns
     another = (world is not None and every is not None

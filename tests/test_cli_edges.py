@@ -834,7 +834,10 @@ def test_a_folder_name_too_long_for_the_staging_folder_is_refused(tmp_path: Path
 
     with quiet():
         assert main(["emit", WORLD1, "--out", str(fits)]) == 0
-    assert (fits / "hypergame.prism").exists()
+        # a file's folder has no staging folder beside it: its name may be as long as any
+        long.mkdir()
+        assert main(["convert", WORLD1, "--out", str(long / "arena.toml")]) == 0
+    assert (fits / "hypergame.prism").exists() and (long / "arena.toml").exists()
 
 
 def test_a_stop_while_outputs_move_in_waits_for_them(tmp_path: Path, monkeypatch,
@@ -877,6 +880,16 @@ def test_a_stop_while_outputs_move_in_waits_for_them(tmp_path: Path, monkeypatch
     assert placed == set(names_in(out)) - {MANIFEST}
     assert not [p for p in tmp_path.iterdir() if "staging" in p.name]
 
+    # the next command of the same process, stopped before its outputs move in, says nothing
+    # was written (the placement above is not its own: a code review)
+    def interrupted(source, target):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(outputs.os, "replace", interrupted)
+    assert main(["emit", WORLD1, "--out", str(tmp_path / "later")]) == 130
+    assert capsys.readouterr().err.strip().splitlines()[-1] == "hg2prism: interrupted"
+    assert not (tmp_path / "later").exists()
+
 
 def test_a_failure_while_outputs_move_in_is_said_and_the_next_command_cleans_up(
         tmp_path: Path, monkeypatch, capsys) -> None:
@@ -913,6 +926,21 @@ def test_a_failure_while_outputs_move_in_is_said_and_the_next_command_cleans_up(
     with quiet():
         assert main(["robust", str(world), "--deltas", "0.2", "--out", str(out)]) == 0
     assert {p.name for p in out.iterdir() if p.name.startswith("robust_")} == {"robust_0.2"}
+
+    # SIGTERM while placing, then the full disk: the error is what is said (it was replaced
+    # by "stopped by signal 15; nothing was written": a code review)
+    import signal
+
+    def stopped_then_full(folder, names):
+        os.kill(os.getpid(), signal.SIGTERM)
+        full(folder, names)
+
+    monkeypatch.setattr(outputs, "_record_placed", stopped_then_full)
+    capsys.readouterr()
+    with quiet():
+        assert main(["robust", str(world), "--deltas", "0.1", "--out", str(out)]) == 1
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if "error" in x or "signal" in x]
+    assert "No space left on device" in line and f"{out} may hold some" in line, line
 
 
 def test_the_program_exits_without_tearing_down_an_abandoned_storm_thread(monkeypatch) -> None:

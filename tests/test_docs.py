@@ -334,7 +334,8 @@ def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
         done = subprocess.run([prism, *words[1:]], cwd=folder, capture_output=True, text=True,
                               timeout=300)
         shown = prints.split("`")[1]
-        assert shown in done.stdout, (command, done.stdout[-500:])
+        printed = re.search(r"^Result: (\S+)", done.stdout, re.MULTILINE)
+        assert printed and f"Result: {printed.group(1)}" == shown, (command, done.stdout[-500:])
     # "As with the model, PRISM's default stopping rule stops short (`0.9497436…` without
     # `-epsilon`)": the chain's command without it
     short = re.search(r"\(`([0-9.]+)…` without `-epsilon`\)",

@@ -342,9 +342,9 @@ def adaptivity_table(results: dict) -> str:
 
 
 def _cell(text: str) -> str:
-    """A type's name in a markdown table cell: a `|` escaped, so that it does not end the
-    cell."""
-    return text.replace("|", "\\|")
+    """A type's name in a markdown table cell: `\\` and `|` escaped, so that it does not end
+    the cell."""
+    return text.replace("\\", "\\\\").replace("|", "\\|")
 
 
 def _difference(value: float) -> str:

@@ -642,7 +642,7 @@ def main(argv: list[str] | None = None) -> int:
     from hg2prism.outputs import check_writable
 
     try:    # before any world is solved, as every command checks its folder
-        check_writable(Path(args.out))
+        check_writable(Path(args.out), staged=False)
     except InputError as err:
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
