@@ -459,9 +459,12 @@ def test_simulation_agrees_with_exact(tmp_path, seed):
     horizon, episodes = 30, 3000
     run = simulate_adaptive(game, policy, episodes, horizon, seed=1)
     for count, exact in ((run.completed, chain.within(horizon)),
-                         (run.identified, chain.identified_within(horizon))):
+                         (run.identified, chain.identified_within(horizon)),
+                         (run.identified_in_play, chain.identified_in_play_within(horizon))):
         low, high = wilson_interval(count, episodes, 0.999)
         assert low <= exact <= high, (count, exact)
+    assert run.identified_in_play <= run.identified
+    assert chain.identified_in_play_within(horizon) <= chain.identified_within(horizon)
     assert sum(n for n, _ in run.by_type) == episodes
     # an identified episode is identified at some step within the horizon
     assert all(0 <= step <= horizon for step in run.identification_steps)
@@ -469,6 +472,72 @@ def test_simulation_agrees_with_exact(tmp_path, seed):
     assert chain.within(100_000) == pytest.approx(result.results["v_adapt"], abs=1e-6)
     if seed is None:
         _bad_adaptive_records_are_strategy_errors(records, game, result)
+
+
+FORK = """name = "fork"
+description = "two doors; P2's trap on her first step says which type she is, as P1 walks in"
+[arena]
+states = ["s", "L", "R"]
+initial = "s"
+[arena.labels]
+L = ["gl"]
+R = ["gr"]
+[[arena.transition]]
+state = "s"
+action = "goL"
+to = { L = 1.0 }
+[[arena.transition]]
+state = "s"
+action = "goR"
+to = { R = 1.0 }
+[task]
+formula = "F gl | F gr"
+[adversary]
+traps = 1
+trap_candidates = ["L", "R"]
+hypotheses = ["F gl", "F gr"]
+[[type]]
+name = "left"
+weight = 0.3
+initial_hypothesis = 0
+[type.inference]
+window = 1
+threshold = 0.5
+rationality = 1.0
+[[type]]
+name = "right"
+weight = 0.7
+initial_hypothesis = 1
+[type.inference]
+window = 1
+threshold = 0.5
+rationality = 1.0
+"""
+
+
+def test_identified_only_as_the_episode_ends_is_not_in_play(tmp_path):
+    """On a world where P2's first trap tells her type as P1 steps into a door (a user review:
+    "P1's belief singles out P2's type" was 1.0 there, though P1 never acts on it), every
+    episode is identified, at step 1, its last: the share in play is 0, simulated and exact,
+    With P1 committed to the likelier type's door, V_adapt is 0.7."""
+    from hg2prism.analyses.adaptive import (AdaptiveGame, adaptive_chain, adaptive_policy,
+                                            simulate_adaptive)
+    from hg2prism.analyses.successor import Hypergame
+
+    path, result, out = solve(tmp_path, FORK)
+    assert result.results["v_adapt"] == pytest.approx(0.7, abs=1e-12)
+    games = [Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games, c.analysis.inference)
+             for c in result.checks]
+    game = AdaptiveGame(games, [t["weight"] for t in result.results["types"]])
+    records = json.loads((out / "strategy.json").read_text())
+    policy = adaptive_policy(records, game, [t["name"] for t in result.results["types"]])
+    chain = adaptive_chain(game, policy)
+    run = simulate_adaptive(game, policy, 200, 10, seed=3)
+    assert run.identified == 200 and set(run.identification_steps) == {1}
+    assert run.identified_in_play == 0
+    assert chain.identified_within(10) == pytest.approx(1.0, abs=1e-12)
+    assert chain.identified_in_play_within(10) == 0.0
+    assert chain.identified_in_play_within(1) == 0.0 == chain.identified_in_play_within(0)
 
 
 def _bad_adaptive_records_are_strategy_errors(records, game, result) -> None:

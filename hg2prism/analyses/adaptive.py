@@ -204,6 +204,12 @@ class AdaptiveChain:
         return numeric.bounded_reach(self.matrix, self.identified, self.stop | self.identified,
                                      0, horizon)
 
+    def identified_in_play_within(self, horizon: int) -> float:
+        """P(P1's belief singles out P2's type within `horizon` - 1 steps, at a state where the
+        episode goes on: a step after which P1 can act on it within the horizon)."""
+        return numeric.bounded_reach(self.matrix, self.identified & ~self.stop,
+                                     self.stop | self.identified, 0, max(horizon - 1, 0))
+
 
 def adaptive_chain(game: AdaptiveGame, policy: AdaptivePolicy) -> AdaptiveChain:
     explored = explore_chain(game.initial(), lambda state: game.successors(state, policy(state))
@@ -224,6 +230,7 @@ class AdaptiveRun:
     identified: int                 # P1's belief singled out the true type within the horizon
     identification_steps: tuple[int, ...]   # the step at which it did, per identified episode
     by_type: tuple[tuple[int, int], ...]    # per type: (episodes drawn, completed)
+    identified_in_play: int         # identified at a step after which the episode went on
 
 
 def play_episode(game: AdaptiveGame, policy: AdaptivePolicy, k: int, horizon: int,
@@ -260,7 +267,7 @@ def simulate_adaptive(game: AdaptiveGame, policy: AdaptivePolicy, episodes: int,
     rng = np.random.default_rng(seed)
     weights = np.array(game.weights) / sum(game.weights)
     drawn = rng.choice(len(weights), size=episodes, p=weights)
-    completed = identified = 0
+    completed = identified = in_play = 0
     steps: list[int] = []
     by_type = [[0, 0] for _ in weights]
     for k in drawn.tolist():
@@ -273,5 +280,6 @@ def simulate_adaptive(game: AdaptiveGame, policy: AdaptivePolicy, episodes: int,
         if found is not None:
             identified += 1
             steps.append(found)
+            in_play += found < len(trace) - 1       # P1 played on, knowing
     return AdaptiveRun(episodes, completed, identified, tuple(steps),
-                       tuple(tuple(t) for t in by_type))
+                       tuple(tuple(t) for t in by_type), in_play)

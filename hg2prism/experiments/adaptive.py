@@ -200,6 +200,10 @@ def _simulation(checks: list[CheckResult], weights: list[float], world: World,
         "identified_share": run.identified / episodes,
         "identified_interval_95": list(wilson_interval(run.identified, episodes)),
         "identified_exact_within_horizon": chain.identified_within(horizon),
+        "identified_in_play_share": run.identified_in_play / episodes,
+        "identified_in_play_interval_95": list(wilson_interval(run.identified_in_play,
+                                                               episodes)),
+        "identified_in_play_exact_within_horizon": chain.identified_in_play_within(horizon),
         "median_identification_step": (median(run.identification_steps)
                                        if run.identification_steps else None),
         "by_type": {t.name: {"episodes": n, "completed": c}
@@ -341,6 +345,17 @@ def adaptivity_table(results: dict) -> str:
     return "\n".join(lines)
 
 
+def _in_play_row(sim: dict) -> list[str]:
+    """The identification row of the episodes that went on after it (results of an older
+    version have none)."""
+    if "identified_in_play_share" not in sim:
+        return []
+    low, high = sim["identified_in_play_interval_95"]
+    return [f"| ... with the episode going on (P1 acts on it) | "
+            f"{sim['identified_in_play_share']:.4f} | [{low:.4f}, {high:.4f}] | "
+            f"{sim['identified_in_play_exact_within_horizon']:.6f} |"]
+
+
 def _cell(text: str) -> str:
     """A type's name in a markdown table cell: `\\` and `|` escaped, so that it does not end
     the cell."""
@@ -395,6 +410,7 @@ def _simulation_rows(sim: dict | None) -> list[str]:
             f"{sim['exact_within_horizon']:.6f} |",
             f"| P1's belief singles out P2's type | {sim['identified_share']:.4f} | "
             f"[{i_low:.4f}, {i_high:.4f}] | {sim['identified_exact_within_horizon']:.6f} |",
+            *_in_play_row(sim),
             "", "median step of identification: "
                 + ("never" if median is None else f"{median:g}")]
 
