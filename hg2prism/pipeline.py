@@ -424,34 +424,20 @@ def _warn_if_slow(objective: StrategyObjective, horizon: int) -> None:
              "probability within the horizon instead")
 
 
-# a simulated count this improbable under its exact value (the two-sided p-value of the exact
-# binomial test) means the two were computed on different processes, not sampling noise
-AGREEMENT_P_VALUE = 1e-6
-
-
 def _warn_if_simulations_disagree(played: _Played) -> None:
     """A warning for each simulated pair whose count of completed episodes is implausible under
-    its exact probability of completing within the horizon (the exact binomial test's p-value
-    below AGREEMENT_P_VALUE, so about one false warning in a million rows): the episodes and
-    the model then play different games. A registered observer whose Python update differed
-    from its PRISM part's showed 0.0000 [0, 0.0004] simulated beside 0.9982 exact, without a
-    word. (A Wilson interval at the same confidence covers badly where only a few episodes
-    fail: it warned falsely 3.6 % of the time at n - 1 of n completed.)"""
-    from scipy.stats import binomtest
-
+    its exact probability of completing within the horizon (analyses.simulation
+    .warn_if_implausible). A registered observer whose Python update differed from its PRISM
+    part's showed 0.0000 [0, 0.0004] simulated beside 0.9982 exact, without a word."""
+    from hg2prism.analyses.simulation import warn_if_implausible
     from hg2prism.report.tables import COMPLETION_ROWS
 
     for row in COMPLETION_ROWS:
         summary, exact = played.summaries[row.key], played.within[row.key]
-        p = binomtest(summary.completed, summary.episodes,
-                      min(max(exact, 0.0), 1.0)).pvalue
-        if p < AGREEMENT_P_VALUE:
-            warn(f"simulated completion of \"{row.information}\" is {summary.rate:.6f} "
-                 f"({summary.completed} of {summary.episodes} episodes), far from its exact "
-                 f"within-horizon probability {exact:.6f} (exact binomial test: p = {p:.1e}): "
-                 "the simulation and the model disagree (for an observer of your own: does "
-                 "its Python update do what its PRISM part does? docs/architecture.md, "
-                 "\"An observer\")")
+        warn_if_implausible(f"completion of \"{row.information}\"", summary.completed,
+                            summary.episodes, exact,
+                            " (for an observer of your own: does its Python update do what "
+                            "its PRISM part does? docs/architecture.md, \"An observer\")")
 
 
 def _nash_stage(analysis: Analysis) -> NashBaseline:

@@ -579,3 +579,35 @@ def test_a_warning_every_type_gives_is_shown_once(tmp_path, caplog):
     assert len(unsound) == 1
     assert [r.getMessage() for r in caplog.records if "sound" not in r.getMessage()
             ][-3:] == ["warning: one", "warning: two", "warning: one"]
+
+
+def test_the_adaptive_simulation_is_checked_against_its_exact_values(tmp_path, monkeypatch,
+                                                                     caplog):
+    """`run` on a world with types warns, as on any world (semantics §8), when a simulated
+    count is implausible under its exact within-horizon probability: completion, identification
+    and identification in play (it had no such check: a statistics review). On world4 nothing
+    is said; with the exact completion made wrong, one line names the row."""
+    import logging
+    from pathlib import Path
+
+    from hg2prism.analyses import adaptive as analyses_adaptive
+    from hg2prism.experiments import adaptive as experiments_adaptive
+    from hg2prism.worldfile import load_world
+
+    world = load_world(Path(__file__).resolve().parent.parent / "models" / "world4.toml")
+    simulation = (400, 60, 0)
+
+    runs = iter(range(10))
+
+    def messages() -> list[str]:
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            experiments_adaptive.check_adaptive(world, tmp_path / f"out{next(runs)}",
+                                                simulation=simulation)
+        return [r.getMessage() for r in caplog.records if "simulated" in r.getMessage()]
+
+    assert messages() == []
+    monkeypatch.setattr(analyses_adaptive.AdaptiveChain, "within", lambda self, horizon: 0.2)
+    (line,) = messages()
+    assert line.startswith("warning: simulated completion of the adaptive strategy is ") and \
+        "far from its exact within-horizon probability 0.200000" in line, line

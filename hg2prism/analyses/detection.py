@@ -18,12 +18,14 @@ available action carries no information and is left out of every count):
   ``ln L1 = sum_{(s~, a) seen} #(s~, a) ln(#(s~, a) / #(s~))``;
 * ``G = 2 (ln L1 - ln L0)`` (>= 0: phat maximises the likelihood over policies of s~, p0 is one);
 * ``df`` = number of distinct ``(s~, a2)`` pairs seen. This is the paper's choice. It exceeds
-  the number of free parameters of the unrestricted model (a state with k distinct observed
-  actions has k - 1 free probabilities, and under H0 nothing is estimated), so the chi-square
-  quantile used is larger than the asymptotically correct one and the test is
-  **conservative**: for data actually drawn from ``p0``, its asymptotic false-alarm rate is
-  below ``alpha``. (A P2 that plays the prediction deterministically is not a sample from
-  ``p0``; see the caveat below.)
+  the number of free parameters of the unrestricted model once every pair of positive
+  probability has been seen (a state with k distinct observed actions has k - 1 free
+  probabilities, and under H0 nothing is estimated), so the chi-square quantile used is larger
+  than the asymptotically correct one: one test, made once on long data drawn from ``p0``,
+  rejects with probability below ``alpha``. The test is repeated at every step, and while
+  pairs are unseen df is smaller, so the share of episodes rejected at some step (the
+  false-alarm rate) is not bounded by ``alpha`` (docs/semantics.md §9). (A P2 that plays the
+  prediction deterministically is not a sample from ``p0``; see the caveat below.)
 * No test while ``df = 0``; H0 is rejected at the first step n with
   ``G > chi2.ppf(1 - alpha, df)``.
 

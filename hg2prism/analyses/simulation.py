@@ -40,7 +40,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.numeric import bounded_reach
-from hg2prism.progress import Bar
+from hg2prism.progress import Bar, warn
 from hg2prism.strategy.policy import Policy, ProductPolicy
 from hg2prism.strategy.records import Fallback, StrategyError
 from hg2prism.opponent.observer import Memory
@@ -78,6 +78,29 @@ _RANDOM_BLOCK = 8192
 # ---------------------------------------------------------------------------------------------
 # Wilson interval and the summary
 # ---------------------------------------------------------------------------------------------
+
+# a simulated count this improbable under its exact value (the two-sided p-value of the exact
+# binomial test) means the two were computed on different processes, not sampling noise
+AGREEMENT_P_VALUE = 1e-6
+
+
+def warn_if_implausible(what: str, count: int, episodes: int, exact: float,
+                        advice: str = "") -> bool:
+    """A warning when `count` of `episodes` is implausible under the exact within-horizon
+    probability `exact` (the exact binomial test's p-value below AGREEMENT_P_VALUE, so about
+    one false warning in a million): the episodes and the model then play different games.
+    (A Wilson interval at the same confidence covers badly where only a few episodes fail: it
+    warned falsely 3.6 % of the time at n - 1 of n.) Returns whether it warned."""
+    from scipy.stats import binomtest
+
+    p = binomtest(count, episodes, min(max(exact, 0.0), 1.0)).pvalue
+    if p >= AGREEMENT_P_VALUE:
+        return False
+    warn(f"simulated {what} is {count / episodes:.6f} ({count} of {episodes} episodes), far "
+         f"from its exact within-horizon probability {exact:.6f} (exact binomial test: "
+         f"p = {p:.1e}): the simulation and the model disagree{advice}")
+    return True
+
 
 def wilson_interval(successes: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval (no continuity correction) of a binomial proportion.

@@ -178,13 +178,19 @@ def _simulation(checks: list[CheckResult], weights: list[float], world: World,
                                             belief, play_episode, simulate_adaptive)
     from hg2prism.analyses.episodes import outcome_text
     from hg2prism.report.adaptive_plot import adaptive_belief_figure
-    from hg2prism.analyses.simulation import TRUNCATED, wilson_interval
+    from hg2prism.analyses.simulation import TRUNCATED, warn_if_implausible, wilson_interval
 
     game = AdaptiveGame([Hypergame(c.analysis.ts, c.analysis.task, c.analysis.games,
                                    c.analysis.inference) for c in checks], weights)
     policy = adaptive_policy(records, game, [t.name for t in world.types])
     chain = adaptive_chain(game, policy)
     run = simulate_adaptive(game, policy, episodes, horizon, seed)
+    for what, count, exact in (
+            ("completion of the adaptive strategy", run.completed, chain.within(horizon)),
+            ("identification of P2's type", run.identified, chain.identified_within(horizon)),
+            ("identification of P2's type in play", run.identified_in_play,
+             chain.identified_in_play_within(horizon))):
+        warn_if_implausible(what, count, episodes, exact)
     rng = np.random.default_rng(seed)
     drawn = int(rng.choice(len(weights), p=np.array(weights) / sum(weights)))
     trace = play_episode(game, policy, drawn, horizon, rng)

@@ -361,8 +361,9 @@ def _result(world: World, check_result: CheckResult, batches: _Batches, deviate_
         "storm_method": check_result.results.storm_method,
         "sound": check_result.results.sound,
         "p1_model": observer_kind(world.inference).report(world),
-        "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper; this "
-                  "exceeds the free parameters, so the test is conservative. P1 plays its "
+        "notes": ("df counts distinct (augmented state, P2 action) pairs, as in the paper. The "
+                  "test is made at every step: the false-alarm rate (episodes rejected at some "
+                  "step) is not bounded by alpha (docs/semantics.md §9). P1 plays its "
                   "exported records and, on states they do not cover (reachable only when P2 "
                   "departs from the model), the leader-game fallback; such steps are counted in "
                   "off_record_steps. Every batch uses the same seed."),
