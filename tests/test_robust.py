@@ -24,7 +24,7 @@ import worldgen
 from conftest import MODELS
 from reference_robust import RobustHypergame
 from hg2prism import pipeline, progress
-from hg2prism.analyses.simulation import (LeaderStrategy, Replanning, deviating_policy,
+from hg2prism.analyses.simulation import (GOAL, LeaderStrategy, Replanning, deviating_policy,
                                           leader_fallback, simulate_deceptive)
 from hg2prism.cli import main
 from hg2prism.errors import InputError
@@ -378,6 +378,23 @@ def test_replanning_is_seeded_and_paired(world_dir: Path) -> None:
     # an episode can only differ where P1 switched (each episode has its own random numbers)
     differs = (with_.outcomes != without.outcomes) | (with_.lengths != without.lengths)
     assert 0 < differs.sum() <= without.replanned
+    # detection.json's paired comparison, by counting episode by episode and the binomial
+    # distribution summed by hand (the exact McNemar test: a statistics review found the two
+    # runs reported as two overlapping intervals only)
+    from math import comb
+
+    from hg2prism.experiments.detect import paired_change
+
+    paired = paired_change(without, with_)
+    pairs = list(zip(without.outcomes.tolist(), with_.outcomes.tolist()))
+    b = sum(1 for w, x in pairs if x == GOAL != w)
+    c = sum(1 for w, x in pairs if w == GOAL != x)
+    assert (paired["only_with"], paired["only_without"]) == (b, c) and b + c > 0
+    assert paired["change"] == pytest.approx(with_.rate - without.rate, abs=1e-15)
+    tail = sum(comb(b + c, i) for i in range(min(b, c) + 1)) / 2 ** (b + c)
+    assert paired["mcnemar_p"] == pytest.approx(min(1.0, 2 * tail), rel=1e-9)
+    assert paired_change(without, without) == {"only_with": 0, "only_without": 0,
+                                               "change": 0.0, "mcnemar_p": 1.0}
 
 
 def test_robust_command_writes_its_outputs(world_dir: Path, tmp_path: Path) -> None:

@@ -231,6 +231,25 @@ def _replanning_rates(summary: SimulationSummary) -> dict:
     return {**_completion(summary), "detected_episodes": summary.replanned}
 
 
+def paired_change(without: SimulationSummary, with_: SimulationSummary) -> dict:
+    """The two runs of re-planning compared episode by episode (the same episodes, each from
+    its own random stream): how many completed only with re-planning and only without, the
+    change of the completion rate, and the exact two-sided McNemar test of "re-planning changes
+    nothing" (a binomial test of the discordant episodes at 1/2; 1.0 when there are none).
+    Two overlapping intervals of the rates say less: the runs are paired."""
+    from scipy.stats import binomtest
+
+    from hg2prism.analyses.simulation import GOAL
+
+    done_with, done_without = with_.outcomes == GOAL, without.outcomes == GOAL
+    only_with = int((done_with & ~done_without).sum())
+    only_without = int((done_without & ~done_with).sum())
+    discordant = only_with + only_without
+    return {"only_with": only_with, "only_without": only_without,
+            "change": (only_with - only_without) / with_.episodes,
+            "mcnemar_p": binomtest(only_with, discordant, 0.5).pvalue if discordant else 1.0}
+
+
 def _fallback_strategy(world: World, check_result: CheckResult, fallback: str,
                        delta: float | None) -> Policy:
     """P1's strategy after a detected mismatch (docs/semantics.md §14)."""
@@ -524,9 +543,11 @@ def _replanning_batches(world: World, check_result: CheckResult, batches: _Batch
                            "episode]), in both runs: an episode is played identically with "
                            "and without re-planning up to P1's switch"),
         "deviation": {"without": _replanning_rates(without_b),
-                      "with": _replanning_rates(with_b)},
+                      "with": _replanning_rates(with_b),
+                      "paired": paired_change(without_b, with_b)},
         "compliant": {"without": _replanning_rates(without_c),
-                      "with": _replanning_rates(with_c)},
+                      "with": _replanning_rates(with_c),
+                      "paired": paired_change(without_c, with_c)},
     }
 
 
@@ -663,13 +684,17 @@ def detection_summary_lines(result: dict) -> list[str]:
             "sampling noise):",
             "",
             "| P2 | completion without re-planning (95% CI) | with re-planning (95% CI) "
-            "| change | episodes in which the detector fired |",
-            "|---|---|---|---|---|",
+            "| change | completed only with / only without (McNemar p) "
+            "| episodes in which the detector fired |",
+            "|---|---|---|---|---|---|",
         ]
         for batch, name in (("deviation", f"deviates after step {k}"), ("compliant", "follows the model")):
             without, with_ = replanning[batch]["without"], replanning[batch]["with"]
+            paired = replanning[batch]["paired"]
             lines.append(f"| {name} | {_rate(without)} | {_rate(with_)} "
                          f"| {with_['rate'] - without['rate']:+.4f} "
+                         f"| {paired['only_with']} / {paired['only_without']} "
+                         f"(p = {paired['mcnemar_p']:.2g}) "
                          f"| {with_['detected_episodes']} / {with_['episodes']} |")
     lines.append("")
     if result["p1_model"].get("threshold") is None:        # no CUSUM score to report
