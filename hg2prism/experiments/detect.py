@@ -671,31 +671,8 @@ def detection_summary_lines(result: dict) -> list[str]:
                      f"| {given_text} | {_step(v['mean_detection_step'])} "
                      f"| {_rate(v['completion'])} | {v['completion_change']:+.4f} "
                      f"| {v['completion']['off_record_steps']} |")
-    replanning = result.get("replanning")
-    if replanning is not None:
-        shown = (f"the robust strategy (delta {replanning['delta']:g})"
-                 if replanning["fallback"] == "robust" else "the leader-game strategy")
-        lines += [
-            "",
-            f"Re-planning: at the detector's first rejection P1 switches to {shown} "
-            "(both columns play the same episodes, each from its own random stream, "
-            "seeded from the seed and its number, until P1's moves differ; they are "
-            "other episodes than the table above's, whose rates they match only up to "
-            "sampling noise):",
-            "",
-            "| P2 | completion without re-planning (95% CI) | with re-planning (95% CI) "
-            "| change | completed only with / only without (McNemar p) "
-            "| episodes in which the detector fired |",
-            "|---|---|---|---|---|---|",
-        ]
-        for batch, name in (("deviation", f"deviates after step {k}"), ("compliant", "follows the model")):
-            without, with_ = replanning[batch]["without"], replanning[batch]["with"]
-            paired = replanning[batch]["paired"]
-            lines.append(f"| {name} | {_rate(without)} | {_rate(with_)} "
-                         f"| {with_['rate'] - without['rate']:+.4f} "
-                         f"| {paired['only_with']} / {paired['only_without']} "
-                         f"(p = {paired['mcnemar_p']:.2g}) "
-                         f"| {with_['detected_episodes']} / {with_['episodes']} |")
+    if result.get("replanning") is not None:
+        lines += _replanning_lines(result["replanning"], k)
     lines.append("")
     if result["p1_model"].get("threshold") is None:        # no CUSUM score to report
         lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
@@ -704,4 +681,33 @@ def detection_summary_lines(result: dict) -> list[str]:
         lines.append(f"  ({result['episodes']} episodes per row, seed {result['seed']}, horizon "
                      f"{result['horizon']}; the largest CUSUM score P2 reaches when she follows the "
                      f"model is {result['compliant']['max_cusum_score']:.4g})")
+    return lines
+
+
+def _replanning_lines(replanning: dict, k: object) -> list[str]:
+    """The summary's re-planning table: both runs' rates and their paired comparison,
+    for P2 deviating after step `k` and for P2 following the model."""
+    shown = (f"the robust strategy (delta {replanning['delta']:g})"
+             if replanning["fallback"] == "robust" else "the leader-game strategy")
+    lines = [
+        "",
+        f"Re-planning: at the detector's first rejection P1 switches to {shown} "
+        "(both columns play the same episodes, each from its own random stream, "
+        "seeded from the seed and its number, until P1's moves differ; they are "
+        "other episodes than the table above's, whose rates they match only up to "
+        "sampling noise):",
+        "",
+        "| P2 | completion without re-planning (95% CI) | with re-planning (95% CI) "
+        "| change | completed only with / only without (McNemar p) "
+        "| episodes in which the detector fired |",
+        "|---|---|---|---|---|---|",
+    ]
+    for batch, name in (("deviation", f"deviates after step {k}"), ("compliant", "follows the model")):
+        without, with_ = replanning[batch]["without"], replanning[batch]["with"]
+        paired = replanning[batch]["paired"]
+        lines.append(f"| {name} | {_rate(without)} | {_rate(with_)} "
+                     f"| {with_['rate'] - without['rate']:+.4f} "
+                     f"| {paired['only_with']} / {paired['only_without']} "
+                     f"(p = {paired['mcnemar_p']:.2g}) "
+                     f"| {with_['detected_episodes']} / {with_['episodes']} |")
     return lines
