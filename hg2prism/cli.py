@@ -176,7 +176,7 @@ def _sweep_parser(sub: Subparsers) -> None:
                    help="a parameter to sweep: " + ", ".join(sweep_parameters())
                         + "; repeat --param NAME --values V... to sweep the grid of several; "
                         "a world with P2's types ([[type]]) sweeps weight (its first type's "
-                        "prior weight) only")
+                        "prior weight) only, unless --type picks one type's world")
     p.add_argument("--values", required=True, action="append", nargs="+", metavar="V",
                    help="the values of the --param before it")
     p.add_argument("--out", metavar="OUT", help="output folder (default: next to the world file)")
@@ -189,6 +189,7 @@ def _sweep_parser(sub: Subparsers) -> None:
     p.add_argument("--deception", action="store_true",
                    help="also compute V_static and V_naive at each point (what the deception "
                         "is worth, docs/semantics.md §11)")
+    _type_option(p)
     _solver_options(p)
 
 
@@ -267,7 +268,8 @@ def _guard_sweep(args: argparse.Namespace, world: object) -> None:
             raise InputError(COMMAND_LINE, "--param", "weight is given twice; give all its "
                              "values after one --values" if set(args.param) == {"weight"} else
                              "a world with P2's types sweeps --param weight (the first "
-                             "type's prior weight) only")
+                             "type's prior weight) only, or with --type NAME the parameters "
+                             "of the world where P2 is of that type")
         if args.deception:
             raise InputError(COMMAND_LINE, "--deception", "V_static and V_naive are of a world "
                              "with one [inference]; a world with P2's types reports V_adapt, "

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
@@ -47,10 +47,12 @@ def provenance(world: World, engine: ModelChecker | None = None) -> dict[str, ob
     """The keys every record (results.json, robust.json, detection.json, sweep.json, the
     adaptive results) starts with: the world (its name, file and `World.digest`, by which
     hg2prism.outputs tells whose outputs a folder holds), the hg2prism that wrote it and the
-    software it ran on (`software`; `engine`: the model checker, default Storm)."""
+    software it ran on (`software`; `engine`: the model checker, default Storm); for the world
+    of one of P2's types (`--type`, an adaptive run's type<k>/), `p2_type`: that type's name."""
     from hg2prism import __version__
 
-    return {"world": world.name, "world_file": str(world.path),
+    typed = {"p2_type": world.of_type} if world.of_type else {}
+    return {"world": world.name, **typed, "world_file": str(world.path),
             "world_digest": world.digest(), "hg2prism_version": __version__,
             "software": software(engine)}
 
@@ -224,11 +226,15 @@ class CheckResults:
     # here, rounded in to_json(); read-only.
     timings: Timings
     objective: StrategyObjective    # what the exported strategy optimises, and its timing
+    # the name of P2's type the world is of (`--type`, an adaptive run's type<k>/); "" for a
+    # world as its file gives it, and then not in results.json
+    p2_type: str = field(default="", kw_only=True)
 
     def to_json(self) -> dict:
         """The content of results.json written by `check`."""
         return {
             "world": self.world,
+            **({"p2_type": self.p2_type} if self.p2_type else {}),
             "world_file": self.world_file,
             "world_digest": self.world_digest,
             "hg2prism_version": self.hg2prism_version,

@@ -467,8 +467,10 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
     commands that play one model of P2 refused a world with types, and the docs said to copy
     the type into a world file of its own (a user review). `robust --type stubborn` gives what
     the API gives for the AdaptiveSolution's stubborn type; `check --type 0` the adaptive
-    check's V_k of jumpy; OUT defaults to <world>_type<k>/. A world without types, or a type it
-    does not list, is one line."""
+    check's V_k of jumpy; `sweep --type stubborn` at the type's own rationality its V_k. OUT
+    defaults to <world>_type<k>/, and the records name the type (`p2_type`; a user could not
+    tell from results.json which type it was of). A world without types, or a type it does not
+    list, is one line."""
     import json
     import shutil
     from pathlib import Path
@@ -483,6 +485,9 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
         assert main(["robust", str(world), "--type", "stubborn", "--deltas", "0.1",
                      "--no-cross-check"]) == 0
         assert main(["check", str(world), "--type", "0"]) == 0
+        assert main(["sweep", str(world), "--type", "stubborn", "--param", "rationality",
+                     "--values", repr(hg2prism.load_world(world).types[1].rationality),
+                     "--workers", "1"]) == 0
     adaptive = hg2prism.solve(world)
     (row,) = json.loads((tmp_path / "world4_type1" / "robust.json").read_text())["rows"]
     (expected,) = hg2prism.robust(adaptive.types[1], [0.1])
@@ -490,6 +495,14 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
     assert row["nominal_worst_case"] == expected.nominal_worst_case
     results = json.loads((tmp_path / "world4_type0" / "results.json").read_text())
     assert results["deceptive_value"] == adaptive.v_k["jumpy"]
+    assert results["p2_type"] == "jumpy"
+    swept = json.loads((tmp_path / "world4_type1" / "sweep.json").read_text())
+    assert swept["p2_type"] == "stubborn"
+    assert json.loads((tmp_path / "world4_type1" / "robust.json").read_text())["p2_type"] \
+        == "stubborn"
+    (point,) = swept["rows"]
+    assert point["deceptive_value"] == adaptive.v_k["stubborn"]
+    assert adaptive.types[1].to_json()["p2_type"] == "stubborn"     # the API's records too
     assert "here P2 of type 'jumpy'" in (tmp_path / "world4_type0" / "hypergame.prism").read_text()
     capsys.readouterr()
     for args, reason in (

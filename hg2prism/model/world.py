@@ -71,7 +71,7 @@ class PlayerType:
 
 # Fields added after digests were first written, left out of the digest at their default, so
 # that a world that does not use them keeps its digest (and its output folders).
-_LATER = {"tie_break": "first"}
+_LATER = {"tie_break": "first", "of_type": ""}
 _NONE = object()
 
 
@@ -108,6 +108,10 @@ class World:
     # world's own observer is then its first type's; `worldfile.types.world_of_type` gives each
     # type's ordinary world.
     types: tuple[PlayerType, ...] = ()
+    # the name of P2's type this world was made for (`worldfile.types.world_of_type`: the world
+    # of a file with [[type]] in which P2 is of that type), which its records name (`p2_type`);
+    # empty for a world as its file gives it
+    of_type: str = ""
 
     def __post_init__(self) -> None:
         # no World exists unvalidated, however made (docs/api.md): InputError naming the key

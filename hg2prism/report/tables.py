@@ -90,8 +90,9 @@ def _objective_line(results: CheckResults) -> str:
 def summary(results: CheckResults, out: Path, files: list[str]) -> str:
     """What `check` and `run` print: the values, the hypergame's size and the files written
     (with `run`, `results` is a RunResults and V_NE is shown too)."""
+    typed = f" (P2 of type {results.p2_type})" if results.p2_type else ""
     return "\n".join([
-        f"{results.world}:",
+        f"{results.world}{typed}:",
         f"  deceptive value  {results.deceptive_value:.6f}   P1 against P2's inference (Pmax, Storm)",
         f"  v_lead           {results.v_lead:.6f}   P2 knows the task and commits first each step",
     ] + ([f"  v_ne             {results.v_ne:.6f}   in [{results.v_ne_bounds[0]:.10f}, "

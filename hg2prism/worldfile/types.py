@@ -93,7 +93,7 @@ def world_of_type(world: World, k: int) -> World:
     which = f"P2 of type {t.name!r} (type {k} of {len(world.types)})"
     return replace(world, inference=t.inference, window=t.window, rationality=t.rationality,
                    settings=t.settings, initial_hypothesis=t.initial_hypothesis, types=(),
-                   description=f"{world.description}; here {which}" if world.description
+                   of_type=t.name, description=f"{world.description}; here {which}" if world.description
                    else which)
 
 
