@@ -24,15 +24,27 @@ docs/semantics.md.
 
 __version__ = "0.1.0"
 
-from hg2prism.api import (AdaptiveSolution, Baselines, DeceptionValues, Episode, EpisodeStep,  # noqa: E402
-                          RobustValue, Run, Simulation, Solution, Strategy, SweepRow, SweepTable,
-                          baselines, deception_values, detection, draw_belief, draw_sweep,
-                          draw_world, episode, load_world, robust, run, simulate, solve, sweep,
-                          world_from_graph, world_from_toml)
-
-from hg2prism.errors import InputError  # noqa: E402  (except hg2prism.InputError)
-
 __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "run",
            "baselines", "simulate", "deception_values", "robust", "sweep", "detection", "episode",
            "draw_world", "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
+
+
+def __getattr__(name: str) -> object:
+    """The API's names, imported when first asked for (`hg2prism.solve`, `from hg2prism
+    import solve`): importing the package itself, or one of its modules such as the program's
+    `hg2prism.program`, takes no time."""
+    if name == "InputError":
+        from hg2prism.errors import InputError as value
+    elif name in __all__:
+        from hg2prism import api
+
+        value = getattr(api, name)
+    else:
+        raise AttributeError(f"module 'hg2prism' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

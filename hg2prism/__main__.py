@@ -1,3 +1,3 @@
-from hg2prism.cli import entry
+from hg2prism.program import entry
 
 raise SystemExit(entry())

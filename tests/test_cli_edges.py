@@ -971,5 +971,63 @@ def test_the_program_exits_without_tearing_down_an_abandoned_storm_thread(monkey
         worker.join()
     assert exits == [143]
     # both ways of starting the program go through it
-    assert 'hg2prism = "hg2prism.cli:entry"' in (ROOT / "pyproject.toml").read_text()
+    assert 'hg2prism = "hg2prism.program:entry"' in (ROOT / "pyproject.toml").read_text()
+    assert "from hg2prism.program import entry" in (ROOT / "hg2prism" / "__main__.py").read_text()
     assert "raise SystemExit(entry())" in (ROOT / "hg2prism" / "__main__.py").read_text()
+
+
+def test_a_ctrl_c_while_python_imports_the_program_is_one_line(monkeypatch, capsys) -> None:
+    """Ctrl-C in the first second of a command, while Python still imported hg2prism and its
+    libraries, printed a KeyboardInterrupt traceback of the imports (an atomicity review):
+    the program (`hg2prism.program.entry`, which imports nothing heavy) says
+    `hg2prism: interrupted` and returns 130, as every other Ctrl-C does."""
+    import importlib.abc
+
+    from hg2prism import program
+
+    class Interrupted(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "hg2prism.cli":
+                raise KeyboardInterrupt
+            return None
+
+    monkeypatch.delitem(sys.modules, "hg2prism.cli")
+    monkeypatch.setattr(sys, "meta_path", [Interrupted(), *sys.meta_path])
+    capsys.readouterr()
+    assert program.entry() == 130
+    assert capsys.readouterr().err == "hg2prism: interrupted\n"
+    # importing the package and the program loads none of the pipeline
+    code = ("import sys, hg2prism.program; "
+            "print(sorted(m for m in sys.modules if m.startswith(('numpy', 'hg2prism.'))))")
+    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True).stdout
+    assert loaded.strip() == "['hg2prism.program']", loaded
+
+
+def test_a_sweep_stopped_while_its_dask_cluster_starts_ends_in_one_line(tmp_path) -> None:
+    """Ctrl-C while a sweep's LocalCluster started printed Dask's exit-hook traceback
+    (AssertionError: Status.init) and its shutdown logs after "hg2prism: interrupted" (an
+    atomicity review). The sweep now closes the clusters it started itself, quietly, and keeps
+    Dask's exit hook off them: one line, status 130, no worker process left."""
+    script = tmp_path / "stop.py"
+    script.write_text(
+        "import os, sys\n"
+        "import distributed, distributed.deploy.local as local\n"
+        "started = local.LocalCluster.__init__\n"
+        "def stop(self, *args, **kwargs):\n"
+        "    started(self, *args, **kwargs)\n"
+        "    raise KeyboardInterrupt          # Ctrl-C as the cluster's start returns\n"
+        "local.LocalCluster.__init__ = stop\n"
+        "from hg2prism.cli import main\n"
+        "if __name__ == '__main__':\n"
+        "    status = main(sys.argv[1:])\n"
+        "    print('children', len(__import__('multiprocessing').active_children()))\n"
+        "    sys.exit(status)\n")
+    done = subprocess.run(
+        [sys.executable, str(script), "sweep", str(ROOT / "models" / "world1.toml"), "--param",
+         "rationality", "--values", "1", "2", "--workers", "2", "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "hg2prism: interrupted\n", done.stderr
+    assert done.stdout.strip() == "children 0", done.stdout
+    assert not (tmp_path / "out").exists()

@@ -704,12 +704,17 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
 
     # The workers' and the scheduler's logs (start-up, shutdown, heartbeats) are noise here;
     # what matters reaches the user as the points' outcomes.
-    quiet_loggers = [logging.getLogger(name) for name in ("distributed", "tornado", "bokeh")]
+    quiet_loggers = [logging.getLogger(name)
+                     for name in ("distributed", "tornado", "bokeh", "asyncio")]
     levels = [logger.level for logger in quiet_loggers]
     for logger in quiet_loggers:
         logger.setLevel(logging.CRITICAL)
+    from distributed.deploy.spec import SpecCluster
+
     cluster = None
     futures: list = []
+    before = set(getattr(SpecCluster, "_instances", ()))
+    stopped = False
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -744,11 +749,34 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
             for future in futures:
                 future.cancel()
             client.close()
+    except (Exception, KeyboardInterrupt, SystemExit):
+        # Stopped (Ctrl-C, a signal) or failed while the cluster started or ran: Dask's own
+        # exit hook would close it again and print its traceback (a worker still starting
+        # fails its assertion), with its shutdown logs after ours.
+        _abandon(set(getattr(SpecCluster, "_instances", ())) - before, cluster)
+        cluster, stopped = None, True
+        raise
     finally:
         if cluster is not None:
             cluster.close()
-        for logger, level in zip(quiet_loggers, levels):
-            logger.setLevel(level)
+        # Stopped, the process is usually about to end, and the cluster's tasks report their
+        # cancellation when they are collected: the logs stay quiet then.
+        if not stopped:
+            for logger, level in zip(quiet_loggers, levels):
+                logger.setLevel(level)
+
+
+def _abandon(started: set, cluster: object) -> None:
+    """Close the clusters this sweep started (`started`; `cluster`, the LocalCluster, when
+    its start had returned) after a stop or a failure, quietly, and keep Dask's exit hook off
+    them. One that does not close is left to the process's exit, which ends its worker
+    processes (daemons of multiprocessing)."""
+    for each in started | ({cluster} if cluster is not None else set()):
+        try:
+            each.close(timeout=5)
+        except (Exception, KeyboardInterrupt):
+            pass
+        each.shutdown_on_close = False          # Dask's exit hook skips it
 
 
 # ---------------------------------------------------------------------------------------------
