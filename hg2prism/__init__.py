@@ -4,16 +4,18 @@ The Python API (docs/api.md):
 
     load_world(path), world_from_toml(text, name="world")   -> World
     world_from_graph(G, entries=..., task=..., ...)          -> World (an attack graph's arena)
-    solve(world, *, out=None, storm_method="sound")          -> Solution (AdaptiveSolution
-                                                                with P2's types, [[type]])
-    run(world, out, *, episodes, horizon, seed, episode)     -> Run (what `hg2prism run` writes
-                                                                into out: table, figures, ...)
+    solve(world, *, out=None, storm_method="sound",          -> Solution (AdaptiveSolution
+          objective="pmax", bound=None)                         with P2's types, [[type]])
+    run(world, out, *, episodes, horizon, seed, episode,     -> Run (what `hg2prism run` writes
+        storm_method="sound", objective="pmax")                 into out: table, figures, ...)
     baselines(world)                                         -> Baselines (V_NE, its bracket, V_lead)
     simulate(solution, *, episodes, horizon, seed)           -> Simulation (rate, 95% interval)
     deception_values(solution)                               -> V_static, V_naive, value of deception
     robust(solution, deltas)                                 -> [RobustValue] (robust deception)
-    sweep(world, parameter, values) or sweep(world, grid=)   -> SweepTable (rows, to_csv)
-    detection(solution, *, episodes, seed, fallback)         -> detection.json's content
+    sweep(world, parameter, values) or sweep(world, grid=),  -> SweepTable (rows, to_csv)
+          storm_method, workers, deception
+    detection(solution, *, episodes, seed, horizon,          -> detection.json's content
+              fallback, fallback_delta)
     episode(solution, seed)                                  -> Episode (steps, P2's belief)
     draw_world / draw_belief(solution, episode, ax=)         -> the figures, in a matplotlib Axes
     draw_sweep(table, ax=)
@@ -27,7 +29,8 @@ __version__ = "0.1.0"
 __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "run",
            "baselines", "simulate", "deception_values", "robust", "sweep", "detection", "episode",
            "draw_world", "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
-           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
+           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep",
+           "PlayerType"]
 
 
 def __getattr__(name: str) -> object:

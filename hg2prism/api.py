@@ -17,12 +17,13 @@ from __future__ import annotations
 import contextlib
 import numbers
 import os
+import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hg2prism.model.validation import MAX_EPISODES, MAX_HORIZON, MAX_SEED, Checks
-from hg2prism.model.world import World, plain
+from hg2prism.model.world import PlayerType, World, plain
 
 from hg2prism.errors import COMMAND_LINE, InputError, listing
 from hg2prism.worldfile import load_world, world_from_toml
@@ -32,7 +33,8 @@ from hg2prism.strategy.records import Strategy
 __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "run", "baselines",
            "simulate", "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
            "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
-           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep"]
+           "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep",
+           "PlayerType"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -817,15 +819,23 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
           deception: bool = False) -> SweepTable:
     """Solve the world at each value of `parameter` (or at every point of `grid`, a list of
     (parameter, values) pairs), as `hg2prism sweep` does; the parameters are those of
-    `hg2prism sweep --param` (rationality, threshold, window, delay, traps, inference, prior,
-    decision, initial_hypothesis, and a front end's own, such as a grid's robot settings).
+    `hg2prism sweep --param` (inference, delay, window, threshold, prior, decision,
+    rationality, slip, traps, initial_hypothesis, tie_break, and those a front end or an
+    observer registers).
     With `deception` (`sweep --deception`) each row also has `row["v_static"]`,
-    `row["v_naive"]` and `row["value_of_deception"]`. Writes nothing; a bad parameter or value
-    raises InputError."""
+    `row["v_naive"]` and `row["value_of_deception"]`. `workers` > 1 solves the points on as
+    many processes (a local Dask cluster; a script that calls it needs `if __name__ ==
+    "__main__":`, as multiprocessing does). Each point's line goes to the hg2prism logger at
+    INFO as it is solved. Writes nothing; a bad parameter or value raises InputError."""
     from hg2prism.experiments.sweep import sweep_grid
 
     storm_method = _storm_method("sweep", storm_method)
     workers = _integer("sweep", workers, "workers", 1)
+    script = _unguarded_script() if workers > 1 else None
+    if script is not None:
+        raise InputError("sweep()", "workers", f"{script} does its work outside `if __name__ == "
+                         f"\"__main__\":`, and each of the {workers} worker processes would run "
+                         f"it again: put the work under that test, or pass workers=1")
     deception = _flag("sweep", deception, "deception")
     world = _world("sweep", world)
     _typed_world(world, "sweep", "sweep its prior with hg2prism sweep WORLD --param weight")
@@ -854,16 +864,38 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
     return SweepTable(parameters=names, rows=rows, failed=run.failed)
 
 
+def _unguarded_script() -> str | None:
+    """The script this process runs when it does its work outside `if __name__ ==
+    "__main__":`: a worker process multiprocessing starts (Dask's, by spawning) runs it again
+    before it takes any work, and so on. None for a guarded script, the hg2prism program, a
+    package's __main__, python -c and notebooks (multiprocessing runs none of these again)."""
+    import ast
+
+    main = sys.modules.get("__main__")
+    path, spec = getattr(main, "__file__", None), getattr(main, "__spec__", None)
+    if not isinstance(path, str) or (spec is not None and spec.name.endswith(".__main__")):
+        return None
+    try:
+        tree = ast.parse(Path(path).read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in tree.body:
+        if isinstance(node, ast.If) and {"__name__", "__main__"} <= {
+                getattr(n, "id", getattr(n, "value", None)) for n in ast.walk(node.test)}:
+            return None
+    return path
+
+
 def detection(solution: Solution, *, episodes: int | None = None, seed: int | None = None,
               horizon: int | None = None, fallback: str | None = None,
               fallback_delta: float | None = None) -> dict:
     """Whether P2 can tell that P1's model of her is wrong (docs/semantics.md §9, §14), as
     `hg2prism detect` computes it: the content of detection.json (its `deviation`,
-    `compliant` and `mismatch` batches). `episodes` default to min(the world's, 2000), seed and
+    `compliant` and `model_mismatch` batches; its progress, batch by batch, on the hg2prism
+    logger at INFO). `episodes` default to min(the world's, 2000), seed and
     horizon to the world's; `fallback` ("robust" with `fallback_delta`, or "leader") re-plans
     on detection. Writes nothing."""
     _one_type(solution, "detection")
-    from hg2prism import progress
     from hg2prism.experiments.detect import detection_experiment, parse_fallback
 
     episodes, horizon, seed = _simulation_arguments("detection", episodes, horizon, seed)
@@ -871,7 +903,9 @@ def detection(solution: Solution, *, episodes: int | None = None, seed: int | No
         _budget("detection", fallback_delta, "fallback_delta")
     with _as_arguments("detection"):
         parse_fallback(fallback, fallback_delta)
-    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, progress.quiet(), \
+    # its stage reports (each batch, each re-check) go to the hg2prism logger, as `detect`
+    # shows them: a run of thousands of episodes takes a while
+    with tempfile.TemporaryDirectory(prefix="hg2prism-") as scratch, \
             _as_arguments("detection"):
         return detection_experiment(solution.world, solution.check, Path(scratch), episodes,
                                     seed, False, horizon, fallback, fallback_delta)

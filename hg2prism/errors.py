@@ -42,6 +42,17 @@ class InputError(Exception):
         self.reason = reason
 
 
+class MissingSetting(InputError):
+    """A setting P2's observer needs and nobody gave (`opponent.registry.configure` switching
+    to a kind with a required setting: to "cusum" without a threshold); `setting` names it."""
+
+    def __init__(self, file: str, kind: str, setting: str) -> None:
+        super().__init__(file, f"inference.{setting}", f"the {kind} observer needs a {setting}, "
+                         f"which has no default: give it (configure(world, {kind!r}, "
+                         f"{setting}=...))")
+        self.setting = setting
+
+
 class SolverError(RuntimeError):
     """A numerical solver did not reach the precision docs/semantics.md §10 requires."""
 

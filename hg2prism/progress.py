@@ -173,11 +173,14 @@ class Bar:
             self.stream.write("\r")
 
     def finished(self, done: int, head: str, detail: str) -> None:
-        """The line of a finished unit, the `done`-th: ``head (done/total) [bar]: detail``."""
+        """The line of a finished unit, the `done`-th: ``head (done/total) [bar]: detail``;
+        not drawn, ``head (done/total): detail`` is a report on the logger (the API's sweep)."""
         if self.enabled:
             self.stream.write(f"{head} ({done}/{self.total}) "
                               f"[{bar_text(done, self.total, self.width)}]: {detail}\n")
             self.stream.flush()
+        else:
+            say(f"{head} ({done}/{self.total}): {detail}")
 
     def close(self, seconds: float) -> None:
         if self.enabled:

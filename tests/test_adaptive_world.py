@@ -516,3 +516,33 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
         (line,) = capsys.readouterr().err.splitlines()
         assert line.startswith("hg2prism: error: command line: --type: ") and reason in line, line
     assert not (tmp_path / "refused").exists()
+
+
+def test_types_given_to_a_world_bring_its_observer_from_the_first() -> None:
+    """world.replace(types=(...)) on a world without types was refused, one field at a time,
+    with "change a type through types=(...)", which the call did (an API review): the world's
+    own observer fields now come from the first type unless the call gives them too; given and
+    different, they are refused as before, the message saying what types= brings."""
+    import dataclasses
+    from pathlib import Path
+
+    import hg2prism
+    from hg2prism import PlayerType
+
+    world1 = hg2prism.load_world(Path(__file__).resolve().parent.parent / "models" / "world1.toml")
+    first = PlayerType(name="a", weight=0.5, initial_hypothesis=1, inference="cusum", window=1,
+                       rationality=4.0, settings=(("threshold", 0.3),))
+    second = dataclasses.replace(first, name="b", settings=(("threshold", 2.0),))
+    typed = world1.replace(types=(first, second))
+    assert (typed.inference, typed.window, typed.rationality, typed.settings,
+            typed.initial_hypothesis) == ("cusum", 1, 4.0, (("threshold", 0.3),), 1)
+    assert typed.replace(types=(second, first)).settings == (("threshold", 2.0),)
+    for call in (lambda: world1.replace(window=2, types=(first, second)),
+                 lambda: typed.replace(window=2)):
+        with pytest.raises(hg2prism.InputError) as refused:
+            call()
+        assert refused.value.key == "type[0]" and refused.value.reason.startswith(
+            "the world's own window (2) and its first type's (1) differ") and \
+            "brings the first type's window when the call does not give window too" \
+            in refused.value.reason
+    assert typed.replace(types=()).settings == (("threshold", 0.3),)

@@ -1167,3 +1167,55 @@ def test_world_from_graph_takes_the_tie_break() -> None:
                                                          tie_break="worst"),
                        "attack_graph", "adversary.tie_break")
     assert 'expected "first" or "last"' in refused.reason
+
+
+def test_sweep_on_workers_refuses_a_script_its_workers_would_run_again(tmp_path: Path,
+                                                                       monkeypatch) -> None:
+    """sweep(workers=2) from a script without `if __name__ == "__main__":` ran the script
+    again in every worker process Dask spawned, then failed in a page of tracebacks ("Nanny
+    failed to start", an API review): it is refused first, in one InputError naming the script.
+    A guarded script, a package's __main__ (pytest's) and a notebook (no file) pass."""
+    import subprocess
+    import sys
+    import types
+
+    from hg2prism.api import _unguarded_script
+
+    script = tmp_path / "study.py"
+    script.write_text("import hg2prism\n"
+                      f"world = hg2prism.load_world({str(MODELS / 'world1.toml')!r})\n"
+                      "try:\n"
+                      "    hg2prism.sweep(world, 'threshold', [1.0, 2.0], workers=2)\n"
+                      "except hg2prism.InputError as refused:\n"
+                      "    print(refused.file, refused.key, refused.reason)\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert done.stdout == (f"sweep() workers {script} does its work outside `if __name__ == "
+                           f"\"__main__\":`, and each of the 2 worker processes would run it "
+                           f"again: put the work under that test, or pass workers=1\n"), done
+    guarded = tmp_path / "guarded.py"
+    guarded.write_text("import hg2prism\n\nif '__main__' == __name__:\n    pass\n")
+    for main, expected in ((types.SimpleNamespace(__file__=str(script), __spec__=None), str(script)),
+                           (types.SimpleNamespace(__file__=str(guarded), __spec__=None), None),
+                           (types.SimpleNamespace(), None)):
+        monkeypatch.setitem(sys.modules, "__main__", main)
+        assert _unguarded_script() == expected
+
+
+def test_sweep_and_detection_report_their_progress_on_the_logger(caplog) -> None:
+    """api.md: progress goes to the hg2prism logger at INFO. sweep() and detection() said
+    nothing there (13 s of detection, a six-point sweep: no record; an API review): each
+    point's line and each batch's report now go there, as the command line shows them."""
+    import logging
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    with caplog.at_level(logging.INFO, logger="hg2prism"):
+        table = hg2prism.sweep(world, "threshold", [1.0, 2.0])
+        points = [r.getMessage() for r in caplog.records]
+        solution = hg2prism.solve(world)
+        caplog.clear()
+        hg2prism.detection(solution, episodes=20)
+        batches = [r.getMessage() for r in caplog.records if r.getMessage().startswith("detection: ")]
+    assert [p.split(":")[0] for p in points] == ["sweep threshold=1 (1/2)", "sweep threshold=2 (2/2)"]
+    assert all(f"deceptive {row.deceptive_value:.4f}" in p for p, row in zip(points, table.rows))
+    assert len(batches) >= 4 and batches[0].startswith("detection: seeded episode"), batches

@@ -203,3 +203,19 @@ def test_world3_deception_steers_belief(solved) -> None:
     low, high = simulation.wilson_interval(sim.p2_switched, episodes, 0.999)
     assert low <= exact <= high
     assert sim.p2_switched >= episodes / 2 and exact >= 0.5
+
+
+def test_a_difference_of_equal_values_computed_two_ways_is_zero() -> None:
+    """value_difference: what one value is worth over another (the value of deception, of
+    adaptivity, the cost of not knowing P2's type). The adaptive results wrote V_adapt -
+    max V_commit as -1.39e-17 where the two values were equal (an API review, a two-type
+    attack graph; the value of deception had been cleaned, mir100's -1.4e-17, but not these):
+    below WORTH_TOLERANCE the difference is 0, at it and above it is kept, sign and all."""
+    from hg2prism.analyses.deception_value import WORTH_TOLERANCE, value_difference
+
+    assert value_difference(0.07499999999999997, 0.07499999999999998) == 0.0
+    assert str(value_difference(0.07499999999999997, 0.07499999999999998)) == "0.0"
+    assert value_difference(0.5, 0.5 - WORTH_TOLERANCE / 2) == 0.0
+    assert value_difference(0.5 + 2 * WORTH_TOLERANCE, 0.5) == (0.5 + 2 * WORTH_TOLERANCE) - 0.5
+    assert value_difference(0.5, 0.5 + 2 * WORTH_TOLERANCE) < 0
+    assert value_difference(1.0, 0.0) == 1.0 and value_difference(0.0, 1.0) == -1.0

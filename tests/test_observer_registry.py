@@ -187,6 +187,15 @@ def test_configure_refuses_what_the_observer_does_not_have() -> None:
         assert refused.value.key == key and "threshold" in refused.value.reason
     with pytest.raises(InputError, match="no observer of kind 'psychic'"):
         configure(world, "psychic")
+    # back from "bayes" to "cusum", whose threshold has no default: it was ValueError('threshold')
+    # (an API review)
+    with pytest.raises(InputError) as missing:
+        configure(configure(world, "bayes"), "cusum")
+    assert missing.value.key == "inference.threshold" and missing.value.reason == (
+        "the cusum observer needs a threshold, which has no default: give it "
+        "(configure(world, 'cusum', threshold=...))")
+    assert dict(configure(configure(world, "bayes"), "cusum", threshold=0.5).settings) \
+        == {"threshold": 0.5}
     assert dict(configure(world, threshold=2.0).settings)["threshold"] == 2.0
 
 

@@ -47,8 +47,17 @@ if TYPE_CHECKING:
 # Below this a difference of two values computed two ways (Storm's and the naive chain's) is 0
 WORTH_TOLERANCE = 1e-12
 
+
+def value_difference(value: float, other: float) -> float:
+    """value - other, what one value is worth over another (the value of deception, of
+    adaptivity, the cost of not knowing P2's type): equal values computed two ways differ in
+    their last bits (mir100 gave -1.4e-17, printed "-0.000000"), so below WORTH_TOLERANCE, the
+    certification's own, the difference is 0."""
+    worth = value - other
+    return 0.0 if abs(worth) < WORTH_TOLERANCE else worth
+
 __all__ = ["StaticValue", "static_value", "naive_answers", "NaiveStrategy", "InducedChain",
-           "induced_chain", "DeceptionValues", "deception_values"]
+           "induced_chain", "DeceptionValues", "deception_values", "value_difference"]
 
 # the fastest-first rule's constants (numeric/fastest.py): leader-game moves within
 # ANSWER_TIE of the best answer to a2 are maximising; scores within a relative SCORE_TIE tie
@@ -261,10 +270,7 @@ def deception_values(analysis: Analysis, deceptive_value: float) -> DeceptionVal
     naive = NaiveStrategy(naive_answers(ts, task, analysis.leader), game)
     chain = induced_chain(game, naive)
     v_naive = chain.value("V_naive")
-    worth = deceptive_value - v_naive
-    # equal values computed two ways differ in the last bits (mir100 gave -1.4e-17, printed
-    # "-0.000000"): below the certification tolerance the difference is 0
-    worth = 0.0 if abs(worth) < WORTH_TOLERANCE else worth
+    worth = value_difference(deceptive_value, v_naive)
     return DeceptionValues(v_static=static.value, v_naive=v_naive,
                            value_of_deception=worth, static=static,
                            naive=naive, naive_chain=chain)

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hg2prism.analyses.adaptive import CommittedPolicy, committed_game
-from hg2prism.analyses.deception_value import induced_chain
+from hg2prism.analyses.deception_value import induced_chain, value_difference
 from hg2prism.analyses.simulation import leader_fallback
 from hg2prism.analyses.successor import Hypergame
 from hg2prism.engines import default as default_engine
@@ -133,7 +133,8 @@ def _check_adaptive(world: World, out: Path, storm_method: str, engine: ModelChe
              f"{v_oracle:.9f}")
     results = {
         **provenance(world, engine), "v_adapt": v_adapt, "v_oracle": v_oracle, "max_v_commit": best,
-        "value_of_adaptivity": v_adapt - best, "cost_of_not_knowing": v_oracle - v_adapt,
+        "value_of_adaptivity": value_difference(v_adapt, best),
+        "cost_of_not_knowing": value_difference(v_oracle, v_adapt),
         "storm_method": storm_method, "sound": storm_method in engine.sound_methods,
         "states": strategy.size[0], "transitions": strategy.size[1],
         "storm_states": checked.size[0], "storm_transitions": checked.size[1],

@@ -332,10 +332,9 @@ def detection_experiment(world: World, check_result: CheckResult, out: Path, epi
     batches = _Batches(analysis, strategy, episodes, horizon, seed, settings.alpha,
                        settings.epsilon, show_progress)
 
-    def say(message: str) -> None:
-        if show_progress:
-            progress.say(message)
-
+    # the batches' reports go to the logger either way (the API shows them where logging is
+    # configured); `show_progress` draws the simulations' bars
+    say = progress.say
     seeded, steps = _seeded_episode(batches, deviate_after, deviating, say)
     say(f"detection: {episodes} episodes, P2 follows the model for {deviate_after} step(s), "
         "then plays at random")

@@ -47,7 +47,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
-from hg2prism.errors import COMMAND_LINE, InputError
+from hg2prism.errors import COMMAND_LINE, InputError, MissingSetting
 from hg2prism import frontends
 from hg2prism.experiments.values import NOT_FORM, OUTSIDE, ValueList, number, parse_values
 from hg2prism.frontends import arena_of
@@ -143,10 +143,10 @@ def _with_observer(world: World, kind: str) -> World:
         return world
     try:
         switched = configure(world, kind)
-    except ValueError as missing:
+    except MissingSetting as missing:
         raise InputError(COMMAND_LINE, "--values", f"switching a "
                          f"{observer_kind(world.inference).title} world to {kind} needs a "
-                         f"{missing}; sweep inference from a {kind} world") from None
+                         f"{missing.setting}; sweep inference from a {kind} world") from None
     return switched
 
 

@@ -428,8 +428,9 @@ def _types(checks: Checks, world: Any) -> None:
             mine, its = (_shown(name, getattr(w, name)) for w in (world, first))
             raise checks.fail("type[0]", f"the world's own {name} ({mine}) and its first "
                                          f"type's ({its}) differ: a world with types observes "
-                                         "as its first type; change a type through "
-                                         "types=(...)")
+                                         f"as its first type; change a type through "
+                                         f"types=(...), which brings the first type's {name} "
+                                         f"when the call does not give {name} too")
 
 
 def _shown(name: str, value: object) -> str:

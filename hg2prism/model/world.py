@@ -124,11 +124,17 @@ class World:
         taken as Python gives them: a list where the World holds a tuple (hypotheses, types),
         numpy's numbers as Python's (window=np.int64(3)). Another number of traps without
         initial_standing keeps the standing traps as a sweep does: the first of them, then the
-        first other candidates (dynamics.carried_standing)."""
+        first other candidates (dynamics.carried_standing). New `types` bring the world's own
+        observer (inference, window, rationality, settings, initial_hypothesis) from the first
+        type where those are not given too, since a world with types observes as its first."""
         changes = {name: plain(value) for name, value in changes.items()}
         if isinstance(changes.get("path"), str):       # as Python gives it: a path's text
             changes["path"] = Path(changes["path"])
         own = {name: value for name, value in changes.items() if name in _FIELDS}
+        first = own.get("types") or ()
+        if isinstance(first, tuple) and first and isinstance(first[0], PlayerType):
+            for name in validation.OBSERVER_FIELDS:
+                own.setdefault(name, getattr(first[0], name))
         if "traps" in own and own["traps"] != self.traps and "initial_standing" not in own:
             own["initial_standing"] = self._carried_standing(own["traps"], "front" in own)
         front = {name: value for name, value in changes.items() if name not in _FIELDS}

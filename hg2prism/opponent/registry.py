@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import replace
 
-from hg2prism.errors import InputError
+from hg2prism.errors import InputError, MissingSetting
 from hg2prism.model import validation
 from hg2prism.model.world import World
 from hg2prism.opponent import bayes, inference
@@ -112,8 +112,8 @@ def owner(key: str) -> ObserverKind | None:
 def configure(world: World, name: str | None = None, **settings: object) -> World:
     """The world with P2's observer of kind `name` (default: the world's) and the given
     settings, the others kept when the kind stays and defaulted when it changes; P2's first
-    guess follows when her kind sets it. ValueError names a required setting not given;
-    InputError a bad value, as in a world file, an unknown kind or a setting the kind does not
+    guess follows when her kind sets it. MissingSetting (an InputError) names a required
+    setting not given; InputError a bad value, as in a world file, an unknown kind or a setting the kind does not
     have."""
     if (name or world.inference) not in KINDS:
         raise InputError(str(world.path), "inference.kind", f"no observer of kind {name!r} "
@@ -135,7 +135,7 @@ def configure(world: World, name: str | None = None, **settings: object) -> Worl
             values[setting.key] = value if _same(read, value) else read
         elif setting.key not in values:
             if setting.default is None:
-                raise ValueError(setting.key)
+                raise MissingSetting(str(world.path), kind.name, setting.key)
             values[setting.key] = setting.default(n)
     first = world.initial_hypothesis if kind.first_guess is None else kind.first_guess(values)
     return replace(world, inference=kind.name, initial_hypothesis=first,
