@@ -820,8 +820,8 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
     """Solve the world at each value of `parameter` (or at every point of `grid`, a list of
     (parameter, values) pairs), as `hg2prism sweep` does; the parameters are those of
     `hg2prism sweep --param` (inference, delay, window, threshold, prior, decision,
-    rationality, slip, traps, initial_hypothesis, tie_break, and those a front end or an
-    observer registers).
+    rationality, traps, initial_hypothesis, tie_break, and those the world's front end, such
+    as a grid's robot settings, or an observer registers).
     With `deception` (`sweep --deception`) each row also has `row["v_static"]`,
     `row["v_naive"]` and `row["value_of_deception"]`. `workers` > 1 solves the points on as
     many processes (a local Dask cluster; a script that calls it needs `if __name__ ==

@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -624,3 +625,47 @@ def test_fastest_first_ties_scores_equal_but_for_rounding() -> None:
                                    optimal, 1e-12, relative_tie=0.0)
     assert tied.choice.tolist() == [0, -1, -1] and strict.choice.tolist() == [1, -1, -1]
     assert tied.scores[0] == 0.1 + 0.2 + 0.3
+
+
+def test_choices_taking_and_first_index_against_their_definitions() -> None:
+    """numeric.choices_taking (a strategy by action laid on a model's choices: strategy/
+    deceptive.storm_choices and robust deception both wrote it) and numeric.first_index (the
+    first Storm state of each canonical state: the canonical MDP and robust deception), against
+    plain loops on random models, with absent actions (-1), unwanted states and absent keys."""
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n = int(rng.integers(1, 30))
+        counts = rng.integers(1, 5, n)
+        choice_state = np.repeat(np.arange(n), counts)
+        choice_action = rng.integers(-1, 4, len(choice_state))
+        wanted = rng.integers(-1, 4, n)
+        got = numeric.choices_taking(choice_state, choice_action, wanted, n)
+        for s in range(n):
+            mine = np.flatnonzero(choice_state == s)
+            hits = [c for c in mine if choice_action[c] == wanted[s] and choice_action[c] >= 0]
+            assert got[s] == (hits[0] if hits else mine[0])
+        keys = rng.integers(0, 12, int(rng.integers(0, 40)))
+        first = numeric.first_index(keys, 12)
+        for k in range(12):
+            where = np.flatnonzero(keys == k)
+            assert first[k] == (where[0] if where.size else -1)
+
+
+def test_the_lexicographic_objective_says_when_its_policy_iteration_stopped_early(
+        monkeypatch, caplog) -> None:
+    """lexicographic_actions promises the fewest expected steps among the Pmax-optimal moves,
+    but took the moves of policy iteration stopped by its round limit in silence (a code
+    review): stopped, it warns. On world1 one round is not enough; the default is."""
+    import logging
+
+    import hg2prism
+    from hg2prism.strategy import objectives
+
+    world = hg2prism.load_world(Path(__file__).resolve().parent.parent / "models" / "world1.toml")
+    said = "the lexicographic objective's policy iteration stopped after 1 rounds"
+    for rounds, warned in ((1, True), (objectives.MAX_POLICY_ITERATIONS, False)):
+        monkeypatch.setattr(objectives, "MAX_POLICY_ITERATIONS", rounds)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="hg2prism"):
+            hg2prism.solve(world, objective="lexicographic")
+        assert any(said in r.getMessage() for r in caplog.records) == warned

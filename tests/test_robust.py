@@ -31,7 +31,7 @@ from hg2prism.errors import InputError
 from hg2prism.experiments import robust
 from hg2prism.worldfile import load_world
 from hg2prism.prism.robust_model import CHECK_CONSTANTS, EXACT_CONSTANTS
-from hg2prism.strategy.records import Strategy, describe_state
+from hg2prism.strategy.records import Strategy
 from conftest import share
 
 DELTAS = (0.01, 0.1, 0.3)
@@ -219,7 +219,7 @@ def test_robust_records_give_each_moves_worst_case(case) -> None:
     rows, _ = solved(name, folder)
     analysis = checked(name, folder).analysis
     ts, task = analysis.ts, analysis.task
-    start = describe_state(ts, ts.start_state)
+    start = ts.describe_state(ts.start_state)
     start.update(q=int(task.delta[task.initial, ts.state_label()[ts.start_state]]),
                  hypothesis=analysis.inference.initial_hypothesis, window=[])
     for row in rows:

@@ -94,13 +94,6 @@ class ChosenEpisode:
         which = "median-length" if self.rule.kind == "median" else "shortest"
         return f"the {which} completed episode of seeds {first}..{last}"
 
-    def to_json(self) -> dict:
-        return {"rule": str(self.rule), "seed": self.seed, "steps": self.n_steps,
-                "outcome": self.outcome, "chosen_as": self.describe(),
-                "seed_set": list(self.seeds) if self.seeds else None,
-                "completed_in_seed_set": len(self.completed_lengths)
-                if self.seeds else None}
-
 
 def outcome_text(code: int) -> str:
     from hg2prism.analyses import simulation

@@ -9,7 +9,7 @@ another policy (``p2_policy``) or another inference model (``p2_inference``). Th
 sampled from the TS tables for the actions actually played.
 
 Nash runs: both players sample their stationary mixed strategies over the game states
-``g = s * n_q + q`` of TS x DFA(phi) (the convention of ``hg2prism.opponent.perceptual_games``).
+``g = s * n_q + q`` of TS x DFA(phi) (the convention of ``hg2prism.model.product``).
 
 An episode ends in goal (``q`` in F and not trapped), in failure (trapped, or ``q`` in Sink) or
 after ``horizon`` transitions (truncated: not completed, reported). The completion rate thus

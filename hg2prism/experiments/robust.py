@@ -33,6 +33,7 @@ from hg2prism.engines import default
 from hg2prism.engines.engine import ModelChecker
 from hg2prism.errors import COMMAND_LINE, InputError, probability
 from hg2prism.experiments.values import ValueList, number, parse_values
+from hg2prism.numeric import choices_taking, first_index
 from hg2prism.model.world import World
 from hg2prism.outputs import write_bytes, write_csv, write_json
 from hg2prism.strategy.policy import Policy
@@ -93,18 +94,12 @@ def _nominal_game(game, action: np.ndarray):
                         stop=game.stop, initial=game.initial, chance=game.chance)
 
 
-def _choice_with_action(game, action: np.ndarray, wanted: np.ndarray) -> np.ndarray:
-    """The choice of each Storm state whose move is wanted[state] (-1: the state's first)."""
-    from hg2prism.numeric import argmax_by_group
-
-    match = (action == wanted[game.choice_state]) & (action >= 0)
-    return argmax_by_group(np.where(match, 1.0, 0.0), game.choice_state, game.n_states)
-
-
 def _choices_of(game, action: np.ndarray, wanted: np.ndarray, decides: np.ndarray) -> np.ndarray:
-    """The choice of every state: the one with move wanted[state] where P1 `decides` (see
-    _choice_with_action), the first (only) one in the intermediate states."""
-    return np.where(decides, _choice_with_action(game, action, wanted), game.choice_start[:-1])
+    """The choice of every state: the one with move wanted[state] where P1 `decides`
+    (numeric.choices_taking: the state's first where none is), the first (only) one in the
+    intermediate states."""
+    return np.where(decides, choices_taking(game.choice_state, action, wanted, game.n_states),
+                    game.choice_start[:-1])
 
 
 def _policy_choices(game, moves, decoded, canonical: np.ndarray, representative: np.ndarray,
@@ -173,9 +168,7 @@ def solve_budget(analysis: Analysis, deceptive: Policy, prism_path: Path, layout
     canonical = row_keys(np.column_stack([
         decoded.canonical, column(MOVE_VARIABLE), column(PLAYED_VARIABLE)]))
     n_canonical = int(canonical.max()) + 1
-    first = np.full(n_canonical, -1, dtype=np.int64)
-    first[canonical[::-1]] = np.arange(model.n_states)[::-1]
-    representative = first[np.unique(canonical[decides])]
+    representative = first_index(canonical, n_canonical)[np.unique(canonical[decides])]
     states = int(len(representative))
 
     # The exported strategy: the fastest optimal move of each canonical state, for all copies.

@@ -419,10 +419,6 @@ class GridDrawer:
         return (f"chose {move.chosen}, went {move.realised} "
                 f"({what}{', trapped' if move.trapped else ''})")
 
-    def widest_caption(self, steps) -> str:
-        """A caption at least as wide as any frame's, for the layout."""
-        return "chose W, went W (bumped into a wall, trapped)"
-
     # ---- the explorer (report/explorer.py) ----
     def explorer_map(self) -> dict:
         """The map as the explorer draws it: the grid's cells with their kinds, colours and

@@ -129,8 +129,10 @@ class TransitionSystem:
         return tuple(self.arena.trap_candidates[c] for c in self.trap_sets[a2])
 
     def describe_state(self, state: int) -> dict:
-        """A TS state as JSON-ready fields: its arena state, P2's standing action and the
-        countdown (both null when delay is 0); all null for `trapped`."""
+        """A TS state as JSON-ready fields, a strategy record's first keys: ``state``, its
+        arena state's name; ``standing``, P2's standing action by name (a trap set's states
+        joined by '+'); ``countdown`` (both null when delay is 0); ``trapped`` and nulls for
+        `trapped`."""
         if state == self.trapped:
             return {"state": "trapped", "standing": None, "countdown": None}
         place, standing, countdown = self.decode(state)

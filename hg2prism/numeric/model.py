@@ -105,6 +105,23 @@ def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
     return best
 
 
+def choices_taking(choice_state: np.ndarray, choice_action: np.ndarray, wanted: np.ndarray,
+                   n_states: int) -> np.ndarray:
+    """The choice of each state whose action is wanted[state], its first choice where none is
+    (choices grouped by state, as argmax_by_group's; an action < 0 is no move): how a strategy
+    given by action, per state or canonical state, is laid on a model's choices."""
+    match = (choice_action == wanted[choice_state]) & (choice_action >= 0)
+    return argmax_by_group(np.where(match, 1.0, 0.0), choice_state, n_states)
+
+
+def first_index(keys: np.ndarray, n_keys: int) -> np.ndarray:
+    """[n_keys] the first position of each key 0..n_keys-1 in `keys` (-1 for a key absent):
+    the representative, first Storm state, of each canonical state."""
+    first = np.full(n_keys, -1, dtype=np.int64)
+    first[keys[::-1]] = np.arange(len(keys))[::-1]
+    return first
+
+
 def first_best(score: np.ndarray, group: np.ndarray, relative_tie: float = 0.0) -> np.ndarray:
     """Index of the first score in each run of equal `group` labels within `relative_tie`
     (relative) of the run's maximum, run after run."""

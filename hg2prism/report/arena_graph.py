@@ -457,9 +457,6 @@ class ArenaDrawer:
             text += f"; P2 {step.p2_action_name}"
         return text + (", trapped" if step.trapped else "")
 
-    def widest_caption(self, steps) -> str:
-        return max((self.caption(s) for s in steps), key=len, default="")
-
     # ---- the explorer (report/explorer.py) ----
     def explorer_map(self) -> dict:
         """The graph as the explorer draws it: each state's text, kind and colour (at

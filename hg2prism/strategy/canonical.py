@@ -13,7 +13,7 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.prism.decoding import DecodedStates
-from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric import ExplicitModel, first_index
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,8 +73,7 @@ def canonical_mdp(decoded: DecodedStates, moves: Transitions,
     canonical = decoded.canonical
     n_states = len(canonical)
     n = decoded.n_canonical
-    representative = np.full(n, -1, dtype=np.int64)
-    representative[canonical[::-1]] = np.arange(n_states)[::-1]     # first Storm state of each
+    representative = first_index(canonical, n)                        # first Storm state of each
     absorbing = decoded.goal | decoded.fail
     goal = np.zeros(n, dtype=bool)
     goal[canonical[decoded.goal]] = True

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.engines.engine import Transitions
-from hg2prism.numeric import argmax_by_group
+from hg2prism.numeric import choices_taking
 from hg2prism.numeric.fastest import SCORE_STOP, STORM_SLACK, fastest_first
 from hg2prism.prism.decoding import DecodedStates
 from hg2prism.strategy.canonical import CanonicalMDP
@@ -26,6 +26,12 @@ class StormChoices:
 OPTIMAL_SLACK = STORM_SLACK
 
 
+def optimal_choices(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
+    """[choices] bool: the Pmax-optimal moves (within OPTIMAL_SLACK of the state's value),
+    among which every objective picks its move."""
+    return mdp.choice_values(values) >= values[mdp.choice_state] - OPTIMAL_SLACK
+
+
 def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
     """An optimal strategy that does not stall, computed on canonical states from Storm's
     values (`values`: [mdp.n] by canonical state): the move of every canonical state, -1 in
@@ -38,7 +44,7 @@ def deceptive_actions(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
     state takes, among its value-optimal moves, the one that maximises the discounted
     probability of reaching the goal (lexicographically: value first, then speed).
     """
-    optimal = mdp.choice_values(values) >= values[mdp.choice_state] - OPTIMAL_SLACK
+    optimal = optimal_choices(mdp, values)
     # Among optimal choices, prefer reaching the goal soon: the discounted probability
     # W(s) = max over optimal choices of E[DISCOUNT^steps; reach goal]. A choice that stalls
     # scores 0 there, so the greedy choice keeps moving, and every state of positive value
@@ -55,7 +61,6 @@ def storm_choices(decoded: DecodedStates, moves: Transitions, representative: np
                   action: np.ndarray) -> StormChoices:
     """The Storm choices of a strategy given per canonical state (`action`, a move index; any
     value in absorbing states): every Storm state takes the move its canonical state takes."""
-    wanted = action[decoded.canonical]
-    match = (moves.action == wanted[moves.source]) & (moves.action >= 0)
-    choice = argmax_by_group(np.where(match, 1.0, 0.0), moves.source, len(decoded.canonical))
+    choice = choices_taking(moves.source, moves.action, action[decoded.canonical],
+                            len(decoded.canonical))
     return StormChoices(representative=representative, choice=choice)

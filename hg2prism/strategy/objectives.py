@@ -17,16 +17,12 @@ import numpy as np
 
 from hg2prism.numeric import attractor, min_expected_steps, progress_choices
 from hg2prism.numeric.fastest import RELATIVE_TIE     # scores this close are tied, as for pmax
+from hg2prism.progress import warn
 from hg2prism.strategy.canonical import CanonicalMDP
-from hg2prism.strategy.deceptive import OPTIMAL_SLACK
+from hg2prism.strategy.deceptive import optimal_choices
 
 OBJECTIVES = ("pmax", "bounded", "lexicographic")
 MAX_POLICY_ITERATIONS = 1000
-
-
-def optimal_choices(mdp: CanonicalMDP, values: np.ndarray) -> np.ndarray:
-    """[choices] bool: the Pmax-optimal moves (within OPTIMAL_SLACK of the state's value)."""
-    return mdp.choice_values(values) >= values[mdp.choice_state] - OPTIMAL_SLACK
 
 
 def _pick(table: np.ndarray, preferred: np.ndarray, relative_tie: float, lowest: bool
@@ -87,8 +83,12 @@ def lexicographic_actions(mdp: CanonicalMDP, values: np.ndarray,
     # probability).
     states = np.flatnonzero(finite)
     first = progress_choices(model, rank, allowed)
-    expected = min_expected_steps(mdp.model, states, allowed, first,
-                                  MAX_POLICY_ITERATIONS).values.copy()
+    steps = min_expected_steps(mdp.model, states, allowed, first, MAX_POLICY_ITERATIONS)
+    if not steps.converged:
+        warn(f"the lexicographic objective's policy iteration stopped after "
+             f"{MAX_POLICY_ITERATIONS} rounds: its moves are Pmax-optimal, but may not take "
+             f"the fewest expected steps")
+    expected = steps.values.copy()
     # Final moves: the first of the (numerically) best, so that exact ties follow move order.
     action = default_action.copy()
     if len(states):

@@ -29,17 +29,6 @@ class StrategyError(LookupError):
     """The strategy has no (or an unreadable) record for a hypergame state."""
 
 
-def describe_state(ts: TransitionSystem, state: int) -> dict:
-    """A TS state as a record's first keys: ``state``, the arena state's name; ``standing``,
-    the name of P2's standing action (a trap set's states joined by '+'), and ``countdown``
-    (both null when delay is 0)."""
-    place, standing, countdown = ts.decode(state)
-    name = ts.arena.states[place]
-    if ts.delay == 0:
-        return {"state": name, "standing": None, "countdown": None}
-    return {"state": name, "standing": ts.a2_names[standing], "countdown": countdown}
-
-
 def start_first(decoded: DecodedStates, choices: StormChoices, initial: int | None
                  ) -> tuple[np.ndarray, int]:
     """The engine states whose records are written (the representatives of the non-absorbing
@@ -67,7 +56,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
 
     def describe(state: int) -> dict:
         if state not in described:
-            described[state] = describe_state(ts, state)
+            described[state] = ts.describe_state(state)
         return dict(described[state])
 
     states, marked = start_first(decoded, choices, initial)
@@ -192,7 +181,7 @@ def strategy_json_chunks(decoded: DecodedStates, choices: StormChoices, moves: T
     first = Field(Vocabulary.of(['{"initial":true,', "{"]),
                   np.where(np.arange(len(states)) < marked, 0, 1))
     fields = [first,
-              tokens(ts_state, lambda v: json.dumps(describe_state(ts, v), **compact)[1:-1]
+              tokens(ts_state, lambda v: json.dumps(ts.describe_state(v), **compact)[1:-1]
                      + ',"q":'),
               integers(decoded.q[states]), literal(',"hypothesis":'),
               integers(decoded.hypothesis[states]), literal(',"window":[')]
@@ -207,7 +196,7 @@ def strategy_json_chunks(decoded: DecodedStates, choices: StormChoices, moves: T
     used = np.unique(code[present])
     entries = [json.dumps(window_entry(ts, [c // n_sets // n_a1, c // n_sets % n_a1]
                                        + ([c % n_sets] if with_sets else []),
-                                       describe_state(ts, c // n_sets // n_a1)), **compact)
+                                       ts.describe_state(c // n_sets // n_a1)), **compact)
                for c in used.tolist()]
     # A slot's entry, after a comma when an earlier slot has one.
     entry = Vocabulary.of(entries + ["," + e for e in entries])
@@ -581,7 +570,7 @@ class Strategy:
         ts = self.ts
 
         def where(state: int) -> str:
-            d = describe_state(ts, state)
+            d = ts.describe_state(state)
             text = d["state"]
             if d["standing"] is not None:
                 text += f" standing {d['standing']} countdown {d['countdown']}"
