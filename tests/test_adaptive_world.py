@@ -302,6 +302,12 @@ def test_every_api_verb_on_a_world_with_types(tmp_path):
     assert adaptive.v_commit == {t["name"]: t["v_commit"] for t in cli["types"]}
     assert adaptive.v_adapt == pytest.approx(0.871241, abs=1e-6)
     assert list(adaptive.strategy) == json.loads((tmp_path / "cli" / "strategy.json").read_text())
+    # written as every strategy.json is (a code review: its own writer used json.dumps's
+    # default separators, and would have written NaN): compact, one record a line, and each
+    # line the record's JSON with "values" by RecordExtras (null for a value that is none)
+    lines = (tmp_path / "cli" / "strategy.json").read_text().splitlines()
+    assert lines[0] == "[" and lines[-1] == "]" and len(lines) == len(adaptive.strategy) + 2
+    assert lines[1] == json.dumps(adaptive.strategy[0], separators=(",", ":"), allow_nan=False) + ","
     assert adaptive.to_json()["v_adapt"] == cli["v_adapt"]
     assert (tmp_path / "api" / "adaptive.prism").exists()
     assert (tmp_path / "api" / "type1" / "strategy.json").exists()

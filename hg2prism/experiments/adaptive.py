@@ -121,8 +121,8 @@ def _check_adaptive(world: World, out: Path, storm_method: str, engine: ModelChe
         checked.alongside, checked.values, model, analysis.ts, analysis.task,
         [t.name for t in world.types], weights,
         [getattr(c.analysis.inference, "window_hypotheses", None) for c in checks])
-    write_text(out / "strategy.json",
-               "[\n" + ",\n".join(json.dumps(r) for r in strategy.records) + "\n]\n")
+    write_text(out / "strategy.json", "[\n" + ",\n".join(
+        json.dumps(r, separators=(",", ":"), allow_nan=False) for r in strategy.records) + "\n]\n")
     v_types = [c.results.deceptive_value for c in checks]
     v_oracle = sum(w * v for w, v in zip(weights, v_types))
     against = _committed(checks, weights)

@@ -23,7 +23,7 @@ from hg2prism.prism.adaptive import AdaptiveModel, type_view
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states, row_keys
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import deceptive_actions, storm_choices
-from hg2prism.strategy.records import start_first, strategy_records
+from hg2prism.strategy.records import RecordExtras, start_first, strategy_records
 
 __all__ = ["AdaptiveStrategy", "AdaptiveStates", "adaptive_strategy", "decode_adaptive"]
 
@@ -102,7 +102,7 @@ def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveM
     state_values = canonical_values(joint, values)
     action = deceptive_actions(mdp, state_values)
     choices = storm_choices(joint, moves, mdp.representative, action)
-    move_values = np.clip(mdp.by_state(mdp.choice_values(state_values)), 0.0, 1.0)
+    extras = RecordExtras(mdp.by_state(mdp.choice_values(state_values)))
     per_type = [strategy_records(_joint(d, joint), choices, moves, ts, None, model.initial)
                 for d in decoded]
     states = _states_written(joint, choices, model.initial)
@@ -119,8 +119,7 @@ def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveM
                            for k in consistent}
         merged["action"] = record["action"]
         v = ts.state(int(base.place[s]), int(base.traps[s]), int(base.countdown[s]))
-        merged["values"] = dict(zip(ts.action_names(v),
-                                    move_values[canonical[s]].tolist()))
+        merged.update(extras.fields(int(canonical[s]), ts.action_names(v)))
         records.append(merged)
     return AdaptiveStrategy(records, canonical_size(joint, moves), states_of)
 
