@@ -26,7 +26,7 @@ from pathlib import Path
 from matplotlib.colors import to_hex
 
 from hg2prism.analyses.episodes import (EPISODE_SEEDS, ChosenEpisode, candidate_episodes,
-                                        episode_steps, outcome_text)
+                                        belief_trace, episode_steps, outcome_text)
 from hg2prism.model.world import World
 from hg2prism.opponent.observer import ReportsBelief
 from hg2prism.outputs import write_text
@@ -101,16 +101,6 @@ class _Builder:
 
         return self.tables.option((step.p2_memory, v, rest), make)
 
-    def _belief(self, record) -> dict:
-        """P2's belief after observing the step of `record` (simulation.StepRecord)."""
-        observer = self.observer
-        held = observer.hypothesis(record.p2_memory)
-        after = observer.hypothesis(observer.update(record.p2_memory, record.observation))
-        scores = (_numbers(observer.belief(record.p2_memory, record.observation))
-                  if self.reports else None)
-        return {"hypothesis": after, "acted": record.acted, "held": held,
-                "changed": after != held, "belief": scores}
-
     def episode(self, records: list, code: int, seed: int, drawn: bool) -> dict:
         """One episode: states 0..N (state n after step n) and steps 1..N."""
         steps = episode_steps(self.ts, records)
@@ -118,10 +108,14 @@ class _Builder:
         states = [{"place": steps[0].start if steps else self.ts.arena.initial,
                    "belief": {"hypothesis": self.observer.hypothesis(initial), "acted": None,
                               "held": None, "changed": False, "belief": None}}]
-        for record, step in zip(records, steps):
+        trace = belief_trace(self.observer, records)       # her belief after each step
+        for i, (record, step) in enumerate(zip(records, steps)):
             states[-1]["record"] = self._record(record)
             states[-1]["answers"] = self._answers(record)
-            states.append({"place": step.landing, "belief": self._belief(record)})
+            states.append({"place": step.landing, "belief": {
+                "hypothesis": trace.after[i], "acted": trace.acted[i], "held": trace.held[i],
+                "changed": trace.after[i] != trace.held[i],
+                "belief": list(trace.values[i]) if trace.values is not None else None}})
         return {"seed": seed, "outcome": outcome_text(code), "drawn": drawn,
                 "states": states,
                 "steps": [{"n": s.n, "start": s.start, "landing": s.landing,
