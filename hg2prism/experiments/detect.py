@@ -460,20 +460,17 @@ def _deviation_batch(batches: _Batches, deviating: P2Policy, deviate_after: int)
 
 
 def _compliant_batch(batches: _Batches) -> tuple[dict, SimulationSummary, DetectionBatch]:
-    """(c) As many episodes in which P2 follows the model: the false alarms."""
-    from hg2prism.analyses.simulation import wilson_interval
-
+    """(c) As many episodes in which P2 follows the model: the false alarms (the episodes
+    rejected at some step, `_distribution`'s detected ones)."""
     episodes = batches.episodes
     summary, batch = batches.run(track_scores=True)
-    alarms = batch.rejections(episodes)
-    n_alarms = sum(1 for n in alarms if n is not None)
+    alarms = _distribution(batch.rejections(episodes))
     compliant = {
         "episodes": episodes,
-        "false_alarms": n_alarms,
-        "false_alarm_rate": n_alarms / episodes,
-        "false_alarm_rate_ci95": list(wilson_interval(n_alarms, episodes)),
-        "false_alarm_steps": {str(n): c for n, c in
-                              _distribution(alarms)["histogram"].items()},
+        "false_alarms": alarms["detected"],
+        "false_alarm_rate": alarms["share_detected"],
+        "false_alarm_rate_ci95": alarms["share_detected_ci95"],
+        "false_alarm_steps": alarms["histogram"],
         "completion": _completion(summary),
         "max_cusum_score": batch.max_score,
     }
@@ -483,7 +480,6 @@ def _compliant_batch(batches: _Batches) -> tuple[dict, SimulationSummary, Detect
 def _mismatch_batches(world: World, batches: _Batches, max_score: float, reference_rate: float,
                       say: Callable[[str], None]) -> list[dict]:
     """(d) P2's real inference differs from P1's model of it: one batch per variant."""
-    from hg2prism.analyses.simulation import wilson_interval
     from hg2prism.opponent import registry
 
     games, episodes = batches.analysis.games, batches.episodes
@@ -494,20 +490,18 @@ def _mismatch_batches(world: World, batches: _Batches, max_score: float, referen
             f"(P1 models window {world.window}"
             f"{_setting(shown, world.setting(shown))})")
         summary, batch = batches.run(p2_inference=registry.build_observer(variant.world, games))
-        rejections = batch.rejections(episodes)
-        detected = sum(1 for n in rejections if n is not None)
         observable = len(batch.unpredicted)
         detected_observable = sum(1 for e in batch.unpredicted if e in batch.first_rejection)
-        dist = _distribution(rejections)
+        dist = _distribution(batch.rejections(episodes))
         mismatch.append({
             "p2_inference": variant.label,
             "chosen_as": variant.why,
             "p2_window": variant.world.window,
             **({f"p2_{shown}": variant.shown} if shown else {}),
             "episodes": episodes,
-            "detected": detected,
-            "detection_rate": detected / episodes,
-            "detection_rate_ci95": list(wilson_interval(detected, episodes)),
+            "detected": dist["detected"],
+            "detection_rate": dist["share_detected"],
+            "detection_rate_ci95": dist["share_detected_ci95"],
             "mean_detection_step": dist["mean_detection_step"],
             "median_detection_step": dist["median_detection_step"],
             "histogram": dist["histogram"],
