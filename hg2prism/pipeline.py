@@ -15,7 +15,7 @@ from hg2prism import memory
 from hg2prism.engines.engine import CheckedModel, BuiltModel, ModelChecker, Transitions
 from hg2prism.engines import default as default_engine
 from hg2prism.model.automata import to_dot, to_hoa, translate
-from hg2prism.frontends import transition_system as build_transition_system
+from hg2prism.frontends import transition_system
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.product import completable
 from hg2prism.opponent.perceptual_games import (PerceptualGame, SharedParts, perceptual_game,
@@ -67,7 +67,7 @@ class _Clock:
 
 def analyse(world: World) -> Analysis:
     with _Clock() as games_clock:
-        ts = build_transition_system(world)
+        ts = transition_system(world)
         task = translate(world.formula, ts.label_names, ts.letters)
         hypotheses = [translate(h, ts.label_names, ts.letters) for h in world.hypotheses]
         # The games are independent and numpy and SuperLU release the GIL, so two threads
@@ -109,7 +109,7 @@ def warn_if_not_completable(world: World, ts: TransitionSystem | None = None,
     player does (`check` and `validate`); whether it was given. `ts` and `task`: the world's
     own, built here when not given."""
     if ts is None:
-        ts = build_transition_system(world)
+        ts = transition_system(world)
     if task is None:
         task = translate(world.formula, ts.label_names, ts.letters)
     if completable(ts, task):

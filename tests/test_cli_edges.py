@@ -410,7 +410,7 @@ def test_validate_builds_nothing_the_size_guard_refuses(tmp_path: Path, monkeypa
     def refused(*args, **kwargs):
         raise AssertionError("validate built the transition system")
 
-    monkeypatch.setattr(pipeline, "build_transition_system", refused)
+    monkeypatch.setattr(pipeline, "transition_system", refused)
     path = tmp_path / "big.toml"
     path.write_text(BIG_GAMES)
     assert main(["validate", str(path)]) == 0
