@@ -372,15 +372,22 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
     if owns is not None:
         pattern = re.compile(owns)
         others = []          # other commands' outputs, removed as another world's
+        removed = []         # stale outputs of this kind of command
         for old in sorted(out.iterdir()):
             if old.name in placed and old.name not in written and pattern.fullmatch(old.name):
+                shown = old.name + ("/" if old.is_dir() else "")
                 if own is None or not re.fullmatch(own, old.name):
-                    others.append(old.name + ("/" if old.is_dir() else ""))
+                    others.append(shown)
+                else:
+                    removed.append(shown)
                 os.replace(old, stage / f".stale-{old.name}")   # removed with the stage
         if another:
             say(f"outputs: {out} held the outputs of another world (or of this world "
                 f"file before an edit); " + (
                     f"removed those of other commands too: {listing(others, 6, count=True)}"
                     if others else "replaced them"))
+        elif removed:       # an earlier command of this kind wrote them, this one does not
+            say(f"outputs: removed {listing(removed, 6, count=True)} from {out}, which an "
+                f"earlier command wrote there and this one does not write")
     _record_placed(out, placed | written)
     _placement.update(state="done")

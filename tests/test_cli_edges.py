@@ -606,6 +606,15 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> N
     (line,) = [x for x in capsys.readouterr().err.splitlines() if removal in x]
     assert line == (f"outputs: {out} held the outputs of another world (or of this world file "
                     f"before an edit); replaced them"), line
+    # the same world: `emit` after `check` removes check's results, strategy and exports,
+    # which went in silence (a PRISM user's review)
+    assert main(["emit", str(world), "--out", str(out)]) == 0
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if "removed" in x]
+    assert line.startswith("outputs: removed goal.props, hypothesis_0.dot, ") and line.endswith(
+        f" from {out}, which an earlier command wrote there and this one does not write"), line
+    assert not (out / "results.json").exists() and (out / "hypergame.prism").exists()
+    assert main(["emit", str(world), "--out", str(out)]) == 0          # nothing stale: silent
+    assert "removed" not in capsys.readouterr().err
 
 
 def test_emits_model_is_judged_by_the_digest_in_its_header(tmp_path: Path) -> None:

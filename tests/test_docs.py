@@ -327,7 +327,7 @@ def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
         pytest.skip("PRISM is not installed (set PRISM=/path/to/prism)")
     rows = [row for section in ("Re-checking a model", "Re-checking the strategy without hg2prism")
             for row in _recheck_rows(section) if row[1].startswith("`prism ")]
-    assert len(rows) == 5
+    assert len(rows) == 7
     folder = fresh / "world1"
     for _, command, prints in rows:
         words = shlex.split(command.split("`")[1].replace("models/world1/", f"{folder}/"))
@@ -340,7 +340,9 @@ def test_prism_prints_what_the_recheck_tables_say(fresh: Path) -> None:
     # `-epsilon`)": the chain's command without it
     short = re.search(r"\(`([0-9.]+)…` without `-epsilon`\)",
                       (ROOT / "docs" / "cli.md").read_text()).group(1)
-    words = shlex.split(rows[-1][1].split("`")[1])
+    chain = next(command for _, command, _ in rows
+                 if "-importtrans" in command and "-epsilon" in command)
+    words = shlex.split(chain.split("`")[1])
     done = subprocess.run([prism, *words[1:words.index("-epsilon")]], cwd=folder,
                           capture_output=True, text=True, timeout=300)
     assert f"Result: {short}" in done.stdout, done.stdout[-500:]
@@ -361,6 +363,16 @@ def test_stormpy_and_spot_print_what_the_recheck_tables_say(fresh: Path) -> None
         exec(snippet.replace("models/world1/", f"{folder}/"), {})
     claimed = _number_after(snippet.split("#")[-1])
     assert float(printed.getvalue()) == pytest.approx(claimed, abs=1e-15)
+    # the exact snippet after it, run in the first's namespace: the fraction it says
+    namespace: dict = {}
+    blocks = [block for info, block in _blocks(ROOT / "docs" / "cli.md")
+              if info == "python" and "stormpy" in block]
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        for block in blocks[:2]:
+            exec(block.replace("models/world1/", f"{folder}/"), namespace)
+    assert "build_model[stormpy.Rational]" in blocks[1]
+    assert printed.getvalue().splitlines()[-1] == blocks[1].split("# ")[-1].strip()
     rows = {with_: prints for with_, _, prints in
             _recheck_rows("Re-checking the strategy without hg2prism")}
     model = stormpy.build_model_from_drn(str(folder / "induced.drn"))

@@ -867,3 +867,22 @@ def test_a_stop_while_a_pool_starts_a_worker_waits_for_it() -> None:
     assert not worker._started.is_set()     # listed, not started: the case
     _join_pool_workers()
     assert worker._started.is_set() and not worker.is_alive()
+
+
+def test_a_prism_model_given_for_a_world_file_is_said(tmp_path: Path) -> None:
+    """`hg2prism check hypergame.prism` said only "not valid TOML: Invalid statement" (a PRISM
+    user's review): a file named as one of hg2prism's outputs is said to be no world file. A
+    world file named otherwise keeps the parser's words alone."""
+    for name in ("hypergame.prism", "hypergame.props", "induced.drn"):
+        model = tmp_path / name
+        model.write_text("// Hypergame MDP\nmdp\n")
+        with pytest.raises(InputError) as err:
+            load_world(model)
+        assert err.value.reason == (
+            f"not valid TOML: Invalid statement; {name} is no world file: hg2prism's commands "
+            f"read a world file (TOML, a .toml; docs/semantics.md §1), and write the PRISM "
+            f"models and the exports"), err.value
+    (tmp_path / "mine.world").write_text("// Hypergame MDP\nmdp\n")
+    with pytest.raises(InputError) as err:
+        load_world(tmp_path / "mine.world")
+    assert err.value.reason == "not valid TOML: Invalid statement"

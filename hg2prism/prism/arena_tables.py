@@ -82,6 +82,11 @@ class ArenaTables:
         return [f"a{s.index}.{k}" for s in self.slots for k, o in enumerate(s.outcomes)
                 if o.dest == m]
 
+    def prob_users(self, t: int) -> list[str]:
+        """The (slot, outcome) pairs whose probability is table p_t, for comments."""
+        return [f"a{s.index}.{k}" for s in self.slots for k, o in enumerate(s.outcomes)
+                if o.prob == f"p_{t}"]
+
 
 def _column(values: np.ndarray, care: np.ndarray) -> np.ndarray:
     """values [n_places, J] reduced to [n_places, 1] when it does not depend on P2's action

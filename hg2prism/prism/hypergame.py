@@ -159,7 +159,8 @@ def world_formulas(tables: ArenaTables, ts: TransitionSystem,
                           f"formula to_{m} = {place_table(dest[:, 0], trapped)};"))
     for t, prob in enumerate(tables.probs):
         if not tables.prob_dependent(t):
-            lines.append(("", f"formula p_{t} = {place_table(prob[:, 0], zero)};"))
+            lines.append((f"p_{t}: the chance of {', '.join(tables.prob_users(t))} "
+                          f"(slot.outcome)", f"formula p_{t} = {place_table(prob[:, 0], zero)};"))
     for name, care in tables.enabled:
         table = place_table(care.astype(np.int64), None, tables.live)
         lines.append(("", f"formula {name} = {table}=1;"))

@@ -123,6 +123,10 @@ class _Loader(Checks):
                 # a table of entries written as one table, declared again: said in its words
                 detail += (f"; each entry of [[{single.group(1)}]] starts with two brackets "
                            f"(a line [{single.group(1)}] is one table)")
+            if self.path.suffix in (".prism", ".props", ".pm", ".nm", ".drn", ".tra", ".json"):
+                detail += (f"; {self.path.name} is no world file: hg2prism's commands read a "
+                           f"world file (TOML, a .toml; docs/semantics.md §1), and write the "
+                           f"PRISM models and the exports")
             raise self.fail(key, f"not valid TOML: {detail}") from None
 
     # -- typed getters -----------------------------------------------------------------------
