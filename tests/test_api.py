@@ -1219,3 +1219,14 @@ def test_sweep_and_detection_report_their_progress_on_the_logger(caplog) -> None
     assert [p.split(":")[0] for p in points] == ["sweep threshold=1 (1/2)", "sweep threshold=2 (2/2)"]
     assert all(f"deceptive {row.deceptive_value:.4f}" in p for p, row in zip(points, table.rows))
     assert len(batches) >= 4 and batches[0].startswith("detection: seeded episode"), batches
+
+
+def test_a_world_shows_in_a_few_lines() -> None:
+    """repr(World) of mir100 was 5,700 characters, most of them its arena's numpy tables (an
+    API review): the tables are left out (dest, prob), the rest is shown, and two loads are
+    still equal."""
+    world = hg2prism.load_world(MODELS / "mir100.toml")
+    shown = repr(world)
+    assert "dest=" not in shown and "prob=" not in shown and "array(" not in shown
+    assert "states=('outside', 'n1'" in shown and len(shown) < 2500, len(shown)
+    assert world == hg2prism.load_world(MODELS / "mir100.toml")

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -43,8 +43,10 @@ class Arena:
     propositions: tuple[str, ...]             # AP
     labels: tuple[frozenset[str], ...]        # L(s) per state
     actions: tuple[tuple[str, ...], ...]      # P1's actions at each state (none: terminal)
-    dest: np.ndarray                          # [S, A1max, 1 or |A2|, K] successor state
-    prob: np.ndarray                          # [S, A1max, 1 or |A2|, K] its probability
+    # (left out of repr: a notebook shows a world in a few lines, its tables are shown by
+    # hg2prism convert's world file)
+    dest: np.ndarray = field(repr=False)      # [S, A1max, 1 or |A2|, K] successor state
+    prob: np.ndarray = field(repr=False)      # [S, A1max, 1 or |A2|, K] its probability
     p2_actions: tuple[str, ...] = ()          # general P2 actions A2, in order (else traps)
     trap_candidates: tuple[int, ...] = ()     # trap mode: the states P2 may set traps on
     positions: tuple[tuple[float, float], ...] | None = None   # for drawing
