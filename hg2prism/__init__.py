@@ -24,6 +24,8 @@ The pipeline, one module per stage, is listed in docs/architecture.md; the meani
 docs/semantics.md.
 """
 
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "run",
@@ -33,16 +35,37 @@ __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_
            "PlayerType"]
 
 
-def __getattr__(name: str) -> object:
+if TYPE_CHECKING:      # what editors and type checkers read; at run time, __getattr__ below
+    from hg2prism.api import (AdaptiveSolution, Baselines, DeceptionValues, Episode,
+                              EpisodeStep, PlayerType, RobustValue, Run, Simulation, Solution,
+                              Strategy, SweepRow, SweepTable, baselines, deception_values,
+                              detection, draw_belief, draw_sweep, draw_world, episode,
+                              load_world, robust, run, simulate, solve, sweep, world_from_graph,
+                              world_from_toml)
+    from hg2prism.errors import InputError
+
+
+def __getattr__(name: str) -> Any:
     """The API's names, imported when first asked for (`hg2prism.solve`, `from hg2prism
-    import solve`): importing the package itself, or one of its modules such as the program's
+    import solve`), and the package's modules (`hg2prism.errors` after `import hg2prism`):
+    importing the package itself, or one of its modules such as the program's
     `hg2prism.program`, takes no time."""
+    import importlib
+    import importlib.util
+
+    if name.startswith("__"):        # copy, pickle and help ask for such names: not here
+        raise AttributeError(f"module 'hg2prism' has no attribute {name!r}")
+    # the package as importing it gave it before: its API and what the API imports
+    # (hg2prism.errors, hg2prism.opponent.registry, ...)
+    api = importlib.import_module("hg2prism.api")
     if name == "InputError":
         from hg2prism.errors import InputError as value
     elif name in __all__:
-        from hg2prism import api
-
         value = getattr(api, name)
+    elif name in globals():         # a module the API imported
+        return globals()[name]
+    elif importlib.util.find_spec(f"hg2prism.{name}") is not None:
+        value = importlib.import_module(f"hg2prism.{name}")
     else:
         raise AttributeError(f"module 'hg2prism' has no attribute {name!r}")
     globals()[name] = value

@@ -865,23 +865,36 @@ def sweep(world: World | str | Path, parameter: str | None = None, values=None, 
 
 
 def _unguarded_script() -> str | None:
-    """The script this process runs when it does its work outside `if __name__ ==
-    "__main__":`: a worker process multiprocessing starts (Dask's, by spawning) runs it again
-    before it takes any work, and so on. None for a guarded script, the hg2prism program, a
-    package's __main__, python -c and notebooks (multiprocessing runs none of these again)."""
+    """The script this process runs when the call comes from its top level outside `if
+    __name__ == "__main__":`: a worker process multiprocessing starts (Dask's, by spawning)
+    runs that script again before it takes any work, and so on. None when the call comes from
+    inside such a guard (at any depth of the script's statements), and for the hg2prism
+    program, a package's or a folder's __main__, python -c and notebooks, which
+    multiprocessing does not run again."""
     import ast
 
     main = sys.modules.get("__main__")
     path, spec = getattr(main, "__file__", None), getattr(main, "__spec__", None)
-    if not isinstance(path, str) or (spec is not None and spec.name.endswith(".__main__")):
+    if not isinstance(path, str) or (spec is not None and (
+            spec.name == "__main__" or spec.name.endswith(".__main__"))):
+        return None
+    script = os.path.abspath(path)
+    frame, line = sys._getframe(1), None
+    while frame is not None:            # the script's own top level, running this call
+        if frame.f_code.co_name == "<module>" and os.path.abspath(frame.f_code.co_filename) == script:
+            line = frame.f_lineno
+        frame = frame.f_back
+    if line is None:                    # called after the script ran (python -i): not run again
         return None
     try:
         tree = ast.parse(Path(path).read_bytes())
     except (OSError, SyntaxError, ValueError):
         return None
-    for node in tree.body:
-        if isinstance(node, ast.If) and {"__name__", "__main__"} <= {
-                getattr(n, "id", getattr(n, "value", None)) for n in ast.walk(node.test)}:
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.If) and node.body
+                and node.body[0].lineno <= line <= (node.body[-1].end_lineno or line)
+                and {"__name__", "__main__"} <= {getattr(n, "id", getattr(n, "value", None))
+                                                 for n in ast.walk(node.test)}):
             return None
     return path
 

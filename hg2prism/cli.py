@@ -573,6 +573,14 @@ def entry() -> int:
         status = stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
     except KeyboardInterrupt:       # a second Ctrl-C while the first was being reported
         status = 130
+    if status in (130, 143):
+        # stopped: the program has said so in its one line; what a library logs while Python
+        # ends (Dask's cancelled tasks, collected: "Task exception was never retrieved") is not
+        # for the user
+        import logging
+
+        for name in ("asyncio", "distributed", "tornado"):
+            logging.getLogger(name).setLevel(logging.CRITICAL)
     if any(t.name == "storm" for t in threading.enumerate()):     # ending or not: abandoned
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -588,6 +596,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         plugins.load_plugins()      # HG2PRISM_PLUGINS: observers, world kinds from outside
         parser = build_parser()
+    except KeyboardInterrupt:       # while a plugin loaded: nothing was begun
+        print("hg2prism: interrupted", file=sys.stderr)
+        return 130
     except InputError as err:       # a plugin that fails, or a setting's name taken twice
         print(f"hg2prism: error: {err}", file=sys.stderr)
         return 2
@@ -706,7 +717,7 @@ def _perform(args: argparse.Namespace) -> int:
                          f"docs/semantics.md §16) is handled by check and run with the pmax "
                          f"objective and by sweep --param weight only, not by {args.command}"
                          + (f" --objective {args.objective}" if args.command in ("check", "run")
-                            else ""))
+                            else "") + f"; --type NAME runs {args.command} on one type's world")
     if world.types and getattr(args, "episode", None) is not None:
         from hg2prism.analyses.episodes import parse_episode_rule
 

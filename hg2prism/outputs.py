@@ -387,6 +387,7 @@ def _place(stage: Path, out: Path, owns: str | None, world: str | None, every: s
                     f"removed those of other commands too: {listing(others, 6, count=True)}"
                     if others else "replaced them"))
         elif removed:       # an earlier command of this kind wrote them, this one does not
+            removed.sort(key=lambda name: not name.endswith(".json"))    # the records first
             say(f"outputs: removed {listing(removed, 6, count=True)} from {out}, which an "
                 f"earlier command wrote there and this one does not write")
     _record_placed(out, placed | written)

@@ -51,7 +51,7 @@ def provenance(world: World, engine: ModelChecker | None = None) -> dict[str, ob
     of one of P2's types (`--type`, an adaptive run's type<k>/), `p2_type`: that type's name."""
     from hg2prism import __version__
 
-    typed = {"p2_type": world.of_type} if world.of_type else {}
+    typed = {"p2_type": world.of_type} if world.of_type and not world.types else {}
     return {"world": world.name, **typed, "world_file": str(world.path),
             "world_digest": world.digest(), "hg2prism_version": __version__,
             "software": software(engine)}

@@ -477,11 +477,13 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
     defaults to <world>_type<k>/, and the records name the type (`p2_type`; a user could not
     tell from results.json which type it was of). A world without types, or a type it does not
     list, is one line."""
+    import dataclasses
     import json
     import shutil
     from pathlib import Path
 
     import hg2prism
+    import hg2prism.results
     from hg2prism.cli import main
     from hg2prism.progress import quiet
 
@@ -509,6 +511,17 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
     (point,) = swept["rows"]
     assert point["deceptive_value"] == adaptive.v_k["stubborn"]
     assert adaptive.types[1].to_json()["p2_type"] == "stubborn"     # the API's records too
+    # the type's name does not enter the digest (a code review: it made every world4_type<k>/
+    # folder written before look like another world's), and leaves with types given back
+    from hg2prism.worldfile.types import world_of_type
+
+    loaded = hg2prism.load_world(world)
+    for k in range(2):
+        typed_world = world_of_type(loaded, k)
+        assert typed_world.of_type == loaded.types[k].name
+        assert typed_world.digest() == dataclasses.replace(typed_world, of_type="").digest()
+        again = typed_world.replace(types=loaded.types)
+        assert again.of_type == "" and "p2_type" not in hg2prism.results.provenance(again)
     assert "here P2 of type 'jumpy'" in (tmp_path / "world4_type0" / "hypergame.prism").read_text()
     capsys.readouterr()
     for args, reason in (

@@ -610,7 +610,7 @@ def test_a_folder_holds_one_version_of_a_world_file(tmp_path: Path, capsys) -> N
     # which went in silence (a PRISM user's review)
     assert main(["emit", str(world), "--out", str(out)]) == 0
     (line,) = [x for x in capsys.readouterr().err.splitlines() if "removed" in x]
-    assert line.startswith("outputs: removed goal.props, hypothesis_0.dot, ") and line.endswith(
+    assert line.startswith("outputs: removed results.json, strategy.json, goal.props, ") and line.endswith(
         f" from {out}, which an earlier command wrote there and this one does not write"), line
     assert not (out / "results.json").exists() and (out / "hypergame.prism").exists()
     assert main(["emit", str(world), "--out", str(out)]) == 0          # nothing stale: silent
@@ -1000,7 +1000,7 @@ def test_a_ctrl_c_while_python_imports_the_program_is_one_line(monkeypatch, caps
                 raise KeyboardInterrupt
             return None
 
-    monkeypatch.delitem(sys.modules, "hg2prism.cli")
+    monkeypatch.delitem(sys.modules, "hg2prism.cli", raising=False)
     monkeypatch.setattr(sys, "meta_path", [Interrupted(), *sys.meta_path])
     capsys.readouterr()
     assert program.entry() == 130
@@ -1011,6 +1011,14 @@ def test_a_ctrl_c_while_python_imports_the_program_is_one_line(monkeypatch, caps
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True).stdout
     assert loaded.strip() == "['hg2prism.program']", loaded
+    # the package as it was once asked for anything: its modules too (a code review: after a
+    # bare `import hg2prism`, hg2prism.errors and hg2prism.opponent.registry were no names)
+    code = ("import hg2prism; print(hg2prism.errors.InputError.__name__, "
+            "hg2prism.opponent.registry.configure.__name__, hg2prism.solve.__module__, "
+            "sorted(set(hg2prism.__all__) - set(dir(hg2prism))))")
+    said = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout
+    assert said.strip() == "InputError configure hg2prism.api []", said
 
 
 def test_a_sweep_stopped_while_its_dask_cluster_starts_ends_in_one_line(tmp_path) -> None:
@@ -1027,9 +1035,9 @@ def test_a_sweep_stopped_while_its_dask_cluster_starts_ends_in_one_line(tmp_path
         "    started(self, *args, **kwargs)\n"
         "    raise KeyboardInterrupt          # Ctrl-C as the cluster's start returns\n"
         "local.LocalCluster.__init__ = stop\n"
-        "from hg2prism.cli import main\n"
+        "from hg2prism.cli import entry\n"
         "if __name__ == '__main__':\n"
-        "    status = main(sys.argv[1:])\n"
+        "    status = entry()\n"
         "    print('children', len(__import__('multiprocessing').active_children()))\n"
         "    sys.exit(status)\n")
     done = subprocess.run(
@@ -1040,3 +1048,25 @@ def test_a_sweep_stopped_while_its_dask_cluster_starts_ends_in_one_line(tmp_path
     assert done.stderr == "hg2prism: interrupted\n", done.stderr
     assert done.stdout.strip() == "children 0", done.stdout
     assert not (tmp_path / "out").exists()
+
+
+def test_a_stopped_parallel_sweep_gives_the_libraries_their_log_levels_back(monkeypatch) -> None:
+    """A sweep on workers quiets Dask's, tornado's and asyncio's loggers while it runs; stopped
+    or failed, it left them quiet for the rest of a notebook's session (a code review). They
+    are put back however it ends (the program itself quiets them once stopped, cli.entry)."""
+    import logging
+
+    import distributed.deploy.local as local
+
+    import hg2prism
+
+    def stopped(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(local.LocalCluster, "__init__", stopped)
+    names = ("asyncio", "distributed", "tornado", "bokeh")
+    before = {name: logging.getLogger(name).level for name in names}
+    world = hg2prism.load_world(ROOT / "models" / "world1.toml")
+    with pytest.raises(KeyboardInterrupt):
+        hg2prism.sweep(world, "threshold", [1.0, 2.0], workers=2)
+    assert {name: logging.getLogger(name).level for name in names} == before

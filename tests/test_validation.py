@@ -186,8 +186,6 @@ INVALID_TYPES = [
         STUBBORN, name="third", weight=0.25, window=2, rationality=-3.0)),
      "type[2].inference.rationality", "> 0"),
     (_typed(JUMPY, "stubborn"), "type[1]", "PlayerType"),
-    # the world's own observer is its first type's
-    (_typed(STUBBORN, JUMPY), "type[0]", "first type's"),
 ]
 
 
@@ -195,6 +193,26 @@ INVALID_TYPES = [
                          ids=[f"{k}-{r}" for _, k, r in INVALID_TYPES])
 def test_every_way_to_make_a_typed_variant_validates(types, key, reason) -> None:
     _every_way_refuses(TYPED, {"types": types}, {"types": types}, key, reason)
+
+
+def test_the_world_s_own_observer_is_its_first_type_s() -> None:
+    """Types reordered: World.replace brings the new first type's observer (window,
+    rationality, settings, ...) as the world's own, unless the call gives them too (then they
+    must agree); dataclasses.replace and the constructor, which take the fields as given,
+    refuse a world whose own observer is not its first type's."""
+    reordered = _typed(STUBBORN, JUMPY)
+    swapped = TYPED.replace(types=reordered)
+    assert [getattr(swapped, name) for name in ("window", "rationality", "settings")] == \
+        [STUBBORN.window, STUBBORN.rationality, STUBBORN.settings]
+    with pytest.raises(InputError) as caught:
+        TYPED.replace(types=reordered, window=JUMPY.window + 7)
+    assert caught.value.key == "type[0]" and "first type's" in caught.value.reason
+    for make in (lambda: dataclasses.replace(TYPED, types=reordered),
+                 lambda: World(**{**{f.name: getattr(TYPED, f.name)
+                                     for f in dataclasses.fields(TYPED)}, "types": reordered})):
+        with pytest.raises(InputError) as caught:
+            make()
+        assert caught.value.key == "type[0]" and "first type's" in caught.value.reason
 
 
 def test_a_list_of_types_is_taken_by_replace_only() -> None:

@@ -711,10 +711,11 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
         logger.setLevel(logging.CRITICAL)
     from distributed.deploy.spec import SpecCluster
 
+    class SweepCluster(LocalCluster):
+        """This call's LocalCluster: the one cluster `_abandon` closes (not another thread's)."""
+
     cluster = None
     futures: list = []
-    before = set(getattr(SpecCluster, "_instances", ()))
-    stopped = False
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -722,7 +723,7 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
                 # A worker lost on a point (its share of the memory exceeded) fails that point
                 # at once rather than after Dask's retries of the same heavy point.
                 with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-                    cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                    cluster = SweepCluster(n_workers=workers, threads_per_worker=1,
                                            processes=True, dashboard_address=None,
                                            silence_logs=logging.CRITICAL)
                 client = Client(cluster)
@@ -753,25 +754,23 @@ def _run_dask(tasks: list[PointTask], workers: int, scheduler: str | None
         # Stopped (Ctrl-C, a signal) or failed while the cluster started or ran: Dask's own
         # exit hook would close it again and print its traceback (a worker still starting
         # fails its assertion), with its shutdown logs after ours.
-        _abandon(set(getattr(SpecCluster, "_instances", ())) - before, cluster)
-        cluster, stopped = None, True
+        _abandon({c for c in getattr(SpecCluster, "_instances", ())
+                  if isinstance(c, SweepCluster)})
+        cluster = None
         raise
     finally:
         if cluster is not None:
             cluster.close()
-        # Stopped, the process is usually about to end, and the cluster's tasks report their
-        # cancellation when they are collected: the logs stay quiet then.
-        if not stopped:
-            for logger, level in zip(quiet_loggers, levels):
-                logger.setLevel(level)
+        for logger, level in zip(quiet_loggers, levels):
+            logger.setLevel(level)
 
 
-def _abandon(started: set, cluster: object) -> None:
-    """Close the clusters this sweep started (`started`; `cluster`, the LocalCluster, when
-    its start had returned) after a stop or a failure, quietly, and keep Dask's exit hook off
-    them. One that does not close is left to the process's exit, which ends its worker
-    processes (daemons of multiprocessing)."""
-    for each in started | ({cluster} if cluster is not None else set()):
+def _abandon(started: set) -> None:
+    """Close the clusters this sweep started (its start may not have returned) after a stop
+    or a failure, quietly, and keep Dask's exit hook off them. One that does not close is left
+    to the process's exit, which ends its worker processes (daemons of multiprocessing); the
+    program says nothing more once stopped (cli.entry)."""
+    for each in started:
         try:
             each.close(timeout=5)
         except (Exception, KeyboardInterrupt):

@@ -429,8 +429,9 @@ def _types(checks: Checks, world: Any) -> None:
             raise checks.fail("type[0]", f"the world's own {name} ({mine}) and its first "
                                          f"type's ({its}) differ: a world with types observes "
                                          f"as its first type; change a type through "
-                                         f"types=(...), which brings the first type's {name} "
-                                         f"when the call does not give {name} too")
+                                         f"World.replace(types=...), which brings the first "
+                                         f"type's {name} when the call does not give {name} "
+                                         f"too")
 
 
 def _shown(name: str, value: object) -> str:

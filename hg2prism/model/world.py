@@ -135,6 +135,7 @@ class World:
         if isinstance(first, tuple) and first and isinstance(first[0], PlayerType):
             for name in validation.OBSERVER_FIELDS:
                 own.setdefault(name, getattr(first[0], name))
+            own.setdefault("of_type", "")       # no longer the world of one of the types
         if "traps" in own and own["traps"] != self.traps and "initial_standing" not in own:
             own["initial_standing"] = self._carried_standing(own["traps"], "front" in own)
         front = {name: value for name, value in changes.items() if name not in _FIELDS}
@@ -186,15 +187,18 @@ class World:
         return self.front if getattr(self.front, "kind", None) == "arena" else None
 
     def digest(self) -> str:
-        """"sha256:<hex>" of everything the world says but where its file is (its path): two
-        worlds with one digest are the same world. The records of an output folder carry it
+        """"sha256:<hex>" of everything the world says but where its file is (its path) and the
+        name of the type it was made for (`of_type`: its description says so already, and a
+        type's world had its digest before it had that field): two worlds with one digest are
+        the same world. The records of an output folder carry it
         (`world_digest`), so that a command on an edited world file does not leave the old
         version's outputs beside its own (outputs.staged)."""
         import hashlib
         import json
 
         fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                  if f.name != "path" and getattr(self, f.name) != _LATER.get(f.name, _NONE)}
+                  if f.name not in ("path", "of_type")
+                  and getattr(self, f.name) != _LATER.get(f.name, _NONE)}
         text = json.dumps(_canonical(fields), sort_keys=True, separators=(",", ":"))
         return "sha256:" + hashlib.sha256(text.encode()).hexdigest()
 
