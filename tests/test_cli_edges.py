@@ -1070,3 +1070,17 @@ def test_a_stopped_parallel_sweep_gives_the_libraries_their_log_levels_back(monk
     with pytest.raises(KeyboardInterrupt):
         hg2prism.sweep(world, "threshold", [1.0, 2.0], workers=2)
     assert {name: logging.getLogger(name).level for name in names} == before
+
+
+def test_a_ctrl_c_while_plugins_load_is_said(monkeypatch, capsys) -> None:
+    """Ctrl-C while HG2PRISM_PLUGINS loaded (or the parser was built) ended with status 130 and
+    nothing said (a code review): it says `hg2prism: interrupted` as every other stop does."""
+    from hg2prism import cli, plugins
+
+    def interrupted() -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(plugins, "load_plugins", interrupted)
+    capsys.readouterr()
+    assert cli.main(["validate", str(ROOT / "models" / "world1.toml")]) == 130
+    assert capsys.readouterr().err == "hg2prism: interrupted\n"
