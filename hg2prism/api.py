@@ -148,6 +148,49 @@ def _edge_probability(graph, u: object, v: object, key: str, file: str) -> float
     return float(p)
 
 
+def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
+                   order: dict, names: dict, file: str) -> dict[str, float]:
+    """Where the attack step along edge (u, v) leads, by state name: the edge's `outcomes`
+    attribute (node -> probability, each a node of the graph, adding up to 1) when it has one,
+    else v with its success probability and u (staying) otherwise."""
+    import math
+    import numbers
+    from collections.abc import Mapping
+
+    data = graph.edges[u, v]
+    if outcomes not in data:
+        p = _edge_probability(graph, u, v, probability, file)
+        return {names[v]: p, names[u]: 1.0 - p} if 0 < p < 1 else {names[v if p else u]: 1.0}
+    where, given = f"edge ({u!r}, {v!r})", data[outcomes]
+    if probability in data:
+        raise InputError(file, where, f"has both {probability!r} and {outcomes!r}: give the "
+                         "step's success probability or its outcomes, not both")
+    if not isinstance(given, Mapping) or not given:
+        raise InputError(file, where, f"{outcomes} = {given!r}: expected a dict node -> "
+                         "probability (where the step leads, adding up to 1)")
+    for node, p in given.items():
+        if node not in order:
+            raise InputError(file, where, f"{outcomes}: {node!r} is not a node of the graph "
+                             f"(add it: graph.add_node({node!r}))")
+        if (isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p)
+                or not 0 <= p <= 1):
+            raise InputError(file, where, f"{outcomes}: {node!r}: {p!r} is not a probability")
+    total = math.fsum(given.values())
+    if abs(total - 1.0) > 1e-9:
+        raise InputError(file, where, f"{outcomes}: the probabilities add up to {total!r}, "
+                         "not 1")
+    return {names[node]: float(given[node]) for node in sorted(given, key=order.__getitem__)
+            if given[node] > 0}
+
+
+def _success(graph, u: object, v: object, probability: str, outcomes: str, file: str) -> float:
+    """The chance that the attack step along (u, v) reaches v (the arena has checked it)."""
+    data = graph.edges[u, v]
+    if outcomes in data:
+        return float(data[outcomes].get(v, 0.0))
+    return _edge_probability(graph, u, v, probability, file)
+
+
 def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict]:
     """The nodes in state order (sorted when they sort, else the graph's order) and their
     state names; every node given as an argument checked."""
@@ -203,8 +246,12 @@ def _graph_positions(graph, entries, positions, file: str) -> dict:
     return table
 
 
-def _graph_arena(graph, entries, labels, probability: str, file: str) -> dict:
+def _graph_arena(graph, entries, labels, probability: str, outcomes: str, file: str) -> dict:
     """The [arena] table of an attack graph (world_from_graph)."""
+    for key, value in (("probability", probability), ("outcomes", outcomes)):
+        if not isinstance(value, str):
+            raise InputError(file, key, f"expected an edge attribute's name (a str), got "
+                             f"{value!r}")
     nodes, names = _graph_nodes(graph, file, {"entries": entries, "labels": labels or {}})
     if not entries:
         raise InputError(file, "entries", "no entry node; expected the nodes the attacker "
@@ -214,8 +261,7 @@ def _graph_arena(graph, entries, labels, probability: str, file: str) -> dict:
                    for e in sorted(set(entries), key=order.__getitem__)]
     for u in nodes:
         for v in sorted(graph.successors(u), key=order.__getitem__):
-            p = _edge_probability(graph, u, v, probability, file)
-            to = {names[v]: p, names[u]: 1.0 - p} if 0 < p < 1 else {names[v if p else u]: 1.0}
+            to = _edge_outcomes(graph, u, v, probability, outcomes, order, names, file)
             transitions.append({"state": names[u], "action": f"to_{names[v]}", "to": to})
     if labels is None:
         labels = {v: _asset(v, names[v]) for v in nodes if graph.out_degree(v) == 0}
@@ -232,7 +278,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
                      initial_hypothesis: int | None = None, inference: dict | None = None,
                      simulation: dict | None = None, detection: dict | None = None,
                      probability: str = "p", name: str = "attack_graph",
-                     description: str = "", positions=None, tie_break: str = "first") -> World:
+                     description: str = "", positions=None, tie_break: str = "first",
+                     outcomes: str = "outcomes") -> World:
     """The arena world (docs/semantics.md §15) of an attack graph: a networkx.DiGraph whose
     edges carry the attack step's success probability (attribute `probability`).
 
@@ -240,7 +287,8 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
     graph's order) named n<v> for an integer node v, their own name for an identifier. At
     `outside` P1 (the attacker) has one action per entry node, `to_<node>`, reaching it with
     probability 1; at node u one action per outgoing edge (u, v), `to_<v>`, reaching v with the
-    edge's probability and staying at u otherwise. A node without outgoing edges (a target)
+    edge's probability and staying at u otherwise (or the nodes of the edge's `outcomes`, node
+    -> probability: a third outcome, caught, say). A node without outgoing edges (a target)
     is terminal: the episode ends there. Labels: `labels` maps nodes to propositions (a name
     or a list); by default each target v carries `asset<v>` (`asset_<name>` for a named node).
     P2 (the defender) sets `traps` traps (honeypots) among `trap_candidates` (default: every
@@ -277,7 +325,7 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
                        ("positions", positions)):
         if table is not None and not isinstance(table, Mapping):
             raise InputError(name, key, f"expected a dict, got {type(table).__name__}")
-    arena = _graph_arena(graph, entries, labels, probability, name)
+    arena = _graph_arena(graph, entries, labels, probability, outcomes, name)
     if positions is not None:
         arena["positions"] = _graph_positions(graph, entries, positions, name)
     nodes, names = _graph_nodes(graph, name, {"trap_candidates": trap_candidates or (),
@@ -303,12 +351,12 @@ def world_from_graph(graph, *, entries, task: str, hypotheses=None, labels=None,
             data[key] = dict(table)
     # as a world file gives them: numpy's numbers as Python's (traps=np.int64(1) was refused)
     world = world_from_data(plain(data, list), name=name)
-    _graph_warnings(graph, entries, labels, trap_candidates, probability, name)
+    _graph_warnings(graph, entries, labels, trap_candidates, probability, outcomes, name)
     return world
 
 
 def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
-                    file: str) -> None:
+                    outcomes: str, file: str) -> None:
     """What world_from_graph accepts that has a meaning (docs/semantics.md §15) but is likely
     a mistake, one warning line each: edges with probability 0, targets (nodes without an
     outgoing edge) among the trap candidates or the entries, and, with `labels` given, targets
@@ -318,7 +366,7 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
     nodes, names = _graph_nodes(graph, file, {})
     targets = {v for v in nodes if graph.out_degree(v) == 0}
     never = [f"({u!r}, {v!r})" for u in nodes for v in graph.successors(u)
-             if _edge_probability(graph, u, v, probability, file) == 0]
+             if _success(graph, u, v, probability, outcomes, file) == 0]
     if never:
         one = len(never) == 1
         progress.warn(f"{file}: edge{'' if one else 's'} {listing(never, 3, count=True)}: "

@@ -41,6 +41,18 @@ class InputError(Exception):
         self.key = key
         self.reason = reason
 
+    def __reduce__(self):
+        # Unpickled (from a Dask worker, say) as it was, whatever the subclass's constructor
+        # takes: Exception's own pickling calls the class with the message alone.
+        return _restored, (type(self), self.args, self.__dict__)
+
+
+def _restored(cls: type, args: tuple, state: dict) -> InputError:
+    error = cls.__new__(cls)
+    error.args = args
+    error.__dict__.update(state)
+    return error
+
 
 class MissingSetting(InputError):
     """A setting P2's observer needs and nobody gave (`opponent.registry.configure` switching

@@ -426,14 +426,15 @@ class CheckResult:
     bounded: Bounded | None = None         # the step-dependent strategy of --objective bounded
 
     @functools.cached_property
-    def records(self) -> list[dict]:
-        """The strategy's records (strategy.json's content), built on first use: writing the
-        file does not need them, and they cost seconds on million-state models."""
+    def records(self) -> tuple[dict, ...]:
+        """The strategy's records (strategy.json's content, read-only `Record`s), built on first
+        use: writing the file does not need them, and they cost seconds on million-state
+        models."""
         from hg2prism.strategy.records import strategy_records
 
         built = self.engine.explicit(self.checked.model)
-        return strategy_records(self.decoded, self.strategy, built.transitions, self.analysis.ts,
-                                self.extras, built.initial)
+        return tuple(strategy_records(self.decoded, self.strategy, built.transitions, self.analysis.ts,
+                                self.extras, built.initial))
 
     def player(self, strategy: Strategy | None = None) -> tuple[Analysis, Policy]:
         """What plays P1's exported strategy in simulations: the analysis (P2's inference) and

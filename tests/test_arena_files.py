@@ -476,8 +476,22 @@ def test_a_script_sees_the_warnings_without_configuring_logging(tmp_path) -> Non
     (lambda g: g.add_edge(3, -1, p=0.5), "node -1", "has no state name"),
     # Python calls it an identifier: the message says which (it said "identifiers")
     (lambda g: g.add_edge(3, "сервер", p=0.5), "node 'сервер'", "ASCII identifiers"),
+    # an edge's outcomes (a third outcome, world_from_graph's `outcomes`)
+    (lambda g: g.add_edge(3, 5, outcomes={5: 0.5, 3: 0.4}), "edge (3, 5)",
+     "add up to 0.9, not 1"),
+    (lambda g: g.add_edge(3, 5, outcomes={5: 0.5, 9: 0.5}), "edge (3, 5)",
+     "9 is not a node of the graph (add it: graph.add_node(9))"),
+    (lambda g: g.add_edge(3, 5, outcomes={5: 1.5, 3: -0.5}), "edge (3, 5)",
+     "5: 1.5 is not a probability"),
+    (lambda g: g.add_edge(3, 5, outcomes={5: "1"}), "edge (3, 5)", "'1' is not a probability"),
+    (lambda g: g.add_edge(3, 5, outcomes=[5]), "edge (3, 5)", "expected a dict node -> "),
+    (lambda g: g.add_edge(3, 5, outcomes={}), "edge (3, 5)", "expected a dict node -> "),
+    (lambda g: g.add_edge(3, 5, p=0.5, outcomes={5: 1.0}), "edge (3, 5)",
+     "has both 'p' and 'outcomes'"),
 ], ids=["above-1", "negative", "not-a-number", "text", "missing", "self-loop", "bad-name",
-        "named-outside", "name-clash", "negative-node", "unicode-name"])
+        "named-outside", "name-clash", "negative-node", "unicode-name", "outcomes-sum",
+        "outcomes-node", "outcomes-probability", "outcomes-text", "outcomes-list",
+        "outcomes-empty", "outcomes-and-p"])
 def test_world_from_graph_errors(change, key: str, word: str) -> None:
     import hg2prism
     from hg2prism.errors import InputError
@@ -487,6 +501,81 @@ def test_world_from_graph_errors(change, key: str, word: str) -> None:
     with pytest.raises(InputError) as err:
         hg2prism.world_from_graph(graph, entries=[1], task="F asset4", name="g")
     assert (err.value.file, err.value.key) == ("g", key) and word in err.value.reason
+
+
+def test_world_from_graph_edge_outcomes_give_a_third_outcome(caplog) -> None:
+    """An edge whose `outcomes` attribute (node -> probability) gives where the attack step
+    leads: here an exploit that succeeds, fails in place or gets the attacker caught (world_from_graph
+    could only say success or staying). The arena is the one its world file, written by hand,
+    gives; the names of the attribute are world_from_graph's arguments; an edge whose outcomes
+    never reach its node warns as probability 0 does."""
+    import hg2prism
+    from hg2prism.errors import InputError
+
+    nx = pytest.importorskip("networkx")
+    graph = nx.DiGraph()
+    graph.add_edge(1, 2, p=0.5)
+    graph.add_edge(2, 3, outcomes={3: 0.625, 2: 0.25, "caught": 0.125})
+    graph.add_node("caught")
+    arguments = dict(entries=[1], task="F asset3", hypotheses=["F asset3"], name="g",
+                     labels={3: "asset3", "caught": "caught"}, trap_candidates=[1, 2])
+    world = hg2prism.world_from_graph(graph, **arguments)
+    by_hand = world_from_toml("""
+name = "g"
+[arena]
+states = ["outside", "n1", "n2", "n3", "caught"]
+initial = "outside"
+propositions = ["asset3", "caught"]
+[arena.labels]
+n3 = ["asset3"]
+caught = ["caught"]
+[[arena.transition]]
+state = "outside"
+action = "to_n1"
+to = { n1 = 1.0 }
+[[arena.transition]]
+state = "n1"
+action = "to_n2"
+to = { n2 = 0.5, n1 = 0.5 }
+[[arena.transition]]
+state = "n2"
+action = "to_n3"
+to = { n2 = 0.25, n3 = 0.625, caught = 0.125 }
+[task]
+formula = "F asset3"
+[adversary]
+traps = 1
+trap_candidates = ["n1", "n2"]
+hypotheses = ["F asset3"]
+[inference]
+kind = "cusum"
+window = 2
+rationality = 1.0
+threshold = 0.6
+""", name="g.toml")
+    assert world.arena.states == by_hand.arena.states
+    assert_same_ts(transition_system(world), transition_system(by_hand))
+    # the attribute names are arguments, like `probability`
+    renamed = nx.relabel_nodes(graph, {})
+    for _, _, data in renamed.edges(data=True):
+        if "outcomes" in data:
+            data["dist"] = data.pop("outcomes")
+        else:
+            data["chance"] = data.pop("p")
+    again = hg2prism.world_from_graph(renamed, probability="chance", outcomes="dist",
+                                      **arguments)
+    assert_same_ts(transition_system(again), transition_system(world))
+    with pytest.raises(InputError) as refused:
+        hg2prism.world_from_graph(graph, outcomes=3, **arguments)
+    assert (refused.value.key, refused.value.reason) == (
+        "outcomes", "expected an edge attribute's name (a str), got 3")
+    # outcomes that never reach the edge's node: the warning of probability 0
+    graph.add_edge(1, 3, outcomes={1: 0.5, "caught": 0.5})
+    warned = _graph_warnings(caplog, graph=graph, **{k: v for k, v in arguments.items()
+                                                     if k not in ("task", "name")})
+    assert warned == ["warning: g: edge (1, 3): probability 0, so the attacker's action along "
+                      "it never succeeds (he stays where he is); remove the edge if the step "
+                      "is impossible"]
 
 
 def test_world_from_graph_inference_keys_default_one_by_one() -> None:

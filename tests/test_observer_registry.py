@@ -194,6 +194,16 @@ def test_configure_refuses_what_the_observer_does_not_have() -> None:
     assert missing.value.key == "inference.threshold" and missing.value.reason == (
         "the cusum observer needs a threshold, which has no default: give it "
         "(configure(world, 'cusum', threshold=...))")
+    # an InputError crosses processes (a Dask worker's) as it was: Exception's pickling called
+    # the class with the message alone, a TypeError on unpickling
+    import pickle
+
+    for error in (missing.value, refused.value):
+        back = pickle.loads(pickle.dumps(error))
+        assert (type(back), str(back), back.file, back.key, back.reason) == (
+            type(error), str(error), error.file, error.key, error.reason)
+    assert isinstance(back, InputError) and pickle.loads(pickle.dumps(missing.value)).setting \
+        == "threshold"
     assert dict(configure(configure(world, "bayes"), "cusum", threshold=0.5).settings) \
         == {"threshold": 0.5}
     assert dict(configure(world, threshold=2.0).settings)["threshold"] == 2.0

@@ -429,8 +429,10 @@ def _folder(assignment: dict[str, Value]) -> str:
     return "__".join(f"{name}_{_value_text(value)}" for name, value in assignment.items())
 
 
-_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "states",
-                "transitions", "storm_states", "storm_transitions", "seconds")
+# v_ne_lower and v_ne_upper: the ends of the row's v_ne_bounds (a CSV cell holds one number)
+_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "v_ne_lower",
+                "v_ne_upper", "states", "transitions", "storm_states", "storm_transitions",
+                "seconds")
 
 
 def results_sound(storm_method: str) -> bool:
@@ -934,9 +936,15 @@ def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
         columns = columns[:at] + _DECEPTION_COLUMNS + columns[at:]
     if _with_standing(rows):
         columns = ("standing",) + columns
+
+    def cell(row: dict, column: str) -> object:
+        if column in ("v_ne_lower", "v_ne_upper") and row.get("v_ne_bounds") is not None:
+            return row["v_ne_bounds"][column == "v_ne_upper"]
+        return row.get(column)
+
     return csv_text(tuple(names) + columns,
                     ([_value_text(row[n]) if isinstance(row[n], list) else row[n]
-                      for n in names] + [row.get(c) for c in columns] for row in rows))
+                      for n in names] + [cell(row, c) for c in columns] for row in rows))
 
 
 def _with_standing(rows: Sequence[dict]) -> bool:

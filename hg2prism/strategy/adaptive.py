@@ -23,7 +23,7 @@ from hg2prism.prism.adaptive import AdaptiveModel, type_view
 from hg2prism.prism.decoding import DecodedStates, canonical_size, decode_states, row_keys
 from hg2prism.strategy.canonical import canonical_mdp, canonical_values
 from hg2prism.strategy.deceptive import deceptive_actions, storm_choices
-from hg2prism.strategy.records import RecordExtras, start_first, strategy_records
+from hg2prism.strategy.records import RecordExtras, frozen, start_first, strategy_records
 
 __all__ = ["AdaptiveStrategy", "AdaptiveStates", "adaptive_strategy", "decode_adaptive"]
 
@@ -120,7 +120,7 @@ def adaptive_strategy(model: BuiltModel, values: np.ndarray, adaptive: AdaptiveM
         merged["action"] = record["action"]
         v = ts.state(int(base.place[s]), int(base.traps[s]), int(base.countdown[s]))
         merged.update(extras.fields(int(canonical[s]), ts.action_names(v)))
-        records.append(merged)
+        records.append(frozen(merged))
     return AdaptiveStrategy(records, canonical_size(joint, moves), states_of)
 
 

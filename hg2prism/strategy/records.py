@@ -29,6 +29,63 @@ class StrategyError(LookupError):
     """The strategy has no (or an unreadable) record for a hypergame state."""
 
 
+_READ_ONLY = ("strategy records are read-only (a solution's strategy, its check and robust() "
+              "share them): record.thawed() gives a copy to change")
+
+
+def _refuse(self, *args, **kwargs):
+    raise TypeError(_READ_ONLY)
+
+
+class Record(dict):
+    """A strategy.json record as hg2prism hands it out: a dict that cannot be changed, nor can
+    its window entries, values or schedule (`frozen`). A solution's `Strategy`, its check's
+    records and the experiments on it (robust deception, simulations) read the same records,
+    so an edit of one would change them all. `thawed()` gives a plain copy to change; reading,
+    comparing, `dict(record)`, json.dumps and pickling work as on a dict."""
+
+    __slots__ = ()
+    __setitem__ = __delitem__ = __ior__ = clear = pop = popitem = setdefault = update = _refuse
+
+    def __reduce__(self):
+        return Record, (dict(self),)
+
+    def thawed(self) -> dict:
+        """A plain copy (dicts and lists all the way down) to change."""
+        return _thawed(self)
+
+
+class RecordList(list):
+    """A list inside a `Record` (a window, a schedule): read-only, otherwise a list."""
+
+    __slots__ = ()
+    __setitem__ = __delitem__ = __iadd__ = __imul__ = _refuse
+    append = extend = insert = remove = pop = clear = sort = reverse = _refuse
+
+    def __reduce__(self):
+        return RecordList, (list(self),)
+
+
+def frozen(value: object) -> object:
+    """`value` with its dicts made `Record`s and its lists `RecordList`s, all the way down (a
+    Record is returned as it is: it is frozen all the way down already)."""
+    if isinstance(value, Record):
+        return value
+    if isinstance(value, Mapping):
+        return Record((key, frozen(item)) for key, item in value.items())
+    if isinstance(value, list | tuple):
+        return RecordList(frozen(item) for item in value)
+    return value
+
+
+def _thawed(value: object) -> object:
+    if isinstance(value, dict):
+        return {key: _thawed(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_thawed(item) for item in value]
+    return value
+
+
 def start_first(decoded: DecodedStates, choices: StormChoices, initial: int | None
                  ) -> tuple[np.ndarray, int]:
     """The engine states whose records are written (the representatives of the non-absorbing
@@ -71,13 +128,13 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         record.update(describe(v))
         record["q"] = qs[s]
         record["hypothesis"] = hypotheses[s]
-        record["window"] = [window_entry(ts, entry, describe(entry[0]))
-                            for entry in windows[s] if entry[0] >= 0]
+        record["window"] = RecordList([Record(window_entry(ts, entry, describe(entry[0])))
+                                       for entry in windows[s] if entry[0] >= 0])
         names = ts.action_names(v)
         record["action"] = names[chosen[s]]
         if extras is not None:
-            record.update(extras.fields(canonical[s], names))
-        records.append(record)
+            record.update(frozen(extras.fields(canonical[s], names)))
+        records.append(Record(record))      # read-only, all the way down (`Record`)
     return records
 
 
@@ -403,7 +460,8 @@ class Strategy:
                 names = ts.action_names(key[0])
                 raise StrategyError(f"{where}: conflicting actions {names[table[key]]} and "
                                     f"{names[action]} for the same state")
-        return cls(table, ts, fallback, records=tuple(records))
+        return cls(table, ts, fallback, records=tuple(
+            frozen(record) if isinstance(record, Mapping) else record for record in records))
 
     @classmethod
     def load(cls, path: str | Path, ts: TransitionSystem,
