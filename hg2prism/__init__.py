@@ -19,6 +19,7 @@ The Python API (docs/api.md):
     episode(solution, seed)                                  -> Episode (steps, P2's belief)
     draw_world / draw_belief(solution, episode, ax=)         -> the figures, in a matplotlib Axes
     draw_sweep(table, ax=)
+    load_strategy(folder, world=None)                        -> Strategy (strategy.json read back)
 
 The pipeline, one module per stage, is listed in docs/architecture.md; the meaning of every number is in
 docs/semantics.md.
@@ -32,7 +33,7 @@ __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_
            "baselines", "simulate", "deception_values", "robust", "sweep", "detection", "episode",
            "draw_world", "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep",
-           "PlayerType"]
+           "PlayerType", "load_strategy"]
 
 
 if TYPE_CHECKING:      # what editors and type checkers read; at run time, __getattr__ below
@@ -40,8 +41,8 @@ if TYPE_CHECKING:      # what editors and type checkers read; at run time, __get
                               EpisodeStep, PlayerType, RobustValue, Run, Simulation, Solution,
                               Strategy, SweepRow, SweepTable, baselines, deception_values,
                               detection, draw_belief, draw_sweep, draw_world, episode,
-                              load_world, robust, run, simulate, solve, sweep, world_from_graph,
-                              world_from_toml)
+                              load_strategy, load_world, robust, run, simulate, solve, sweep,
+                              world_from_graph, world_from_toml)
     from hg2prism.errors import InputError
 
 

@@ -34,7 +34,7 @@ __all__ = ["load_world", "world_from_toml", "world_from_graph", "solve", "run", 
            "simulate", "deception_values", "robust", "sweep", "detection", "episode", "draw_world",
            "draw_belief", "draw_sweep", "Solution", "AdaptiveSolution", "Run", "Strategy", "Baselines", "Simulation",
            "DeceptionValues", "RobustValue", "SweepRow", "SweepTable", "Episode", "EpisodeStep",
-           "PlayerType"]
+           "PlayerType", "load_strategy"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -645,6 +645,71 @@ def _solve_adaptive(world: World, out, storm_method: str, objective: str,
         value_of_adaptivity=r["value_of_adaptivity"],
         cost_of_not_knowing=r["cost_of_not_knowing"], strategy=tuple(found.strategy.records),
         types=types, results=r), found.table
+
+
+def load_strategy(folder: str | Path, world: World | str | Path | None = None) -> Strategy:
+    """P1's strategy that `hg2prism check` or `run` (or `solve`/`run` with `out`) wrote into
+    `folder`, read back from its strategy.json to answer `move(...)` without solving again
+    (one type's folder, `type<k>/`, of an adaptive run too). The world is the one results.json
+    names (its `world_file`, from the current folder) unless `world` (a World or the path of
+    its file) is given; either way it must be the world the folder was written for (the same
+    `World.digest()`, results.json's `world_digest`)."""
+    from hg2prism.errors import WHOLE_FILE
+    from hg2prism.frontends import transition_system
+    from hg2prism.strategy.records import StrategyError
+    from hg2prism.worldfile.types import world_of_type
+
+    if not isinstance(folder, (str, os.PathLike)):
+        raise InputError("load_strategy()", "folder", "expected the path of a folder (a str or "
+                         f"a pathlib.Path), got {type(folder).__name__}")
+    folder = Path(folder)
+    results = _read_json(folder / "results.json", "results.json")
+    if not isinstance(results, dict) or not isinstance(results.get("world_digest"), str):
+        raise InputError(str(folder / "results.json"), WHOLE_FILE, "is not the results.json of "
+                         "hg2prism check or run (it has no world_digest)")
+    if "v_adapt" in results:
+        raise InputError(str(folder), WHOLE_FILE, "holds an adaptive strategy (P2's types), "
+                         "which has no move: read its strategy.json's records, or load one "
+                         "type's strategy from its folder type<k>/")
+    if world is None:
+        named = results.get("world_file")
+        if not named or not Path(named).is_file():
+            where = (f"names {named!r}, not a file from {Path.cwd()}" if named
+                     else "names no world file (a world made in Python)")
+            raise InputError(str(folder / "results.json"), "world_file", f"{where}: give the "
+                             "world, load_strategy(folder, world=...)")
+        world = named
+    world = _world("load_strategy", world)
+    names = [t.name for t in world.types]
+    if results.get("p2_type") in names:            # one type's folder of an adaptive run
+        world = world_of_type(world, names.index(results["p2_type"]))
+    if world.digest() != results["world_digest"]:
+        raise InputError("load_strategy()", "world", f"{world.name} ({world.path}) is not the "
+                         f"world {folder} was written for: their digests differ (results.json's "
+                         f"world_digest); give that world (a sweep point's is the swept world "
+                         "with the point's parameters, World.replace)")
+    records = _read_json(folder / "strategy.json", "strategy.json")
+    try:
+        return Strategy.from_records(records, transition_system(world))
+    except (StrategyError, AttributeError, TypeError) as error:
+        raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "is not a strategy of "
+                         f"this world: {error}") from None
+
+
+def _read_json(path: Path, what: str) -> object:
+    """The JSON content of `path`, an output of hg2prism (InputError naming it otherwise)."""
+    import json
+
+    from hg2prism.errors import WHOLE_FILE
+
+    try:
+        with open(path, encoding="utf-8") as handle:
+            return json.load(handle)
+    except FileNotFoundError:
+        raise InputError(str(path), WHOLE_FILE, f"not found: expected a folder hg2prism check "
+                         f"or run wrote (with its {what})") from None
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise InputError(str(path), WHOLE_FILE, f"cannot be read as JSON: {error}") from None
 
 
 def _one_type(solution, verb: str) -> None:

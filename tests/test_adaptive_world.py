@@ -523,6 +523,9 @@ def test_one_type_at_a_time_from_the_command_line(tmp_path, capsys):
         again = typed_world.replace(types=loaded.types)
         assert again.of_type == "" and "p2_type" not in hg2prism.results.provenance(again)
     assert "here P2 of type 'jumpy'" in (tmp_path / "world4_type0" / "hypergame.prism").read_text()
+    # load_strategy reads a type's folder back for the world of that type
+    loaded_strategy = hg2prism.load_strategy(tmp_path / "world4_type0")
+    assert loaded_strategy.table == adaptive.types[0].strategy.table
     capsys.readouterr()
     for args, reason in (
             (["emit", str(Path(__file__).resolve().parent.parent / "models" / "world1.toml"),

@@ -167,7 +167,7 @@ def test_docs_api_counts_the_functions_it_lists() -> None:
     import re
 
     numbers = {"one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7,
-               "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12}
+               "eight": 8, "nine": 9, "ten": 10, "eleven": 11, "twelve": 12, "thirteen": 13}
     text = (ROOT / "docs" / "api.md").read_text().split("\n\n")[1].replace("\n", " ")
     groups = re.findall(r"(\w+) (?:verbs over the pipeline|ways to make a world) \(([^)]*)\)", text)
     assert len(groups) == 2, text
@@ -311,6 +311,55 @@ def test_strategy_records_are_read_only_so_robust_reads_them_unchanged(lateral_s
     assert strategy.records[0]["action"] == records[0]["action"]
     with pytest.raises(TypeError):
         strategy.records[0]["action"] = "X"
+
+
+def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) -> None:
+    """load_strategy(folder) gives the Strategy solve() returned, read from strategy.json for
+    the world results.json names (there was no public way back from the files); a folder of
+    another world, a world not given where results.json names none or no file from here, a
+    missing folder, a results.json of another kind and an adaptive folder are one line each."""
+    import arenas
+
+    world = hg2prism.load_world(MODELS / "world1.toml")
+    solution = hg2prism.solve(world, out=tmp_path / "w1")
+    loaded = hg2prism.load_strategy(tmp_path / "w1")
+    assert loaded.table == solution.strategy.table and loaded.records == solution.strategy.records
+    start = next(r for r in loaded.records if r.get("initial"))
+    assert loaded.move(state=start["state"], q=start["q"], hypothesis=start["hypothesis"]) \
+        == start["action"]
+    assert hg2prism.load_strategy(str(tmp_path / "w1"), MODELS / "world1.toml").table \
+        == loaded.table
+    other = _refused(lambda: hg2prism.load_strategy(tmp_path / "w1",
+                                                   world.replace(rationality=2.0)),
+                     "load_strategy()", "world")
+    assert "is not the world" in other.reason and "digests differ" in other.reason
+    monkeypatch.chdir(tmp_path)                 # results.json names a file not found from here
+    lateral = arenas.lateral()                  # a world made in Python (named lateral.toml)
+    hg2prism.solve(lateral, out=tmp_path / "lateral")
+    nameless = _refused(lambda: hg2prism.load_strategy(tmp_path / "lateral"),
+                        str(tmp_path / "lateral" / "results.json"), "world_file")
+    assert "not a file from" in nameless.reason and "world=" in nameless.reason
+    assert len(hg2prism.load_strategy(tmp_path / "lateral", lateral)) > 0
+    _refused(lambda: hg2prism.load_strategy(tmp_path / "nowhere"),
+             str(tmp_path / "nowhere" / "results.json"), "-")
+    _refused(lambda: hg2prism.load_strategy(7), "load_strategy()", "folder")
+    (tmp_path / "odd").mkdir()
+    (tmp_path / "odd" / "results.json").write_text("[1, 2]")
+    _refused(lambda: hg2prism.load_strategy(tmp_path / "odd"),
+             str(tmp_path / "odd" / "results.json"), "-")
+    (tmp_path / "odd" / "results.json").write_text("{not json")
+    assert "cannot be read as JSON" in _refused(
+        lambda: hg2prism.load_strategy(tmp_path / "odd"),
+        str(tmp_path / "odd" / "results.json"), "-").reason
+    (tmp_path / "odd" / "results.json").write_text(json.dumps(
+        {"world_digest": world.digest(), "v_adapt": 0.5}))
+    assert "adaptive" in _refused(lambda: hg2prism.load_strategy(tmp_path / "odd"),
+                                  str(tmp_path / "odd"), "-").reason
+    (tmp_path / "odd" / "results.json").write_text(json.dumps({"world_digest": world.digest()}))
+    (tmp_path / "odd" / "strategy.json").write_text(json.dumps([{"state": "nowhere"}]))
+    assert "is not a strategy of this world" in _refused(
+        lambda: hg2prism.load_strategy(tmp_path / "odd", world),
+        str(tmp_path / "odd" / "strategy.json"), "-").reason
 
 
 def test_a_sweep_with_deception_has_its_values_in_the_csv_too(tmp_path: Path) -> None:
