@@ -268,19 +268,79 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
     out = Path(out)
     _placement.update(state=None, out=None)     # this command's, not an earlier one's
     out.parent.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned_stages(out)
     stage = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.staging-"))
     os.chmod(stage, 0o777 & ~_UMASK)
     try:
-        try:
-            yield stage
-        except BaseException:
-            _join_pool_workers()    # a worker may still be writing into the stage
-            raise
-        out.mkdir(exist_ok=True)
-        with _locked(out), _signals_deferred():
-            _place(stage, out, owns, world, every, digest)
+        with _held(stage):
+            try:
+                yield stage
+            except BaseException:
+                _join_pool_workers()    # a worker may still be writing into the stage
+                raise
+            out.mkdir(exist_ok=True)
+            with _locked(out), _signals_deferred():
+                _place(stage, out, owns, world, every, digest)
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        with _signals_deferred():       # a second Ctrl-C does not leave half a stage
+            shutil.rmtree(stage, ignore_errors=True)
+
+
+# A staging folder unchanged for this long and held by no process is abandoned (its command
+# was killed, SIGKILL, or stopped twice while removing it): the next command beside it removes
+# it. (A younger one may be another command's that has not taken its hold yet.)
+ABANDONED_AFTER = 60.0
+
+
+@contextmanager
+def _held(stage: Path) -> Iterator[None]:
+    """A shared hold (flock) on the staging folder while its command runs, which ends with the
+    process however it ends: `_remove_abandoned_stages` leaves a held stage alone."""
+    try:
+        import fcntl
+
+        fd = os.open(stage, os.O_RDONLY)
+    except (ImportError, OSError):
+        yield
+        return
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except OSError:
+            pass
+        yield
+    finally:
+        os.close(fd)
+
+
+def _remove_abandoned_stages(out: Path) -> None:
+    """Removes the staging folders beside `out` that no process holds (`_held`) and that have
+    not changed for ABANDONED_AFTER seconds. Where locks are not supported, none."""
+    import time
+
+    try:
+        import fcntl
+
+        beside = [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}.staging-")]
+    except (ImportError, OSError):
+        return
+    for stage in beside:
+        try:
+            if (not stage.is_dir() or stage.is_symlink()
+                    or time.time() - stage.stat().st_mtime < ABANDONED_AFTER):
+                continue
+            fd = os.open(stage, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)     # fails where a command holds it
+        except OSError:
+            os.close(fd)
+            continue
+        try:
+            shutil.rmtree(stage, ignore_errors=True)
+        finally:
+            os.close(fd)
 
 
 # This process's last placement of a command's outputs (`staged`), for the messages of a

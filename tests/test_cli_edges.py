@@ -821,6 +821,75 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path: Path) -> None:
     assert (done.returncode, done.stderr) == (141, "")
 
 
+def test_an_abandoned_staging_folder_is_removed_by_the_next_command(tmp_path: Path,
+                                                                     monkeypatch) -> None:
+    """A command killed (SIGKILL), or stopped a second time while removing its staging folder,
+    left `.OUT.staging-*` beside OUT for good. The next command beside it removes such a folder
+    once no process holds it and it has not changed for a minute; one a running command holds
+    (here a process holding it as `staged` does), or a young one, stays."""
+    import fcntl
+    import time
+
+    from hg2prism import outputs
+    from hg2prism.cli import main
+    from hg2prism.outputs import ABANDONED_AFTER
+    from hg2prism.progress import quiet
+
+    out = tmp_path / "out"
+    free_while_placing = []
+    place = outputs._place
+
+    def placing(stage_folder, *args):            # is the command's own stage held meanwhile?
+        fd = os.open(stage_folder, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            free_while_placing.append(True)
+        except BlockingIOError:
+            free_while_placing.append(False)
+        finally:
+            os.close(fd)
+        return place(stage_folder, *args)
+
+    monkeypatch.setattr(outputs, "_place", placing)
+
+    def stage(name: str, age: float) -> Path:
+        folder = tmp_path / f".out.staging-{name}"
+        (folder / "strategy.json").parent.mkdir()
+        (folder / "strategy.json").write_text("[]")
+        then = time.time() - age
+        os.utime(folder, (then, then))
+        return folder
+
+    abandoned = stage("abandoned", ABANDONED_AFTER + 5)
+    young = stage("young", ABANDONED_AFTER - 30)
+    held = stage("held", ABANDONED_AFTER + 5)
+    other = tmp_path / ".other.staging-x"            # another OUT's: not this command's to judge
+    other.mkdir()
+    os.utime(other, (0, 0))
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, os, sys, time\n"
+         f"fd = os.open({str(held)!r}, os.O_RDONLY)\n"
+         "fcntl.flock(fd, fcntl.LOCK_SH)\nprint('held', flush=True)\ntime.sleep(60)\n"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with quiet():
+            assert main(["emit", WORLD1, "--out", str(out)]) == 0
+    finally:
+        holder.kill()
+        holder.wait()
+    assert not abandoned.exists()
+    assert young.exists() and held.exists() and other.exists()
+    assert (out / "hypergame.prism").exists()
+    # the command's own staging folder is gone, and it held it while it ran
+    assert free_while_placing == [False]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [".other.staging-x", ".out.staging-young", ".out.staging-held", "out"])
+    fd = os.open(held, os.O_RDONLY)                  # the holder gone, it is free
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    os.close(fd)
+
+
 def test_a_folder_name_too_long_for_the_staging_folder_is_refused(tmp_path: Path,
                                                                    capsys) -> None:
     """A valid --out whose staging folder's name would be too long for the file system was
