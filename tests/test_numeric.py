@@ -11,6 +11,9 @@
   optimal values equal `reference.solve_reach_game`'s, its chain values `reference.dtmc_reach`'s,
   its bounded reachability a step-by-step iteration over dictionaries, and its expected steps a
   dense solve;
+* bounded reachability (`numeric.bounded_reach`, its one implementation) on random small chains
+  against its definition in plain Python (the distribution after each step), exact at its
+  0s and 1s (bound 0, a start in the goal, no path within the bound, a goal reached surely);
 * the lexicographic objective (strategy/objectives.py, built on the attractor) on random MDPs
   against its definition in plain Python: finite states, expected steps and moves.
 """
@@ -108,6 +111,83 @@ def test_bounded_reach_of_two_states(horizon: int) -> None:
     got = numeric.bounded_reach(model.chain(model.group_start[:-1]), goal, goal | fail, 0,
                                 horizon)
     assert got == pytest.approx(1 - (1 - p) ** horizon, abs=1e-12)
+
+
+def plain_bounded(rows: list[list[tuple[int, float]]], goal: list[bool], stop: list[bool],
+                  start: int, horizon: int) -> float:
+    """P(goal within `horizon` steps) by its definition, forwards: the distribution over the
+    states after each step (the `stop` states keep their mass), its mass on the goal at the
+    end."""
+    mass = {start: 1.0}
+    for _ in range(horizon):
+        after: dict[int, float] = {}
+        for s, m in mass.items():
+            for t, p in ([(s, 1.0)] if stop[s] else rows[s]):
+                after[t] = after.get(t, 0.0) + m * p
+        mass = after
+    return sum(m for s, m in mass.items() if goal[s])
+
+
+def random_chain(rng: np.random.Generator, n: int) -> tuple[list[list[tuple[int, float]]],
+                                                            list[bool], list[bool]]:
+    """A random chain on n states as successor lists (some probabilities exactly 0, some
+    states without a way to the goal), a goal and the absorbing states (goal among them)."""
+    rows = []
+    for _ in range(n):
+        targets = rng.choice(n, size=int(rng.integers(1, min(n, 4) + 1)), replace=False)
+        weights = rng.random(len(targets)) * (rng.random(len(targets)) < 0.8)
+        weights[0] += 0.05
+        rows.append(list(zip(targets.tolist(), (weights / weights.sum()).tolist())))
+    goal = (rng.random(n) < 0.2).tolist()
+    stop = [g or rng.random() < 0.15 for g in goal]
+    return rows, goal, stop
+
+
+def csr_of(rows: list[list[tuple[int, float]]]) -> sp.csr_matrix:
+    """The chain's matrix, its zero entries kept (bounded_reach must not count them as edges)."""
+    n = len(rows)
+    entries = [(s, t, p) for s, row in enumerate(rows) for t, p in row]
+    s, t, p = zip(*entries)
+    return sp.csr_matrix((p, (s, t)), shape=(n, n))
+
+
+def test_bounded_reach_against_its_definition() -> None:
+    """numeric.bounded_reach, the one implementation of bounded reachability, equals the
+    forward distribution of plain_bounded on random small chains from every state and bound
+    (to CONVERGED: it stops once that close to the unbounded value), and exactly where the
+    answer is 0 or 1: bound 0, a start in the goal or stopped outside it, no path to the goal
+    within the bound (the goal unreachable, or reachable only in more steps), the goal
+    reached surely."""
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        n = int(rng.integers(1, 9))
+        rows, goal, stop = random_chain(rng, n)
+        chain = csr_of(rows)
+        for start in range(n):
+            assert numeric.bounded_reach(chain, np.array(goal), np.array(stop), start,
+                                         0) == float(goal[start])
+            for horizon in (1, 2, 5, 30, 1000):
+                got = numeric.bounded_reach(chain, np.array(goal), np.array(stop), start,
+                                            horizon)
+                want = plain_bounded(rows, goal, stop, start, horizon)
+                assert got == pytest.approx(want, abs=numeric.chains.CONVERGED + 1e-14)
+                if stop[start]:         # a goal at the start, or stopped outside the goal
+                    assert got == want == float(goal[start])
+                if want == 0.0:         # no path to the goal in at most `horizon` steps
+                    assert got == 0.0
+    # paths of two and three steps from state 0 to the goal (state 3), a zero entry towards a
+    # stop state (5) that is no goal, and a state (4) that cannot reach the goal: exactly 0
+    # before step 2 and from states 4 and 5, 0.75 at step 2, exactly 1 from step 3 on
+    rows = [[(1, 0.25), (2, 0.75)], [(5, 0.0), (2, 1.0)], [(3, 1.0)], [], [(4, 1.0)], [(5, 1.0)]]
+    goal, stop = [False, False, False, True, False, False], [False, False, False, True, False,
+                                                             True]
+    chain = csr_of(rows)
+    for horizon in range(6):
+        for start, want in ((0, (0.0, 0.0, 0.75, 1.0, 1.0, 1.0)[horizon]),
+                            (1, float(horizon >= 2)), (4, 0.0), (5, 0.0), (3, 1.0)):
+            assert plain_bounded(rows, goal, stop, start, horizon) == want
+            assert numeric.bounded_reach(chain, np.array(goal), np.array(stop), start,
+                                         horizon) == want
 
 
 def test_expected_steps_of_a_geometric_chain() -> None:

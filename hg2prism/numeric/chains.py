@@ -109,11 +109,21 @@ def chain_reach(chain: sp.csr_matrix, target: np.ndarray, absorbing: np.ndarray 
 
 def bounded_reach(chain: sp.csr_matrix, goal: np.ndarray, stop: np.ndarray, start: int,
                   horizon: int) -> float:
-    """P(goal within `horizon` steps) from `start` in the Markov chain `chain` (the rows of the
-    absorbing `stop` states, goal among them, are ignored). The k-step probabilities increase
-    towards the unbounded one, computed exactly first (`chain_reach`); the iteration stops at
-    the horizon or as soon as it is within CONVERGED of it, so a horizon of millions of steps
-    costs only what convergence needs."""
+    """P(goal within `horizon` steps) from `start` in the Markov chain `chain`: the probability
+    that a path from `start` enters a `goal` state after at most `horizon` transitions (with
+    horizon 0: 1.0 at a goal state, else 0.0). The `stop` states are absorbing and must
+    include the goal: their rows are ignored, and so are entries of probability 0 (no path
+    goes through them). The one implementation of bounded reachability on an explicit chain
+    (docs/architecture.md, "One place per concept").
+
+    Backward iteration from x_0 = [goal]: x_k = x_{k-1} on `stop` and chain @ x_{k-1}
+    elsewhere (one sparse product per step, each row summed in the chain's stored order, the
+    order of the numbers written to results.json, whose last bits another order changes). The
+    k-step probabilities increase towards the unbounded one, computed exactly first
+    (`chain_reach`); the iteration stops at the horizon or at the first k whose probability is
+    within CONVERGED of it, so a horizon of millions of steps costs only what convergence
+    needs, and the value returned is below the horizon's by at most CONVERGED plus the
+    unbounded solve's rounding error."""
     chain = sp.csr_matrix(chain, copy=True)
     chain.eliminate_zeros()       # an edge of probability 0 must not count as a path
     limit = float(chain_reach(chain, goal, stop).values[start])
