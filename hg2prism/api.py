@@ -128,14 +128,16 @@ def _asset(node: object, name: str) -> str:
     return f"asset{name[1:]}" if name != node else f"asset_{name}"
 
 
-def _edge_probability(graph, u: object, v: object, key: str, file: str) -> float:
+def _edge_probability(graph, u: object, v: object, key: str, file: str,
+                      outcomes: str = "outcomes") -> float:
     import math
     import numbers
 
     where = f"edge ({u!r}, {v!r})"
     data = graph.edges[u, v]
     if key not in data:
-        raise InputError(file, where, f"has no {key!r} attribute (its success probability)")
+        raise InputError(file, where, f"has no {key!r} attribute (its success probability) "
+                         f"and no {outcomes!r} (where the step leads)")
     p = data[key]
     if isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p):
         text = (" (text: a CSV reader gives strings, convert them with float)"
@@ -159,7 +161,7 @@ def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
 
     data = graph.edges[u, v]
     if outcomes not in data:
-        p = _edge_probability(graph, u, v, probability, file)
+        p = _edge_probability(graph, u, v, probability, file, outcomes)
         return {names[v]: p, names[u]: 1.0 - p} if 0 < p < 1 else {names[v if p else u]: 1.0}
     where, given = f"edge ({u!r}, {v!r})", data[outcomes]
     if probability in data:
@@ -188,7 +190,13 @@ def _success(graph, u: object, v: object, probability: str, outcomes: str, file:
     data = graph.edges[u, v]
     if outcomes in data:
         return float(data[outcomes].get(v, 0.0))
-    return _edge_probability(graph, u, v, probability, file)
+    return _edge_probability(graph, u, v, probability, file, outcomes)
+
+
+def _targets(graph, nodes: list) -> list:
+    """The targets of an attack graph: the nodes without outgoing edges that some edge leads
+    to (a node only edges' `outcomes` reach, where the attacker is caught say, is none)."""
+    return [v for v in nodes if graph.out_degree(v) == 0 and graph.in_degree(v) > 0]
 
 
 def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict]:
@@ -252,6 +260,9 @@ def _graph_arena(graph, entries, labels, probability: str, outcomes: str, file: 
         if not isinstance(value, str):
             raise InputError(file, key, f"expected an edge attribute's name (a str), got "
                              f"{value!r}")
+    if probability == outcomes:
+        raise InputError(file, "outcomes", f"names the same edge attribute as probability "
+                         f"({outcomes!r}); expected another")
     nodes, names = _graph_nodes(graph, file, {"entries": entries, "labels": labels or {}})
     if not entries:
         raise InputError(file, "entries", "no entry node; expected the nodes the attacker "
@@ -263,8 +274,8 @@ def _graph_arena(graph, entries, labels, probability: str, outcomes: str, file: 
         for v in sorted(graph.successors(u), key=order.__getitem__):
             to = _edge_outcomes(graph, u, v, probability, outcomes, order, names, file)
             transitions.append({"state": names[u], "action": f"to_{names[v]}", "to": to})
-    if labels is None:
-        labels = {v: _asset(v, names[v]) for v in nodes if graph.out_degree(v) == 0}
+    if labels is None:          # the targets; not a node only outcomes reach (caught, say)
+        labels = {v: _asset(v, names[v]) for v in _targets(graph, nodes)}
     label_table = {names[v]: [ps] if isinstance(ps, str) else list(ps)
                    for v, ps in labels.items()}
     label_table = {name: label_table[name] for name in map(names.get, nodes)
@@ -364,16 +375,18 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
     from hg2prism import progress
 
     nodes, names = _graph_nodes(graph, file, {})
-    targets = {v for v in nodes if graph.out_degree(v) == 0}
-    never = [f"({u!r}, {v!r})" for u in nodes for v in graph.successors(u)
+    targets = set(_targets(graph, nodes))
+    never = [(u, v) for u in nodes for v in graph.successors(u)
              if _success(graph, u, v, probability, outcomes, file) == 0]
     if never:
         one = len(never) == 1
-        progress.warn(f"{file}: edge{'' if one else 's'} {listing(never, 3, count=True)}: "
-                      f"probability 0, so the "
-                      f"attacker's action along {'it' if one else 'each'} never succeeds (he "
-                      f"stays where he is); remove {'the edge' if one else 'them'} if the step "
-                      "is impossible")
+        where = ("he stays where he is, or goes where its outcomes say" if any(
+            outcomes in graph.edges[e] for e in never) else "he stays where he is")
+        progress.warn(f"{file}: edge{'' if one else 's'} "
+                      f"{listing([f'({u!r}, {v!r})' for u, v in never], 3, count=True)}: "
+                      f"probability 0, so the attacker's action along {'it' if one else 'each'} "
+                      f"never succeeds ({where}); remove {'the edge' if one else 'them'} if the "
+                      "step is impossible")
     for key, given, meaning in (
             ("trap_candidates", trap_candidates or (), "a honeypot there catches the attacker "
              "on reaching the target itself; leave it out unless the defender can guard a "
@@ -387,14 +400,15 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
                           f"{'has' if len(odd) == 1 else 'have'} no outgoing edge (a target): "
                           f"{meaning}")
     if labels is not None:
-        bare = [names[v] for v in nodes if v in targets and not labels.get(v)]
+        bare = [names[v] for v in nodes if v in targets and v not in labels]
         if bare:
             progress.warn(f"{file}: labels: {listing(bare, 3, count=True)} "
                           f"{'has' if len(bare) == 1 else 'have'} no outgoing edge and no "
                           "label: reaching one ends the episode with "
                           "nothing gained (won only if the task is already done); label "
                           f"{'it' if len(bare) == 1 else 'them'} in labels= (by default every "
-                          "such node is labelled asset<v>) or give them outgoing edges")
+                          "such node is labelled asset<v>; labels={node: []} leaves one "
+                          "unlabelled without this warning) or give them outgoing edges")
 
 
 def _inference_table(given) -> dict:
@@ -663,6 +677,13 @@ def load_strategy(folder: str | Path, world: World | str | Path | None = None) -
         raise InputError("load_strategy()", "folder", "expected the path of a folder (a str or "
                          f"a pathlib.Path), got {type(folder).__name__}")
     folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError("load_strategy()", "folder", f"{str(folder)!r} is "
+                         f"{'a file' if folder.exists() else 'no folder'}: expected a folder "
+                         "hg2prism check or run wrote")
+    if not (folder / "results.json").exists() and (folder / "sweep.json").exists():
+        raise InputError(str(folder), WHOLE_FILE, "is a sweep's folder: load one point's "
+                         "strategy from its folder (<parameter>_<value>/)")
     results = _read_json(folder / "results.json", "results.json")
     if not isinstance(results, dict) or not isinstance(results.get("world_digest"), str):
         raise InputError(str(folder / "results.json"), WHOLE_FILE, "is not the results.json of "
@@ -671,29 +692,43 @@ def load_strategy(folder: str | Path, world: World | str | Path | None = None) -
         raise InputError(str(folder), WHOLE_FILE, "holds an adaptive strategy (P2's types), "
                          "which has no move: read its strategy.json's records, or load one "
                          "type's strategy from its folder type<k>/")
-    if world is None:
-        named = results.get("world_file")
-        if not named or not Path(named).is_file():
-            where = (f"names {named!r}, not a file from {Path.cwd()}" if named
-                     else "names no world file (a world made in Python)")
-            raise InputError(str(folder / "results.json"), "world_file", f"{where}: give the "
-                             "world, load_strategy(folder, world=...)")
-        world = named
-    world = _world("load_strategy", world)
+    world = _world("load_strategy", world) if world is not None else _named_world(folder, results)
     names = [t.name for t in world.types]
     if results.get("p2_type") in names:            # one type's folder of an adaptive run
         world = world_of_type(world, names.index(results["p2_type"]))
     if world.digest() != results["world_digest"]:
-        raise InputError("load_strategy()", "world", f"{world.name} ({world.path}) is not the "
-                         f"world {folder} was written for: their digests differ (results.json's "
-                         f"world_digest); give that world (a sweep point's is the swept world "
-                         "with the point's parameters, World.replace)")
+        shown = world.name if str(world.path) == world.name else f"{world.name} ({world.path})"
+        raise InputError("load_strategy()", "world", f"{shown} is not the world {folder} was "
+                         f"written for ({results.get('world')!r}, of another World.digest()); "
+                         "give that world (a sweep point's is the swept world with the point's "
+                         "parameters, World.replace)")
     records = _read_json(folder / "strategy.json", "strategy.json")
+    if not isinstance(records, list) or not records:
+        raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "expected a list of "
+                         f"strategy records, got {'none' if records == [] else repr(records)[:40]}")
     try:
         return Strategy.from_records(records, transition_system(world))
     except (StrategyError, AttributeError, TypeError) as error:
         raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "is not a strategy of "
                          f"this world: {error}") from None
+
+
+def _named_world(folder: Path, results: dict) -> World:
+    """The world whose file results.json names (`world_file`), for load_strategy."""
+    named = results.get("world_file")
+    where = str(folder / "results.json")
+    if not isinstance(named, str) or not named or named == results.get("world"):
+        raise InputError(where, "world_file", f"names {named!r}, the name of a world made in "
+                         "Python (no file): give it, load_strategy(folder, world=...)")
+    if not Path(named).is_file():
+        raise InputError(where, "world_file", f"names {named!r}, not a file from {Path.cwd()}: "
+                         "give the world, load_strategy(folder, world=...)")
+    try:
+        return load_world(named)
+    except InputError as error:
+        raise InputError(where, "world_file", f"names {named!r}, not a world file here "
+                         f"({error.reason}): give the world, load_strategy(folder, "
+                         "world=...)") from None
 
 
 def _read_json(path: Path, what: str) -> object:
@@ -911,7 +946,10 @@ class SweepTable:
         return len(self.rows)
 
     def column(self, name: str) -> list:
-        """One column: a swept parameter or a value (`table.column("deceptive_value")`)."""
+        """One column: a swept parameter or a value (`table.column("deceptive_value")`), or
+        a column of sweep.csv (`v_ne_lower`, `v_ne_upper`: the ends of `v_ne_bounds`)."""
+        if name in ("v_ne_lower", "v_ne_upper"):
+            return [row.v_ne_bounds[name == "v_ne_upper"] for row in self.rows]
         return [row[name] for row in self.rows]
 
     def to_csv(self, path: str | Path | None = None) -> str:

@@ -284,12 +284,16 @@ def test_strategy_records_are_read_only_so_robust_reads_them_unchanged(lateral_s
     assert lateral_solution.check.records[0] is records[0]          # shared, so read-only
     record = next(r for r in records if r["window"])
     window, values = record["window"], record["values"]
+    before_action, before_window = record["action"], len(window)
     attempts = [lambda: record.__setitem__("action", "X"), lambda: record.update(action="X"),
                 lambda: record.pop("action"), lambda: record.setdefault("new", 1),
                 lambda: record.clear(), lambda: record.__delitem__("q"),
                 lambda: window.append({}), lambda: window.__setitem__(0, {}),
                 lambda: window[0].__setitem__("action", "X"), lambda: window.sort(),
                 lambda: values.__setitem__(next(iter(values)), 0.0)]
+    record.__init__({"action": "X"})                # dict's constructor again: no change
+    window.__init__([])
+    assert record["action"] == before_action and len(window) == before_window
     for attempt in attempts:
         with pytest.raises(TypeError, match="read-only .* record.thawed"):
             attempt()
@@ -313,6 +317,15 @@ def test_strategy_records_are_read_only_so_robust_reads_them_unchanged(lateral_s
         strategy.records[0]["action"] = "X"
 
 
+def _tiny_graph():
+    import networkx as nx
+
+    graph = nx.DiGraph()
+    graph.add_edge(1, 2, p=0.5)
+    graph.add_edge(2, 3, p=0.5)
+    return graph
+
+
 def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) -> None:
     """load_strategy(folder) gives the Strategy solve() returned, read from strategy.json for
     the world results.json names (there was no public way back from the files); a folder of
@@ -332,7 +345,8 @@ def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) 
     other = _refused(lambda: hg2prism.load_strategy(tmp_path / "w1",
                                                    world.replace(rationality=2.0)),
                      "load_strategy()", "world")
-    assert "is not the world" in other.reason and "digests differ" in other.reason
+    assert "is not the world" in other.reason and "('world1', of another World.digest())" \
+        in other.reason
     monkeypatch.chdir(tmp_path)                 # results.json names a file not found from here
     lateral = arenas.lateral()                  # a world made in Python (named lateral.toml)
     hg2prism.solve(lateral, out=tmp_path / "lateral")
@@ -340,9 +354,25 @@ def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) 
                         str(tmp_path / "lateral" / "results.json"), "world_file")
     assert "not a file from" in nameless.reason and "world=" in nameless.reason
     assert len(hg2prism.load_strategy(tmp_path / "lateral", lateral)) > 0
-    _refused(lambda: hg2prism.load_strategy(tmp_path / "nowhere"),
-             str(tmp_path / "nowhere" / "results.json"), "-")
+    assert "is no folder" in _refused(lambda: hg2prism.load_strategy(tmp_path / "nowhere"),
+                                      "load_strategy()", "folder").reason
+    assert "is a file" in _refused(lambda: hg2prism.load_strategy(tmp_path / "w1" /
+                                                                  "strategy.json"),
+                                   "load_strategy()", "folder").reason
     _refused(lambda: hg2prism.load_strategy(7), "load_strategy()", "folder")
+    (tmp_path / "swept").mkdir()
+    (tmp_path / "swept" / "sweep.json").write_text("{}")
+    assert "one point's" in _refused(lambda: hg2prism.load_strategy(tmp_path / "swept"),
+                                     str(tmp_path / "swept"), "-").reason
+    # a world made in Python: results.json's world_file is its name, never read as a file
+    graph_world = hg2prism.world_from_graph(_tiny_graph(), entries=[1], task="F asset3",
+                                            name="tinyc")
+    hg2prism.solve(graph_world, out=tmp_path / "tinyc_out")
+    (tmp_path / "tinyc").write_text("junk")
+    assert "the name of a world made in Python" in _refused(
+        lambda: hg2prism.load_strategy(tmp_path / "tinyc_out"),
+        str(tmp_path / "tinyc_out" / "results.json"), "world_file").reason
+    assert hg2prism.load_strategy(tmp_path / "tinyc_out", graph_world).table
     (tmp_path / "odd").mkdir()
     (tmp_path / "odd" / "results.json").write_text("[1, 2]")
     _refused(lambda: hg2prism.load_strategy(tmp_path / "odd"),
@@ -356,6 +386,11 @@ def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) 
     assert "adaptive" in _refused(lambda: hg2prism.load_strategy(tmp_path / "odd"),
                                   str(tmp_path / "odd"), "-").reason
     (tmp_path / "odd" / "results.json").write_text(json.dumps({"world_digest": world.digest()}))
+    for bad in ([], None, {"a": 1}):
+        (tmp_path / "odd" / "strategy.json").write_text(json.dumps(bad))
+        assert "expected a list of strategy records" in _refused(
+            lambda: hg2prism.load_strategy(tmp_path / "odd", world),
+            str(tmp_path / "odd" / "strategy.json"), "-").reason
     (tmp_path / "odd" / "strategy.json").write_text(json.dumps([{"state": "nowhere"}]))
     assert "is not a strategy of this world" in _refused(
         lambda: hg2prism.load_strategy(tmp_path / "odd", world),
@@ -403,7 +438,10 @@ def test_sweep_table_is_sweep_csv(tmp_path: Path) -> None:
     with open(tmp_path / "sweep.csv") as handle:
         lines = list(csv.DictReader(handle))
     assert [(float(line["v_ne_lower"]), float(line["v_ne_upper"])) for line in lines] == [
-        row.v_ne_bounds for row in table]
+        row.v_ne_bounds for row in table] == list(zip(table.column("v_ne_lower"),
+                                                       table.column("v_ne_upper")))
+    assert list(lines[0])[list(lines[0]).index("v_ne"):][:4] == [
+        "v_ne", "v_ne_lower", "v_ne_upper", "v_ne_p1_guaranteed"]
     assert all(b[0] <= row.v_ne <= b[1] for row, b in zip(table, (r.v_ne_bounds for r in table)))
 
     def timeless(text: str) -> list[list[str]]:

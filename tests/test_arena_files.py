@@ -430,11 +430,15 @@ def test_world_from_graph_warns_of_likely_mistakes(caplog) -> None:
         "warning: g: entries: n4 has no outgoing edge (a target): the attacker reaches that "
         "target from outside in one step with probability 1")
     bare = _graph_warnings(caplog, graph=graph, entries=[1], trap_candidates=[2],
-                           labels={3: "asset3", 4: []})
+                           labels={3: "asset3"})
     assert len(bare) == 1 and bare[0].startswith(
         "warning: g: labels: n4 has no outgoing edge and no label: reaching one ends the "
         "episode with nothing gained")
-    assert "label it in labels=" in bare[0]
+    assert "label it in labels=" in bare[0] and "labels={node: []} leaves one" in bare[0]
+    # an empty label given on purpose is no mistake (a review: a caught node could not be
+    # modelled without the warning)
+    assert _graph_warnings(caplog, graph=graph, entries=[1], trap_candidates=[2],
+                           labels={3: "asset3", 4: []}) == []
 
 
 def test_a_script_sees_the_warnings_without_configuring_logging(tmp_path) -> None:
@@ -466,7 +470,8 @@ def test_a_script_sees_the_warnings_without_configuring_logging(tmp_path) -> Non
     (lambda g: g.add_edge(3, 5, p="high"), "edge (3, 5)", "not a probability"),
     # what a CSV reader gives: the message says so
     (lambda g: g.add_edge(3, 5, p="0.6"), "edge (3, 5)", "convert them with float"),
-    (lambda g: g.add_edge(3, 5), "edge (3, 5)", "no 'p' attribute"),
+    (lambda g: g.add_edge(3, 5), "edge (3, 5)",
+     "has no 'p' attribute (its success probability) and no 'outcomes'"),
     (lambda g: g.add_edge(3, 3, p=0.5), "edge (3, 3)", "self-loop"),
     (lambda g: g.add_edge(3, "a b", p=0.5), "node 'a b'", "no state name"),
     (lambda g: g.add_edge(3, "outside", p=0.5), "node 'outside'", "initial state"),
@@ -574,8 +579,16 @@ threshold = 0.6
     warned = _graph_warnings(caplog, graph=graph, **{k: v for k, v in arguments.items()
                                                      if k not in ("task", "name")})
     assert warned == ["warning: g: edge (1, 3): probability 0, so the attacker's action along "
-                      "it never succeeds (he stays where he is); remove the edge if the step "
-                      "is impossible"]
+                      "it never succeeds (he stays where he is, or goes where its outcomes "
+                      "say); remove the edge if the step is impossible"]
+    # a node only outcomes reach is no target: no asset label, no hypothesis by default
+    default = hg2prism.world_from_graph(graph, entries=[1], task="F asset3", name="g")
+    assert default.hypotheses == ("F asset3",) and default.arena.propositions == ("asset3",)
+    for key, value, reason in (("outcomes", "p", "names the same edge attribute as "
+                                "probability ('p'); expected another"),):
+        with pytest.raises(InputError) as refused:
+            hg2prism.world_from_graph(graph, **{**arguments, key: value})
+        assert (refused.value.key, refused.value.reason) == (key, reason)
 
 
 def test_world_from_graph_inference_keys_default_one_by_one() -> None:

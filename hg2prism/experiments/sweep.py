@@ -430,9 +430,9 @@ def _folder(assignment: dict[str, Value]) -> str:
 
 
 # v_ne_lower and v_ne_upper: the ends of the row's v_ne_bounds (a CSV cell holds one number)
-_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_p1_guaranteed", "v_ne_lower",
-                "v_ne_upper", "states", "transitions", "storm_states", "storm_transitions",
-                "seconds")
+_CSV_COLUMNS = ("deceptive_value", "v_lead", "v_ne", "v_ne_lower", "v_ne_upper",
+                "v_ne_p1_guaranteed", "states", "transitions", "storm_states",
+                "storm_transitions", "seconds")
 
 
 def results_sound(storm_method: str) -> bool:

@@ -47,6 +47,14 @@ class Record(dict):
     __slots__ = ()
     __setitem__ = __delitem__ = __ior__ = clear = pop = popitem = setdefault = update = _refuse
 
+    def __new__(cls, *args, **kwargs):
+        record = dict.__new__(cls)
+        dict.__init__(record, *args, **kwargs)      # filled once, here
+        return record
+
+    def __init__(self, *args, **kwargs) -> None:    # record.__init__(...) changes nothing
+        pass
+
     def __reduce__(self):
         return Record, (dict(self),)
 
@@ -61,6 +69,14 @@ class RecordList(list):
     __slots__ = ()
     __setitem__ = __delitem__ = __iadd__ = __imul__ = _refuse
     append = extend = insert = remove = pop = clear = sort = reverse = _refuse
+
+    def __new__(cls, *args):
+        entries = list.__new__(cls)
+        list.__init__(entries, *args)              # filled once, here
+        return entries
+
+    def __init__(self, *args) -> None:              # entries.__init__(...) changes nothing
+        pass
 
     def __reduce__(self):
         return RecordList, (list(self),)
@@ -133,7 +149,7 @@ def strategy_records(decoded: DecodedStates, choices: StormChoices, moves: Trans
         names = ts.action_names(v)
         record["action"] = names[chosen[s]]
         if extras is not None:
-            record.update(frozen(extras.fields(canonical[s], names)))
+            record.update(extras.fields(canonical[s], names))
         records.append(Record(record))      # read-only, all the way down (`Record`)
     return records
 
@@ -157,15 +173,15 @@ class RecordExtras:
         self.bounded = None if bounded_values is None else np.clip(bounded_values, 0.0, 1.0)
 
     def fields(self, state: int, names: Sequence[str]) -> dict:
-        """The added keys of canonical state `state`'s record; `names`: the actions available
-        there (slot k is names[k])."""
+        """The added keys of canonical state `state`'s record, read-only (`Record`); `names`:
+        the actions available there (slot k is names[k])."""
         row = self.values[state].tolist()
-        fields = {"values": {m: _json_number(x) for m, x in zip(names, row)}}
+        fields = {"values": Record(zip(names, map(_json_number, row)))}
         if self.schedules is not None:
-            fields["schedule"] = [[first, last, names[a]]
-                                  for first, last, a in self.schedules[state]]
-            fields["bounded_values"] = {m: _json_number(x)
-                                        for m, x in zip(names, self.bounded[state].tolist())}
+            fields["schedule"] = RecordList([RecordList([first, last, names[a]])
+                                             for first, last, a in self.schedules[state]])
+            fields["bounded_values"] = Record(zip(names, map(_json_number,
+                                                         self.bounded[state].tolist())))
         return fields
 
     def json_tail(self, states: np.ndarray, ts: TransitionSystem, ts_states: np.ndarray
