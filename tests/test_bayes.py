@@ -176,7 +176,7 @@ def test_exported_strategy_is_optimal(case) -> None:
     _, result, path = case
     value = result.results.deceptive_value
     written = json.loads((result.out / "strategy.json").read_text())
-    assert written == result.records
+    assert written == list(result.records)
     assert reference_world(path).strategy_value(written) == pytest.approx(value, abs=TOL)
 
 

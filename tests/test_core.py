@@ -122,7 +122,7 @@ def test_strategy_file_holds_the_records(case) -> None:
     content."""
     result, _ = case
     written = json.loads((result.out / "strategy.json").read_text())
-    assert written == result.records
+    assert written == list(result.records)
     absorbing = int(result.decoded.goal.any()) + int(result.decoded.fail.any())
     assert len(written) == result.results.states - absorbing   # one per canonical state
 
