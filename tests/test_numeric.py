@@ -731,6 +731,109 @@ def test_choices_taking_and_first_index_against_their_definitions() -> None:
             assert first[k] == (where[0] if where.size else -1)
 
 
+# Small dyadic values, so that differences and margins are exact: 0.75 is exactly within 0.25
+# (absolute, or relative to a best of 1) of 1.0, and lies on the tolerance.
+TIE_VALUES = np.array([-1.0, 0.0, 0.5, 0.75, 1.0, 1.0, 2.0])
+TIE_CASES = [(tie, relative, lowest) for tie in (0.0, 0.25, 0.5) for relative in (False, True)
+             for lowest in (False, True)]
+
+
+def _loop_near_best(row: list[float], tie: float, relative: bool, lowest: bool,
+                    best: float | None = None) -> list[bool]:
+    """numeric.near_best of one row of options, by its definition in plain Python."""
+    if best is None:
+        best = min(row) if lowest else max(row)
+    margin = tie * abs(best) if relative else tie
+    return [v <= best + margin if lowest else v >= best - margin for v in row]
+
+
+def _tie_tables(rng: np.random.Generator) -> list[np.ndarray]:
+    """Random small tables [rows, options] of TIE_VALUES (exact ties), with absent options
+    (inf, -inf), a single option, every option tied, and rows with every option absent."""
+    tables = []
+    for _ in range(30):
+        rows, options = int(rng.integers(1, 6)), int(rng.integers(1, 5))
+        table = rng.choice(TIE_VALUES, (rows, options))
+        table[rng.random((rows, options)) < 0.15] = rng.choice([np.inf, -np.inf])
+        tables.append(table)
+    tables += [np.full((3, 4), 0.5), np.array([[1.0], [-np.inf], [np.inf]]),
+               np.array([[np.inf, np.inf], [-np.inf, -np.inf], [0.75, 1.0]])]
+    return tables
+
+
+def test_the_dense_tie_rules_against_plain_loops() -> None:
+    """numeric.near_best, first_near_best, first_near_best_of and keep_or_first (the tie
+    rules of P2's trap sets, the objectives' moves, the naive answers, the Bayesian and
+    CUSUM observers, the baselines' optimal moves: one implementation for all, a code review
+    found them written about seven times) against their definitions in plain Python, on random
+    small tables: exact ties, values exactly at the tolerance, absolute and relative
+    tolerances, largest and smallest, all options tied, a single option, absent options."""
+    rng = np.random.default_rng(11)
+    for table in _tie_tables(rng):
+        preferred = rng.integers(-1, table.shape[1], len(table))
+        for tie, relative, lowest in TIE_CASES:
+            with np.errstate(invalid="ignore"):     # 0 * inf and inf - inf: NaN, none tied
+                tied = numeric.near_best(table, tie, axis=1, relative=relative, lowest=lowest)
+                first = numeric.first_near_best(table, tie, axis=1, relative=relative,
+                                                lowest=lowest)
+                down = numeric.first_near_best(table.T, tie, axis=0, relative=relative,
+                                               lowest=lowest)
+            for i, row in enumerate(table.tolist()):
+                want = _loop_near_best(row, tie, relative, lowest)
+                assert tied[i].tolist() == want
+                top = max((k for k in range(len(row)) if want[k]), default=len(row) - 1)
+                assert first[i] == down[i] == (want.index(True) if any(want) else 0)
+                kept = numeric.keep_or_first(tied[i:i + 1], preferred[i:i + 1])[0]
+                last = numeric.keep_or_first(tied[i:i + 1], None, last=True)[0]
+                assert kept == (preferred[i] if preferred[i] >= 0 and want[preferred[i]]
+                                else first[i])
+                assert last == top
+                if not relative and not lowest:
+                    assert numeric.first_near_best_of(row, tie) == first[i]
+        given = table.max(axis=1, keepdims=True)
+        assert np.array_equal(numeric.near_best(table, 0.5, axis=1, best=given),
+                              numeric.near_best(table, 0.5, axis=1))
+
+
+def test_the_grouped_tie_rules_against_plain_loops() -> None:
+    """numeric.first_index with `where`, first_best and ExplicitModel.first_best (the first of
+    each state's choices that attains, or comes within a tolerance of, its best: certification's
+    first strategy, the attractor's moves, policy iteration, P2's switches, the fastest-first
+    rule) against plain loops on random groups: exact ties, values exactly at the relative
+    tolerance, a single choice, every choice tied, states without choices or without a tied
+    choice, group labels with gaps; and the grouped form against the dense one."""
+    rng = np.random.default_rng(12)
+    for _ in range(40):
+        n = int(rng.integers(1, 12))
+        counts = rng.integers(0, 4, n)
+        counts[rng.integers(n)] = max(1, counts.max())
+        state = np.repeat(np.arange(n), counts)
+        score = rng.choice(TIE_VALUES[:-2], len(state))       # finite: no inf among choices
+        where = rng.random(len(state)) < 0.6
+        got = numeric.first_index(state, n, where)
+        for s in range(n):
+            mine = [c for c in np.flatnonzero(state == s) if where[c]]
+            assert got[s] == (mine[0] if mine else -1)
+        model = ExplicitModel(matrix=sp.csr_matrix((len(state), n)),
+                              group_start=np.r_[0, np.cumsum(counts)])
+        for sense in (1.0, -1.0):
+            first = model.first_best(score, sense)
+            for s in range(n):
+                mine = np.flatnonzero(state == s).tolist()
+                values = [sense * score[c] for c in mine]
+                assert first[s] == (mine[values.index(max(values))] if mine else -1)
+        labels = np.cumsum(rng.integers(1, 3, n))[state]            # runs, labels with gaps
+        for tie in (0.0, 0.25, 0.5):
+            best = numeric.first_best(score, labels, relative_tie=tie)
+            runs = [np.flatnonzero(labels == label).tolist() for label in np.unique(labels)]
+            assert best.tolist() == [run[_loop_near_best(score[run].tolist(), tie, True, False)
+                                         .index(True)] for run in runs]
+    table = rng.choice(TIE_VALUES, (50, 4))
+    assert np.array_equal(numeric.argmax_by_group(table.reshape(-1), np.repeat(np.arange(50), 4),
+                                                  50, relative_tie=0.25) - np.arange(50) * 4,
+                          numeric.first_near_best(table, 0.25, axis=1, relative=True))
+
+
 def test_the_lexicographic_objective_says_when_its_policy_iteration_stopped_early(
         monkeypatch, caplog) -> None:
     """lexicographic_actions promises the fewest expected steps among the Pmax-optimal moves,

@@ -46,7 +46,7 @@ from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.errors import SolverError, probability
-from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric import ExplicitModel, near_best
 from hg2prism.numeric.tables import fold, outcome_sum, ranges
 
 VI_TOLERANCE = 1e-10        # docs/semantics.md §10: concurrent game, largest change per sweep
@@ -273,7 +273,7 @@ def _solve_matrix_games(m: np.ndarray, allowed: np.ndarray, states: np.ndarray,
     # P1 mixes uniformly over every move that is optimal on its own. Any mixture of them is
     # optimal too, and unlike a single saddle row (often the first, N) it does not stall
     # against a wall while another optimal move makes progress.
-    optimal = masked_min >= lower[:, None] - TIE
+    optimal = near_best(masked_min, TIE, axis=1, best=lower[:, None])
     x[done] = optimal[done] / optimal[done].sum(axis=1, keepdims=True)
     y[done, col[done]] = 1.0
 

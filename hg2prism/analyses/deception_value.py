@@ -35,7 +35,7 @@ from hg2prism.errors import SolverError, probability
 from hg2prism.model.automata import DFA
 from hg2prism.model.dynamics import TransitionSystem
 from hg2prism.model.product import product, product_state
-from hg2prism.numeric import ExplicitModel
+from hg2prism.numeric import ExplicitModel, first_near_best, near_best
 from hg2prism.numeric.fastest import DISCOUNT, EXACT_SLACK, RELATIVE_TIE
 from hg2prism.opponent.perceptual_games import (GameSolution, PerceptualGame, TurnBasedGame,
                                                 fastest_moves)
@@ -138,14 +138,12 @@ def naive_answers(ts: TransitionSystem, task: DFA, leader: GameSolution) -> np.n
     game = TurnBasedGame(ts, task)
     lead = leader.values.reshape(-1)
     q = game.q_values(lead)                                            # [G, A1, A2]
-    maximising = q >= q.max(axis=1, keepdims=True) - ANSWER_TIE
+    maximising = near_best(q, ANSWER_TIE, axis=1)
     w = fastest_moves(ts, task, lead, leader.p2_strategy, DISCOUNT).scores
     reached = np.where(game.goal[game.next], 1.0, DISCOUNT * w[game.next])
     score = (game.prob * reached).sum(-1)                              # [G, A1, A2]
-    score = np.where(maximising, score, -np.inf)
-    top = score.max(axis=1, keepdims=True)
-    tied = score >= top - SCORE_TIE * np.abs(top)
-    answers = tied.argmax(axis=1)
+    answers = first_near_best(np.where(maximising, score, -np.inf), SCORE_TIE, axis=1,
+                              relative=True)
     answers[~game.free] = 0
     return answers
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.numeric import ExplicitModel, chain_reach, optimal_reach
+from hg2prism.numeric import ExplicitModel, chain_reach, first_index, near_best, optimal_reach
 from hg2prism.numeric.graph import backward_distance
 
 BELLMAN_RESIDUAL = 1e-11   # max_a Q(s, a) - x(s) on every state: x is a fixed point of T
@@ -57,7 +57,7 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     q = matrix @ estimate
     best = np.full(n, -np.inf)
     best[counts > 0] = np.maximum.reduceat(q, group_start[:-1][counts > 0])
-    good = q >= best[source] - slack
+    good = near_best(q, slack, best=best[source])
     # only the entries of good choices of non-target states matter below
     useful = good & ~target[source]
     per_choice = np.diff(matrix.indptr)
@@ -75,10 +75,7 @@ def initial_strategy(matrix: sp.csr_matrix, group_start: np.ndarray, target: np.
     score = np.where(good, mass, -1.0)
     top = np.full(n, -np.inf)
     top[counts > 0] = np.maximum.reduceat(score, group_start[:-1][counts > 0])
-    picked = np.flatnonzero(score >= top[source])[::-1]
-    choice = np.full(n, -1, dtype=np.int64)
-    choice[source[picked]] = picked          # reversed: the first of each state's ties wins
-    return choice
+    return first_index(source, n, near_best(score, best=top[source]))
 
 
 def _distance_to_target(matrix: sp.csr_matrix, source: np.ndarray, entries: np.ndarray,

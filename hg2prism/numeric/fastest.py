@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from hg2prism.numeric.model import first_best
+from hg2prism.numeric.ties import first_best
 
 DISCOUNT = 0.9              # how strongly P1 prefers finishing soon among optimal moves
 STORM_SLACK = 1e-8          # Storm's values are sound to 1e-10: choices this close are optimal

@@ -9,6 +9,7 @@ import scipy.sparse.csgraph as csgraph
 
 from hg2prism.numeric.model import ExplicitModel
 from hg2prism.numeric.tables import ranges
+from hg2prism.numeric.ties import first_index
 
 
 def _reversed(rows: np.ndarray, columns: np.ndarray, sources: np.ndarray, n: int
@@ -126,10 +127,7 @@ def progress_choices(model: ExplicitModel, rank: np.ndarray,
     good[entries[closer]] = True
     if allowed is not None:
         good &= allowed
-    first = np.flatnonzero(good)[::-1]
-    progress = np.full(model.n_states, -1, dtype=np.int64)
-    progress[model.choice_state[first]] = first      # reversed: each state's first choice wins
-    return progress
+    return first_index(model.choice_state, model.n_states, good)
 
 
 def end_components(model: ExplicitModel, inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from hg2prism.numeric.ties import first_index, near_best
+
 
 @dataclass(frozen=True, eq=False)
 class ExplicitModel:
@@ -88,46 +90,5 @@ class ExplicitModel:
     def first_best(self, per_choice: np.ndarray, sense: float = 1.0) -> np.ndarray:
         """[states] the first choice of each state attaining `best` (-1 without a choice)."""
         top = self.best(per_choice, sense)
-        rows = np.flatnonzero(sense * per_choice >= top[self.choice_state])[::-1]
-        first = np.full(self.n_states, -1, dtype=np.int64)
-        first[self.choice_state[rows]] = rows
-        return first
-
-
-def argmax_by_group(score: np.ndarray, group: np.ndarray, n_groups: int,
-                     relative_tie: float = 0.0) -> np.ndarray:
-    """Index of the first score in each group within `relative_tie` (relative) of the group's
-    maximum (groups are contiguous, ordered and cover 0..n_groups-1: every Storm state has a
-    choice)."""
-    best = first_best(score, group, relative_tie)
-    if len(best) != n_groups:
-        raise ValueError("every group needs at least one member")
-    return best
-
-
-def choices_taking(choice_state: np.ndarray, choice_action: np.ndarray, wanted: np.ndarray,
-                   n_states: int) -> np.ndarray:
-    """The choice of each state whose action is wanted[state], its first choice where none is
-    (choices grouped by state, as argmax_by_group's; an action < 0 is no move): how a strategy
-    given by action, per state or canonical state, is laid on a model's choices."""
-    match = (choice_action == wanted[choice_state]) & (choice_action >= 0)
-    return argmax_by_group(np.where(match, 1.0, 0.0), choice_state, n_states)
-
-
-def first_index(keys: np.ndarray, n_keys: int) -> np.ndarray:
-    """[n_keys] the first position of each key 0..n_keys-1 in `keys` (-1 for a key absent):
-    the representative, first Storm state, of each canonical state."""
-    first = np.full(n_keys, -1, dtype=np.int64)
-    first[keys[::-1]] = np.arange(len(keys))[::-1]
-    return first
-
-
-def first_best(score: np.ndarray, group: np.ndarray, relative_tie: float = 0.0) -> np.ndarray:
-    """Index of the first score in each run of equal `group` labels within `relative_tie`
-    (relative) of the run's maximum, run after run."""
-    if len(score) == 0:
-        return np.zeros(0, dtype=np.int64)
-    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
-    best = np.repeat(np.maximum.reduceat(score, start), np.diff(np.r_[start, len(score)]))
-    candidates = np.flatnonzero(score >= best - relative_tie * np.abs(best))
-    return candidates[np.r_[True, group[candidates[1:]] != group[candidates[:-1]]]]
+        return first_index(self.choice_state, self.n_states,
+                           near_best(sense * per_choice, best=top[self.choice_state]))

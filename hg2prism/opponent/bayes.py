@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hg2prism.model.world import World
+from hg2prism.numeric import first_near_best, first_near_best_of
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
                                         ObserverKind, Setting, Swept, p2_action_count,
                                         window_mismatches)
@@ -86,9 +87,7 @@ class BayesObserver:
 
     def map_hypothesis(self, window: tuple[Observation, ...]) -> int:
         """The first hypothesis (in order) within TOLERANCE of the largest log-posterior."""
-        scores = self.log_scores(window)
-        top = max(scores)
-        return next(x for x, s in enumerate(scores) if s >= top - TOLERANCE)
+        return first_near_best_of(self.log_scores(window), TOLERANCE)
 
     def posterior(self, window: tuple[Observation, ...]) -> list[float]:
         """p(x | W) = 1 / sum_y exp(ln p(y | W) - ln p(x | W)) for every x: the normaliser
@@ -134,8 +133,7 @@ class BayesObserver:
             terms = np.zeros((n, self.n_hypotheses))
             terms[full] = self.log_likelihood[:, state[full], action[full], trap_set[full]].T
             scores = scores + terms
-        top = scores.max(axis=1, keepdims=True)
-        return np.argmax(scores >= top - TOLERANCE, axis=1)
+        return first_near_best(scores, TOLERANCE, axis=1)
 
 
 def build_bayes(games: list[PerceptualGame], window: int, prior: tuple[float, ...],
@@ -176,9 +174,7 @@ def prior_argmax(prior: tuple[float, ...]) -> int:
     """P2's first guess: the most probable hypothesis, the first among ties; ties as in the
     decision rule (within TOLERANCE in log space), so that this is also the MAP hypothesis of
     an empty memory."""
-    logs = [math.log(p) for p in prior]
-    top = max(logs)
-    return next(x for x, value in enumerate(logs) if value >= top - TOLERANCE)
+    return first_near_best_of([math.log(p) for p in prior], TOLERANCE)
 
 
 def _read_prior(loader, value: object, n_hypotheses: int) -> tuple[float, ...]:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hg2prism.model.world import World
+from hg2prism.numeric import first_near_best, first_near_best_of
 from hg2prism.opponent.observer import (TOLERANCE, Memory, MemoryBound, Mismatch, Observation,
                                         ObserverKind, Setting, Swept, window_mismatches)
 from hg2prism.opponent.perceptual_games import PerceptualGame
@@ -79,7 +80,7 @@ class InferenceModel:
             others = [x for x in range(self.n_hypotheses) if x != memory.hypothesis]
             top = max(z[x] for x in others)
             if top >= self.threshold - TOLERANCE:
-                best = next(x for x in others if z[x] >= top - TOLERANCE)
+                best = others[first_near_best_of([z[x] for x in others], TOLERANCE)]
                 return Memory(best, ())
         keep = recent[-(self.window - 1):] if self.window > 1 else ()
         return Memory(memory.hypothesis, keep)
@@ -96,7 +97,7 @@ class InferenceModel:
             z = np.maximum(0.0, 0.0 + self.ratios[h, others, :n_obs, action])    # [others, v]
             top = z.max(axis=0)
             switch = top >= self.threshold - TOLERANCE
-            first = (z >= top - TOLERANCE).argmax(axis=0)
+            first = first_near_best(z, TOLERANCE, axis=0, best=top)
             after[h] = np.where(switch, np.asarray(others)[first], h)
         return after
 

@@ -33,7 +33,8 @@ import scipy.sparse as sp
 from hg2prism.model.automata import DFA
 from hg2prism.model.product import product, product_state
 from hg2prism.numeric import (alternating_attractor, backward_reach, downstream_first,
-                              move_predecessors, solve_plain)
+                              first_index, keep_or_first, move_predecessors, near_best,
+                              solve_plain)
 from hg2prism.numeric.fastest import DISCOUNT, EXACT_SCORE_STOP, EXACT_SLACK, fastest_first
 from hg2prism.numeric.tables import fold, outcome_sum
 from hg2prism.model.dynamics import TransitionSystem
@@ -525,12 +526,11 @@ class _SegmentArgmin:
 
     def __init__(self, pair_g: np.ndarray, pair_a2: np.ndarray, starts: np.ndarray,
                  size: int, n_a2: int) -> None:
-        self.pair_a2, self.starts = pair_a2, starts
+        self.pair_g, self.pair_a2, self.starts, self.size = pair_g, pair_a2, starts, size
         self.states = pair_g[starts]
         self.lengths = np.diff(np.r_[starts, pair_g.size])
         self.index = np.full((size, n_a2), -1)
         self.index[pair_g, pair_a2] = np.arange(pair_g.size)
-        self.position = np.arange(pair_g.size)
 
     def __call__(self, values: np.ndarray, p2: np.ndarray) -> tuple[bool | None, np.ndarray]:
         if not self.states.size:
@@ -541,10 +541,10 @@ class _SegmentArgmin:
         better = least < current - IMPROVEMENT
         if not better.any():
             return None, p2
-        at_least = values == np.repeat(least, self.lengths)
-        first = np.minimum.reduceat(np.where(at_least, self.position, values.size), self.starts)
+        at_least = near_best(values, lowest=True, best=np.repeat(least, self.lengths))
+        first = first_index(self.pair_g, self.size, at_least)[self.states[better]]
         switched = p2.copy()
-        switched[self.states[better]] = self.pair_a2[first[better]]
+        switched[self.states[better]] = self.pair_a2[first]
         return True, switched
 
 
@@ -555,7 +555,7 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
     # P1: among (near-)optimal answers, one that makes progress toward the goal, so that P1
     # never stalls (a wall bump can look exactly as good as a real move).
-    optimal = q >= best_a1[:, None, :] - optimal_slack
+    optimal = near_best(q, optimal_slack, axis=1, best=best_a1[:, None, :])
     rank = game.positive_attractor(optimal)
     lower = np.where(rank >= 0, rank, np.iinfo(np.int64).max)
     # The chance of moving strictly closer: maximising it (not merely asking for a chance > 0)
@@ -578,15 +578,8 @@ def trap_rule(worst: np.ndarray, standing: np.ndarray | None, tie_break: str = "
     (inf where a2 is not allowed); the sets within TIE of the lowest are tied, and among them
     P2 keeps the standing set (standing[i], -1 for none) when it is tied, else takes the
     first (`tie_break` "first", the rule) or the last ("last")."""
-    tied = worst <= worst.min(axis=1, keepdims=True) + TIE
-    if tie_break == "last":
-        choice = tied.shape[1] - 1 - tied[:, ::-1].argmax(axis=1)
-    else:
-        choice = tied.argmax(axis=1)
-    if standing is not None:
-        keep = (standing >= 0) & tied[np.arange(len(choice)), np.maximum(standing, 0)]
-        choice = np.where(keep, standing, choice)
-    return choice
+    return keep_or_first(near_best(worst, TIE, axis=1, lowest=True), standing,
+                         last=tie_break == "last")
 
 
 def _evaluate_pair(game: TurnBasedGame, p1: np.ndarray, p2: np.ndarray, zero: np.ndarray) -> np.ndarray:
@@ -692,7 +685,7 @@ def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
     q = game.q_values(flat, g)                                        # [S, A1, A2]
     worst = np.where(ts.allowed, q.max(axis=1), np.inf)              # [S, A2] m(a2)
     choice = trap_rule(worst, _standing_sets(ts), tie_break)
-    all_tied = (~ts.allowed | (worst <= worst.min(axis=1, keepdims=True) + TIE)).all(axis=1)
+    all_tied = (~ts.allowed | near_best(worst, TIE, axis=1, lowest=True)).all(axis=1)
     # A padded slot repeats action 0, so the max above is right unmasked; the softmax is not.
     scaled = np.where(ts.enabled[:, None, :], rationality * q.transpose(0, 2, 1), -np.inf)
     top = scaled.max(axis=2, keepdims=True)                           # [S, A2, A1max]

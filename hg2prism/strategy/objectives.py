@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hg2prism.numeric import attractor, min_expected_steps, progress_choices
+from hg2prism.numeric import (attractor, keep_or_first, min_expected_steps, near_best,
+                              progress_choices)
 from hg2prism.numeric.fastest import RELATIVE_TIE     # scores this close are tied, as for pmax
 from hg2prism.progress import warn
 from hg2prism.strategy.canonical import CanonicalMDP
@@ -29,15 +30,10 @@ def _pick(table: np.ndarray, preferred: np.ndarray, relative_tie: float, lowest:
           ) -> np.ndarray:
     """[n] per row of `table` ([n, action slots], NaN where a move is not allowed) the
     preferred move if it is within `relative_tie` of the row's best, else the first such move
-    in slot order."""
-    score = -table if lowest else table
-    score = np.where(np.isnan(score), -np.inf, score)
-    best = score.max(axis=1, keepdims=True)
-    tied = score >= best - relative_tie * np.abs(best)
-    first = np.argmax(tied, axis=1)
-    rows = np.arange(len(table))
-    keep = (preferred >= 0) & tied[rows, np.maximum(preferred, 0)]
-    return np.where(keep, preferred, first)
+    in slot order (the lowest value with `lowest`)."""
+    score = np.where(np.isnan(table), np.inf if lowest else -np.inf, table)
+    return keep_or_first(near_best(score, relative_tie, axis=1, relative=True, lowest=lowest),
+                         preferred)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -37,7 +37,7 @@ import scipy.sparse as sp
 
 from hg2prism.engines.engine import Transitions
 from hg2prism.errors import PROBABILITY_SLACK, SolverError
-from hg2prism.numeric import ExplicitModel, solve_m_matrix
+from hg2prism.numeric import ExplicitModel, argmax_by_group, first_best, solve_m_matrix
 from hg2prism.numeric.graph import stable_order
 from hg2prism.numeric.fastest import (DISCOUNT, MAX_SCORE_SWEEPS, RELATIVE_TIE, SCORE_STOP,
                                       STORM_SLACK)
@@ -429,10 +429,8 @@ def _improve_keeping_positive(game: IntervalGame, strategy: np.ndarray, q_values
     not decrease the values, and one with a switch increases one."""
     proposed = strategy.copy()
     switched = np.flatnonzero(better)
-    best = np.array([game.choice_start[s] + int(np.argmax(
-        q_values[game.choice_start[s]:game.choice_start[s + 1]])) for s in switched.tolist()],
-        dtype=strategy.dtype)
-    proposed[switched] = best
+    among = ranges(game.choice_start[switched], np.diff(game.choice_start)[switched])
+    proposed[switched] = among[first_best(q_values[among], game.choice_state[among])]
     while True:
         positive, _ = positive_states(game, proposed)
         lost = free & ~positive & (proposed != strategy)
@@ -450,8 +448,6 @@ def fastest_choices(game: IntervalGame, solution: RobustSolution, decides: np.nd
     `decides` marks the states where P1 chooses a move (the others are the intermediate states
     of a step, with one choice each); `action` is each choice's move (-1 for none). The discount
     applies once per step, when an intermediate state moves on."""
-    from hg2prism.numeric import argmax_by_group
-
     optimal = (solution.q_values >= solution.values[game.choice_state] - OPTIMAL_SLACK)
     optimal &= (action >= 0) | ~decides[game.choice_state]
     # Only the optimal choices are ever read (_best and the score mask the others), and each
