@@ -128,18 +128,23 @@ def _asset(node: object, name: str) -> str:
     return f"asset{name[1:]}" if name != node else f"asset_{name}"
 
 
-def _edge_probability(graph, u: object, v: object, key: str, file: str,
-                      outcomes: str = "outcomes") -> float:
+def _finite_real(p: object) -> bool:
+    """Whether an edge's number is a finite real (not a bool, a str, NaN or inf)."""
     import math
     import numbers
 
+    return not isinstance(p, bool) and isinstance(p, numbers.Real) and math.isfinite(p)
+
+
+def _edge_probability(graph, u: object, v: object, key: str, file: str,
+                      outcomes: str = "outcomes") -> float:
     where = f"edge ({u!r}, {v!r})"
     data = graph.edges[u, v]
     if key not in data:
         raise InputError(file, where, f"has no {key!r} attribute (its success probability) "
                          f"and no {outcomes!r} (where the step leads)")
     p = data[key]
-    if isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p):
+    if not _finite_real(p):
         text = (" (text: a CSV reader gives strings, convert them with float)"
                 if isinstance(p, str) else "")
         raise InputError(file, where, f"{key} = {p!r} is not a probability{text}")
@@ -156,7 +161,6 @@ def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
     attribute (node -> probability, each a node of the graph, adding up to 1) when it has one,
     else v with its success probability and u (staying) otherwise."""
     import math
-    import numbers
     from collections.abc import Mapping
 
     data = graph.edges[u, v]
@@ -167,6 +171,8 @@ def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
     if probability in data:
         raise InputError(file, where, f"has both {probability!r} and {outcomes!r}: give the "
                          "step's success probability or its outcomes, not both")
+    if u == v:
+        raise InputError(file, where, "is a self-loop; an attack step leads to another node")
     if not isinstance(given, Mapping) or not given:
         raise InputError(file, where, f"{outcomes} = {given!r}: expected a dict node -> "
                          "probability (where the step leads, adding up to 1)")
@@ -174,8 +180,7 @@ def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
         if node not in order:
             raise InputError(file, where, f"{outcomes}: {node!r} is not a node of the graph "
                              f"(add it: graph.add_node({node!r}))")
-        if (isinstance(p, bool) or not isinstance(p, numbers.Real) or not math.isfinite(p)
-                or not 0 <= p <= 1):
+        if not _finite_real(p) or not 0 <= p <= 1:
             raise InputError(file, where, f"{outcomes}: {node!r}: {p!r} is not a probability")
     total = math.fsum(given.values())
     if abs(total - 1.0) > 1e-9:
@@ -193,10 +198,13 @@ def _success(graph, u: object, v: object, probability: str, outcomes: str, file:
     return _edge_probability(graph, u, v, probability, file, outcomes)
 
 
-def _targets(graph, nodes: list) -> list:
-    """The targets of an attack graph: the nodes without outgoing edges that some edge leads
-    to (a node only edges' `outcomes` reach, where the attacker is caught say, is none)."""
-    return [v for v in nodes if graph.out_degree(v) == 0 and graph.in_degree(v) > 0]
+def _targets(graph, nodes: list, entries) -> list:
+    """The targets of an attack graph: the nodes without outgoing edges that an edge leads to
+    or that are entries (a node only edges' `outcomes` reach, where the attacker is caught
+    say, is none)."""
+    entered = set(entries)
+    return [v for v in nodes
+            if graph.out_degree(v) == 0 and (graph.in_degree(v) > 0 or v in entered)]
 
 
 def _graph_nodes(graph, file: str, given: dict[str, object]) -> tuple[list, dict]:
@@ -275,7 +283,7 @@ def _graph_arena(graph, entries, labels, probability: str, outcomes: str, file: 
             to = _edge_outcomes(graph, u, v, probability, outcomes, order, names, file)
             transitions.append({"state": names[u], "action": f"to_{names[v]}", "to": to})
     if labels is None:          # the targets; not a node only outcomes reach (caught, say)
-        labels = {v: _asset(v, names[v]) for v in _targets(graph, nodes)}
+        labels = {v: _asset(v, names[v]) for v in _targets(graph, nodes, entries)}
     label_table = {names[v]: [ps] if isinstance(ps, str) else list(ps)
                    for v, ps in labels.items()}
     label_table = {name: label_table[name] for name in map(names.get, nodes)
@@ -375,7 +383,7 @@ def _graph_warnings(graph, entries, labels, trap_candidates, probability: str,
     from hg2prism import progress
 
     nodes, names = _graph_nodes(graph, file, {})
-    targets = set(_targets(graph, nodes))
+    targets = set(_targets(graph, nodes, entries))
     never = [(u, v) for u in nodes for v in graph.successors(u)
              if _success(graph, u, v, probability, outcomes, file) == 0]
     if never:
@@ -706,9 +714,13 @@ def load_strategy(folder: str | Path, world: World | str | Path | None = None) -
     if not isinstance(records, list) or not records:
         raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "expected a list of "
                          f"strategy records, got {'none' if records == [] else repr(records)[:40]}")
+    odd = next((k for k, record in enumerate(records) if not isinstance(record, dict)), None)
+    if odd is not None:
+        raise InputError(str(folder / "strategy.json"), WHOLE_FILE, f"record {odd} is not an "
+                         f"object: {repr(records[odd])[:40]}")
     try:
         return Strategy.from_records(records, transition_system(world))
-    except (StrategyError, AttributeError, TypeError) as error:
+    except StrategyError as error:
         raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "is not a strategy of "
                          f"this world: {error}") from None
 
@@ -925,9 +937,20 @@ class SweepRow:
     row: dict = field(repr=False, compare=False)   # the row as sweep.json holds it
 
     def __getitem__(self, name: str) -> object:
-        """A swept parameter's value, or a column (`row["rationality"]`)."""
+        """A swept parameter's value, or a column (`row["rationality"]`, sweep.csv's
+        `row["v_ne_lower"]` too)."""
+        from hg2prism.experiments.sweep import csv_cell
+
         point = dict(self.point)
-        return point[name] if name in point else self.row[name]
+        if name in point:
+            return point[name]
+        return self.row[name] if name in self.row else _known(csv_cell(self.row, name), name)
+
+
+def _known(value: object, name: str) -> object:
+    if value is None:
+        raise KeyError(name)
+    return value
 
 
 @dataclass(frozen=True)
@@ -948,8 +971,6 @@ class SweepTable:
     def column(self, name: str) -> list:
         """One column: a swept parameter or a value (`table.column("deceptive_value")`), or
         a column of sweep.csv (`v_ne_lower`, `v_ne_upper`: the ends of `v_ne_bounds`)."""
-        if name in ("v_ne_lower", "v_ne_upper"):
-            return [row.v_ne_bounds[name == "v_ne_upper"] for row in self.rows]
         return [row[name] for row in self.rows]
 
     def to_csv(self, path: str | Path | None = None) -> str:

@@ -287,9 +287,12 @@ def staged(out: Path, owns: str | None = None, world: str | None = None,
 
 
 # A staging folder unchanged for this long and held by no process is abandoned (its command
-# was killed, SIGKILL, or stopped twice while removing it): the next command beside it removes
-# it. (A younger one may be another command's that has not taken its hold yet.)
-ABANDONED_AFTER = 60.0
+# was killed, SIGKILL): the next command writing to the same OUT removes it. The hold is a
+# lock, which some network file systems keep per host; a command elsewhere that writes
+# nothing at its stage's top level for this long would lose its stage there, hence an hour.
+ABANDONED_AFTER = 3600.0
+# mkdtemp's suffix: eight letters, digits or underscores
+_STAGE_SUFFIX = re.compile(r"[a-z0-9_]{8}")
 
 
 @contextmanager
@@ -315,19 +318,22 @@ def _held(stage: Path) -> Iterator[None]:
 
 def _remove_abandoned_stages(out: Path) -> None:
     """Removes the staging folders beside `out` that no process holds (`_held`) and that have
-    not changed for ABANDONED_AFTER seconds. Where locks are not supported, none."""
-    import time
-
+    not changed for ABANDONED_AFTER seconds, unless one holds an item of OUT set aside while
+    the outputs moved in (`.replaced-*`: a command killed then; it is left to recover by hand).
+    Where locks are not supported, none."""
+    prefix = f".{out.name}.staging-"
     try:
         import fcntl
 
-        beside = [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}.staging-")]
+        beside = [p for p in out.parent.iterdir() if p.name.startswith(prefix)
+                  and _STAGE_SUFFIX.fullmatch(p.name[len(prefix):])]
     except (ImportError, OSError):
         return
     for stage in beside:
         try:
             if (not stage.is_dir() or stage.is_symlink()
-                    or time.time() - stage.stat().st_mtime < ABANDONED_AFTER):
+                    or time.time() - stage.stat().st_mtime < ABANDONED_AFTER
+                    or any(stage.glob(".replaced-*"))):
                 continue
             fd = os.open(stage, os.O_RDONLY)
         except OSError:

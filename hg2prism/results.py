@@ -433,8 +433,8 @@ class CheckResult:
         from hg2prism.strategy.records import strategy_records
 
         built = self.engine.explicit(self.checked.model)
-        return tuple(strategy_records(self.decoded, self.strategy, built.transitions, self.analysis.ts,
-                                self.extras, built.initial))
+        return tuple(strategy_records(self.decoded, self.strategy, built.transitions,
+                                      self.analysis.ts, self.extras, built.initial))
 
     def player(self, strategy: Strategy | None = None) -> tuple[Analysis, Policy]:
         """What plays P1's exported strategy in simulations: the analysis (P2's inference) and

@@ -442,6 +442,9 @@ def test_sweep_table_is_sweep_csv(tmp_path: Path) -> None:
                                                        table.column("v_ne_upper")))
     assert list(lines[0])[list(lines[0]).index("v_ne"):][:4] == [
         "v_ne", "v_ne_lower", "v_ne_upper", "v_ne_p1_guaranteed"]
+    assert (table.rows[0]["v_ne_lower"], table.rows[0]["v_ne_upper"]) == table.rows[0].v_ne_bounds
+    with pytest.raises(KeyError):
+        table.rows[0]["no_such_column"]
     assert all(b[0] <= row.v_ne <= b[1] for row, b in zip(table, (r.v_ne_bounds for r in table)))
 
     def timeless(text: str) -> list[list[str]]:

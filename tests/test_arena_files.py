@@ -581,9 +581,13 @@ threshold = 0.6
     assert warned == ["warning: g: edge (1, 3): probability 0, so the attacker's action along "
                       "it never succeeds (he stays where he is, or goes where its outcomes "
                       "say); remove the edge if the step is impossible"]
-    # a node only outcomes reach is no target: no asset label, no hypothesis by default
+    # a node only outcomes reach is no target: no asset label, no hypothesis by default; an
+    # entry without edges still is one (a code review: it had lost its label)
     default = hg2prism.world_from_graph(graph, entries=[1], task="F asset3", name="g")
     assert default.hypotheses == ("F asset3",) and default.arena.propositions == ("asset3",)
+    graph.add_node(7)
+    exposed = hg2prism.world_from_graph(graph, entries=[1, 7], task="F asset3", name="g")
+    assert exposed.arena.propositions == ("asset3", "asset7")
     for key, value, reason in (("outcomes", "p", "names the same edge attribute as "
                                 "probability ('p'); expected another"),):
         with pytest.raises(InputError) as refused:

@@ -824,9 +824,10 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path: Path) -> None:
 def test_an_abandoned_staging_folder_is_removed_by_the_next_command(tmp_path: Path,
                                                                      monkeypatch) -> None:
     """A command killed (SIGKILL), or stopped a second time while removing its staging folder,
-    left `.OUT.staging-*` beside OUT for good. The next command beside it removes such a folder
-    once no process holds it and it has not changed for a minute; one a running command holds
-    (here a process holding it as `staged` does), or a young one, stays."""
+    left `.OUT.staging-*` beside OUT for good. The next command to OUT removes such a folder
+    once no process holds it and it has not changed for ABANDONED_AFTER; one a running command
+    holds (here a process holding it as `staged` does), a young one, one holding an item of OUT
+    set aside while outputs moved in, and a folder whose name mkdtemp does not make stay."""
     import fcntl
     import time
 
@@ -853,16 +854,22 @@ def test_an_abandoned_staging_folder_is_removed_by_the_next_command(tmp_path: Pa
     monkeypatch.setattr(outputs, "_place", placing)
 
     def stage(name: str, age: float) -> Path:
-        folder = tmp_path / f".out.staging-{name}"
+        folder = tmp_path / f".out.staging-{name:_<8}"          # mkdtemp's 8 characters
         (folder / "strategy.json").parent.mkdir()
         (folder / "strategy.json").write_text("[]")
         then = time.time() - age
         os.utime(folder, (then, then))
         return folder
 
-    abandoned = stage("abandoned", ABANDONED_AFTER + 5)
+    abandoned = stage("abandond", ABANDONED_AFTER + 5)
     young = stage("young", ABANDONED_AFTER - 30)
     held = stage("held", ABANDONED_AFTER + 5)
+    aside = stage("aside", ABANDONED_AFTER + 5)          # killed while the outputs moved in
+    (aside / ".replaced-results.json").write_text("{}")
+    os.utime(aside, (0, 0))
+    named = tmp_path / ".out.staging-x.toml"             # no stage's name: a user's file
+    named.mkdir()
+    os.utime(named, (0, 0))
     other = tmp_path / ".other.staging-x"            # another OUT's: not this command's to judge
     other.mkdir()
     os.utime(other, (0, 0))
@@ -884,7 +891,8 @@ def test_an_abandoned_staging_folder_is_removed_by_the_next_command(tmp_path: Pa
     # the command's own staging folder is gone, and it held it while it ran
     assert free_while_placing == [False]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        [".other.staging-x", ".out.staging-young", ".out.staging-held", "out"])
+        [".other.staging-x", ".out.staging-young___", ".out.staging-held____",
+         ".out.staging-aside___", ".out.staging-x.toml", "out"])
     fd = os.open(held, os.O_RDONLY)                  # the holder gone, it is free
     fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     os.close(fd)

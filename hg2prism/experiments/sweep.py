@@ -936,15 +936,18 @@ def sweep_csv(names: Sequence[str], rows: Sequence[dict]) -> str:
         columns = columns[:at] + _DECEPTION_COLUMNS + columns[at:]
     if _with_standing(rows):
         columns = ("standing",) + columns
-
-    def cell(row: dict, column: str) -> object:
-        if column in ("v_ne_lower", "v_ne_upper") and row.get("v_ne_bounds") is not None:
-            return row["v_ne_bounds"][column == "v_ne_upper"]
-        return row.get(column)
-
     return csv_text(tuple(names) + columns,
                     ([_value_text(row[n]) if isinstance(row[n], list) else row[n]
-                      for n in names] + [cell(row, c) for c in columns] for row in rows))
+                      for n in names] + [csv_cell(row, c) for c in columns] for row in rows))
+
+
+def csv_cell(row: dict, column: str) -> object:
+    """A row's value in sweep.csv's `column` (None where the row has none): v_ne_lower and
+    v_ne_upper are the ends of its v_ne_bounds (a CSV cell holds one number)."""
+    if column in ("v_ne_lower", "v_ne_upper"):
+        bounds = row.get("v_ne_bounds")
+        return None if bounds is None else bounds[column == "v_ne_upper"]
+    return row.get(column)
 
 
 def _with_standing(rows: Sequence[dict]) -> bool:

@@ -124,6 +124,8 @@ def bounded_reach(chain: sp.csr_matrix, goal: np.ndarray, stop: np.ndarray, star
     within CONVERGED of it, so a horizon of millions of steps costs only what convergence
     needs, and the value returned is below the horizon's by at most CONVERGED plus the
     unbounded solve's rounding error."""
+    if (goal & ~stop).any():
+        raise ValueError("bounded_reach: every goal state must be a stop state")
     chain = sp.csr_matrix(chain, copy=True)
     chain.eliminate_zeros()       # an edge of probability 0 must not count as a path
     limit = float(chain_reach(chain, goal, stop).values[start])

@@ -23,7 +23,10 @@ def near_best(score: np.ndarray, tie: float = 0.0, *, axis: int = -1, relative: 
     `lowest`, the smallest. `best`, when given (broadcastable against `score`), is that best:
     a maximum the caller has already, or in the grouped form each option's state's best."""
     if best is None:
-        best = score.min(axis=axis, keepdims=True) if lowest else score.max(axis=axis, keepdims=True)
+        best = (score.min(axis=axis, keepdims=True) if lowest
+                else score.max(axis=axis, keepdims=True))
+    if tie == 0:        # the best itself: no temporary (x - 0.0 is x), and an infinite best
+        return score <= best if lowest else score >= best      # keeps its options (0 * inf)
     margin = tie * np.abs(best) if relative else tie
     return score <= best + margin if lowest else score >= best - margin
 

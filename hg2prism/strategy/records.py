@@ -82,15 +82,20 @@ class RecordList(list):
         return RecordList, (list(self),)
 
 
+_PLAIN = (str, int, float, bool, type(None))
+
+
 def frozen(value: object) -> object:
     """`value` with its dicts made `Record`s and its lists `RecordList`s, all the way down (a
-    Record is returned as it is: it is frozen all the way down already)."""
-    if isinstance(value, Record):
+    Record is returned as it is: it is frozen all the way down already). A record read from
+    JSON holds str, numbers, None, dicts and lists: those are tried first, by exact type."""
+    kind = type(value)
+    if kind in _PLAIN or kind is Record:
         return value
-    if isinstance(value, Mapping):
-        return Record((key, frozen(item)) for key, item in value.items())
-    if isinstance(value, list | tuple):
-        return RecordList(frozen(item) for item in value)
+    if kind is dict or (kind is not list and isinstance(value, Mapping)):
+        return Record({key: frozen(item) for key, item in value.items()})
+    if kind is list or isinstance(value, list | tuple):
+        return RecordList([frozen(item) for item in value])
     return value
 
 
