@@ -821,6 +821,28 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path: Path) -> None:
     assert (done.returncode, done.stderr) == (141, "")
 
 
+def test_a_second_stop_waits_for_the_staging_folder_to_go(tmp_path: Path, monkeypatch) -> None:
+    """A stopped command removes its staging folder; a second Ctrl-C during that removal
+    stopped it halfway and left the folder (a carried leftover). The second stop now waits
+    until the folder is gone, then takes effect."""
+    from hg2prism import outputs
+
+    removals = []
+    remove = outputs.shutil.rmtree
+
+    def interrupted_removal(path, *args, **kwargs):     # Ctrl-C the moment removal starts
+        removals.append(path)
+        os.kill(os.getpid(), signal.SIGINT)
+        return remove(path, *args, **kwargs)
+
+    monkeypatch.setattr(outputs.shutil, "rmtree", interrupted_removal)
+    with pytest.raises(KeyboardInterrupt):
+        with outputs.staged(tmp_path / "out") as stage:
+            (stage / "strategy.json").write_text("[]")
+            raise KeyboardInterrupt                      # the first stop
+    assert removals == [stage] and not stage.exists() and not (tmp_path / "out").exists()
+
+
 def test_an_abandoned_staging_folder_is_removed_by_the_next_command(tmp_path: Path,
                                                                      monkeypatch) -> None:
     """A command killed (SIGKILL), or stopped a second time while removing its staging folder,
