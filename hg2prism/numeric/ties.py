@@ -25,8 +25,8 @@ def near_best(score: np.ndarray, tie: float = 0.0, *, axis: int = -1, relative: 
     if best is None:
         best = (score.min(axis=axis, keepdims=True) if lowest
                 else score.max(axis=axis, keepdims=True))
-    if tie == 0:        # the best itself: no temporary (x - 0.0 is x), and an infinite best
-        return score <= best if lowest else score >= best      # keeps its options (0 * inf)
+    if tie == 0 and not relative:       # the best itself, bit for bit (x - 0.0 is x, inf
+        return score <= best if lowest else score >= best      # and NaN too): no temporary
     margin = tie * np.abs(best) if relative else tie
     return score <= best + margin if lowest else score >= best - margin
 
