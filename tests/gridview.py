@@ -8,6 +8,14 @@ from __future__ import annotations
 from hg2prism.frontends import grid
 
 
+def initial_trap_cells(world) -> tuple:
+    """The cells of the traps standing at the start (empty when delay is 0)."""
+    if not world.delay:
+        return ()
+    chosen = grid.trap_sets(world.grid, world.traps)[world.initial_standing]
+    return tuple(world.grid.trap_candidates[c] for c in chosen)
+
+
 class GridView:
     def __init__(self, world, ts) -> None:
         self.ts = ts

@@ -816,7 +816,7 @@ def test_replace_with_a_settings_table_names_the_key() -> None:
     standing traps of a positive delay are initial_standing (docs/api.md)."""
     import dataclasses
 
-    from hg2prism.frontends.grid import initial_trap_cells
+    from gridview import initial_trap_cells
 
     world = hg2prism.load_world(MODELS / "world1.toml")
     for key, value in [("simulation", {"episodes": 5}), ("simulation", None),

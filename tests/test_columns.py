@@ -7,8 +7,14 @@ import numpy as np
 import pytest
 
 from hg2prism.strategy import columns
-from hg2prism.strategy.columns import (Field, Lines, Texts, Vocabulary, integers, literal,
-                                       render_grouped, tokens)
+from hg2prism.strategy.columns import (Field, Lines, Texts, Vocabulary, grouped_chunks, integers,
+                                       literal, tokens)
+
+
+def render_grouped(heads: Lines, items: Lines, starts: np.ndarray, before: bytes = b"") -> bytes:
+    """`before`, then each row of `heads` followed by its rows of `items`,
+    starts[i]..starts[i + 1] - 1 (`starts` ascending, from 0 to items.n)."""
+    return b"".join(grouped_chunks(heads, items, starts, before))
 
 
 @pytest.fixture(autouse=True)

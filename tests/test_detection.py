@@ -17,10 +17,7 @@ from hg2prism.analyses.detection import (
     MismatchDetector,
     Step,
     compliant_rejection_count,
-    detection_summary,
-    false_alarm_rate,
     first_rejection,
-    run_detector,
     summarize_detection,
 )
 
@@ -29,6 +26,24 @@ LN005 = math.log(0.05)
 LN2 = math.log(2.0)
 LN3 = math.log(3.0)
 PPF95 = {1: 3.8414588206941, 2: 5.991464547107979, 3: 7.814727903251178}
+
+
+def run_detector(observations, alpha: float, epsilon: float) -> list[Step]:
+    """The Steps of a fresh detector fed (state, predicted, observed, n_actions)."""
+    detector = MismatchDetector(alpha, epsilon)
+    return [detector.observe(*obs) for obs in observations]
+
+
+def detection_summary(steps_per_episode, deviate_after: int | None = None):
+    """summarize_detection over the Step lists of episodes."""
+    return summarize_detection([first_rejection(s) for s in steps_per_episode], deviate_after)
+
+
+def false_alarm_rate(first_rejections) -> float:
+    """Share of episodes (in which P2 never deviates) rejected at some step."""
+    if len(first_rejections) == 0:
+        raise ValueError("no episodes")
+    return sum(1 for n in first_rejections if n is not None) / len(first_rejections)
 
 
 def test_single_step_following_prediction():
@@ -41,7 +56,7 @@ def test_single_step_following_prediction():
     assert step.statistic == pytest.approx(0.21072103131565256, abs=1e-12)
     assert d.first_rejection is None
     assert d.log_l0 == pytest.approx(LN09)
-    assert d.log_l1 == 0.0
+    assert d._log_l1 == 0.0
 
 
 def test_single_action_steps_are_skipped():

@@ -13,11 +13,10 @@ import numpy as np
 import pytest
 
 from conftest import MODELS, QUICK
-from gridview import GridView
+from gridview import GridView, initial_trap_cells
 from hg2prism import pipeline
 from hg2prism.experiments import detect, sweep
 from hg2prism.frontends import transition_system as build_transition_system
-from hg2prism.frontends import grid
 from hg2prism.frontends.grid import ACTIONS
 from hg2prism.errors import InputError
 from hg2prism.analyses.simulation import deviating_policy, leader_fallback
@@ -264,10 +263,10 @@ def test_delay_sweep_equals_single_runs_on_world2(tmp_path: Path) -> None:
 
 def test_sweep_other_parameters_and_the_initial_traps_rule(tmp_path: Path, capsys) -> None:
     world = load_world(write_world(tmp_path, "small", SMALL))
-    assert grid.initial_trap_cells(world) == ()
+    assert initial_trap_cells(world) == ()
     # no initial_traps anywhere: the first candidate, (3, 3)
     point = sweep.sweep_world(world, "delay", 1)
-    assert grid.initial_trap_cells(point) == (world.grid.trap_candidates[0],) == ((3, 3),)
+    assert initial_trap_cells(point) == (world.grid.trap_candidates[0],) == ((3, 3),)
     rows = sweep.sweep(world, "window", ["1", "3"], tmp_path / "w", show_progress=True)
     assert [r["window"] for r in rows] == [1, 3]
     err = capsys.readouterr().err

@@ -208,10 +208,15 @@ def _lp_value(m: np.ndarray, allowed: np.ndarray) -> float:
     return float(res.fun)
 
 
+def _matrices(game: ConcurrentGame, v: np.ndarray) -> np.ndarray:
+    """M[g, a1, a2] = expected V after the joint action."""
+    return (game.prob * v[game.next]).sum(axis=-1)
+
+
 def test_world1_values_agree_with_direct_lp(world1) -> None:
     _, _, baseline, _, _ = world1
     game, sol = baseline.game, baseline.solution
-    m = game.matrices(sol.values)
+    m = _matrices(game, sol.values)
     free = np.flatnonzero(game.free)
     mixed = [g for g in free if (sol.p1[g] > 1e-9).sum() > 1 and (sol.p2[g] > 1e-9).sum() > 1]
     assert mixed, "world1 should have states without a pure saddle point"

@@ -13,9 +13,9 @@ import pytest
 
 import worldgen
 from conftest import MODELS
+from gridview import initial_trap_cells
 from hg2prism import cli, pipeline
 from hg2prism.experiments import bench
-from hg2prism.frontends import grid
 from hg2prism.model import sizeguard
 from hg2prism.errors import InputError
 from hg2prism.worldfile import load_world
@@ -191,7 +191,7 @@ def test_bench_world_with_delay_starts_on_the_first_candidates(tmp_path: Path) -
     path.write_text(bench.bench_world(12, 1, 3, 2, delay=2))
     world = load_world(path)
     assert world.delay == 2 and world.name == bench.world_name(12, 1, 3, 2, 2)
-    assert grid.initial_trap_cells(world) == tuple(world.grid.trap_candidates[:2])
+    assert initial_trap_cells(world) == tuple(world.grid.trap_candidates[:2])
 
 
 def test_bench_arena_rows(tmp_path: Path) -> None:

@@ -21,12 +21,17 @@ from hg2prism import pipeline
 from hg2prism.frontends.grid import ACTIONS
 from hg2prism.opponent.inference import build_inference
 from hg2prism.analyses.simulation import (FAIL, GOAL, TRUNCATED, SimulationSummary,
-                                          deviating_policy, leader_fallback, model_policy,
+                                          deviating_policy, leader_fallback,
                                           simulate_deceptive, simulate_nash, wilson_interval)
 from hg2prism.strategy.records import Strategy, StrategyError
 from hg2prism.worldfile import load_world
 
 WORLD1 = MODELS / "world1.toml"
+
+
+def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int, memory) -> int:
+    """P2 as modelled: play pi2_xh(v)."""
+    return predicted
 HORIZON = 200
 EPISODES = 4000
 
@@ -229,7 +234,7 @@ def test_rate_interval_and_lengths_are_consistent(world1) -> None:
     assert (summary.lengths[summary.outcomes == TRUNCATED] == HORIZON).all()
     assert (summary.lengths[summary.outcomes != TRUNCATED] <= HORIZON).all()
     assert (summary.lengths >= 1).all()
-    assert summary.as_dict()["episodes"] == 300
+    assert summary.episodes == 300
 
 
 # ---------------------------------------------------------------------------------------------

@@ -21,10 +21,10 @@ import pytest
 import reference
 import worldgen
 from conftest import names_in
+from gridview import initial_trap_cells
 from hg2prism import cli
 from hg2prism.errors import InputError
 from hg2prism.experiments import sweep
-from hg2prism.frontends import grid
 from hg2prism.model.sizeguard import estimate_states
 from hg2prism.worldfile import load_world
 
@@ -245,7 +245,7 @@ def test_swept_traps_keep_the_worlds_standing_traps_first(tmp_path: Path) -> Non
     path.write_text(text)
     world = load_world(path)
     # traps 2: the world's own standing trap, then the first other candidate (reading order)
-    cells = grid.initial_trap_cells
+    cells = initial_trap_cells
     assert [list(c) for c in cells(sweep.sweep_world(world, "traps", 2))] == [cands[0], last]
     assert [list(c) for c in cells(sweep.sweep_world(world, "traps", 1))] == [last]
     point = sweep.sweep_point(world, {"traps": 2, "delay": 0})

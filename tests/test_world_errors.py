@@ -17,8 +17,8 @@ from pathlib import Path
 import pytest
 
 from conftest import names_in
+from gridview import initial_trap_cells
 from hg2prism.errors import InputError
-from hg2prism.frontends import grid
 from hg2prism.worldfile import load_world
 
 REPO = Path(__file__).resolve().parent.parent
@@ -308,7 +308,7 @@ def test_world1_loads() -> None:
     assert w.formula == "(!obs U A) & (!(B | obs) U C)"
     assert w.hypotheses == ("!obs U A", "!obs U B", "!obs U C")
     assert (w.grid.slip, w.traps, w.delay, w.initial_standing, w.initial_hypothesis) == (0.1, 1, 0, 0, 0)
-    assert grid.initial_trap_cells(w) == ()
+    assert initial_trap_cells(w) == ()
     assert (w.window, w.threshold, w.rationality) == (2, 1.5, 10.0)
     assert (w.simulation.episodes, w.simulation.horizon, w.simulation.seed) == (10000, 200, 0)
     assert (w.detection.alpha, w.detection.epsilon, w.detection.deviate_after) == (0.05, 0.01, 4)
@@ -331,7 +331,7 @@ def test_world2_loads() -> None:
                               ("C", frozenset({(4, 2)})))
     assert w.grid.obstacles == frozenset({(1, 4), (1, 2), (3, 2)})
     # delay = 0: the listed initial_traps are ignored
-    assert w.delay == 0 and grid.initial_trap_cells(w) == () and w.initial_standing == 0
+    assert w.delay == 0 and initial_trap_cells(w) == () and w.initial_standing == 0
 
 
 def test_world2_with_delay_keeps_initial_traps(tmp_path: Path) -> None:
@@ -339,7 +339,7 @@ def test_world2_with_delay_keeps_initial_traps(tmp_path: Path) -> None:
     path = tmp_path / "w2k2.toml"
     path.write_text(text)
     w = load_world(path)
-    assert w.delay == 2 and grid.initial_trap_cells(w) == ((2, 5),)
+    assert w.delay == 2 and initial_trap_cells(w) == ((2, 5),)
 
 
 def test_initial_traps_sorted_by_candidate_number(tmp_path: Path) -> None:
@@ -347,7 +347,7 @@ def test_initial_traps_sorted_by_candidate_number(tmp_path: Path) -> None:
     path.write_text(edit(("traps = 1", "traps = 2"), ("delay = 0", "delay = 1"),
                          ("initial_traps = []", "initial_traps = [[3, 2], [1, 4]]")))
     world = load_world(path)
-    assert grid.initial_trap_cells(world) == ((1, 4), (3, 2))
+    assert initial_trap_cells(world) == ((1, 4), (3, 2))
     # the standing action: the index of candidates {0, 3} among the 2-subsets of the four
     # candidates (1, 4), (3, 4), (2, 2), (3, 2) in combinations order: (0,1), (0,2), (0,3)
     assert world.initial_standing == 2

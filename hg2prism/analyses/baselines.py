@@ -100,10 +100,6 @@ class ConcurrentGame:
     def free(self) -> np.ndarray:
         return ~(self.goal | self.zero)
 
-    def matrices(self, v: np.ndarray) -> np.ndarray:
-        """M[g, a1, a2] = expected V after the joint action."""
-        return (self.prob * v[self.next]).sum(axis=-1)
-
 
 @dataclass(frozen=True, eq=False)
 class NashSolution:

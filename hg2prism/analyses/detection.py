@@ -52,13 +52,10 @@ __all__ = [
     "Mixture",
     "Step",
     "MismatchDetector",
-    "run_detector",
     "first_rejection",
     "compliant_rejection_count",
     "DetectionSummary",
     "summarize_detection",
-    "detection_summary",
-    "false_alarm_rate",
 ]
 
 
@@ -142,10 +139,6 @@ class MismatchDetector:
         return len(self._pair_counts)
 
     @property
-    def log_l1(self) -> float:
-        return self._log_l1
-
-    @property
     def statistic(self) -> float:
         """G = 2 (ln L1 - ln L0); 0 before any counted step. Never negative."""
         return max(0.0, 2.0 * (self._log_l1 - self.log_l0))
@@ -222,13 +215,6 @@ class MismatchDetector:
         new_ell = 0.0 if len(actions) == 1 else min(new_ell, 0.0)
         self._state_ell[state] = new_ell
         self._log_l1 += new_ell - old_ell
-
-
-def run_detector(observations: Iterable[tuple[Hashable, Hashable, Hashable, int]],
-                 alpha: float, epsilon: float) -> list[Step]:
-    """Pure form: the Steps of a fresh detector fed (state, predicted, observed, n_actions)."""
-    detector = MismatchDetector(alpha, epsilon)
-    return [detector.observe(*obs) for obs in observations]
 
 
 def first_rejection(steps: Iterable[Step]) -> int | None:
@@ -322,15 +308,3 @@ def summarize_detection(first_rejections: Sequence[int | None],
         detection_steps=steps, histogram=tuple(sorted(hist.items())),
         deviate_after=deviate_after, before_deviation=before, delays=delays)
 
-
-def detection_summary(steps_per_episode: Sequence[Sequence[Step]],
-                      deviate_after: int | None = None) -> DetectionSummary:
-    """:func:`summarize_detection` over the Step lists of episodes."""
-    return summarize_detection([first_rejection(s) for s in steps_per_episode], deviate_after)
-
-
-def false_alarm_rate(first_rejections: Sequence[int | None]) -> float:
-    """Share of episodes (in which P2 never deviates) rejected at some step."""
-    if len(first_rejections) == 0:
-        raise ValueError("no episodes")
-    return sum(1 for n in first_rejections if n is not None) / len(first_rejections)

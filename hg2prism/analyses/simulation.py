@@ -59,7 +59,6 @@ __all__ = [
     "leader_fallback",
     "LeaderStrategy",
     "Replanning",
-    "model_policy",
     "deviating_policy",
 ]
 
@@ -174,19 +173,6 @@ class SimulationSummary:
     @property
     def mean_length(self) -> float:
         return float(self.lengths.mean()) if self.episodes else 0.0
-
-    def as_dict(self) -> dict:
-        """JSON-ready fields (without the per-episode arrays)."""
-        return {
-            "episodes": self.episodes, "completed": self.completed, "failed": self.failed,
-            "truncated": self.truncated, "rate": self.rate, "ci95": list(self.ci95),
-            "horizon": self.horizon, "seed": self.seed,
-            "mean_length": self.mean_length,
-            "mean_length_completed": (float(self.lengths[self.outcomes == GOAL].mean())
-                                      if self.completed else None),
-            "off_record_steps": self.off_record_steps,
-            "seconds": round(self.seconds, 4),
-        }
 
 
 def _summary(outcomes: np.ndarray, lengths: np.ndarray, horizon: int, seed: int,
@@ -326,12 +312,6 @@ class StepRecord:
         """What P2's inference reads at this step (observer.Observation): the TS state, P1's
         move and the trap set she played."""
         return (self.ts_state, self.a1, self.a2)
-
-
-def model_policy(rng: np.random.Generator, n: int, ts_state: int, predicted: int,
-                 memory: Memory) -> int:
-    """P2 as modelled: play pi2_xh(v)."""
-    return predicted
 
 
 def deviating_policy(ts: TransitionSystem, deviate_after: int) -> P2Policy:

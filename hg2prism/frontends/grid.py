@@ -108,12 +108,9 @@ class Grid:
 Grid.replaceable = frozenset({"slip"})
 
 ACTIONS = ("N", "E", "S", "W")
-# LEGACY: action labels in generated PRISM (E, S and W are PRISM keywords)
-ACTION_LABELS = {"N": "north", "E": "east", "S": "south", "W": "west"}
 STEP = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
 # The two directions perpendicular to each move, in a fixed order: its slips.
 PERPENDICULAR = {"N": ("E", "W"), "E": ("N", "S"), "S": ("E", "W"), "W": ("N", "S")}
-OUTCOMES = 3  # intended direction, then the two perpendicular slips
 
 
 def outcome_directions(action: int) -> tuple[int, int, int]:
@@ -195,14 +192,6 @@ def to_arena(world: World) -> Arena:
 def trap_sets(grid: Grid, traps: int) -> list[tuple[int, ...]]:
     """P2's actions: the trap sets as tuples of candidate numbers, in combinations order."""
     return list(itertools.combinations(range(len(grid.trap_candidates)), traps))
-
-
-def initial_trap_cells(world: World) -> tuple[Cell, ...]:
-    """The cells of the traps standing at the start (empty when delay is 0)."""
-    if not world.delay:
-        return ()
-    chosen = trap_sets(world.grid, world.traps)[world.initial_standing]
-    return tuple(world.grid.trap_candidates[c] for c in chosen)
 
 
 def with_slip(world: World, slip: float) -> World:

@@ -25,10 +25,6 @@ class DFA:
         return int(self.delta[q, label])
 
 
-def is_cosafe(formula: str) -> bool:
-    return spot.formula(formula).is_syntactic_guarantee()
-
-
 def translate(formula: str, label_names: tuple[str, ...],
               occurring: Iterable[int] | None = None) -> DFA:
     """DFA of a syntactically co-safe formula, its letters being the label classes of the world.

@@ -188,15 +188,11 @@ class Lines:
         yield after
 
 
-def render_grouped(heads: Lines, items: Lines, starts: np.ndarray, before: bytes = b"") -> bytes:
-    """`before`, then each row of `heads` followed by its rows of `items`,
-    starts[i]..starts[i + 1] - 1 (`starts` ascending, from 0 to items.n)."""
-    return b"".join(grouped_chunks(heads, items, starts, before))
-
-
 def grouped_chunks(heads: Lines, items: Lines, starts: np.ndarray, before: bytes = b""
                    ) -> Iterator[bytes]:
-    """The text of `render_grouped` in pieces, formatted as they are consumed (`Lines.chunks`)."""
+    """`before`, then each row of `heads` followed by its rows of `items`,
+    starts[i]..starts[i + 1] - 1 (`starts` ascending, from 0 to items.n): the text in pieces,
+    formatted as they are consumed (`Lines.chunks`)."""
     per_block = max(1, BLOCK_BYTES // max(heads.width, items.width, 1))
     blocks = []
     head = 0
