@@ -27,6 +27,10 @@ docs/semantics.md.
 
 from typing import TYPE_CHECKING, Any
 
+from hg2prism.reproducible import pin_blas_kernels
+
+pin_blas_kernels()     # before anything imports numpy: the same last bits on every x86-64 machine
+
 __version__ = "0.1.0"
 
 __all__ = ["__version__", "InputError", "load_world", "world_from_toml", "world_from_graph", "solve", "run",

@@ -74,6 +74,7 @@ def _libraries() -> dict[str, str]:
     import subprocess
 
     from hg2prism import __version__
+    from hg2prism.reproducible import blas_kernels
 
     found = {"hg2prism": __version__}
     root = Path(__file__).resolve().parent.parent
@@ -89,6 +90,7 @@ def _libraries() -> dict[str, str]:
     found["python"] = platform.python_version()
     for package in ("numpy", "scipy"):
         found[package] = importlib.metadata.version(package)
+    found["blas_kernels"] = blas_kernels()        # the last bits depend on them (reproducible.py)
     try:
         import spot
 
@@ -435,6 +437,12 @@ class CheckResult:
         built = self.engine.explicit(self.checked.model)
         return tuple(strategy_records(self.decoded, self.strategy, built.transitions,
                                       self.analysis.ts, self.extras, built.initial))
+
+    def __getstate__(self) -> dict:
+        # Pickled (a Solution sent to another process, copy.deepcopy), Storm's model stays
+        # behind (engines/storm.py: StormChecked), so the records it gives are built first.
+        self.records
+        return self.__dict__
 
     def player(self, strategy: Strategy | None = None) -> tuple[Analysis, Policy]:
         """What plays P1's exported strategy in simulations: the analysis (P2's inference) and

@@ -15,7 +15,9 @@
   against its definition in plain Python (the distribution after each step), exact at its
   0s and 1s (bound 0, a start in the goal, no path within the bound, a goal reached surely);
 * the lexicographic objective (strategy/objectives.py, built on the attractor) on random MDPs
-  against its definition in plain Python: finite states, expected steps and moves.
+  against its definition in plain Python: finite states, expected steps and moves;
+* OpenBLAS's kernels (hg2prism/reproducible.py): importing hg2prism first pins them, so that
+  SciPy's sparse LU gives the same last bits on every x86-64 machine with AVX2.
 """
 
 from __future__ import annotations
@@ -852,3 +854,43 @@ def test_the_lexicographic_objective_says_when_its_policy_iteration_stopped_earl
         with caplog.at_level(logging.WARNING, logger="hg2prism"):
             hg2prism.solve(world, objective="lexicographic")
         assert any(said in r.getMessage() for r in caplog.records) == warned
+
+
+# ---------------------------------------------------------------------------------------------
+# The same last bits on every x86-64 machine with AVX2 (hg2prism/reproducible.py)
+# ---------------------------------------------------------------------------------------------
+
+_KERNELS = ("import {first}, numpy, scipy.sparse.linalg, os\n"
+            "from hg2prism.reproducible import blas_kernels\n"
+            "print(blas_kernels(), os.environ.get('OPENBLAS_CORETYPE'))")
+
+
+def _kernels_in_a_new_process(first: str, **env: str) -> list[str]:
+    import os
+    import subprocess
+    import sys
+
+    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"} | env
+    done = subprocess.run([sys.executable, "-c", _KERNELS.format(first=first)], env=environment,
+                          capture_output=True, text=True, timeout=120, check=True)
+    return done.stdout.split()
+
+
+def test_importing_hg2prism_first_pins_openblas_to_the_haswell_kernels() -> None:
+    """SciPy's sparse LU (the games' exact solves) calls OpenBLAS, whose AVX-512 kernels gave
+    other last bits than an AVX2 machine's (the snapshot test failed on a Xeon): importing
+    hg2prism before numpy pins numpy's and scipy's OpenBLAS to the Haswell kernels where the
+    processor has AVX2 and FMA, as OpenBLAS itself then reports; a kernel the user chose is
+    kept, and numpy imported first keeps OpenBLAS's own choice (not pinned for the processes
+    it starts either)."""
+    import platform
+
+    from hg2prism.reproducible import NEEDS, _cpu_flags
+
+    if platform.machine() != "x86_64" or not NEEDS <= _cpu_flags():
+        pytest.skip("not an x86-64 processor with AVX2 and FMA: OpenBLAS keeps its own kernels")
+    assert _kernels_in_a_new_process("hg2prism") == ["Haswell", "Haswell"]
+    assert _kernels_in_a_new_process("hg2prism", OPENBLAS_CORETYPE="Sandybridge") == [
+        "Sandybridge", "Sandybridge"]
+    kernel, variable = _kernels_in_a_new_process("numpy, hg2prism")
+    assert variable == "None" and kernel != "unknown"
