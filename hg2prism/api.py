@@ -136,6 +136,17 @@ def _finite_real(p: object) -> bool:
     return not isinstance(p, bool) and isinstance(p, numbers.Real) and math.isfinite(p)
 
 
+def _number(p: object) -> float:
+    """An edge's probability as a float: a numpy float of lower precision (a float32 column)
+    by its shortest decimal, the number that was written (np.float32(0.8) is 0.800000011920929
+    as a float, so 0.8, 0.1 and 0.1 would not add up to 1)."""
+    import numpy as np
+
+    if isinstance(p, np.floating) and np.finfo(p.dtype).bits < 64:
+        return float(str(p))
+    return float(p)
+
+
 def _edge_probability(graph, u: object, v: object, key: str, file: str,
                       outcomes: str = "outcomes") -> float:
     where = f"edge ({u!r}, {v!r})"
@@ -152,7 +163,7 @@ def _edge_probability(graph, u: object, v: object, key: str, file: str,
         raise InputError(file, where, f"{key} = {p!r} is outside [0, 1]")
     if u == v:
         raise InputError(file, where, "is a self-loop; an attack step leads to another node")
-    return float(p)
+    return _number(p)
 
 
 def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
@@ -182,11 +193,12 @@ def _edge_outcomes(graph, u: object, v: object, probability: str, outcomes: str,
                              f"(add it: graph.add_node({node!r}))")
         if not _finite_real(p) or not 0 <= p <= 1:
             raise InputError(file, where, f"{outcomes}: {node!r}: {p!r} is not a probability")
+    given = {node: _number(p) for node, p in given.items()}
     total = math.fsum(given.values())
     if abs(total - 1.0) > 1e-9:
         raise InputError(file, where, f"{outcomes}: the probabilities add up to {total!r}, "
                          "not 1")
-    return {names[node]: float(given[node]) for node in sorted(given, key=order.__getitem__)
+    return {names[node]: given[node] for node in sorted(given, key=order.__getitem__)
             if given[node] > 0}
 
 
@@ -194,7 +206,7 @@ def _success(graph, u: object, v: object, probability: str, outcomes: str, file:
     """The chance that the attack step along (u, v) reaches v (the arena has checked it)."""
     data = graph.edges[u, v]
     if outcomes in data:
-        return float(data[outcomes].get(v, 0.0))
+        return _number(data[outcomes].get(v, 0.0))
     return _edge_probability(graph, u, v, probability, file, outcomes)
 
 
@@ -689,18 +701,12 @@ def load_strategy(folder: str | Path, world: World | str | Path | None = None) -
         raise InputError("load_strategy()", "folder", f"{str(folder)!r} is "
                          f"{'a file' if folder.exists() else 'no folder'}: expected a folder "
                          "hg2prism check or run wrote")
-    if not (folder / "results.json").exists() and (folder / "sweep.json").exists():
-        raise InputError(str(folder), WHOLE_FILE, "is a sweep's folder: load one point's "
-                         "strategy from its folder (<parameter>_<value>/)")
-    results = _read_json(folder / "results.json", "results.json")
-    if not isinstance(results, dict) or not isinstance(results.get("world_digest"), str):
-        raise InputError(str(folder / "results.json"), WHOLE_FILE, "is not the results.json of "
-                         "hg2prism check or run (it has no world_digest)")
+    results, source = _results_of(folder)
     if "v_adapt" in results:
         raise InputError(str(folder), WHOLE_FILE, "holds an adaptive strategy (P2's types), "
                          "which has no move: read its strategy.json's records, or load one "
                          "type's strategy from its folder type<k>/")
-    world = _world("load_strategy", world) if world is not None else _named_world(folder, results)
+    world = _world("load_strategy", world) if world is not None else _named_world(source, results)
     names = [t.name for t in world.types]
     if results.get("p2_type") in names:            # one type's folder of an adaptive run
         world = world_of_type(world, names.index(results["p2_type"]))
@@ -718,17 +724,63 @@ def load_strategy(folder: str | Path, world: World | str | Path | None = None) -
     if odd is not None:
         raise InputError(str(folder / "strategy.json"), WHOLE_FILE, f"record {odd} is not an "
                          f"object: {repr(records[odd])[:40]}")
+    ts = transition_system(world)
     try:
-        return Strategy.from_records(records, transition_system(world))
+        strategy = Strategy.from_records(records, ts)
+        _in_range(strategy, world, ts)
     except StrategyError as error:
         raise InputError(str(folder / "strategy.json"), WHOLE_FILE, "is not a strategy of "
                          f"this world: {error}") from None
+    return strategy
 
 
-def _named_world(folder: Path, results: dict) -> World:
-    """The world whose file results.json names (`world_file`), for load_strategy."""
+def _in_range(strategy: Strategy, world: World, ts) -> None:
+    """StrategyError for a record (of a hand-edited strategy.json) whose task state q or
+    hypothesis the world does not have: Strategy.from_records reads them as numbers."""
+    from hg2prism.model.automata import translate
+    from hg2prism.strategy.records import StrategyError
+
+    n_states = translate(world.formula, ts.label_names, ts.letters).n_states
+    for _, q, memory in strategy.table:
+        for name, value, bound, what in (
+                ("q", q, n_states, f"the task's DFA has {n_states} states"),
+                ("hypothesis", memory.hypothesis, len(world.hypotheses),
+                 f"the world has {len(world.hypotheses)} hypotheses")):
+            if not 0 <= value < bound:
+                record = next(k for k, r in enumerate(strategy.records)
+                              if int(r[name]) == value)
+                raise StrategyError(f"strategy record {record}: {name} = {value} is out of "
+                                    f"range ({what}, numbered from 0)")
+
+
+def _results_of(folder: Path) -> tuple[dict, Path]:
+    """What load_strategy reads of the run that wrote `folder`, and the file it is in: its
+    results.json, or for one deviation's folder of `hg2prism robust` (robust_<δ>/), the
+    robust.json beside it."""
+    from hg2prism.errors import WHOLE_FILE
+
+    path = folder / "results.json"
+    if not path.exists():
+        if (folder / "sweep.json").exists():
+            raise InputError(str(folder), WHOLE_FILE, "is a sweep's folder: load one point's "
+                             "strategy from its folder (<parameter>_<value>/)")
+        if (folder / "robust.json").exists():
+            raise InputError(str(folder), WHOLE_FILE, "is the folder of hg2prism robust: load "
+                             "one deviation's robust strategy from its folder (robust_<delta>/)")
+        if folder.name.startswith("robust_") and (folder.parent / "robust.json").exists():
+            path = folder.parent / "robust.json"
+    results = _read_json(path, "results.json")
+    if not isinstance(results, dict) or not isinstance(results.get("world_digest"), str):
+        raise InputError(str(path), WHOLE_FILE, f"is not the {path.name} of hg2prism check, "
+                         "run or robust (it has no world_digest)")
+    return results, path
+
+
+def _named_world(source: Path, results: dict) -> World:
+    """The world whose file results.json (or robust.json: `source`) names (`world_file`), for
+    load_strategy."""
     named = results.get("world_file")
-    where = str(folder / "results.json")
+    where = str(source)
     if not isinstance(named, str) or not named or named == results.get("world"):
         raise InputError(where, "world_file", f"names {named!r}, the name of a world made in "
                          "Python (no file): give it, load_strategy(folder, world=...)")
@@ -1132,6 +1184,12 @@ class Episode:
 
     def __len__(self) -> int:
         return len(self.steps)
+
+    def __iter__(self):
+        return iter(self.steps)
+
+    def __getitem__(self, index):
+        return self.steps[index]
 
 
 def _realised(world: World, step) -> str:

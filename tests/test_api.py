@@ -395,6 +395,50 @@ def test_load_strategy_reads_back_what_solve_wrote(tmp_path: Path, monkeypatch) 
     assert "is not a strategy of this world" in _refused(
         lambda: hg2prism.load_strategy(tmp_path / "odd", world),
         str(tmp_path / "odd" / "strategy.json"), "-").reason
+    # a hand-edited record whose task state or hypothesis the world does not have (world1:
+    # 5 DFA states, 3 hypotheses); the largest ones it has are read
+    for key, value, message in (("hypothesis", 3, "hypothesis = 3 is out of range (the world "
+                                 "has 3 hypotheses"), ("q", 5, "q = 5 is out of range (the "
+                                 "task's DFA has 5 states"), ("q", -1, "q = -1 is out of range")):
+        edited = [record.thawed() for record in solution.strategy.records]
+        edited[4][key] = value
+        (tmp_path / "odd" / "strategy.json").write_text(json.dumps(edited))
+        assert f"strategy record 4: {message}" in _refused(
+            lambda: hg2prism.load_strategy(tmp_path / "odd", world),
+            str(tmp_path / "odd" / "strategy.json"), "-").reason
+    edited = [record.thawed() for record in solution.strategy.records]
+    edited[4].update(q=4, hypothesis=2)
+    (tmp_path / "odd" / "strategy.json").write_text(json.dumps(edited))
+    assert len(hg2prism.load_strategy(tmp_path / "odd", world)) == len(edited)
+
+
+def test_load_strategy_reads_a_robust_strategy_from_its_deviation_s_folder(
+        lateral_solution, tmp_path: Path) -> None:
+    """`hg2prism robust` writes each deviation's strategy to robust_<delta>/ without a
+    results.json: load_strategy reads the world's digest (and file) from robust.json beside
+    it; the robust run's own folder is one line."""
+    from hg2prism.experiments import robust
+
+    world = lateral_solution.world
+    robust.robust(world, [0, 0.2], tmp_path / "rb", show_progress=False,
+                  check_result=lateral_solution.check)
+    for delta in ("0", "0.2"):
+        folder = tmp_path / "rb" / f"robust_{delta}"
+        written = json.loads((folder / "strategy.json").read_text())
+        loaded = hg2prism.load_strategy(folder, world)
+        assert [record.thawed() for record in loaded.records] == written
+        start = next(r for r in written if r.get("initial"))
+        assert loaded.move(state=start["state"], q=start["q"],
+                           hypothesis=start["hypothesis"]) == start["action"]
+    assert "of hg2prism robust" in _refused(lambda: hg2prism.load_strategy(tmp_path / "rb", world),
+                                            str(tmp_path / "rb"), "-").reason
+    other = _refused(lambda: hg2prism.load_strategy(tmp_path / "rb" / "robust_0.2",
+                                                   world.replace(rationality=2.0)),
+                     "load_strategy()", "world")
+    assert "is not the world" in other.reason
+    assert "load_strategy(folder, world=...)" in _refused(      # robust.json names no file
+        lambda: hg2prism.load_strategy(tmp_path / "rb" / "robust_0.2"),
+        str(tmp_path / "rb" / "robust.json"), "world_file").reason
 
 
 def test_a_sweep_with_deception_has_its_values_in_the_csv_too(tmp_path: Path) -> None:
@@ -501,6 +545,38 @@ def test_an_episode_step_by_step(world1_solution) -> None:
         assert step.landing in {f"x{x + dx}_y{y + dy}", step.state}, step
     assert 0 < slips < len(played)        # slip 0.1 over 70 steps
     assert hg2prism.episode(world1_solution, seed=3) == played
+    assert list(played) == list(played.steps) and played[-1] == played.steps[-1]
+
+
+def test_a_solution_sent_to_another_process_answers_as_the_original(world1_solution) -> None:
+    """A Solution pickles (a process pool's result, copy.deepcopy): Spot's automata travel as
+    their HOA text, Storm's model stays behind, and every verb on the copy answers what it
+    answers on the original; what needs Storm's model says so in one line."""
+    import copy
+    import pickle
+
+    from hg2prism.errors import StormError
+
+    original = world1_solution
+    for back in (pickle.loads(pickle.dumps(original)), copy.deepcopy(original)):
+        assert back.check.checked.model is None and back.check.checked.formula is None
+        assert (back.deceptive_value, back.v_lead, back.states) == (
+            original.deceptive_value, original.v_lead, original.states)
+        assert back.strategy.records == original.strategy.records
+        assert back.to_json() == original.to_json()
+        for dfa, before in zip([back.check.analysis.task] +
+                               [game.dfa for game in back.check.analysis.games],
+                               [original.check.analysis.task] +
+                               [game.dfa for game in original.check.analysis.games]):
+            assert dfa.automaton.to_str("hoa") == before.automaton.to_str("hoa")
+            assert (dfa.delta == before.delta).all() and dfa.accepting == before.accepting
+        assert hg2prism.simulate(back, episodes=100, seed=2) == hg2prism.simulate(
+            original, episodes=100, seed=2)
+        assert hg2prism.deception_values(back) == hg2prism.deception_values(original)
+        assert hg2prism.episode(back, seed=3) == hg2prism.episode(original, seed=3)
+        assert hg2prism.robust(back, [0.1]) == hg2prism.robust(original, [0.1])
+        with pytest.raises(StormError, match="not kept when a solution is pickled"):
+            back.check.engine.explicit(back.check.checked.model)
 
 
 def test_an_episode_step_says_what_p2_holds_after_it() -> None:
@@ -937,6 +1013,40 @@ def test_graph_worlds_take_numpy_numbers_and_compare_by_value() -> None:
     first, second = (hg2prism.load_world(MODELS / "mir100.toml") for _ in range(2))
     assert first == second and hash(first) == hash(second)
     assert first != made(int) and first.arena != made(int).arena
+
+
+def test_graph_worlds_read_float32_probabilities_as_written() -> None:
+    """A float32 column (pandas, numpy) gives np.float32(0.8), which is 0.800000011920929 as
+    a float: its outcomes 0.8, 0.1, 0.1 added up to 1 + 1.5e-8 and were refused. Its numbers
+    are read as the decimals written, so the world is the one plain floats make (by digest,
+    the arena's probabilities compared exactly); a float32 sum truly off 1 is still refused."""
+    import math
+
+    import networkx as nx
+    import numpy as np
+
+    def graph_of(number) -> nx.DiGraph:
+        graph = nx.DiGraph()
+        graph.add_node(9)
+        graph.add_edge(1, 3, outcomes={3: number(0.8), 1: number(0.1), 9: number(0.1)})
+        graph.add_edge(1, 4, p=number(0.7))
+        graph.add_edge(3, 6, p=number(0.6))
+        graph.add_edge(4, 6, outcomes={6: number(0.55), 4: number(0.45)})
+        return graph
+
+    def made(number) -> hg2prism.World:
+        return hg2prism.world_from_graph(graph_of(number), entries=[1], task="F asset6",
+                                         trap_candidates=[3, 4], name="f32")
+
+    plain = made(float)
+    for number in (np.float32, np.float16, np.float64):
+        world = made(number)
+        assert world.digest() == plain.digest() and world.arena == plain.arena, number
+    assert abs(math.fsum(float(np.float32(p)) for p in (0.8, 0.1, 0.1)) - 1) > 1e-9   # before
+    graph = graph_of(np.float32)
+    graph.edges[4, 6]["outcomes"] = {6: np.float32(0.55), 4: np.float32(0.44)}
+    with pytest.raises(hg2prism.InputError, match="add up to 0.99"):
+        hg2prism.world_from_graph(graph, entries=[1], task="F asset6", trap_candidates=[3, 4])
 
 
 def test_move_says_what_it_expected() -> None:

@@ -73,16 +73,40 @@ def sound_environment() -> developer.Environment:
 
 @dataclass(frozen=True, eq=False)
 class StormChecked(CheckedModel):
-    """A CheckedModel whose model is a stormpy sparse MDP."""
+    """A CheckedModel whose model is a stormpy sparse MDP. Pickled (a Solution sent to another
+    process, copy.deepcopy), it keeps its values and sizes but not Storm's model and formula,
+    which live in Storm's memory: what needs them then raises a StormError (DETACHED)."""
+
+    def __reduce__(self):
+        return _detached, (self.value, self.values, dict(self.timings), self.size,
+                           self.alongside)
 
     @functools.cached_property
     def scheduler(self) -> object:
         """A scheduler object of the model, for `induced_probability` to overwrite (stormpy
         cannot create one). Extracting it during the sound check costs about a fifth of the
         check at 1e6 states, so it comes from a quick plain value iteration, when needed."""
-        result = stormpy.model_checking(self.model, self.formula, extract_scheduler=True,
+        result = stormpy.model_checking(_attached(self.model), self.formula,
+                                        extract_scheduler=True,
                                         environment=solver_environment("fast"))
         return result.get_scheduler()
+
+
+DETACHED = ("Storm's model is not kept when a solution is pickled or copied (it lives in "
+            "Storm's memory): solve the world again in this process for what needs it")
+
+
+def _detached(value: float, values: np.ndarray, timings: dict, size: tuple,
+              alongside: object) -> StormChecked:
+    return StormChecked(model=None, value=value, values=values, formula=None,
+                        timings=MappingProxyType(timings), size=size, alongside=alongside)
+
+
+def _attached(model: object) -> object:
+    """`model`, unless it was left behind by pickling (None): then a StormError."""
+    if model is None:
+        raise StormError(DETACHED)
+    return model
 
 
 # How Pmax is solved (docs/semantics.md §10). "sound" (the default) is certified: Storm's fast
@@ -306,13 +330,14 @@ def _read_structure(model: object) -> Transitions:
 def explicit(model: object) -> BuiltModel:
     """Storm's model as arrays (engines/engine.py): its structure, read once through the UMB
     export, and its state valuations, read per variable when asked."""
+    model = _attached(model)
     return BuiltModel(n_states=model.nr_states, initial=int(model.initial_states[0]),
                          transitions=read_structure(model),
                          read_variable=functools.partial(_state_variable, model))
 
 
 def _induced_dtmc(checked: StormChecked, choice: np.ndarray) -> object:
-    matrix = checked.model.transition_matrix
+    matrix = _attached(checked.model).transition_matrix
     scheduler = checked.scheduler
     for s in range(checked.model.nr_states):
         local = int(choice[s]) - matrix.get_row_group_start(s)

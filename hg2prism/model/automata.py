@@ -24,6 +24,20 @@ class DFA:
     def read(self, q: int, label: int) -> int:
         return int(self.delta[q, label])
 
+    def __reduce__(self):
+        # Spot's automaton does not pickle (a SWIG object): it travels as its HOA text, which
+        # keeps its state numbers and its propositions' order (a Solution sent to another
+        # process, copy.deepcopy).
+        hoa = None if self.automaton is None else self.automaton.to_str("hoa")
+        return _restored_dfa, (self.formula, self.n_states, self.initial, self.accepting,
+                               self.sink, self.delta, hoa)
+
+
+def _restored_dfa(formula: str, n_states: int, initial: int, accepting: frozenset[int],
+                  sink: frozenset[int], delta: np.ndarray, hoa: str | None) -> DFA:
+    return DFA(formula=formula, n_states=n_states, initial=initial, accepting=accepting,
+               sink=sink, delta=delta, automaton=None if hoa is None else spot.automaton(hoa))
+
 
 def translate(formula: str, label_names: tuple[str, ...],
               occurring: Iterable[int] | None = None) -> DFA:
