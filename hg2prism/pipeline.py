@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import functools
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Callable
@@ -75,7 +75,8 @@ def analyse(world: World) -> Analysis:
         # games (most DFA states; the leader game first among equals) are submitted first, so
         # that the largest does not start last and run alone at the end: on a delayed world
         # the leader game takes half the stage, the others share the second thread meanwhile.
-        pool = ThreadPoolExecutor(max_workers=2)
+        # Small games run one after the other, in this thread (SERIAL_GAMES).
+        pool = ThreadPoolExecutor(max_workers=2) if ts.succ.size >= SERIAL_GAMES else _Inline()
         try:
             jobs = sorted([(task, -1)] + [(dfa, i) for i, dfa in enumerate(hypotheses)],
                           key=lambda job: -job[0].n_states)
@@ -101,6 +102,26 @@ def analyse(world: World) -> Analysis:
         warn_if_not_completable(world, ts, task)
     return Analysis(world, ts, task, games, inference, leader, v_lead,
                     Timings().then(games=games_clock.seconds))
+
+
+# TS tables (state x P1's action x P2's action x outcome) below which the games run in this
+# thread (`_Inline`), not two: on the benchmark's worlds without delay of 13k-114k entries two
+# threads took 5-20% longer than one (their numpy calls too short to release the GIL for
+# long); the delay worlds (from 200k entries) keep two.
+SERIAL_GAMES = 150_000
+
+
+class _Inline:
+    """An executor that runs each job as it is submitted, in the calling thread (a failed job
+    raises at once: the jobs after it never start)."""
+
+    def submit(self, fn: Callable, /, *args: object) -> Future:
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        pass
 
 
 def warn_if_not_completable(world: World, ts: TransitionSystem | None = None,

@@ -184,11 +184,13 @@ def downstream_first(successor: np.ndarray) -> list[list[int]]:
 
 
 def move_predecessors(successor: np.ndarray, probability: np.ndarray,
-                      only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(moves, start) of a game given as outcome tables successor/probability [G, A1, A2, K]:
-    moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat indices into [G, A1, A2],
-    with a positive chance of entering state t, in increasing order; only the moves of the
-    mask `only` [G, A1, A2] (all by default)."""
+                      only: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(moves, start, pairs) of a game given as outcome tables successor/probability
+    [G, A1, A2, K]: moves[start[t]:start[t + 1]] are the moves (g, a1, a2), as flat indices
+    into [G, A1, A2], with a positive chance of entering state t, in increasing order; only the
+    moves of the mask `only` [G, A1, A2] (all by default). pairs[i] is the (g, a2) of moves[i],
+    as a flat index into [G, A2]."""
     outcomes = successor.shape[-1]
     positive = probability > 0
     if only is not None:
@@ -197,7 +199,9 @@ def move_predecessors(successor: np.ndarray, probability: np.ndarray,
     target = successor.reshape(-1)[positive]
     order = stable_order(target, successor.shape[0])
     start = np.r_[0, np.cumsum(np.bincount(target, minlength=successor.shape[0]))]
-    return positive[order] // outcomes, start
+    moves = positive[order] // outcomes
+    n_a1, n_a2 = successor.shape[1:3]
+    return moves, start, moves // (n_a1 * n_a2) * n_a2 + moves % n_a2
 
 
 def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
@@ -214,7 +218,7 @@ def stable_order(keys: np.ndarray, bound: int) -> np.ndarray:
     return order
 
 
-def alternating_attractor(predecessors: tuple[np.ndarray, np.ndarray], shape: tuple[int, int, int],
+def alternating_attractor(predecessors: tuple[np.ndarray, ...], shape: tuple[int, int, int],
                           target: np.ndarray, free: np.ndarray, allowed: np.ndarray,
                           actions: np.ndarray | None = None) -> np.ndarray:
     """The positive attractor of `target` in a turn-based game where the opponent moves first
@@ -226,29 +230,30 @@ def alternating_attractor(predecessors: tuple[np.ndarray, np.ndarray], shape: tu
     The alternating form of `attractor` (there: some, or every, choice of a state), kept apart
     because its quantifiers pair up per a2 and because it runs dozens of times per game on
     products of 10^5 states: breadth-first from the target over the predecessor moves, so each
-    move is looked at once per state that enters, not once per level."""
-    moves, start = predecessors
+    move is looked at once per state that enters, not once per level. A pair (g, a2) is marked
+    once one of its moves enters (or when a2 is not allowed): g enters with all its pairs
+    marked. Few numpy calls a level: on small games the levels' calls are the time."""
+    moves, start, pairs = predecessors
     size, n_a1, n_a2 = shape
-    n_moves = n_a1 * n_a2
     allowed_moves = None if actions is None else actions.reshape(-1)
-    reach = np.zeros(size * n_moves, dtype=bool)     # move reaches the attractor
+    counts = np.diff(start)
+    hit = ~allowed                                   # [G, A2] the pair has a move that enters
+    hit_pairs = hit.reshape(-1)
+    open_ = free & ~target                           # may still enter
     rank = np.where(target, 0, -1)
     frontier = np.flatnonzero(target)
     level = 0
     while frontier.size:
         level += 1
-        lengths = start[frontier + 1] - start[frontier]
-        found = moves[ranges(start[frontier], lengths)]
-        if allowed_moves is not None:
-            found = found[allowed_moves[found]]
-        reach[found] = True
+        at = ranges(start[frontier], counts[frontier])
+        found = pairs[at] if allowed_moves is None else pairs[at[allowed_moves[moves[at]]]]
+        hit_pairs[found] = True
         # sorted distinct states by marking: numpy's hash-based unique is several times slower
         marked = np.zeros(size, dtype=bool)
-        marked[found // n_moves] = True
+        marked[found // n_a2] = True
+        marked &= open_
         candidates = np.flatnonzero(marked)
-        candidates = candidates[free[candidates] & (rank[candidates] < 0)]
-        hit = reach.reshape(size, n_a1, -1)[candidates].any(axis=1)
-        ok = (hit | ~allowed[candidates]).all(axis=1)
-        frontier = candidates[ok]
+        frontier = candidates[hit[candidates].all(axis=1)]
         rank[frontier] = level
+        open_[frontier] = False
     return rank

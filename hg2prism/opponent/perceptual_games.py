@@ -59,6 +59,13 @@ MAX_ROUNDS = 10_000
 # benchmark's one-trap delay worlds (the solves fell from 98-114 to 56-62 on their leader game).
 LOOKAHEAD = 30
 P1_LOOKAHEAD = 30
+# A part of at most this many moves (times outcomes) is known again by its tables, kept and
+# compared in full (SharedParts), a larger one by a digest of them: the tables of a world's
+# small parts take a few MB.
+SHARED_TABLES = 250_000
+# The restricted attractors a game keeps (`TurnBasedGame.positive_attractor`), the last ones
+# asked for (besides the unrestricted one).
+ATTRACTORS_KEPT = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,6 +73,7 @@ class GameSolution:
     """Values of a turn-based reachability game on TS x DFA, with P2 moving first each step."""
 
     values: np.ndarray        # [n_ts, n_q]
+    # (both None where only the values were asked for: `_solve`'s `strategies`)
     p2_strategy: np.ndarray   # [n_ts * n_q] P2's action at each game state (docs/semantics.md §4's rule)
     p1_strategy: np.ndarray   # [n_ts * n_q, n_sets] P1's optimal answer to each trap set
     sweeps: int
@@ -101,10 +109,12 @@ class TurnBasedGame:
         self.free = arena.free
         self.terminal = arena.goal.astype(float)      # the value of each absorbing state
         self.size = arena.size
-        self._reverse: tuple[np.ndarray, np.ndarray] | None = None
+        self._reverse: tuple[np.ndarray, ...] | None = None
         standing = _standing_sets(ts)
         self.standing = None if standing is None else np.repeat(standing, n_q)
         self._pairs: tuple[np.ndarray, ...] | None = None
+        self._attractors: list[tuple[np.ndarray, np.ndarray]] = []
+        self._unrestricted: np.ndarray | None = None
 
     def restricted(self, states: np.ndarray, values: np.ndarray) -> TurnBasedGame:
         """The game on `states` (free states, increasing) alone, in local numbers: those
@@ -144,7 +154,7 @@ class TurnBasedGame:
         sub.size = n
         sub.standing = (None if self.standing is None
                         else np.r_[self.standing[states], np.full(m, -1)])
-        sub._reverse, sub._pairs = None, None
+        sub._reverse, sub._pairs, sub._attractors, sub._unrestricted = None, None, [], None
         return sub
 
     def signature(self) -> bytes:
@@ -157,6 +167,18 @@ class TurnBasedGame:
             digest.update(repr((table.dtype.str, table.shape)).encode())
             digest.update(np.ascontiguousarray(table).data)
         return digest.digest()
+
+    def share_key(self) -> tuple[bytes, tuple[np.ndarray, ...] | None]:
+        """(key, tables): how `SharedParts` knows a `restricted` game again. A small one's key
+        says what `signature` hashes but its tables (its free states' moves, probabilities and
+        P2's sets), which are kept and compared in full: hashing them took longer than solving
+        the part on small worlds. A large one's key is its `signature`, tables None."""
+        k = int(self.free.sum())
+        if self.next[:k].size > SHARED_TABLES:
+            return b"digest " + self.signature(), None
+        tables = (self.next[:k], self.prob[:k], self.allowed[:k])
+        key = repr([(table.dtype.str, table.shape) for table in tables + (self.terminal[k:],)])
+        return b"tables " + key.encode() + self.terminal[k:].tobytes(), tables
 
     def parts(self) -> list[np.ndarray]:
         """The free states by strongly connected set C of DFA states (those of TS x C), in
@@ -242,7 +264,7 @@ class TurnBasedGame:
         """min over allowed a2 of max over a1."""
         return np.where(self.allowed, best_answer(q), np.inf).min(axis=1)
 
-    def _predecessors(self) -> tuple[np.ndarray, np.ndarray]:
+    def _predecessors(self) -> tuple[np.ndarray, ...]:
         """The moves (g, a1, a2) entering each game state (numeric.move_predecessors), once."""
         if self._reverse is None:
             # The attractor enters only free states and reads only P2's allowed sets there
@@ -258,9 +280,25 @@ class TurnBasedGame:
     def positive_attractor(self, actions: np.ndarray | None = None) -> np.ndarray:
         """Rank of each state in P1's attractor for reaching the goal with positive probability
         (P2 picks a2 first); -1 outside. `actions` [G, A1, A2] restricts P1's moves
-        (numeric.alternating_attractor)."""
-        return alternating_attractor(self._predecessors(), self.next.shape[:3], self.goal,
+        (numeric.alternating_attractor). The ranks of the last few masks are kept (read-only):
+        the solver asks again for one it just had (P1's greedy answers of a polishing round
+        and of the certificate after it, every move near-optimal and no restriction at all)."""
+        if actions is not None and actions.all():
+            actions = None              # every move allowed: the unrestricted ranks
+        if actions is None and self._unrestricted is not None:
+            return self._unrestricted
+        if actions is not None:
+            for known, rank in self._attractors:
+                if np.array_equal(known, actions):
+                    return rank
+        rank = alternating_attractor(self._predecessors(), self.next.shape[:3], self.goal,
                                      self.free, self.allowed, actions)
+        rank.flags.writeable = False
+        if actions is None:
+            self._unrestricted = rank
+        else:
+            self._attractors = self._attractors[1 - ATTRACTORS_KEPT:] + [(actions, rank)]
+        return rank
 
 
 def best_answer(q: np.ndarray) -> np.ndarray:
@@ -277,7 +315,7 @@ def _standing_sets(ts: TransitionSystem) -> np.ndarray | None:
 
 
 class SharedParts:
-    """The parts of games already solved for one world, by `TurnBasedGame.signature`, for the
+    """The parts of games already solved for one world, by `TurnBasedGame.share_key`, for the
     games of that world to share: the task's DFA and the hypotheses' often have a part that is
     the same game (on the benchmark's worlds, "!obs U A" is a hypothesis and what is left of
     the task once C is reached). Thread-safe: a game that needs a part another thread is
@@ -285,17 +323,22 @@ class SharedParts:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._parts: dict[bytes, Future] = {}
+        # by `TurnBasedGame.share_key`: the parts of that key, their tables (None: the key is
+        # the digest) and their values
+        self._parts: dict[bytes, list[tuple[tuple[np.ndarray, ...] | None, Future]]] = {}
 
     def solved(self, part: TurnBasedGame) -> tuple[np.ndarray, int]:
         """(values, sweeps) of `_solve_whole(part)`, solved once (the sweeps 0 where the part
         was solved for another game)."""
-        key = part.signature()
+        key, tables = part.share_key()
         with self._lock:
-            future = self._parts.get(key)
+            known = self._parts.setdefault(key, [])
+            future = next((done for kept, done in known
+                           if kept is None or all(map(np.array_equal, kept, tables))), None)
             mine = future is None
             if mine:
-                future = self._parts[key] = Future()
+                future = Future()
+                known.append((tables, future))
         if mine:
             try:
                 values, _, _, sweeps = _solve_whole(part)
@@ -313,14 +356,20 @@ def solve_game(ts: TransitionSystem, dfa: DFA, shared: SharedParts | None = None
 
 
 def _solve(game: TurnBasedGame, shared: SharedParts | None = None,
-           tie_break: str = "first") -> GameSolution:
+           tie_break: str = "first", strategies: bool = True) -> GameSolution:
     """The game's values and strategies. The free states are solved one part at a time
     (`TurnBasedGame.parts`: one per strongly connected set of DFA states), downstream first,
     each on its own with the values of what it can enter fixed (on delay worlds a part is a
     third to a fifth of the game, and its linear solves several times cheaper; a game of one
     part leaves out its absorbing states, two thirds of its tables), and each once per world
     when `shared` is given; the composed values are then certified on the whole game (module
-    docstring), which falls back to solving it whole should that fail."""
+    docstring), which falls back to solving it whole should that fail.
+
+    Without `strategies` (P2's perceptual games keep the values alone; the strategies None) a
+    game of one part takes its part's values as they are: the part was certified, and on the
+    whole game the same certificate would pass, on the same numbers (its free states are the
+    part's, with the same moves, one-step values, residuals and attractor ranks; the absorbing
+    states they enter are the part's exits, of the same values)."""
     parts = game.parts()
     certified = None
     if parts:
@@ -333,6 +382,9 @@ def _solve(game: TurnBasedGame, shared: SharedParts | None = None,
                 values, used = shared.solved(part)
             x[states] = values[:states.size]
             sweeps += used
+        if not strategies and len(parts) == 1:
+            return GameSolution(values=x.reshape(game.ts.n_states, game.dfa.n_states),
+                                p2_strategy=None, p1_strategy=None, sweeps=sweeps)
         certified = _finish(game, x, game.allowed_q(x), tie_break)
     if certified is None:
         certified = _solve_whole(game, tie_break)
@@ -407,8 +459,9 @@ def _finish(game: TurnBasedGame, x: np.ndarray, q: np.ndarray, tie_break: str = 
     if _residual(game, x, q) > 1e-11:
         return None
     # From exact values of a pair, only float noise separates truly optimal moves.
-    p1_x, _ = _greedy(game, q, 1e-12)
-    if not is_certified(game, p1_x, x):
+    p1_x, _, rank = _greedy_ranked(game, q, 1e-12)
+    # is_certified(game, p1_x, x), from the attractor of the same states when there is one
+    if not (is_certified(game, p1_x, x) if rank is None else _zero_outside(rank, x)):
         return None
     worst = np.where(game.allowed, best_answer(q), np.inf)
     return x, p1_x, trap_rule(worst, game.standing, tie_break)
@@ -551,6 +604,17 @@ class _SegmentArgmin:
 def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[np.ndarray, np.ndarray]:
     """P1's answer to every trap set and P2's trap set (exactly greedy: strategy iteration
     needs it), greedy for values v whose one-step values are q = game.q_values(v) [G, A1, A2]."""
+    return _greedy_ranked(game, q, optimal_slack)[:2]
+
+
+def _greedy_ranked(game: TurnBasedGame, q: np.ndarray, optimal_slack: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """`_greedy`'s (p1, p2) and the ranks of the attractor of P1's near-optimal moves it used,
+    when P1's answers are all among those moves (else None): then that attractor holds the
+    same states as the attractor of P1's answers alone (`is_certified`'s). It holds no fewer
+    (his answers are among the moves) and no more: at each of its states, of rank r > 0, and
+    each of P2's sets, some near-optimal move enters rank < r with positive probability, so
+    the near-optimal move he answers with, the one most likely to, does too."""
     best_a1 = best_answer(q)                                          # [G, A2]
     p2 = np.where(game.allowed, best_a1, np.inf).argmin(axis=1)
     # P1: among (near-)optimal answers, one that makes progress toward the goal, so that P1
@@ -569,7 +633,8 @@ def _greedy(game: TurnBasedGame, q: np.ndarray, optimal_slack: float) -> tuple[n
     closer = np.where(optimal.reshape(-1)[flat], gain, -1.0)
     p1 = np.zeros(p2.shape + (game.next.shape[2],), dtype=np.intp)
     p1.reshape(-1)[np.flatnonzero(game.allowed)] = closer.argmax(axis=-1).reshape(-1)
-    return p1, p2
+    # closer is -1 exactly at the moves that are not near-optimal (a gain is >= 0)
+    return p1, p2, (rank if (closer >= 0).any(axis=-1).all() else None)
 
 
 def trap_rule(worst: np.ndarray, standing: np.ndarray | None, tie_break: str = "first"
@@ -618,8 +683,12 @@ def is_certified(game: TurnBasedGame, p1: np.ndarray, x: np.ndarray) -> bool:
     """x is 0 wherever P2, against P1's answers p1, can avoid the goal forever: outside the
     positive attractor of the goal when P1 answers each a2 with p1[g, a2]."""
     answers = p1[:, None, :] == np.arange(game.next.shape[1])[None, :, None]   # [G, A1, A2]
-    avoid = game.positive_attractor(answers) < 0
-    return bool((x[avoid] <= 1e-12).all())
+    return _zero_outside(game.positive_attractor(answers), x)
+
+
+def _zero_outside(rank: np.ndarray, x: np.ndarray) -> bool:
+    """x is 0 (to 1e-12) outside the attractor of ranks `rank`."""
+    return bool((x[rank < 0] <= 1e-12).all())
 
 
 def fastest_answers(ts: TransitionSystem, dfa: DFA, solution: GameSolution,
@@ -677,7 +746,7 @@ def perceptual_game(ts: TransitionSystem, dfa: DFA, rationality: float,
     the parts solved for the world's other games (`SharedParts`); `tie_break`: which of the
     tied sets P2 takes (`trap_rule`: [adversary] tie_break)."""
     game = TurnBasedGame(ts, dfa)
-    solution = _solve(game, shared, tie_break)
+    solution = _solve(game, shared, tie_break, strategies=False)
     label = ts.state_label()
     fresh_q = dfa.delta[dfa.initial, label]                           # [S]
     flat = solution.values.reshape(-1)
