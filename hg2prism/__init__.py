@@ -27,9 +27,9 @@ docs/semantics.md.
 
 from typing import TYPE_CHECKING, Any
 
-from hg2prism.reproducible import pin_blas_kernels
+from hg2prism.reproducible import pin_kernels
 
-pin_blas_kernels()     # before anything imports numpy: the same last bits on every x86-64 machine
+pin_kernels()      # before anything imports numpy: the same last bits on every x86-64 machine
 
 __version__ = "0.1.0"
 

@@ -1,16 +1,21 @@
-"""The same numbers, to the last bit, on every x86-64 machine with AVX2.
+"""The same numbers, to the last bit, on every Linux x86-64 machine with AVX2.
 
-numpy and scipy ship OpenBLAS built for many processors, which picks its kernels by the
-processor it runs on. SciPy's sparse LU (SuperLU, the exact solves of P2's games and of the
-certified strategies) calls those kernels, and the kernels for AVX-512 add up in another order
-than those for AVX2: on a Xeon with AVX-512 the games' values differed from an AMD EPYC's in
-their last bits, and so did every number computed from them (the log-likelihood ratios written
-into hypergame.prism, the CUSUM scores, the Pmax values' last digits). Pinning OpenBLAS to its
-Haswell kernels (AVX2 and FMA, which every x86-64 processor since 2013 has) gives every such
-machine the same bits. OpenBLAS reads the choice when it loads, that is when numpy is first
-imported, so `import hg2prism` sets it before importing numpy; a process that imported numpy
-before hg2prism (or that sets OPENBLAS_CORETYPE itself, which is respected) keeps its own
-kernels, and its last bits may differ (docs/cli.md, "Reproducible numbers").
+Two libraries pick their code by the processor they run on, and both decide last bits here:
+- the OpenBLAS that numpy's and scipy's wheels bring: SciPy's sparse LU (SuperLU: the exact
+  solves of P2's games and of the certified strategies) calls its kernels, and the kernels for
+  AVX-512 add up in another order than those for AVX2. On a Xeon with AVX-512 the games'
+  values differed from an AMD EPYC's in their last bits, and some of P2's and P1's ties then
+  went the other way (other strategies in a delayed world's games, other explorer pages);
+- numpy's own SIMD loops: its exp and log for AVX-512 differ from AVX2's in the last bit
+  (the log-likelihood ratios written into hypergame.prism).
+So `import hg2prism`, before numpy is imported, pins OpenBLAS to its Haswell kernels (AVX2 and
+FMA, which every x86-64 processor since 2013-2015 has) and, on a processor with AVX-512, keeps
+numpy to its AVX2 loops: every such machine then computes the same bits (on an AVX-512 Xeon,
+byte for byte what an AVX2-only EPYC wrote). OpenBLAS and numpy read the choice when they load,
+so it is too late once numpy is imported: a process that imported numpy before hg2prism keeps
+its own code, and so do the processes it starts. A variable the user set is kept, and
+HG2PRISM_KERNELS=native leaves both libraries to their own choice (faster dense linear algebra
+on AVX-512, other last bits). docs/cli.md, "Reproducible numbers".
 """
 
 from __future__ import annotations
@@ -21,6 +26,10 @@ import sys
 
 KERNEL = "Haswell"       # OpenBLAS's AVX2 + FMA kernels
 NEEDS = {"avx2", "fma"}  # the processor flags they use (else they would stop the process)
+# numpy's dispatch groups above AVX2 (numpy 2.4's names; older releases name them otherwise
+# and are left alone): NPY_DISABLE_CPU_FEATURES turns them off
+NUMPY_AVX512 = "X86_V4 AVX512_ICL AVX512_SPR"
+OPT_OUT = "HG2PRISM_KERNELS"     # "native": no pinning
 
 
 def _cpu_flags() -> set[str]:
@@ -35,21 +44,49 @@ def _cpu_flags() -> set[str]:
     return set()
 
 
-def pin_blas_kernels() -> None:
-    """Set OPENBLAS_CORETYPE to the Haswell kernels where they can run, before numpy loads
-    OpenBLAS; not where the user set it, and not where numpy or scipy is loaded already (too
-    late for this process, and the processes it starts, Dask's workers say, must use the
-    kernels it uses)."""
-    if "OPENBLAS_CORETYPE" in os.environ or _loaded():
+def _numpy_at_least(major: int, minor: int) -> bool:
+    import importlib.metadata
+
+    try:
+        parts = importlib.metadata.version("numpy").split(".")[:2]
+        return (int(parts[0]), int(parts[1])) >= (major, minor)
+    except (importlib.metadata.PackageNotFoundError, ValueError, IndexError):
+        return False
+
+
+def pin_kernels() -> None:
+    """Pin OpenBLAS to its Haswell kernels and numpy to its AVX2 loops where they can run,
+    before numpy loads: not where the user set either variable or HG2PRISM_KERNELS=native,
+    and not once numpy or scipy is loaded (too late for this process, and the processes it
+    starts, Dask's workers say, must compute as it does)."""
+    if os.environ.get(OPT_OUT, "").lower() == "native" or _loaded():
         return
-    if platform.machine().lower() in ("x86_64", "amd64") and NEEDS <= _cpu_flags():
-        os.environ["OPENBLAS_CORETYPE"] = KERNEL
+    if platform.machine().lower() not in ("x86_64", "amd64"):
+        return
+    flags = _cpu_flags()
+    if not NEEDS <= flags:
+        return
+    os.environ.setdefault("OPENBLAS_CORETYPE", KERNEL)
+    if "avx512f" in flags and _numpy_at_least(2, 4):
+        os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", NUMPY_AVX512)
 
 
-def blas_kernels() -> str:
-    """OpenBLAS's kernels in use, as results.json's `software` records them: the name the
-    OpenBLAS of numpy's and scipy's wheels reports ("Haswell"; "numpy SkylakeX, scipy Haswell"
-    where they differ), "unknown" where they have none (another BLAS)."""
+def kernels() -> dict[str, str]:
+    """What results.json's `software` records of the code that decides the last bits:
+    `blas_kernels`, the name the OpenBLAS of numpy's and scipy's wheels reports ("Haswell";
+    "numpy SkylakeX, scipy Haswell" where they differ; "unknown" for another BLAS), and
+    `numpy_simd`, numpy's dispatch groups in use ("X86_V3": AVX2)."""
+    import numpy
+
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+        simd = " ".join(f for f in __cpu_dispatch__ if __cpu_features__.get(f)) or "baseline"
+    except ImportError:
+        simd = "unknown"
+    return {"blas_kernels": _blas_kernels(numpy), "numpy_simd": simd}
+
+
+def _blas_kernels(numpy) -> str:
     import ctypes
     import glob
     import importlib
@@ -57,8 +94,9 @@ def blas_kernels() -> str:
     names = {}
     for package, symbol in (("numpy", "scipy_openblas_get_corename64_"),
                             ("scipy", "scipy_openblas_get_corename")):
-        libraries = os.path.dirname(importlib.import_module(package).__file__) + ".libs"
-        for path in glob.glob(os.path.join(libraries, "libscipy_openblas*.so*")):
+        root = os.path.dirname(importlib.import_module(package).__file__)
+        for path in (glob.glob(os.path.join(root + ".libs", "*openblas*"))
+                     + glob.glob(os.path.join(root, ".dylibs", "*openblas*"))):
             try:
                 get = getattr(ctypes.CDLL(path), symbol)
             except (OSError, AttributeError):

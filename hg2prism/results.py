@@ -74,7 +74,7 @@ def _libraries() -> dict[str, str]:
     import subprocess
 
     from hg2prism import __version__
-    from hg2prism.reproducible import blas_kernels
+    from hg2prism.reproducible import kernels
 
     found = {"hg2prism": __version__}
     root = Path(__file__).resolve().parent.parent
@@ -90,7 +90,7 @@ def _libraries() -> dict[str, str]:
     found["python"] = platform.python_version()
     for package in ("numpy", "scipy"):
         found[package] = importlib.metadata.version(package)
-    found["blas_kernels"] = blas_kernels()        # the last bits depend on them (reproducible.py)
+    found.update(kernels())        # the code the last bits depend on (reproducible.py)
     try:
         import spot
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from hg2prism.reproducible import pin_blas_kernels
+from hg2prism.reproducible import pin_kernels
 
-pin_blas_kernels()    # before any test imports numpy (importing hg2prism does it too)
+pin_kernels()    # before any test imports numpy (importing hg2prism does it too)
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -9,8 +9,9 @@ the world file and of the output folder (written into headers and results.json).
 
 tests/snapshots/outputs.json holds the digests the code produced when the snapshot was taken;
 tests/test_snapshot.py compares a fresh run with it. On a machine whose floating-point code
-differs (numpy picks its SIMD kernels for the CPU at run time: exp and log with AVX-512 differ
-from AVX2's in the last bit, and so did world1's inference tables in hypergame.prism), the
+differs (numpy and OpenBLAS pick their kernels for the CPU at run time: exp and log with AVX-512
+differ from AVX2's in the last bit, and so did world1's inference tables in hypergame.prism;
+`import hg2prism` pins both on x86-64 processors with AVX2, hg2prism/reproducible.py), the
 exact digests cannot match; there the text files are compared with every number rounded to 6
 and, failing that, to 8 significant digits (a number at a rounding boundary of one precision
 is not at the other's), so that the snapshot still sees any change of structure or strategy,
@@ -86,12 +87,13 @@ def _mask_json(value: object) -> object:
 
 
 def machine() -> str:
-    """What decides the last bits of the numbers computed here: the processor's architecture
-    and the SIMD extensions numpy dispatches to on it."""
-    from numpy._core._multiarray_umath import __cpu_features__
+    """What decides the last bits of the numbers computed here: the processor's architecture,
+    the SIMD groups numpy dispatches to and OpenBLAS's kernels (hg2prism/reproducible.py pins
+    the last two on x86-64 processors with AVX2: "x86_64:X86_V3:Haswell" on all of them)."""
+    from hg2prism.reproducible import kernels
 
-    found = sorted(name for name, present in __cpu_features__.items() if present)
-    return platform.machine() + ":" + hashlib.sha256(" ".join(found).encode()).hexdigest()[:16]
+    found = kernels()
+    return f"{platform.machine()}:{found['numpy_simd']}:{found['blas_kernels']}"
 
 
 # a number with a fraction or an exponent (not an integer: counts, indices and names stay)

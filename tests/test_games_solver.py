@@ -70,6 +70,15 @@ def test_attractor_ranks_match_the_level_by_level_search(games: list[TurnBasedGa
         for _ in range(3):
             actions = rng.random((game.size, 4, game.ts.n_sets)) < 0.5
             assert (game.positive_attractor(actions) == level_by_level_attractor(game, actions)).all()
+        # the game keeps the last masks' ranks (read-only): a mask its caller changes after
+        # asking is another mask, and every move allowed is no restriction
+        actions = rng.random((game.size, 4, game.ts.n_sets)) < 0.5
+        kept = game.positive_attractor(actions)
+        assert not kept.flags.writeable
+        actions[:] = rng.random(actions.shape) < 0.3
+        assert (game.positive_attractor(actions) == level_by_level_attractor(game, actions)).all()
+        actions[:] = True
+        assert (game.positive_attractor(actions) == level_by_level_attractor(game, None)).all()
 
 
 def test_moves_index_the_tables_like_three_index_arrays(games: list[TurnBasedGame]) -> None:

@@ -16,8 +16,9 @@
   0s and 1s (bound 0, a start in the goal, no path within the bound, a goal reached surely);
 * the lexicographic objective (strategy/objectives.py, built on the attractor) on random MDPs
   against its definition in plain Python: finite states, expected steps and moves;
-* OpenBLAS's kernels (hg2prism/reproducible.py): importing hg2prism first pins them, so that
-  SciPy's sparse LU gives the same last bits on every x86-64 machine with AVX2.
+* OpenBLAS's kernels and numpy's SIMD loops (hg2prism/reproducible.py): importing hg2prism
+  first pins them to their AVX2 code, so that SciPy's sparse LU and numpy's exp and log give
+  the same last bits on every x86-64 machine with AVX2.
 """
 
 from __future__ import annotations
@@ -856,41 +857,52 @@ def test_the_lexicographic_objective_says_when_its_policy_iteration_stopped_earl
         assert any(said in r.getMessage() for r in caplog.records) == warned
 
 
+
 # ---------------------------------------------------------------------------------------------
 # The same last bits on every x86-64 machine with AVX2 (hg2prism/reproducible.py)
 # ---------------------------------------------------------------------------------------------
 
-_KERNELS = ("import {first}, numpy, scipy.sparse.linalg, os\n"
-            "from hg2prism.reproducible import blas_kernels\n"
-            "print(blas_kernels(), os.environ.get('OPENBLAS_CORETYPE'))")
+_KERNELS = ("import {first}, scipy.sparse.linalg, os\n"
+            "from hg2prism.reproducible import kernels\n"
+            "print(repr((kernels(), os.environ.get('OPENBLAS_CORETYPE'), "
+            "os.environ.get('NPY_DISABLE_CPU_FEATURES'))))")
+_PINNED = ("OPENBLAS_CORETYPE", "NPY_DISABLE_CPU_FEATURES", "HG2PRISM_KERNELS")
 
 
-def _kernels_in_a_new_process(first: str, **env: str) -> list[str]:
+def _kernels_in_a_new_process(first: str, **env: str) -> tuple:
+    import ast
     import os
     import subprocess
     import sys
 
-    environment = {k: v for k, v in os.environ.items() if k != "OPENBLAS_CORETYPE"} | env
+    environment = {k: v for k, v in os.environ.items() if k not in _PINNED} | env
     done = subprocess.run([sys.executable, "-c", _KERNELS.format(first=first)], env=environment,
                           capture_output=True, text=True, timeout=120, check=True)
-    return done.stdout.split()
+    return ast.literal_eval(done.stdout.strip())
 
 
-def test_importing_hg2prism_first_pins_openblas_to_the_haswell_kernels() -> None:
+def test_importing_hg2prism_first_pins_openblas_and_numpy_to_their_avx2_code() -> None:
     """SciPy's sparse LU (the games' exact solves) calls OpenBLAS, whose AVX-512 kernels gave
-    other last bits than an AVX2 machine's (the snapshot test failed on a Xeon): importing
-    hg2prism before numpy pins numpy's and scipy's OpenBLAS to the Haswell kernels where the
-    processor has AVX2 and FMA, as OpenBLAS itself then reports; a kernel the user chose is
-    kept, and numpy imported first keeps OpenBLAS's own choice (not pinned for the processes
-    it starts either)."""
+    other last bits than an AVX2 machine's (other ties, other strategies: the snapshot test
+    failed on a Xeon), and numpy's AVX-512 exp and log other log-likelihood ratios: importing
+    hg2prism before numpy pins OpenBLAS to its Haswell kernels, as OpenBLAS itself then
+    reports, and numpy to its AVX2 loops (X86_V3). A variable the user set is kept,
+    HG2PRISM_KERNELS=native pins nothing, and numpy imported first keeps its own code (and
+    does not pin the processes it starts either)."""
     import platform
 
     from hg2prism.reproducible import NEEDS, _cpu_flags
 
     if platform.machine() != "x86_64" or not NEEDS <= _cpu_flags():
-        pytest.skip("not an x86-64 processor with AVX2 and FMA: OpenBLAS keeps its own kernels")
-    assert _kernels_in_a_new_process("hg2prism") == ["Haswell", "Haswell"]
-    assert _kernels_in_a_new_process("hg2prism", OPENBLAS_CORETYPE="Sandybridge") == [
-        "Sandybridge", "Sandybridge"]
-    kernel, variable = _kernels_in_a_new_process("numpy, hg2prism")
-    assert variable == "None" and kernel != "unknown"
+        pytest.skip("not an x86-64 processor with AVX2 and FMA: nothing is pinned")
+    avx512 = "avx512f" in _cpu_flags()
+    pinned, blas, simd = _kernels_in_a_new_process("hg2prism")
+    assert pinned == {"blas_kernels": "Haswell", "numpy_simd": "X86_V3"}
+    assert blas == "Haswell" and (simd == "X86_V4 AVX512_ICL AVX512_SPR") == avx512
+    chosen, blas, _ = _kernels_in_a_new_process("hg2prism", OPENBLAS_CORETYPE="Sandybridge")
+    assert chosen["blas_kernels"] == blas == "Sandybridge" and chosen["numpy_simd"] == "X86_V3"
+    for first, env in (("numpy, hg2prism", {}), ("hg2prism", {"HG2PRISM_KERNELS": "native"})):
+        native, blas, simd = _kernels_in_a_new_process(first, **env)
+        assert blas is None and simd is None, first
+        assert native["blas_kernels"] != "unknown"
+        assert ("X86_V4" in native["numpy_simd"]) == avx512, native

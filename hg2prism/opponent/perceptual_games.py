@@ -297,7 +297,8 @@ class TurnBasedGame:
         if actions is None:
             self._unrestricted = rank
         else:
-            self._attractors = self._attractors[1 - ATTRACTORS_KEPT:] + [(actions, rank)]
+            # a copy of the mask: a caller may change its own afterwards
+            self._attractors = self._attractors[1 - ATTRACTORS_KEPT:] + [(actions.copy(), rank)]
         return rank
 
 
